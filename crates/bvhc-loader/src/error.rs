@@ -1,0 +1,169 @@
+//! Errors of the loader: a broken validity rule (numbered as in `format-spec/bvh-1.md`), or a host problem.
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
+///
+/// V1-V10 are structural and checked by every open; V11-V23 are checked by [`crate::BvhView::verify`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Rule {
+    /// V1: at least 64 bytes, starting with the magic.
+    Magic,
+    /// V2: major version 1.
+    MajorVersion,
+    /// V3: `file_byte_len` equals the real length.
+    FileByteLen,
+    /// V4: the section table has a valid entry size and lies within the file.
+    SectionTable,
+    /// V5: sections are 64-byte aligned, inside the file, after the table, ascending and disjoint.
+    SectionPlacement,
+    /// V6: `section_byte_len == element_count * element_byte_len`, `element_byte_len >= 1`.
+    SectionSize,
+    /// V7: no unknown section kind is marked required.
+    UnknownRequiredSection,
+    /// V8: each known kind at most once; nodes and triangles exactly once.
+    SectionMultiplicity,
+    /// V9: known kinds have their element size and flags.
+    SectionKindLayout,
+    /// V10: element counts agree with each other and fit in u32.
+    Counts,
+    /// V11: the header checksum matches.
+    HeaderChecksum,
+    /// V12: every section checksum matches.
+    SectionChecksum,
+    /// V13: reserved fields and padding bytes are zero.
+    ReservedZero,
+    /// V14: inner nodes reference child pairs after themselves; every node but the root has exactly one parent.
+    TreeShape,
+    /// V15: leaves, in depth-first order, cover the triangles section consecutively and exactly.
+    LeafPartition,
+    /// V16: node boxes are finite with min <= max.
+    NodeBox,
+    /// V17: child boxes lie inside their parent's box.
+    ChildInParent,
+    /// V18: triangle vertices are finite.
+    TriangleFinite,
+    /// V19: a leaf's triangles lie inside its box.
+    TriangleInLeaf,
+    /// V20: no node deeper than `MAX_DEPTH`.
+    Depth,
+    /// V21: source ranges are non-empty, ascending, disjoint and do not overflow.
+    SourceTable,
+    /// V22: with a source table, every triangle id lies in one of its ranges.
+    TriangleIdRange,
+    /// V23: metadata is UTF-8 text holding one JSON object.
+    Metadata,
+}
+
+impl Rule {
+    /// Every rule, in spec order.
+    pub const ALL: [Rule; 23] = [
+        Rule::Magic,
+        Rule::MajorVersion,
+        Rule::FileByteLen,
+        Rule::SectionTable,
+        Rule::SectionPlacement,
+        Rule::SectionSize,
+        Rule::UnknownRequiredSection,
+        Rule::SectionMultiplicity,
+        Rule::SectionKindLayout,
+        Rule::Counts,
+        Rule::HeaderChecksum,
+        Rule::SectionChecksum,
+        Rule::ReservedZero,
+        Rule::TreeShape,
+        Rule::LeafPartition,
+        Rule::NodeBox,
+        Rule::ChildInParent,
+        Rule::TriangleFinite,
+        Rule::TriangleInLeaf,
+        Rule::Depth,
+        Rule::SourceTable,
+        Rule::TriangleIdRange,
+        Rule::Metadata,
+    ];
+
+    /// The rule's number in the spec (1 for V1).
+    pub fn number(self) -> u32 {
+        Rule::ALL.iter().position(|&r| r == self).map_or(0, |i| i as u32 + 1)
+    }
+
+    /// Whether every open checks this rule (V1-V10), rather than only [`crate::BvhView::verify`].
+    pub fn is_structural(self) -> bool {
+        self.number() <= 10
+    }
+}
+
+impl fmt::Display for Rule {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "V{}", self.number())
+    }
+}
+
+/// A broken validity rule and where it broke.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Violation {
+    /// The rule.
+    pub rule: Rule,
+    /// Where and how, e.g. `node 1234: child 98765 out of range (node_count 5000)`.
+    pub detail: String,
+}
+
+impl fmt::Display for Violation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.rule, self.detail)
+    }
+}
+
+impl std::error::Error for Violation {}
+
+/// Everything that can go wrong when opening, verifying or writing a `.bvh` file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The bytes break a validity rule.
+    #[error("invalid .bvh file: {0}")]
+    Invalid(#[from] Violation),
+    /// The byte buffer does not start at a 4-byte-aligned address, so sections cannot be viewed in place.
+    #[error(
+        "the byte buffer starts at address {address:#x}, which is not 4-byte aligned; \
+         copy it with BvhFile::from_bytes or align it"
+    )]
+    Misaligned {
+        /// The buffer's address.
+        address: usize,
+    },
+    /// The host is big-endian: the file's little-endian arrays cannot be viewed in place.
+    #[error(
+        "this host is big-endian; .bvh files are little-endian and are only viewed in place on little-endian hosts"
+    )]
+    BigEndianHost,
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The data handed to the writer cannot be stored (too many elements for u32 indices, and similar).
+    #[error("cannot write .bvh file: {0}")]
+    Unwritable(String),
+}
+
+impl Error {
+    /// The broken rule, if this error is one.
+    pub fn rule(&self) -> Option<Rule> {
+        match self {
+            Error::Invalid(v) => Some(v.rule),
+            _ => None,
+        }
+    }
+}
+
+/// Shorthand for a rule violation.
+pub(crate) fn violation(rule: Rule, detail: impl Into<String>) -> Violation {
+    Violation { rule, detail: detail.into() }
+}

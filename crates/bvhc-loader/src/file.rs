@@ -1,0 +1,134 @@
+//! Owners of a `.bvh` file's bytes: [`BvhFile`] (an aligned heap buffer, safe) and [`MappedBvh`] (a memory
+//! map, `unsafe` to open). Both were opened once (rules V1-V10) and hand out [`BvhView`]s at no cost.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+use memmap2::Mmap;
+
+use crate::error::Error;
+use crate::view::BvhView;
+
+/// 64 bytes aligned to 64, the unit of [`AlignedBuffer`].
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Block([u8; 64]);
+
+/// A heap buffer whose first byte is 64-byte aligned, as the sections' offsets assume.
+pub(crate) struct AlignedBuffer {
+    blocks: Vec<Block>,
+    byte_len: usize,
+}
+
+impl AlignedBuffer {
+    /// `byte_len` zero bytes.
+    pub(crate) fn zeroed(byte_len: usize) -> AlignedBuffer {
+        AlignedBuffer { blocks: bytemuck::zeroed_vec(byte_len.div_ceil(64)), byte_len }
+    }
+
+    pub(crate) fn as_bytes(&self) -> &[u8] {
+        &bytemuck::cast_slice(&self.blocks)[..self.byte_len]
+    }
+
+    pub(crate) fn as_bytes_mut(&mut self) -> &mut [u8] {
+        &mut bytemuck::cast_slice_mut(&mut self.blocks)[..self.byte_len]
+    }
+}
+
+/// A `.bvh` file in an owned, 64-byte-aligned buffer. Safe: nothing else can change the bytes.
+pub struct BvhFile {
+    buffer: AlignedBuffer,
+}
+
+impl BvhFile {
+    /// Copies `bytes` into an aligned buffer and opens it (rules V1-V10). Use for `include_bytes!` data or any
+    /// buffer of unknown alignment.
+    pub fn from_bytes(bytes: &[u8]) -> Result<BvhFile, Error> {
+        let mut buffer = AlignedBuffer::zeroed(bytes.len());
+        buffer.as_bytes_mut().copy_from_slice(bytes);
+        BvhFile::from_buffer(buffer)
+    }
+
+    /// Reads the file at `path` into an aligned buffer and opens it (rules V1-V10).
+    pub fn read(path: &Path) -> Result<BvhFile, Error> {
+        let io = |source| Error::Io { path: path.to_path_buf(), source };
+        let mut file = File::open(path).map_err(io)?;
+        let byte_len = file.metadata().map_err(io)?.len();
+        let byte_len = usize::try_from(byte_len)
+            .map_err(|_| io(std::io::Error::new(std::io::ErrorKind::OutOfMemory, "file too large for memory")))?;
+        let mut buffer = AlignedBuffer::zeroed(byte_len);
+        file.read_exact(buffer.as_bytes_mut()).map_err(io)?;
+        BvhFile::from_buffer(buffer)
+    }
+
+    pub(crate) fn from_buffer(buffer: AlignedBuffer) -> Result<BvhFile, Error> {
+        BvhView::open(buffer.as_bytes())?;
+        Ok(BvhFile { buffer })
+    }
+
+    /// The file's bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        self.buffer.as_bytes()
+    }
+
+    /// A view of the file (O(number of sections)).
+    #[allow(unsafe_code)]
+    pub fn view(&self) -> BvhView<'_> {
+        // SAFETY: `from_buffer` opened these bytes with `BvhView::open`, and `buffer` is private and never
+        // changed afterwards, so they are still bytes that `open` accepts.
+        unsafe { BvhView::open_unchecked(self.buffer.as_bytes()) }
+    }
+}
+
+impl std::fmt::Debug for BvhFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BvhFile").field("byte_len", &self.as_bytes().len()).finish_non_exhaustive()
+    }
+}
+
+impl std::fmt::Debug for MappedBvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MappedBvh").field("byte_len", &self.as_bytes().len()).finish_non_exhaustive()
+    }
+}
+
+/// A `.bvh` file mapped into memory: opening costs O(number of sections) whatever the file's size.
+pub struct MappedBvh {
+    map: Mmap,
+}
+
+impl MappedBvh {
+    /// Maps the file at `path` and opens it (rules V1-V10).
+    ///
+    /// # Safety
+    ///
+    /// The file must not be modified or truncated while the map lives: the view's slices point into the
+    /// mapped pages, so a change is seen as changing `&[u8]` data (undefined behaviour), and truncation makes
+    /// reads past the new end raise SIGBUS. Replace files by renaming a new file over them (as
+    /// [`crate::write_atomic`] does), never by writing in place. When that cannot be guaranteed, use
+    /// [`BvhFile::read`].
+    #[allow(unsafe_code)]
+    pub unsafe fn open(path: &Path) -> Result<MappedBvh, Error> {
+        let io = |source| Error::Io { path: path.to_path_buf(), source };
+        let file = File::open(path).map_err(io)?;
+        // SAFETY: the caller guarantees the file is not changed while mapped (this function's contract).
+        let map = unsafe { Mmap::map(&file) }.map_err(io)?;
+        BvhView::open(&map)?;
+        Ok(MappedBvh { map })
+    }
+
+    /// The mapped bytes.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.map
+    }
+
+    /// A view of the file (O(number of sections)).
+    #[allow(unsafe_code)]
+    pub fn view(&self) -> BvhView<'_> {
+        // SAFETY: `open` accepted these bytes and the map is private and read-only; the caller of `open`
+        // guaranteed that the file behind it does not change while mapped.
+        unsafe { BvhView::open_unchecked(&self.map) }
+    }
+}

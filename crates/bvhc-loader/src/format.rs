@@ -1,0 +1,257 @@
+//! On-disk types of the `.bvh` format, major version 1 (`format-spec/bvh-1.md`).
+//!
+//! These `#[repr(C)]` structs are the single source of truth for the writer and the reader: both cast the same
+//! types to and from bytes with bytemuck, so they cannot drift. Field names equal the spec's field names. Every
+//! struct is plain data (`u32`, `u64`, `f32`, arrays of them), every padding byte is a named `reserved*` field,
+//! and the sizes are asserted at compile time. The file is little-endian; the zero-copy casts are only valid on
+//! little-endian hosts, which [`crate::BvhView::open`] checks.
+
+use bytemuck::{Pod, Zeroable};
+
+/// The 8 bytes every `.bvh` file of bvhc starts with: `\x89 B V H C \r \n \x1a`.
+///
+/// Like PNG's signature: the high first byte catches 7-bit transfers and tells the file apart from text files,
+/// in particular Biovision motion-capture `.bvh` files (which start with the ASCII word `HIERARCHY`); the CR LF
+/// pair catches line-ending conversion; 0x1A stops `type` on DOS-like systems.
+pub const MAGIC: [u8; 8] = *b"\x89BVHC\r\n\x1a";
+
+/// Major version written and read by this crate. Readers reject any other major version.
+pub const VERSION_MAJOR: u16 = 1;
+/// Minor version written by this crate. Readers accept any minor version of their major version.
+pub const VERSION_MINOR: u16 = 0;
+
+/// Whether this reader knows every field of a file with minor version `minor` (so reserved fields and undefined
+/// flag bits must be zero); files of higher minors may give them a meaning, and readers then ignore them.
+#[allow(clippy::absurd_extreme_comparisons)] // VERSION_MINOR is 0 today; the comparison is for later minors.
+pub const fn is_known_minor(minor: u16) -> bool {
+    minor <= VERSION_MINOR
+}
+
+/// Alignment of every section's byte offset, counted from the start of the file.
+pub const SECTION_ALIGNMENT: u64 = 64;
+
+/// Deepest allowed leaf: the root has depth 0 and no node may have a depth above this (rule V20).
+///
+/// It bounds the traversal stack, so a verified file can be traced with a fixed stack and no heap allocation.
+pub const MAX_DEPTH: usize = 256;
+
+/// `SectionEntry::section_flags` bit: a reader that does not know the section's kind must reject the file.
+pub const SECTION_FLAG_REQUIRED: u32 = 1 << 0;
+/// `SectionEntry::section_flags` bit, triangles section only: triangles may be referenced from several leaves
+/// (spatial splits), so a triangle's vertices need not lie inside its leaf's box (rule V19 is relaxed).
+pub const SECTION_FLAG_SPLIT_REFERENCES: u32 = 1 << 1;
+
+/// Marks an absent field in a [`SourceRange`] (for example the node of an OBJ group).
+pub const NO_INDEX: u32 = u32::MAX;
+
+/// The kinds of section that major version 1 defines. Other values are unknown kinds (rule V7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum SectionKind {
+    /// Binary BVH nodes ([`PackedNode`]), required.
+    Nodes,
+    /// Triangle vertices in leaf order ([`PackedTriangle`]), required.
+    Triangles,
+    /// One `u32` source triangle id per triangle, optional.
+    TriangleIds,
+    /// Source ranges ([`SourceRange`]) mapping ids to mesh/primitive/node/instance, optional.
+    SourceTable,
+    /// UTF-8 JSON object with build metadata, optional.
+    Metadata,
+}
+
+impl SectionKind {
+    /// Every kind defined by this version, in the order the writer stores them.
+    pub const ALL: [SectionKind; 5] = [
+        SectionKind::Nodes,
+        SectionKind::Triangles,
+        SectionKind::TriangleIds,
+        SectionKind::SourceTable,
+        SectionKind::Metadata,
+    ];
+
+    /// The `kind` value stored in the section table.
+    pub const fn code(self) -> u32 {
+        match self {
+            SectionKind::Nodes => 1,
+            SectionKind::Triangles => 2,
+            SectionKind::TriangleIds => 3,
+            SectionKind::SourceTable => 4,
+            SectionKind::Metadata => 5,
+        }
+    }
+
+    /// The kind for a stored `kind` value, `None` for kinds this version does not define.
+    pub const fn from_code(code: u32) -> Option<SectionKind> {
+        match code {
+            1 => Some(SectionKind::Nodes),
+            2 => Some(SectionKind::Triangles),
+            3 => Some(SectionKind::TriangleIds),
+            4 => Some(SectionKind::SourceTable),
+            5 => Some(SectionKind::Metadata),
+            _ => None,
+        }
+    }
+
+    /// Byte size of one element (`element_byte_len`).
+    pub const fn element_byte_len(self) -> u32 {
+        match self {
+            SectionKind::Nodes => size_of::<PackedNode>() as u32,
+            SectionKind::Triangles => size_of::<PackedTriangle>() as u32,
+            SectionKind::TriangleIds => size_of::<u32>() as u32,
+            SectionKind::SourceTable => size_of::<SourceRange>() as u32,
+            SectionKind::Metadata => 1,
+        }
+    }
+
+    /// Whether the section's `REQUIRED` flag must be set (nodes, triangles) or clear (the others).
+    pub const fn is_required(self) -> bool {
+        matches!(self, SectionKind::Nodes | SectionKind::Triangles)
+    }
+
+    /// Flag bits this version defines for the kind; all other bits are reserved and zero.
+    pub const fn defined_flags(self) -> u32 {
+        match self {
+            SectionKind::Triangles => SECTION_FLAG_REQUIRED | SECTION_FLAG_SPLIT_REFERENCES,
+            _ => SECTION_FLAG_REQUIRED,
+        }
+    }
+
+    /// The spec's name of the kind, used in error messages.
+    pub const fn name(self) -> &'static str {
+        match self {
+            SectionKind::Nodes => "nodes",
+            SectionKind::Triangles => "triangles",
+            SectionKind::TriangleIds => "triangle_ids",
+            SectionKind::SourceTable => "source_table",
+            SectionKind::Metadata => "metadata",
+        }
+    }
+}
+
+/// The file header: the first 64 bytes of the file.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct FileHeader {
+    /// [`MAGIC`].
+    pub magic: [u8; 8],
+    /// Major version; 1 for this format.
+    pub version_major: u16,
+    /// Minor version; higher minors only add.
+    pub version_minor: u16,
+    /// File-wide flags; none are defined in 1.0, so zero.
+    pub header_flags: u32,
+    /// Byte length of the whole file; catches truncation and appended bytes.
+    pub file_byte_len: u64,
+    /// Number of entries in the section table that follows the header.
+    pub section_count: u32,
+    /// Byte size of one section table entry; 48 in 1.0. Lets a later minor grow the entry.
+    pub section_entry_byte_len: u32,
+    /// XXH3-64 (seed 0) of the header and the section table, computed with this field set to zero.
+    pub header_checksum: u64,
+    /// Zero.
+    pub reserved: [u64; 3],
+}
+
+/// One entry of the section table, which follows the header directly.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct SectionEntry {
+    /// What the section holds ([`SectionKind::code`]).
+    pub kind: u32,
+    /// [`SECTION_FLAG_REQUIRED`], [`SECTION_FLAG_SPLIT_REFERENCES`]; other bits zero.
+    pub section_flags: u32,
+    /// Offset of the section's first byte from the start of the file; a multiple of 64.
+    pub section_byte_offset: u64,
+    /// Byte length of the section, without padding; equals `element_count * element_byte_len`.
+    pub section_byte_len: u64,
+    /// Number of elements (nodes, triangles, ids, ranges, metadata bytes).
+    pub element_count: u64,
+    /// Byte size of one element.
+    pub element_byte_len: u32,
+    /// Zero.
+    pub reserved: u32,
+    /// XXH3-64 (seed 0) of the section's `section_byte_len` bytes.
+    pub section_checksum: u64,
+}
+
+/// A node of the binary BVH: an axis-aligned box and one index and one count.
+///
+/// * inner node: `count == 0`; its children are nodes `index` and `index + 1`, both after the node itself
+///   (`index > ` the node's own index). The first child is the left one, visited first by depth-first order.
+/// * leaf: `count >= 1`; it holds triangles `index .. index + count` of the triangles section.
+///
+/// Node 0 is the root. The box encloses the boxes of its children (inner) or its triangles (leaf).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct PackedNode {
+    /// Minimum corner of the box.
+    pub min: [f32; 3],
+    /// Maximum corner of the box.
+    pub max: [f32; 3],
+    /// First child (inner) or first triangle (leaf).
+    pub index: u32,
+    /// Zero for an inner node, the number of triangles for a leaf.
+    pub count: u32,
+}
+
+impl PackedNode {
+    /// Whether this node is a leaf (`count >= 1`).
+    #[inline]
+    pub const fn is_leaf(&self) -> bool {
+        self.count != 0
+    }
+}
+
+/// The three vertices of one triangle, stored in leaf order so traversal reads them without indirection.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct PackedTriangle {
+    /// The vertices `v0, v1, v2`; the front face is counter-clockwise seen from the front.
+    pub vertices: [[f32; 3]; 3],
+}
+
+/// One record of the source table: a range of source triangle ids and the part of the input it came from.
+///
+/// Ids `first_source_triangle .. first_source_triangle + source_triangle_count` belong to this range; the
+/// triangle index within the primitive is `id - first_source_triangle`. Fields that do not apply to an input
+/// format hold [`NO_INDEX`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Pod, Zeroable)]
+pub struct SourceRange {
+    /// First source triangle id of the range.
+    pub first_source_triangle: u32,
+    /// Number of ids in the range; at least 1.
+    pub source_triangle_count: u32,
+    /// Index of the input file in the metadata's `inputs` list (0 for a single input).
+    pub file_index: u32,
+    /// glTF node index, or [`NO_INDEX`].
+    pub node_index: u32,
+    /// glTF mesh index, OBJ model index, or [`NO_INDEX`].
+    pub mesh_index: u32,
+    /// glTF primitive index within the mesh, or [`NO_INDEX`].
+    pub primitive_index: u32,
+    /// `EXT_mesh_gpu_instancing` instance index, or [`NO_INDEX`].
+    pub instance_index: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+const _: () = assert!(size_of::<FileHeader>() == 64);
+const _: () = assert!(size_of::<SectionEntry>() == 48);
+const _: () = assert!(size_of::<PackedNode>() == 32);
+const _: () = assert!(size_of::<PackedTriangle>() == 36);
+const _: () = assert!(size_of::<SourceRange>() == 32);
+
+/// Byte size of the header.
+pub const HEADER_BYTE_LEN: usize = size_of::<FileHeader>();
+/// Byte size of a section table entry in 1.0.
+pub const SECTION_ENTRY_BYTE_LEN: usize = size_of::<SectionEntry>();
+
+/// Rounds `value` up to the next multiple of [`SECTION_ALIGNMENT`], `None` on overflow.
+pub const fn align_up(value: u64) -> Option<u64> {
+    match value.checked_add(SECTION_ALIGNMENT - 1) {
+        Some(v) => Some(v / SECTION_ALIGNMENT * SECTION_ALIGNMENT),
+        None => None,
+    }
+}

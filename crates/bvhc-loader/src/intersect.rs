@@ -1,0 +1,164 @@
+//! Robust ray-box and watertight ray-triangle tests.
+//!
+//! * Box: the slab test of T. Ize, "Robust BVH Ray Traversal", JCGT 2(2), 2013. Every slab's exit distance is
+//!   multiplied by `1 + 2 gamma(3)` (gamma(n) = n eps / (1 - n eps), eps = 2^-24), which bounds the rounding of
+//!   `(plane - origin) * (1 / direction)`, so a box that the exact ray touches is never missed.
+//! * Triangle: S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013. The ray
+//!   is sheared so that it runs along +z of a ray space whose z axis is the direction's largest component
+//!   (`kz`); the 2D edge functions U, V, W are recomputed in f64 when any is exactly 0, so a ray through a
+//!   shared edge or vertex hits at least one of the triangles that share it.
+//!
+//! Direction components of +0 and -0 give infinite reciprocals. The slab distances are then `+-inf`, or NaN
+//! when the origin lies exactly on a slab plane (`0 * inf`); `f32::max`/`f32::min` ignore a NaN operand, which
+//! treats the origin on the plane as inside the closed slab, as the exact test would.
+//!
+//! Symbols (Woop et al.): `kx, ky, kz` the permuted axes; `sx, sy, sz` the shear; `U, V, W` the edge functions,
+//! which are the barycentric weights of v0, v1, v2 times the determinant `det = U + V + W`.
+
+use crate::format::{PackedNode, PackedTriangle};
+
+/// Machine epsilon for f32 rounding, 2^-24.
+const EPSILON: f32 = f32::EPSILON * 0.5;
+/// Ize's padding of the slab exit distance, `1 + 2 gamma(3)`.
+const EXIT_PADDING: f32 = 1.0 + 2.0 * (3.0 * EPSILON) / (1.0 - 3.0 * EPSILON);
+
+/// A ray: points `origin + t * direction` for `t` in `[t_min, t_max]`.
+///
+/// `direction` need not be normalized; `t` is measured in its units. `t_min` should be `>= 0`: boxes are tested
+/// conservatively only for non-negative distances.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Start point.
+    pub origin: [f32; 3],
+    /// Direction; must not be the zero vector.
+    pub direction: [f32; 3],
+    /// Smallest distance that counts as a hit.
+    pub t_min: f32,
+    /// Largest distance that counts as a hit.
+    pub t_max: f32,
+}
+
+impl Ray {
+    /// A ray over `[0, +inf]`.
+    pub fn new(origin: [f32; 3], direction: [f32; 3]) -> Ray {
+        Ray { origin, direction, t_min: 0.0, t_max: f32::INFINITY }
+    }
+}
+
+/// A triangle hit: distance and barycentric coordinates; the hit point is `(1 - u - v) v0 + u v1 + v v2`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    /// Distance along the ray.
+    pub t: f32,
+    /// Weight of `v1`.
+    pub u: f32,
+    /// Weight of `v2`.
+    pub v: f32,
+}
+
+/// Per-ray constants of both tests, computed once per ray.
+#[derive(Clone, Copy, Debug)]
+pub struct PreparedRay {
+    origin: [f32; 3],
+    inverse_direction: [f32; 3],
+    /// Per axis: whether the direction's sign bit is set, so the slab is entered through `max`.
+    negative: [bool; 3],
+    t_min: f32,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl PreparedRay {
+    /// Precomputes the reciprocal direction and the shear of `ray`.
+    pub fn new(ray: &Ray) -> PreparedRay {
+        let d = ray.direction;
+        let abs = d.map(f32::abs);
+        let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
+            0
+        } else if abs[1] >= abs[2] {
+            1
+        } else {
+            2
+        };
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        PreparedRay {
+            origin: ray.origin,
+            inverse_direction: d.map(|c| 1.0 / c),
+            negative: d.map(f32::is_sign_negative),
+            t_min: ray.t_min,
+            kx,
+            ky,
+            kz,
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
+        }
+    }
+
+    /// The distance at which the ray enters `node`'s box, if it overlaps the box within `[t_min, t_max]`.
+    #[inline(always)]
+    pub fn enter_box(&self, node: &PackedNode, t_max: f32) -> Option<f32> {
+        let mut t_near = self.t_min;
+        let mut t_far = t_max;
+        for axis in 0..3 {
+            let (entry_plane, exit_plane) =
+                if self.negative[axis] { (node.max[axis], node.min[axis]) } else { (node.min[axis], node.max[axis]) };
+            let t_entry = (entry_plane - self.origin[axis]) * self.inverse_direction[axis];
+            let t_exit = (exit_plane - self.origin[axis]) * self.inverse_direction[axis] * EXIT_PADDING;
+            t_near = t_near.max(t_entry);
+            t_far = t_far.min(t_exit);
+        }
+        (t_near <= t_far).then_some(t_near)
+    }
+
+    /// The watertight test: a hit with `t_min <= t <= t_max`, from either side of the triangle.
+    #[inline(always)]
+    pub fn intersect_triangle(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
+        let [v0, v1, v2] = &triangle.vertices;
+        let o = &self.origin;
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let a = [v0[0] - o[0], v0[1] - o[1], v0[2] - o[2]];
+        let b = [v1[0] - o[0], v1[1] - o[1], v1[2] - o[2]];
+        let c = [v2[0] - o[0], v2[1] - o[1], v2[2] - o[2]];
+        let ax = a[kx] - self.sx * a[kz];
+        let ay = a[ky] - self.sy * a[kz];
+        let bx = b[kx] - self.sx * b[kz];
+        let by = b[ky] - self.sy * b[kz];
+        let cx = c[kx] - self.sx * c[kz];
+        let cy = c[ky] - self.sy * c[kz];
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            let edge = |px: f32, py: f32, qx: f32, qy: f32| {
+                (f64::from(px) * f64::from(qy) - f64::from(py) * f64::from(qx)) as f32
+            };
+            u = edge(cx, cy, bx, by);
+            v = edge(ax, ay, cx, cy);
+            w = edge(bx, by, ax, ay);
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let az = self.sz * a[kz];
+        let bz = self.sz * b[kz];
+        let cz = self.sz * c[kz];
+        let t = (u * az + v * bz + w * cz) / det;
+        if !(t >= self.t_min && t <= t_max) {
+            return None;
+        }
+        let inverse_det = 1.0 / det;
+        Some(TriangleHit { t, u: v * inverse_det, v: w * inverse_det })
+    }
+}

@@ -1,0 +1,42 @@
+//! Runtime reader of bvhc's `.bvh` files: zero-copy views, a full verifier, the writer, and a robust ray
+//! traversal kernel (closest hit and any hit).
+//!
+//! The format is specified in `format-spec/bvh-1.md` of the bvhc repository; the types in [`format`] are its
+//! single source of truth in Rust, used by the writer and the reader alike.
+//!
+//! ```
+//! use bvhc_loader::{BvhWriter, PackedNode, PackedTriangle, Ray};
+//!
+//! let triangle = PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
+//! let root = PackedNode { min: [0.0; 3], max: [1.0, 1.0, 0.0], index: 0, count: 1 };
+//! let file = BvhWriter::new(&[root], &[triangle]).build()?; // lays out and fully verifies
+//! let view = file.view();
+//! let hit = view.tracer().closest_hit(&Ray::new([0.25, 0.25, 1.0], [0.0, 0.0, -1.0])).unwrap();
+//! assert_eq!((hit.t, hit.triangle_index), (1.0, 0));
+//! # Ok::<(), bvhc_loader::Error>(())
+//! ```
+//!
+//! Ways in: [`BvhView::open`] on aligned bytes you own; [`BvhFile::read`] / [`BvhFile::from_bytes`] into an
+//! aligned owned buffer; `unsafe` [`MappedBvh::open`] for a memory map; `unsafe` [`BvhView::open_unchecked`]
+//! for bytes already known to be valid. Opening checks the structural rules in O(number of sections);
+//! [`BvhView::verify`] checks every rule.
+
+mod checksum;
+mod error;
+mod file;
+pub mod format;
+mod intersect;
+mod traverse;
+mod verify;
+mod view;
+mod writer;
+
+pub use checksum::{header_checksum, section_checksum};
+pub use error::{Error, Rule, Violation};
+pub use file::{BvhFile, MappedBvh};
+pub use format::{PackedNode, PackedTriangle, SectionKind, SourceRange};
+pub use intersect::{PreparedRay, Ray, TriangleHit};
+pub use traverse::{Hit, Tracer, TraversalCounter, TraversalStats};
+pub use verify::verify_tree;
+pub use view::{BvhView, SectionInfo};
+pub use writer::{BvhWriter, write_atomic};

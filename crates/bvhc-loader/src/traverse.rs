@@ -1,0 +1,178 @@
+//! Closest-hit and any-hit traversal of a packed binary BVH.
+//!
+//! Depth first, nearer child first, with a fixed stack of [`MAX_DEPTH`] entries (the depth rule V20 makes it
+//! enough) and no heap allocation. The kernel is safe on any input: indices are bounds-checked, a child index
+//! must exceed its parent's (so paths cannot cycle), and a ray visits at most `node_count` nodes; on a file that
+//! fails verification it may return wrong hits, never panic or hang.
+
+use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
+use crate::intersect::{PreparedRay, Ray};
+
+/// The closest hit of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Distance along the ray, in units of its direction.
+    pub t: f32,
+    /// Index of the triangle in the file's triangles section.
+    pub triangle_index: u32,
+    /// The triangle's source id from the triangle_ids section, when the file has one.
+    pub source_triangle_id: Option<u32>,
+    /// Barycentric weight of `v1`; the hit point is `(1 - u - v) v0 + u v1 + v v2`.
+    pub u: f32,
+    /// Barycentric weight of `v2`.
+    pub v: f32,
+}
+
+/// Receives traversal events. The default path uses `()`, whose empty methods compile away.
+pub trait TraversalCounter {
+    /// A node was visited (its children's boxes tested, or its triangles).
+    fn node_visited(&mut self) {}
+    /// A ray-triangle test was run.
+    fn triangle_tested(&mut self) {}
+}
+
+impl TraversalCounter for () {}
+
+/// Counts of the opt-in statistics mode, summed over the rays traced with it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraversalStats {
+    /// Nodes visited.
+    pub node_visits: u64,
+    /// Ray-triangle tests.
+    pub triangle_tests: u64,
+}
+
+impl TraversalCounter for TraversalStats {
+    #[inline(always)]
+    fn node_visited(&mut self) {
+        self.node_visits += 1;
+    }
+    #[inline(always)]
+    fn triangle_tested(&mut self) {
+        self.triangle_tests += 1;
+    }
+}
+
+/// The traversal kernel over borrowed node and triangle arrays (a [`crate::BvhView`]'s, or in-memory ones).
+#[derive(Clone, Copy, Debug)]
+pub struct Tracer<'a> {
+    nodes: &'a [PackedNode],
+    triangles: &'a [PackedTriangle],
+    triangle_ids: Option<&'a [u32]>,
+}
+
+/// What the traversal loop found: triangle index and hit.
+type Found = Option<(u32, crate::intersect::TriangleHit)>;
+
+impl<'a> Tracer<'a> {
+    /// A tracer over a tree in the layout of the nodes section (node 0 is the root).
+    pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle], triangle_ids: Option<&'a [u32]>) -> Self {
+        Tracer { nodes, triangles, triangle_ids }
+    }
+
+    /// The closest hit with `t_min <= t <= t_max`.
+    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_hit_counted(ray, &mut ())
+    }
+
+    /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter`.
+    pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        let (triangle_index, hit) = self.traverse::<false>(ray, counter)?;
+        Some(Hit {
+            t: hit.t,
+            triangle_index,
+            source_triangle_id: self.triangle_ids.and_then(|ids| ids.get(triangle_index as usize).copied()),
+            u: hit.u,
+            v: hit.v,
+        })
+    }
+
+    /// Whether anything is hit with `t_min <= t <= t_max` (occlusion); stops at the first hit found.
+    pub fn any_hit(&self, ray: &Ray) -> bool {
+        self.any_hit_counted(ray, &mut ())
+    }
+
+    /// [`Tracer::any_hit`], counting node visits and triangle tests into `counter`.
+    pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.traverse::<true>(ray, counter).is_some()
+    }
+
+    #[inline(always)]
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Found {
+        let prepared = PreparedRay::new(ray);
+        let nodes = self.nodes;
+        let root = nodes.first()?;
+        prepared.enter_box(root, ray.t_max)?;
+        let mut t_max = ray.t_max;
+        let mut found: Found = None;
+        let mut stack = [(0u32, 0f32); MAX_DEPTH];
+        let mut stack_len = 0usize;
+        let mut current = 0u32;
+        let mut visits_left = nodes.len();
+        'traverse: loop {
+            // Visit `current`; `break` out of this block to pop the next node.
+            'visit: {
+                let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else {
+                    return found; // only on a file that breaks V14
+                };
+                visits_left -= 1;
+                counter.node_visited();
+                if node.is_leaf() {
+                    let end = (node.index as usize).saturating_add(node.count as usize);
+                    let leaf_triangles = self.triangles.get(node.index as usize..end).unwrap_or(&[]);
+                    for (offset, triangle) in leaf_triangles.iter().enumerate() {
+                        counter.triangle_tested();
+                        if let Some(hit) = prepared.intersect_triangle(triangle, t_max) {
+                            found = Some((node.index.wrapping_add(offset as u32), hit));
+                            if ANY_HIT {
+                                return found;
+                            }
+                            t_max = hit.t;
+                        }
+                    }
+                    break 'visit;
+                }
+                let first = node.index;
+                let Some(second) = first.checked_add(1).filter(|_| first > current) else {
+                    break 'visit;
+                };
+                let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
+                    break 'visit;
+                };
+                match (prepared.enter_box(left, t_max), prepared.enter_box(right, t_max)) {
+                    (Some(t_left), Some(t_right)) => {
+                        let (near, far, t_far) =
+                            if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
+                        if let Some(slot) = stack.get_mut(stack_len) {
+                            *slot = (far, t_far);
+                            stack_len += 1;
+                        }
+                        current = near;
+                        continue 'traverse;
+                    }
+                    (Some(_), None) => {
+                        current = first;
+                        continue 'traverse;
+                    }
+                    (None, Some(_)) => {
+                        current = second;
+                        continue 'traverse;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop the nearest pending node that may still hold a closer hit.
+            loop {
+                if stack_len == 0 {
+                    return found;
+                }
+                stack_len -= 1;
+                let (node, t_entry) = stack[stack_len];
+                if t_entry <= t_max {
+                    current = node;
+                    break;
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,207 @@
+//! The writer: packed tree + triangles + ids + source table + metadata -> the bytes of a `.bvh` file.
+//!
+//! It lays the file out exactly as `format-spec/bvh-1.md` describes (header, section table, sections in
+//! table order at 64-byte-aligned offsets, zero padding), fills in the checksums, and then runs the full
+//! verifier over the result, so it never hands out a file that a reader would reject.
+
+use std::io::Write;
+use std::path::Path;
+
+use crate::checksum::{header_checksum, section_checksum};
+use crate::error::Error;
+use crate::file::{AlignedBuffer, BvhFile};
+use crate::format::{
+    FileHeader, HEADER_BYTE_LEN, MAGIC, PackedNode, PackedTriangle, SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED,
+    SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, VERSION_MAJOR, VERSION_MINOR, align_up,
+};
+
+/// Collects the parts of a `.bvh` file; [`BvhWriter::build`] lays them out.
+#[derive(Clone, Debug)]
+pub struct BvhWriter<'a> {
+    nodes: &'a [PackedNode],
+    triangles: &'a [PackedTriangle],
+    triangle_ids: Option<&'a [u32]>,
+    source_table: Option<&'a [SourceRange]>,
+    metadata: Option<&'a str>,
+    split_references: bool,
+    extra_sections: Vec<ExtraSection<'a>>,
+}
+
+/// A section of a kind this crate does not define (an extension, or a test of forward compatibility).
+#[derive(Clone, Copy, Debug)]
+struct ExtraSection<'a> {
+    kind: u32,
+    section_flags: u32,
+    element_byte_len: u32,
+    bytes: &'a [u8],
+}
+
+/// One section to lay out: its table entry (offset and checksum filled in later) and its bytes.
+struct Planned<'a> {
+    entry: SectionEntry,
+    bytes: &'a [u8],
+}
+
+impl<'a> BvhWriter<'a> {
+    /// A file holding `nodes` (node 0 the root, in the nodes section's layout) and `triangles` in leaf order.
+    pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle]) -> Self {
+        BvhWriter {
+            nodes,
+            triangles,
+            triangle_ids: None,
+            source_table: None,
+            metadata: None,
+            split_references: false,
+            extra_sections: Vec::new(),
+        }
+    }
+
+    /// Adds the triangle_ids section: one source id per triangle.
+    pub fn triangle_ids(mut self, ids: &'a [u32]) -> Self {
+        self.triangle_ids = Some(ids);
+        self
+    }
+
+    /// Adds the source_table section (needs triangle ids).
+    pub fn source_table(mut self, ranges: &'a [SourceRange]) -> Self {
+        self.source_table = Some(ranges);
+        self
+    }
+
+    /// Adds the metadata section: a JSON object as text.
+    pub fn metadata(mut self, json: &'a str) -> Self {
+        self.metadata = Some(json);
+        self
+    }
+
+    /// Marks the triangles section as holding split references (a triangle may appear in several leaves).
+    pub fn split_references(mut self, split: bool) -> Self {
+        self.split_references = split;
+        self
+    }
+
+    /// Appends a section of a kind that this version does not define. `required` sets its REQUIRED flag, which
+    /// makes readers that do not know `kind` reject the file.
+    pub fn extra_section(mut self, kind: u32, required: bool, element_byte_len: u32, bytes: &'a [u8]) -> Self {
+        let section_flags = if required { SECTION_FLAG_REQUIRED } else { 0 };
+        self.extra_sections.push(ExtraSection { kind, section_flags, element_byte_len, bytes });
+        self
+    }
+
+    /// Lays the file out, verifies it fully, and returns it opened.
+    pub fn build(&self) -> Result<BvhFile, Error> {
+        let buffer = self.layout()?;
+        let file = BvhFile::from_buffer(buffer)?;
+        file.view().verify()?;
+        Ok(file)
+    }
+
+    /// Builds the file and writes it to `path` atomically (see [`write_atomic`]).
+    pub fn write_atomic(&self, path: &Path) -> Result<BvhFile, Error> {
+        let file = self.build()?;
+        write_atomic(path, file.as_bytes())?;
+        Ok(file)
+    }
+
+    fn planned_sections(&self) -> Result<Vec<Planned<'a>>, Error> {
+        let mut planned = Vec::new();
+        let mut known = |kind: SectionKind, bytes: &'a [u8], count: usize, flags: u32| {
+            let flags = flags | if kind.is_required() { SECTION_FLAG_REQUIRED } else { 0 };
+            planned.push(plan(kind.code(), flags, kind.element_byte_len(), count, bytes));
+        };
+        let split = if self.split_references { SECTION_FLAG_SPLIT_REFERENCES } else { 0 };
+        known(SectionKind::Nodes, bytemuck::cast_slice(self.nodes), self.nodes.len(), 0);
+        known(SectionKind::Triangles, bytemuck::cast_slice(self.triangles), self.triangles.len(), split);
+        if let Some(ids) = self.triangle_ids {
+            known(SectionKind::TriangleIds, bytemuck::cast_slice(ids), ids.len(), 0);
+        }
+        if let Some(ranges) = self.source_table {
+            known(SectionKind::SourceTable, bytemuck::cast_slice(ranges), ranges.len(), 0);
+        }
+        if let Some(json) = self.metadata {
+            known(SectionKind::Metadata, json.as_bytes(), json.len(), 0);
+        }
+        for extra in &self.extra_sections {
+            if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {
+                return Err(Error::Unwritable(format!(
+                    "extra section of kind {}: {} bytes are not a whole number of {}-byte elements",
+                    extra.kind,
+                    extra.bytes.len(),
+                    extra.element_byte_len
+                )));
+            }
+            let count = extra.bytes.len() / extra.element_byte_len as usize;
+            planned.push(plan(extra.kind, extra.section_flags, extra.element_byte_len, count, extra.bytes));
+        }
+        Ok(planned)
+    }
+
+    fn layout(&self) -> Result<AlignedBuffer, Error> {
+        let mut sections = self.planned_sections()?;
+        let too_large = || Error::Unwritable("the file would exceed 2^64 bytes".to_string());
+        let table_end = HEADER_BYTE_LEN + sections.len() * SECTION_ENTRY_BYTE_LEN;
+        let mut end = table_end as u64;
+        for section in &mut sections {
+            let offset = align_up(end).ok_or_else(too_large)?;
+            section.entry.section_byte_offset = offset;
+            section.entry.section_checksum = section_checksum(section.bytes);
+            end = offset.checked_add(section.entry.section_byte_len).ok_or_else(too_large)?;
+        }
+        let file_byte_len = usize::try_from(end).map_err(|_| too_large())?;
+        let mut buffer = AlignedBuffer::zeroed(file_byte_len);
+        let bytes = buffer.as_bytes_mut();
+        let header = FileHeader {
+            magic: MAGIC,
+            version_major: VERSION_MAJOR,
+            version_minor: VERSION_MINOR,
+            header_flags: 0,
+            file_byte_len: end,
+            section_count: u32::try_from(sections.len()).map_err(|_| Error::Unwritable("too many sections".into()))?,
+            section_entry_byte_len: SECTION_ENTRY_BYTE_LEN as u32,
+            header_checksum: 0,
+            reserved: [0; 3],
+        };
+        bytes[..HEADER_BYTE_LEN].copy_from_slice(bytemuck::bytes_of(&header));
+        for (i, section) in sections.iter().enumerate() {
+            let at = HEADER_BYTE_LEN + i * SECTION_ENTRY_BYTE_LEN;
+            bytes[at..at + SECTION_ENTRY_BYTE_LEN].copy_from_slice(bytemuck::bytes_of(&section.entry));
+            let offset = section.entry.section_byte_offset as usize;
+            bytes[offset..offset + section.bytes.len()].copy_from_slice(section.bytes);
+        }
+        let checksum = header_checksum(&bytes[..table_end]);
+        let header = FileHeader { header_checksum: checksum, ..header };
+        bytes[..HEADER_BYTE_LEN].copy_from_slice(bytemuck::bytes_of(&header));
+        Ok(buffer)
+    }
+}
+
+fn plan(kind: u32, section_flags: u32, element_byte_len: u32, count: usize, bytes: &[u8]) -> Planned<'_> {
+    Planned {
+        entry: SectionEntry {
+            kind,
+            section_flags,
+            section_byte_offset: 0,
+            section_byte_len: bytes.len() as u64,
+            element_count: count as u64,
+            element_byte_len,
+            reserved: 0,
+            section_checksum: 0,
+        },
+        bytes,
+    }
+}
+
+/// Writes `bytes` to `path` atomically: into a temporary file in the same directory, flushed to disk, then
+/// renamed over `path`. A failure leaves any previous file at `path` untouched and no partial file behind.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
+    let io = |source| Error::Io { path: path.to_path_buf(), source };
+    let directory = match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    let mut temporary = tempfile::Builder::new().prefix(".bvhc-").suffix(".tmp").tempfile_in(directory).map_err(io)?;
+    temporary.write_all(bytes).map_err(io)?;
+    temporary.as_file().sync_all().map_err(io)?;
+    temporary.persist(path).map_err(|e| io(e.error))?;
+    Ok(())
+}

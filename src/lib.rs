@@ -1,0 +1,10 @@
+//! bvhc: an offline BVH compiler. Import a scene, build and optimize a BVH, write a `.bvh` file that the
+//! `bvhc-loader` crate maps at run time.
+#![forbid(unsafe_code)]
+
+pub mod aabb;
+pub mod build;
+pub mod import;
+pub mod pack;
+
+pub use bvhc_loader as loader;

@@ -1,0 +1,3 @@
+//! The `bvhc` command line.
+#![forbid(unsafe_code)]
+fn main() {}

@@ -1,0 +1,61 @@
+//! Flattening a [`BuildTree`] into the loader's on-disk node layout.
+//!
+//! Depth-first, left subtree first: each inner node's two children are stored as an adjacent pair, and the
+//! pairs of a subtree follow the pair that holds its root, so a parent always precedes its children and a
+//! subtree's nodes are close together in memory. Triangles are emitted in the same depth-first leaf order,
+//! which makes the leaves partition the triangles section exactly as rule V15 requires.
+
+use bvhc_loader::{PackedNode, PackedTriangle};
+
+use crate::build::{BuildNode, BuildTree};
+
+/// The packed form the writer sees: nodes, triangles in leaf order, and each triangle's source index.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PackedTree {
+    /// Nodes in the nodes-section layout; node 0 is the root.
+    pub nodes: Vec<PackedNode>,
+    /// Triangle vertices in leaf order.
+    pub triangles: Vec<PackedTriangle>,
+    /// For each packed triangle, its index in the input triangle array.
+    pub triangle_ids: Vec<u32>,
+}
+
+/// Packs `tree`, built over `triangles`.
+pub fn pack(tree: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> PackedTree {
+    let mut packed = PackedTree {
+        nodes: Vec::with_capacity(tree.nodes.len()),
+        triangles: Vec::with_capacity(tree.triangle_order.len()),
+        triangle_ids: Vec::with_capacity(tree.triangle_order.len()),
+    };
+    if tree.nodes.is_empty() {
+        return packed;
+    }
+    packed.nodes.push(placeholder());
+    // (build node, packed slot); left children are popped first.
+    let mut stack = vec![(0u32, 0usize)];
+    while let Some((build_index, slot)) = stack.pop() {
+        match tree.nodes[build_index as usize] {
+            BuildNode::Inner { aabb, left, right } => {
+                let first_child = packed.nodes.len();
+                packed.nodes.push(placeholder());
+                packed.nodes.push(placeholder());
+                packed.nodes[slot] = PackedNode { min: aabb.min, max: aabb.max, index: first_child as u32, count: 0 };
+                stack.push((right, first_child + 1));
+                stack.push((left, first_child));
+            }
+            BuildNode::Leaf { aabb, first, count } => {
+                let index = packed.triangles.len() as u32;
+                for &t in &tree.triangle_order[first as usize..(first + count) as usize] {
+                    packed.triangles.push(PackedTriangle { vertices: triangles[t as usize] });
+                    packed.triangle_ids.push(t);
+                }
+                packed.nodes[slot] = PackedNode { min: aabb.min, max: aabb.max, index, count };
+            }
+        }
+    }
+    packed
+}
+
+fn placeholder() -> PackedNode {
+    PackedNode { min: [0.0; 3], max: [0.0; 3], index: 0, count: 0 }
+}

@@ -1,0 +1,144 @@
+//! Shared helpers: deterministic random scenes and rays, the build -> pack -> write path, and the brute-force
+//! oracle every traversal test compares against.
+
+use std::path::PathBuf;
+
+use bvhc::build::build_binned_sah;
+use bvhc::loader::{BvhFile, BvhWriter, Hit, PreparedRay, Ray, SourceRange, Tracer};
+use bvhc::pack::{PackedTree, pack};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+pub type Triangle = [[f32; 3]; 3];
+
+pub fn rng(seed: u64) -> Pcg64Mcg {
+    Pcg64Mcg::seed_from_u64(seed)
+}
+
+pub fn random_point(rng: &mut Pcg64Mcg, extent: f32) -> [f32; 3] {
+    std::array::from_fn(|_| rng.random_range(-extent..extent))
+}
+
+/// `count` random triangles: small ones scattered in a cube of half-size `extent`, plus a few large ones.
+pub fn random_triangles(seed: u64, count: usize, extent: f32) -> Vec<Triangle> {
+    let mut rng = rng(seed);
+    (0..count)
+        .map(|i| {
+            let center = random_point(&mut rng, extent);
+            let size = if i % 50 == 0 { extent } else { extent * 0.05 };
+            std::array::from_fn(|_| {
+                let d = random_point(&mut rng, size);
+                [center[0] + d[0], center[1] + d[1], center[2] + d[2]]
+            })
+        })
+        .collect()
+}
+
+/// Rays from random points in a box of half-size `extent` towards random points in it, some with exact zero
+/// direction components.
+pub fn random_rays(seed: u64, count: usize, extent: f32) -> Vec<Ray> {
+    let mut rng = rng(seed);
+    (0..count)
+        .map(|i| {
+            let origin = random_point(&mut rng, extent * 1.5);
+            let target = random_point(&mut rng, extent);
+            let mut direction: [f32; 3] = std::array::from_fn(|a| target[a] - origin[a]);
+            match i % 7 {
+                0 => direction[i % 3] = 0.0,
+                1 => direction[(i + 1) % 3] = -0.0,
+                2 => {
+                    direction[i % 3] = 0.0;
+                    direction[(i + 1) % 3] = -0.0;
+                }
+                _ => {}
+            }
+            Ray::new(origin, direction)
+        })
+        .collect()
+}
+
+/// Builds and packs a binned SAH tree with at most `max_leaf_size` triangles per leaf.
+pub fn packed_tree(triangles: &[Triangle], max_leaf_size: usize) -> PackedTree {
+    pack(&build_binned_sah(triangles, max_leaf_size), triangles)
+}
+
+/// One source range covering ids `0..triangle_count`.
+pub fn single_source_range(triangle_count: usize) -> Vec<SourceRange> {
+    vec![SourceRange {
+        first_source_triangle: 0,
+        source_triangle_count: triangle_count.max(1) as u32,
+        file_index: 0,
+        node_index: u32::MAX,
+        mesh_index: 0,
+        primitive_index: u32::MAX,
+        instance_index: u32::MAX,
+        reserved: 0,
+    }]
+}
+
+pub const METADATA: &str = r#"{"generator":"bvhc tests","format_version":"1.0"}"#;
+
+/// The full file (ids, source table, metadata) of a packed tree.
+pub fn write_file(tree: &PackedTree) -> BvhFile {
+    let ranges = single_source_range(tree.triangles.len());
+    let writer = BvhWriter::new(&tree.nodes, &tree.triangles).triangle_ids(&tree.triangle_ids).metadata(METADATA);
+    let writer = if tree.triangles.is_empty() { writer } else { writer.source_table(&ranges) };
+    writer.build().expect("a packed tree always writes")
+}
+
+/// The closest hit by testing every triangle with the kernel's own watertight test.
+pub fn brute_force_closest(triangles: &[Triangle], ray: &Ray) -> Option<(f32, usize)> {
+    let prepared = PreparedRay::new(ray);
+    let mut best: Option<(f32, usize)> = None;
+    for (i, vertices) in triangles.iter().enumerate() {
+        let t_max = best.map_or(ray.t_max, |b| b.0);
+        let triangle = bvhc::loader::PackedTriangle { vertices: *vertices };
+        if let Some(hit) = prepared.intersect_triangle(&triangle, t_max)
+            && best.is_none_or(|b| hit.t < b.0)
+        {
+            best = Some((hit.t, i));
+        }
+    }
+    best
+}
+
+/// Asserts that the tracer's closest hit equals brute force over `source` (the input triangles): the same t,
+/// and a triangle with that t (ties at shared edges may pick either); any-hit agrees too.
+pub fn assert_matches_brute_force(tracer: &Tracer<'_>, source: &[Triangle], rays: &[Ray], ids: &[u32]) -> usize {
+    let mut hits = 0;
+    for (r, ray) in rays.iter().enumerate() {
+        let expected = brute_force_closest(source, ray);
+        let got: Option<Hit> = tracer.closest_hit(ray);
+        match (expected, got) {
+            (None, None) => {}
+            (Some((t, _)), Some(hit)) => {
+                hits += 1;
+                assert_eq!(hit.t, t, "ray {r} {ray:?}: t differs");
+                let source_index = ids[hit.triangle_index as usize] as usize;
+                let again = brute_force_closest(&source[source_index..=source_index], ray);
+                assert_eq!(again.map(|h| h.0), Some(t), "ray {r}: reported triangle is not hit at t");
+                assert_eq!(hit.source_triangle_id.map(|id| id as usize).unwrap_or(source_index), source_index);
+            }
+            (e, g) => panic!("ray {r} {ray:?}: brute force {e:?}, traversal {g:?}"),
+        }
+        assert_eq!(tracer.any_hit(ray), expected.is_some(), "ray {r}: any-hit disagrees");
+    }
+    hits
+}
+
+/// The shared scenes folder: `BVHC_SCENES`, else `../shared/scenes` beside the repository.
+pub fn scenes_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("BVHC_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    dir.is_dir().then_some(dir)
+}
+
+/// A scene file from the shared folder, or `None` (with a note on stderr) when it is not on this machine.
+pub fn scene(relative: &str) -> Option<PathBuf> {
+    let path = scenes_dir().map(|d| d.join(relative)).filter(|p| p.is_file());
+    if path.is_none() {
+        eprintln!("SKIPPED: scene {relative} not found (set BVHC_SCENES to the shared scenes folder)");
+    }
+    path
+}

@@ -1,0 +1,187 @@
+//! Watertightness: rays from inside closed meshes, and rays aimed exactly at shared vertices and edges, never
+//! slip through.
+
+use bvhc::loader::Ray;
+use rand::RngExt;
+
+use crate::common::*;
+
+/// An icosahedron subdivided `levels` times and pushed onto a sphere: a closed mesh with shared vertices.
+fn icosphere(levels: usize, radius: f32) -> (Vec<[f32; 3]>, Vec<[usize; 3]>) {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut vertices: Vec<[f32; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let mut faces: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut midpoints = std::collections::HashMap::new();
+        let mut midpoint = |a: usize, b: usize, vertices: &mut Vec<[f32; 3]>| {
+            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                vertices.push(std::array::from_fn(|k| (vertices[a][k] + vertices[b][k]) * 0.5));
+                vertices.len() - 1
+            })
+        };
+        faces = faces
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let ab = midpoint(a, b, &mut vertices);
+                let bc = midpoint(b, c, &mut vertices);
+                let ca = midpoint(c, a, &mut vertices);
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    for v in &mut vertices {
+        let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        *v = v.map(|c| c / length * radius);
+    }
+    (vertices, faces)
+}
+
+/// A cube `[-1, 1]^3` whose faces are `n x n` grids of axis-aligned quads (two triangles each).
+fn grid_cube(n: usize) -> (Vec<[f32; 3]>, Vec<[usize; 3]>) {
+    let mut vertices = Vec::new();
+    let mut faces = Vec::new();
+    let coordinate = |i: usize| -1.0 + 2.0 * i as f32 / n as f32;
+    for axis in 0..3 {
+        for side in [-1.0f32, 1.0] {
+            let base = vertices.len();
+            for i in 0..=n {
+                for j in 0..=n {
+                    let mut p = [0.0; 3];
+                    p[axis] = side;
+                    p[(axis + 1) % 3] = coordinate(i);
+                    p[(axis + 2) % 3] = coordinate(j);
+                    vertices.push(p);
+                }
+            }
+            for i in 0..n {
+                for j in 0..n {
+                    let at = |di: usize, dj: usize| base + (i + di) * (n + 1) + j + dj;
+                    faces.push([at(0, 0), at(1, 0), at(1, 1)]);
+                    faces.push([at(0, 0), at(1, 1), at(0, 1)]);
+                }
+            }
+        }
+    }
+    // The cube's edges are shared by two faces with separate vertex copies at identical positions.
+    (vertices, faces)
+}
+
+fn soup(vertices: &[[f32; 3]], faces: &[[usize; 3]]) -> Vec<Triangle> {
+    faces.iter().map(|f| f.map(|v| vertices[v])).collect()
+}
+
+fn assert_all_hit(name: &str, triangles: &[Triangle], rays: &[Ray]) {
+    for max_leaf_size in [1, 4] {
+        let tree = packed_tree(triangles, max_leaf_size);
+        let file = write_file(&tree);
+        let tracer = file.view().tracer();
+        let misses: Vec<&Ray> = rays.iter().filter(|ray| tracer.closest_hit(ray).is_none()).collect();
+        assert!(misses.is_empty(), "{name}: {} of {} rays missed, first {:?}", misses.len(), rays.len(), misses[0]);
+        assert!(rays.iter().all(|ray| tracer.any_hit(ray)), "{name}: any-hit missed");
+    }
+}
+
+#[test]
+fn rays_from_inside_a_closed_sphere_at_every_vertex_and_edge_hit() {
+    let (vertices, faces) = icosphere(3, 2.0);
+    let triangles = soup(&vertices, &faces);
+    let mut rays: Vec<Ray> = Vec::new();
+    let mut rng = rng(60);
+    for origin in [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [1.9, 0.0, 0.0]] {
+        for v in &vertices {
+            rays.push(Ray::new(origin, std::array::from_fn(|a| v[a] - origin[a])));
+        }
+        for f in &faces {
+            for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+                let mid: [f32; 3] = std::array::from_fn(|k| (vertices[a][k] + vertices[b][k]) * 0.5);
+                rays.push(Ray::new(origin, std::array::from_fn(|k| mid[k] - origin[k])));
+            }
+        }
+        for _ in 0..2000 {
+            rays.push(Ray::new(origin, random_point(&mut rng, 1.0)));
+        }
+    }
+    assert_all_hit("icosphere", &triangles, &rays);
+}
+
+#[test]
+fn rays_from_outside_aimed_at_shared_vertices_hit() {
+    let (vertices, faces) = icosphere(2, 1.0);
+    let triangles = soup(&vertices, &faces);
+    let mut rng = rng(61);
+    let rays: Vec<Ray> = vertices
+        .iter()
+        .map(|v| {
+            let origin: [f32; 3] = std::array::from_fn(|a| v[a] * 3.0 + rng.random_range(-0.5..0.5));
+            Ray::new(origin, std::array::from_fn(|a| v[a] - origin[a]))
+        })
+        .collect();
+    assert_all_hit("icosphere from outside", &triangles, &rays);
+}
+
+#[test]
+fn axis_parallel_rays_through_grid_edges_and_vertices_of_a_closed_cube_hit() {
+    let n = 8;
+    let (vertices, faces) = grid_cube(n);
+    let triangles = soup(&vertices, &faces);
+    let grid: Vec<f32> = (0..=n).map(|i| -1.0 + 2.0 * i as f32 / n as f32).collect();
+    let mut rays = Vec::new();
+    for &x in &grid[1..n] {
+        for &y in &grid[1..n] {
+            for axis in 0..3 {
+                for sign in [1.0f32, -1.0] {
+                    let mut origin = [0.0f32; 3];
+                    origin[(axis + 1) % 3] = x;
+                    origin[(axis + 2) % 3] = y;
+                    // Exactly axis-parallel, with the other components +0 and -0.
+                    let mut direction = [0.0f32, -0.0, 0.0];
+                    direction[axis] = sign;
+                    rays.push(Ray::new(origin, direction));
+                    // Through grid vertices of the far face from the cube's center.
+                    let mut target = origin;
+                    target[axis] = sign;
+                    rays.push(Ray::new([0.0; 3], target));
+                }
+            }
+        }
+    }
+    // Rays that start exactly on a face and run inside it, along a grid line, towards the opposite edge.
+    for &x in &grid[1..n] {
+        rays.push(Ray::new([x, -1.0, 1.0], [0.0, 1.0, -0.0]));
+    }
+    assert_all_hit("grid cube", &triangles, &rays);
+}
