@@ -4,6 +4,7 @@
 
 pub mod aabb;
 pub mod build;
+pub mod convert;
 pub mod import;
 pub mod pack;
 

@@ -1,5 +1,6 @@
 //! The integration test suite: one binary, one module per subject.
 
+mod cli;
 mod common;
 mod compat;
 mod golden;
@@ -7,5 +8,6 @@ mod mutation;
 mod roundtrip;
 mod rules;
 mod scenes;
+mod spec;
 mod traversal;
 mod watertight;

@@ -1,7 +1,7 @@
 //! Runtime reader of bvhc's `.bvh` files: zero-copy views, a full verifier, the writer, and a robust ray
 //! traversal kernel (closest hit and any hit).
 //!
-//! The format is specified in `format-spec/bvh-1.md` of the bvhc repository; the types in [`format`] are its
+//! The format is specified in `format-spec/bvh-1.md` of the bvhc repository; the types in [`mod@format`] are its
 //! single source of truth in Rust, used by the writer and the reader alike.
 //!
 //! ```

@@ -104,7 +104,10 @@ pub fn verify_tree(
     split_references: bool,
 ) -> Result<(), Violation> {
     if nodes.is_empty() {
-        return Ok(());
+        return match triangles.len() {
+            0 => Ok(()),
+            n => Err(violation(Rule::LeafPartition, format!("no nodes for {n} triangles"))),
+        };
     }
     let node_count = nodes.len();
     let mut has_parent = vec![0u64; node_count.div_ceil(64)];
