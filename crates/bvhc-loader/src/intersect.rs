@@ -9,8 +9,9 @@
 //!   shared edge or vertex hits at least one of the triangles that share it.
 //!
 //! Direction components of +0 and -0 give infinite reciprocals. The slab distances are then `+-inf`, or NaN
-//! when the origin lies exactly on a slab plane (`0 * inf`); `f32::max`/`f32::min` ignore a NaN operand, which
-//! treats the origin on the plane as inside the closed slab, as the exact test would.
+//! when the origin lies exactly on a slab plane (`0 * inf`); the slab bounds are accumulated with comparisons
+//! that ignore a NaN operand, which treats the origin on the plane as inside the closed slab, as the exact test
+//! would.
 //!
 //! Symbols (Woop et al.): `kx, ky, kz` the permuted axes; `sx, sy, sz` the shear; `U, V, W` the edge functions,
 //! which are the barycentric weights of v0, v1, v2 times the determinant `det = U + V + W`.
@@ -112,8 +113,10 @@ impl PreparedRay {
                 if self.negative[axis] { (node.max[axis], node.min[axis]) } else { (node.min[axis], node.max[axis]) };
             let t_entry = (entry_plane - self.origin[axis]) * self.inverse_direction[axis];
             let t_exit = (exit_plane - self.origin[axis]) * self.inverse_direction[axis] * EXIT_PADDING;
-            t_near = t_near.max(t_entry);
-            t_far = t_far.min(t_exit);
+            // Compare-selects that keep the accumulator when the new value is NaN (origin on a slab plane of a
+            // zero direction component), as f32::max/min would, in one instruction each.
+            t_near = if t_entry > t_near { t_entry } else { t_near };
+            t_far = if t_exit < t_far { t_exit } else { t_far };
         }
         (t_near <= t_far).then_some(t_near)
     }
