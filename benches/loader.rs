@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use bvhc::build::build_binned_sah;
-use bvhc::import::import;
+use bvhc::import::{ImportOptions, import};
 use bvhc::loader::{BvhFile, BvhView, BvhWriter, MappedBvh, PackedNode, Ray, TraversalStats};
 use bvhc::pack::pack;
 use rand::{RngExt, SeedableRng};
@@ -44,7 +44,7 @@ fn scenes_dir() -> PathBuf {
 /// Converts a scene (binned SAH, at most 4 triangles per leaf, ids) into a `.bvh` file in `dir`.
 fn convert(scene: &Path, dir: &Path) -> (PathBuf, f64) {
     let start = Instant::now();
-    let soup = import(scene).expect("scene imports");
+    let soup = import(scene, &ImportOptions::default()).expect("scene imports").soup;
     let triangles = soup.triangle_vertices();
     let packed = pack(&build_binned_sah(&triangles, 4), &triangles);
     let path = dir.join(scene.file_name().unwrap()).with_extension("bvh");

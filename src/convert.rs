@@ -4,10 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use bvhc_loader::{BvhWriter, SourceRange, format::NO_INDEX};
+use bvhc_loader::BvhWriter;
 
 use crate::build::build_binned_sah;
-use crate::import::import;
+use crate::import::{ImportOptions, import};
 use crate::pack::pack;
 
 /// Largest leaf the initial builder makes.
@@ -48,27 +48,19 @@ pub enum ConvertError {
 
 /// Converts `input` into the `.bvh` file `output`, written atomically.
 pub fn convert(input: &Path, output: &Path) -> Result<ConvertReport, ConvertError> {
-    let soup = import(input)?;
+    let soup = import(input, &ImportOptions::default())?.soup;
     let triangles = soup.triangle_vertices();
-    let count = u32::try_from(triangles.len())
+    u32::try_from(triangles.len())
         .map_err(|_| ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() })?;
     let packed = pack(&build_binned_sah(&triangles, DEFAULT_MAX_LEAF_SIZE), &triangles);
-    let ranges = [SourceRange {
-        first_source_triangle: 0,
-        source_triangle_count: count,
-        file_index: 0,
-        node_index: NO_INDEX,
-        mesh_index: NO_INDEX,
-        primitive_index: NO_INDEX,
-        instance_index: NO_INDEX,
-        reserved: 0,
-    }];
+    // The packer numbers triangles by their index in the soup; the file stores their source ids.
+    let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
     let metadata = metadata_json(input);
-    let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles).triangle_ids(&packed.triangle_ids);
-    if count > 0 {
-        writer = writer.source_table(&ranges);
-    }
-    let file = writer.metadata(&metadata).write_atomic(output)?;
+    let file = BvhWriter::new(&packed.nodes, &packed.triangles)
+        .triangle_ids(&source_ids)
+        .source_table(&soup.sources)
+        .metadata(&metadata)
+        .write_atomic(output)?;
     Ok(ConvertReport {
         output: output.to_path_buf(),
         triangle_count: packed.triangles.len(),

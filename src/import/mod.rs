@@ -1,96 +1,154 @@
-//! Scene import: a file -> a [`TriangleSoup`] of world-space f32 triangles.
+//! Scene import: a `.gltf`, `.glb`, `.obj`, `.ply`, `.obj.gz` or `.ply.gz` file -> a [`TriangleSoup`] in
+//! world space with provenance, the list of every file read, and a report of what was skipped.
 //!
-//! This first version reads PLY (ASCII and binary, polygon faces fanned) and OBJ (tobj), plain or gzipped, which
-//! is what the loader's real-scene tests and benchmarks need. glTF, provenance and the full error reporting of
-//! issue #3 build on this module.
+//! ```no_run
+//! let import = bvhc::import::import(std::path::Path::new("scene.gltf"), &Default::default())?;
+//! for file in &import.files_read {
+//!     println!("cargo:rerun-if-changed={}", file.display());
+//! }
+//! println!("{} triangles, {} degenerate dropped", import.soup.triangles.len(), import.report.degenerate());
+//! # Ok::<(), bvhc::import::ImportError>(())
+//! ```
 
+mod gltf;
 mod obj;
 mod ply;
+mod polygon;
+mod report;
+mod soup;
 
-use std::fs::File;
-use std::io::{BufRead, BufReader, Read};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use flate2::read::GzDecoder;
+pub use report::ImportReport;
+pub use soup::{Provenance, TriangleSoup, is_zero_area};
 
-/// Triangles as indices into a shared vertex array, in the scene's world space.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TriangleSoup {
-    /// Vertex positions.
-    pub positions: Vec<[f32; 3]>,
-    /// Vertex indices of each triangle, counter-clockwise seen from the front.
-    pub triangles: Vec<[u32; 3]>,
+use soup::SoupBuilder;
+
+/// Which glTF scene to import.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SceneSelector {
+    /// The scene at this index.
+    Index(usize),
+    /// The scene with this name.
+    Name(String),
 }
 
-impl TriangleSoup {
-    /// The three vertex positions of triangle `i`.
-    pub fn vertices(&self, i: usize) -> [[f32; 3]; 3] {
-        self.triangles[i].map(|v| self.positions[v as usize])
-    }
+/// Import options; the defaults suit conversion.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ImportOptions {
+    /// The glTF scene to import; default: the file's default scene, else scene 0.
+    pub scene: Option<SceneSelector>,
+    /// Keep degenerate triangles (repeated index or zero area) instead of dropping them; they are counted
+    /// either way.
+    pub keep_degenerate: bool,
+}
 
-    /// Every triangle's vertex positions, in order.
-    pub fn triangle_vertices(&self) -> Vec<[[f32; 3]; 3]> {
-        (0..self.triangles.len()).map(|i| self.vertices(i)).collect()
+/// The file formats bvhc reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneFormat {
+    /// glTF 2.0 JSON.
+    Gltf,
+    /// glTF 2.0 binary container.
+    Glb,
+    /// Wavefront OBJ, optionally gzipped.
+    Obj,
+    /// Stanford PLY, optionally gzipped.
+    Ply,
+}
+
+impl SceneFormat {
+    /// The format for a file name, from its extension (case-insensitive); also whether it is gzipped.
+    pub fn from_file_name(name: &str) -> Option<(SceneFormat, bool)> {
+        let lower = name.to_lowercase();
+        let (stem, gzipped) = match lower.strip_suffix(".gz") {
+            Some(stem) => (stem, true),
+            None => (lower.as_str(), false),
+        };
+        let format = match stem.rsplit_once('.').map(|(_, ext)| ext) {
+            Some("gltf") if !gzipped => SceneFormat::Gltf,
+            Some("glb") if !gzipped => SceneFormat::Glb,
+            Some("obj") => SceneFormat::Obj,
+            Some("ply") => SceneFormat::Ply,
+            _ => return None,
+        };
+        Some((format, gzipped))
     }
 }
 
-/// Why a scene could not be imported; names the file and what is wrong with it.
+/// A scene ready for building: triangles, the files read to get them, and what was skipped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Import {
+    /// World-space triangles with provenance.
+    pub soup: TriangleSoup,
+    /// Every file read, the input first (a build script declares them with `cargo:rerun-if-changed`).
+    pub files_read: Vec<PathBuf>,
+    /// Counts of what was read, skipped and dropped.
+    pub report: ImportReport,
+    /// The input's format.
+    pub format: SceneFormat,
+}
+
+/// Why a scene could not be imported: the file, the part of it (mesh/primitive/accessor, line) and the rule.
 #[derive(Debug, thiserror::Error)]
-#[error("{}: {message}", path.display())]
+#[error("{}: {location}: {message}", path.display())]
 pub struct ImportError {
     /// The file.
     pub path: PathBuf,
-    /// What is wrong, and where in the file.
+    /// Where in the file, e.g. `mesh 2 primitive 0` or `line 17`.
+    pub location: String,
+    /// What is wrong.
     pub message: String,
 }
 
-/// Imports the scene at `path`; the format follows the extension (`.ply`, `.obj`, each optionally `.gz`).
-pub fn import(path: &Path) -> Result<TriangleSoup, ImportError> {
-    let error = |message: String| ImportError { path: path.to_path_buf(), message };
-    let name = path.file_name().map(|n| n.to_string_lossy().to_lowercase()).unwrap_or_default();
-    let (stem, gzipped) = match name.strip_suffix(".gz") {
-        Some(stem) => (stem.to_string(), true),
-        None => (name.clone(), false),
-    };
-    let file = File::open(path).map_err(|e| error(format!("cannot open: {e}")))?;
-    let mut reader: Box<dyn BufRead> = if gzipped {
-        Box::new(BufReader::with_capacity(1 << 16, GzDecoder::new(file)))
-    } else {
-        Box::new(BufReader::with_capacity(1 << 16, file))
-    };
-    let soup = if stem.ends_with(".ply") {
-        ply::read(&mut reader)
-    } else if stem.ends_with(".obj") {
-        obj::read(&mut reader)
-    } else {
-        Err(format!("unsupported file type '{name}' (expected .ply, .obj, optionally gzipped)"))
-    };
-    soup.and_then(check_soup).map_err(error)
+/// An error inside a file, before the file's path is attached.
+#[derive(Debug)]
+pub(crate) struct Located {
+    location: String,
+    message: String,
 }
 
-/// Checks indices and positions of a freshly read soup.
-fn check_soup(soup: TriangleSoup) -> Result<TriangleSoup, String> {
-    let vertex_count = soup.positions.len();
-    if let Some((i, t)) = soup.triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&v| v as usize >= vertex_count))
-    {
-        return Err(format!("triangle {i}: vertex index in {t:?} out of range ({vertex_count} vertices)"));
+impl Located {
+    pub(crate) fn new(location: &str, message: String) -> Located {
+        Located { location: location.to_string(), message }
     }
-    if let Some((i, p)) = soup.positions.iter().enumerate().find(|(_, p)| !p.iter().all(|c| c.is_finite())) {
-        return Err(format!("vertex {i}: position {p:?} is not finite"));
-    }
-    Ok(soup)
 }
 
-/// Reads everything from `reader` (used by readers whose crate wants a byte slice).
-fn read_all(reader: &mut dyn Read) -> Result<Vec<u8>, String> {
-    let mut bytes = Vec::new();
-    reader.read_to_end(&mut bytes).map_err(|e| format!("read failed: {e}"))?;
+/// Imports the scene at `path` (format from the extension).
+pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportError> {
+    let error = |location: &str, message: String| ImportError {
+        path: path.to_path_buf(),
+        location: location.to_string(),
+        message,
+    };
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let (format, gzipped) = SceneFormat::from_file_name(&name).ok_or_else(|| {
+        error("file name", "unsupported file type (expected .gltf, .glb, .obj, .ply, .obj.gz or .ply.gz)".to_string())
+    })?;
+    let bytes = read_file(path, gzipped).map_err(|e| error("file", e))?;
+    let mut builder = SoupBuilder::new(options.keep_degenerate);
+    let mut files_read = vec![path.to_path_buf()];
+    let result = match format {
+        SceneFormat::Gltf | SceneFormat::Glb => {
+            gltf::read(path, &bytes, options.scene.as_ref(), &mut builder).map(|more| files_read.extend(more))
+        }
+        SceneFormat::Obj => obj::read(&bytes, &mut builder),
+        SceneFormat::Ply => ply::read(&bytes, &mut builder),
+    };
+    result.map_err(|e| error(&e.location, e.message))?;
+    let (soup, report) = builder.finish();
+    Ok(Import { soup, files_read, report, format })
+}
+
+/// The file's bytes, gunzipped when `gzipped`.
+fn read_file(path: &Path, gzipped: bool) -> Result<Vec<u8>, String> {
+    let raw = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
+    if !gzipped {
+        return Ok(raw);
+    }
+    let mut bytes = Vec::with_capacity(raw.len() * 4);
+    flate2::read::MultiGzDecoder::new(raw.as_slice())
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("gzip decompression failed: {e}"))?;
     Ok(bytes)
-}
-
-/// Fans a polygon's vertex indices into triangles (convex polygons; concave ones are issue #3's).
-fn fan(polygon: &[u32], triangles: &mut Vec<[u32; 3]>) {
-    for k in 2..polygon.len() {
-        triangles.push([polygon[0], polygon[k - 1], polygon[k]]);
-    }
 }

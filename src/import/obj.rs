@@ -1,31 +1,125 @@
-//! Wavefront OBJ with tobj: every model (object, group, material run), faces fanned, `.mtl` files not read.
+//! Wavefront OBJ with tobj: every model (each `o`, `g` and material change starts one), polygons triangulated
+//! (concave ones by ear clipping), negative indices resolved by tobj. `.mtl` files are never read: geometry
+//! does not need them, and a missing one is not an error.
 
-use std::io::BufRead;
+use super::Located;
+use super::polygon::triangulate;
+use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
 
-use super::{TriangleSoup, fan, read_all};
-
-pub(super) fn read(reader: &mut dyn BufRead) -> Result<TriangleSoup, String> {
-    let bytes = read_all(reader)?;
+pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Located> {
     let options =
         tobj::LoadOptions { single_index: false, triangulate: false, ignore_points: true, ignore_lines: true };
-    let (models, _materials) = tobj::load_obj_buf(&mut bytes.as_slice(), &options, |_| {
-        Err(tobj::LoadError::OpenFileFailed) // materials are not needed for geometry
-    })
-    .map_err(|e| format!("OBJ: {e}"))?;
-    let mut soup = TriangleSoup::default();
-    for model in &models {
+    let (models, _materials) = tobj::load_obj_buf(&mut &bytes[..], &options, |_| Err(tobj::LoadError::OpenFileFailed))
+        .map_err(|e| locate_error(bytes, e))?;
+    let mut triangles = Vec::new();
+    for (m, model) in models.iter().enumerate() {
         let mesh = &model.mesh;
-        let base = soup.positions.len() as u32;
-        soup.positions.extend(mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        if mesh.positions.iter().any(|c| !c.is_finite()) {
+            let location = first_non_finite_vertex(bytes).unwrap_or_else(|| format!("model {m}"));
+            return Err(Located::new(&location, "vertex position is not finite".to_string()));
+        }
+        let source: Vec<[f64; 3]> = mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+        let positions: Vec<[f32; 3]> = source.iter().map(|p| p.map(|c| c as f32)).collect();
+        if let Some(i) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            let location = first_non_finite_vertex(bytes).unwrap_or_else(|| format!("model {m}"));
+            return Err(Located::new(&location, format!("vertex position {:?} is not finite in f32", source[i])));
+        }
+        let vertex_count = positions.len();
+        triangles.clear();
         let mut start = 0usize;
-        let arities: Vec<u32> =
-            if mesh.face_arities.is_empty() { vec![3; mesh.indices.len() / 3] } else { mesh.face_arities.clone() };
+        let implicit_triangles = if mesh.face_arities.is_empty() { mesh.indices.len() / 3 } else { 0 };
+        let arities = mesh.face_arities.iter().copied().chain(std::iter::repeat_n(3, implicit_triangles));
         for arity in arities {
             let end = start + arity as usize;
-            let polygon: Vec<u32> = mesh.indices.get(start..end).unwrap_or(&[]).iter().map(|&i| base + i).collect();
-            fan(&polygon, &mut soup.triangles);
+            let Some(polygon) = mesh.indices.get(start..end) else { break };
+            if polygon.iter().any(|&v| v as usize >= vertex_count) {
+                return Err(Located::new(
+                    &format!("model {m} ('{}')", model.name),
+                    "face vertex index out of range".to_string(),
+                ));
+            }
+            triangulate(polygon, &positions, &mut triangles);
             start = end;
         }
+        let provenance = Provenance { mesh_index: m as u32, ..Provenance::NONE };
+        builder
+            .add(PrimitiveInstance {
+                provenance,
+                vertex_count,
+                source_position: |v| source[v as usize],
+                position: |v| positions[v as usize],
+                triangles: &triangles,
+                flip_winding: false,
+                first_use: true,
+            })
+            .map_err(|e| Located::new(&format!("model {m}"), e))?;
+        builder.report.mesh_placements += 1;
+        builder.report.file_mesh_triangles += triangles.len() as u64;
     }
-    Ok(soup)
+    // tobj keeps only the vertices each model uses; count the file's unused ones from its text.
+    builder.report.unreferenced_vertices = unreferenced_vertices(bytes);
+    Ok(())
+}
+
+/// tobj's errors carry no line number; find the first line that breaks the same rule.
+fn locate_error(bytes: &[u8], error: tobj::LoadError) -> Located {
+    let message = format!("malformed OBJ: {error}");
+    let mut vertex_count = 0i64;
+    for (n, line) in String::from_utf8_lossy(bytes).lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                if words.by_ref().take(3).filter(|w| w.parse::<f32>().is_ok()).count() < 3 {
+                    return Located::new(&format!("line {}", n + 1), message);
+                }
+                vertex_count += 1;
+            }
+            Some("f") => {
+                let bad = words.any(|w| {
+                    let index = w.split('/').next().and_then(|i| i.parse::<i64>().ok());
+                    !index.is_some_and(|i| (i > 0 && i <= vertex_count) || (i < 0 && -i <= vertex_count))
+                });
+                if bad {
+                    return Located::new(&format!("line {}", n + 1), message);
+                }
+            }
+            _ => {}
+        }
+    }
+    Located::new("file", message)
+}
+
+/// The line of the first vertex whose position does not parse to a finite f32 ("nan", "inf", "1e39").
+fn first_non_finite_vertex(bytes: &[u8]) -> Option<String> {
+    let text = String::from_utf8_lossy(bytes);
+    text.lines().enumerate().find_map(|(n, line)| {
+        let mut words = line.split_whitespace();
+        let bad = words.next() == Some("v") && words.take(3).any(|w| w.parse::<f32>().is_ok_and(|v| !v.is_finite()));
+        bad.then(|| format!("line {}", n + 1))
+    })
+}
+
+/// Vertices (`v` records) that no face (`f` record) refers to.
+fn unreferenced_vertices(bytes: &[u8]) -> u64 {
+    let mut referenced: Vec<bool> = Vec::new();
+    for line in bytes.split(|&b| b == b'\n') {
+        match line {
+            [b'v', b' ' | b'\t', ..] => referenced.push(false),
+            [b'f', b' ' | b'\t', rest @ ..] => {
+                for token in rest.split(|b| b.is_ascii_whitespace()).filter(|t| !t.is_empty()) {
+                    let first = token.split(|&b| b == b'/').next().unwrap_or(&[]);
+                    let Some(index) = std::str::from_utf8(first).ok().and_then(|t| t.parse::<i64>().ok()) else {
+                        continue;
+                    };
+                    let count = referenced.len() as i64;
+                    let resolved = if index < 0 { count + index } else { index - 1 };
+                    if let Some(slot) = usize::try_from(resolved).ok().and_then(|i| referenced.get_mut(i)) {
+                        *slot = true;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    referenced.iter().filter(|&&r| !r).count() as u64
 }

@@ -1,14 +1,14 @@
 //! PLY (ASCII, binary little and big endian) with ply-rs-bw: `vertex` x/y/z, `face` vertex_indices (fanned).
 
-use std::io::BufRead;
-
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, PropertyAccess, PropertyAccessResult};
 
-use super::{TriangleSoup, fan};
+use super::Located;
+use super::polygon::triangulate;
+use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
 
 #[derive(Default)]
-struct Vertex([f32; 3]);
+struct Vertex([f64; 3]);
 
 impl Vertex {
     fn set(&mut self, name: &str, value: f64) -> PropertyAccessResult {
@@ -18,7 +18,7 @@ impl Vertex {
             "z" => 2,
             _ => return PropertyAccessResult::Ignored,
         };
-        self.0[axis] = value as f32;
+        self.0[axis] = value;
         PropertyAccessResult::Set
     }
 }
@@ -49,17 +49,12 @@ impl Face {
     }
 }
 
-/// An index as u32; negative or oversized ones become u32::MAX, which the soup's range check reports.
-fn vertex_index(value: i64) -> u32 {
-    u32::try_from(value).unwrap_or(u32::MAX)
-}
-
 /// Triangles of a strip: `(s[k], s[k+1], s[k+2])` with every second one flipped to keep the winding; -1
 /// restarts the strip; triangles with a repeated index (the joins of stitched strips) are skipped.
 fn strip_triangles(strip: &[i64], triangles: &mut Vec<[u32; 3]>) {
     for run in strip.split(|&v| v < 0) {
         for (k, w) in run.windows(3).enumerate() {
-            let [a, b, c] = [w[0], w[1], w[2]].map(vertex_index);
+            let [a, b, c] = [w[0], w[1], w[2]].map(|v| v as u32); // checked by the caller
             if a == b || b == c || a == c {
                 continue;
             }
@@ -92,38 +87,81 @@ impl PropertyAccess for Face {
     }
 }
 
-pub(super) fn read(reader: &mut dyn BufRead) -> Result<TriangleSoup, String> {
-    let mut reader = Reader::new(reader);
+pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Located> {
+    let mut reader = Reader::new(bytes);
     let vertex_parser = Parser::<Vertex>::new();
-    let header = vertex_parser.read_header(&mut reader).map_err(|e| format!("PLY header: {e}"))?;
-    let mut soup = TriangleSoup::default();
+    let header =
+        vertex_parser.read_header(&mut reader).map_err(|e| Located::new("header", format!("malformed PLY: {e}")))?;
+    let mut source: Vec<[f64; 3]> = Vec::new();
+    let mut polygons: Vec<Vec<i64>> = Vec::new();
+    let mut strips: Vec<Vec<i64>> = Vec::new();
     for (name, element) in &header.elements {
+        let at = format!("element '{name}'");
+        let malformed = |e: &dyn std::fmt::Display| Located::new(&at, format!("malformed PLY: {e}"));
         match name.as_str() {
             "vertex" => {
-                let vertices = vertex_parser
-                    .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(|e| format!("PLY element 'vertex': {e}"))?;
-                soup.positions = vertices.into_iter().map(|v| v.0).collect();
+                let has_xyz = ["x", "y", "z"].iter().all(|p| element.properties.contains_key(*p));
+                if !has_xyz {
+                    return Err(Located::new(&at, "has no x, y and z properties".to_string()));
+                }
+                let vertices =
+                    vertex_parser.read_payload_for_element(&mut reader, element, &header).map_err(|e| malformed(&e))?;
+                source = vertices.into_iter().map(|v| v.0).collect();
             }
             "face" | "tristrips" => {
                 let records = Parser::<Face>::new()
                     .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(|e| format!("PLY element '{name}': {e}"))?;
-                for record in records {
-                    if name == "face" {
-                        let polygon: Vec<u32> = record.0.iter().map(|&v| vertex_index(v)).collect();
-                        fan(&polygon, &mut soup.triangles);
-                    } else {
-                        strip_triangles(&record.0, &mut soup.triangles);
-                    }
-                }
+                    .map_err(|e| malformed(&e))?;
+                let target = if name == "face" { &mut polygons } else { &mut strips };
+                target.extend(records.into_iter().map(|r| r.0));
             }
             _ => {
                 Parser::<DefaultElement>::new()
                     .read_payload_for_element(&mut reader, element, &header)
-                    .map_err(|e| format!("PLY element '{name}': {e}"))?;
+                    .map_err(|e| malformed(&e))?;
             }
         }
     }
-    Ok(soup)
+    let positions: Vec<[f32; 3]> = source.iter().map(|p| p.map(|c| c as f32)).collect();
+    if let Some(i) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        return Err(Located::new(&format!("vertex {i}"), format!("position {:?} is not finite in f32", source[i])));
+    }
+    let vertex_count = positions.len();
+    let mut triangles = Vec::new();
+    for (f, face) in polygons.iter().enumerate() {
+        let polygon = checked_indices(face, vertex_count).map_err(|e| Located::new(&format!("face {f}"), e))?;
+        triangulate(&polygon, &positions, &mut triangles);
+    }
+    for (s, strip) in strips.iter().enumerate() {
+        let valid: Vec<i64> = strip.iter().copied().filter(|&v| v >= 0).collect();
+        checked_indices(&valid, vertex_count).map_err(|e| Located::new(&format!("tristrips {s}"), e))?;
+        strip_triangles(strip, &mut triangles);
+    }
+    builder
+        .add(PrimitiveInstance {
+            provenance: Provenance::NONE,
+            vertex_count,
+            source_position: |v| source[v as usize],
+            position: |v| positions[v as usize],
+            triangles: &triangles,
+            flip_winding: false,
+            first_use: true,
+        })
+        .map_err(|e| Located::new("faces", e))?;
+    builder.report.mesh_placements += 1;
+    builder.report.file_mesh_triangles += triangles.len() as u64;
+    Ok(())
+}
+
+/// Indices as u32, each below `vertex_count`.
+fn checked_indices(indices: &[i64], vertex_count: usize) -> Result<Vec<u32>, String> {
+    indices
+        .iter()
+        .map(|&v| {
+            u32::try_from(v)
+                .ok()
+                .filter(|&v| (v as usize) < vertex_count)
+                .ok_or_else(|| format!("vertex index {v} out of range ({vertex_count} vertices)"))
+        })
+        .collect()
 }

@@ -4,6 +4,7 @@ mod cli;
 mod common;
 mod compat;
 mod golden;
+mod import_scenes;
 mod mutation;
 mod roundtrip;
 mod rules;

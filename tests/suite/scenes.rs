@@ -1,12 +1,12 @@
 //! Real scenes from the shared folder: traversal equals brute force, and the file verifies.
 
-use bvhc::import::import;
+use bvhc::import::{ImportOptions, import};
 
 use crate::common::*;
 
 fn check_scene(relative: &str, ray_count: usize) {
     let Some(path) = scene(relative) else { return };
-    let soup = import(&path).unwrap();
+    let soup = import(&path, &ImportOptions::default()).unwrap().soup;
     let triangles = soup.triangle_vertices();
     let tree = packed_tree(&triangles, 4);
     let file = write_file(&tree);

@@ -1,0 +1,200 @@
+//! glTF 2.0 (`.gltf` and `.glb`): the selected scene's node hierarchy, placed in world space.
+//!
+//! Works on the raw JSON (gltf-json) rather than the gltf crate's wrapper, whose accessors assume a validated
+//! document; every index, enum and length is checked here, so a malformed file gives an error, never a panic.
+//! Transforms (`matrix` or T * R * S, and `EXT_mesh_gpu_instancing`'s per-instance T * R * S, applied before
+//! the node's) are accumulated in f64 with glam; a negative determinant reverses the winding. Images are never
+//! read or decoded.
+
+mod buffers;
+mod extensions;
+mod primitive;
+
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+use glam::{DMat4, DQuat, DVec3};
+use gltf::json::Root;
+
+use self::buffers::Buffers;
+use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
+use super::{Located, SceneSelector};
+
+/// Reads a `.gltf` (JSON) or `.glb` file's scene into `builder`; returns the external files it read.
+pub(super) fn read(
+    path: &Path,
+    bytes: &[u8],
+    scene: Option<&SceneSelector>,
+    builder: &mut SoupBuilder,
+) -> Result<Vec<PathBuf>, Located> {
+    let (json, bin) = if bytes.starts_with(b"glTF") {
+        let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| Located::new("GLB container", e.to_string()))?;
+        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+    } else {
+        (bytes.to_vec(), None)
+    };
+    let root = Root::from_slice(&json).map_err(|e| Located::new("JSON", format!("malformed glTF JSON: {e}")))?;
+    extensions::check_required(&root)?;
+    let roots = scene_roots(&root, scene)?;
+    builder.report.file_mesh_triangles = primitive::file_mesh_triangles(&root);
+    let mut buffers = Buffers::new(&root, path, bin.as_deref());
+    let mut walker = Walker { root: &root, buffers: &mut buffers, builder, placed: HashSet::new() };
+    walker.walk(&roots)?;
+    Ok(buffers.files_read)
+}
+
+/// The root nodes of the selected scene: the one asked for, else the default scene, else scene 0, else (a file
+/// without scenes) every node that is no node's child.
+fn scene_roots(root: &Root, selector: Option<&SceneSelector>) -> Result<Vec<usize>, Located> {
+    let count = root.scenes.len();
+    let chosen = match selector {
+        Some(SceneSelector::Index(i)) if *i < count => Some(*i),
+        Some(SceneSelector::Index(i)) => {
+            return Err(Located::new("scenes", format!("scene {i} does not exist (the file has {count} scenes)")));
+        }
+        Some(SceneSelector::Name(name)) => {
+            let found = root.scenes.iter().position(|s| s.name.as_deref() == Some(name.as_str()));
+            let names: Vec<_> = root.scenes.iter().map(|s| s.name.clone().unwrap_or_default()).collect();
+            Some(
+                found
+                    .ok_or_else(|| Located::new("scenes", format!("no scene is named '{name}' (names: {names:?})")))?,
+            )
+        }
+        None => root.scene.map(|s| s.value()).or((count > 0).then_some(0)),
+    };
+    match chosen {
+        Some(i) => {
+            let scene =
+                root.scenes.get(i).ok_or_else(|| Located::new("scene", format!("default scene {i} does not exist")))?;
+            Ok(scene.nodes.iter().map(|n| n.value()).collect())
+        }
+        None => {
+            let children: HashSet<usize> =
+                root.nodes.iter().flat_map(|n| n.children.iter().flatten().map(|c| c.value())).collect();
+            Ok((0..root.nodes.len()).filter(|i| !children.contains(i)).collect())
+        }
+    }
+}
+
+struct Walker<'r, 'b> {
+    root: &'r Root,
+    buffers: &'b mut Buffers<'r>,
+    builder: &'b mut SoupBuilder,
+    /// (mesh, primitive) pairs placed so far, for the report's unique figures.
+    placed: HashSet<(usize, usize)>,
+}
+
+impl Walker<'_, '_> {
+    /// Depth first from `roots`, children in file order.
+    fn walk(&mut self, roots: &[usize]) -> Result<(), Located> {
+        let mut visited = vec![false; self.root.nodes.len()];
+        let mut stack: Vec<(usize, DMat4)> = roots.iter().rev().map(|&n| (n, DMat4::IDENTITY)).collect();
+        while let Some((index, parent)) = stack.pop() {
+            let at = format!("node {index}");
+            let node = self.root.nodes.get(index).ok_or_else(|| Located::new(&at, "does not exist".to_string()))?;
+            if std::mem::replace(&mut visited[index], true) {
+                return Err(Located::new(&at, "is reached twice: the node hierarchy is not a tree".to_string()));
+            }
+            let world = parent * local_transform(node);
+            if !world.is_finite() {
+                return Err(Located::new(&at, "its world transform is not finite".to_string()));
+            }
+            if let Some(mesh) = node.mesh {
+                let instances =
+                    extensions::instance_transforms(node, self.buffers).map_err(|e| Located::new(&at, e))?;
+                if node.skin.is_some() {
+                    self.builder.report.skinned_placements += instances.as_ref().map_or(1, Vec::len) as u64;
+                }
+                match instances {
+                    None => self.place_mesh(index, mesh.value(), None, world)?,
+                    Some(instances) => {
+                        for (i, instance) in instances.into_iter().enumerate() {
+                            self.place_mesh(index, mesh.value(), Some(i), world * instance)?;
+                        }
+                    }
+                }
+            }
+            for child in node.children.iter().flatten().rev() {
+                stack.push((child.value(), world));
+            }
+        }
+        Ok(())
+    }
+
+    fn place_mesh(
+        &mut self,
+        node: usize,
+        mesh_index: usize,
+        instance: Option<usize>,
+        world: DMat4,
+    ) -> Result<(), Located> {
+        let mesh = self
+            .root
+            .meshes
+            .get(mesh_index)
+            .ok_or_else(|| Located::new(&format!("node {node}"), format!("mesh {mesh_index} does not exist")))?;
+        self.builder.report.mesh_placements += 1;
+        let flip_winding = world.determinant() < 0.0;
+        let mut world_positions: Vec<[f32; 3]> = Vec::new();
+        for (p, json_primitive) in mesh.primitives.iter().enumerate() {
+            let at = format!("mesh {mesh_index} primitive {p}");
+            let Some(geometry) = primitive::geometry(json_primitive, self.buffers, &mut self.builder.report)
+                .map_err(|e| Located::new(&at, e))?
+            else {
+                continue;
+            };
+            world_positions.clear();
+            for (i, v) in geometry.positions.values.chunks_exact(3).enumerate() {
+                let w = world.transform_point3(DVec3::new(v[0], v[1], v[2])).as_vec3().to_array();
+                if !w.iter().all(|c| c.is_finite()) {
+                    return Err(Located::new(
+                        &at,
+                        format!("vertex {i}: world position {w:?} is not finite (node {node})"),
+                    ));
+                }
+                world_positions.push(w);
+            }
+            let provenance = Provenance {
+                node_index: node as u32,
+                mesh_index: mesh_index as u32,
+                primitive_index: p as u32,
+                instance_index: instance.map_or(bvhc_loader::format::NO_INDEX, |i| i as u32),
+            };
+            let positions = &world_positions;
+            let source = &geometry.positions.values;
+            self.builder
+                .add(PrimitiveInstance {
+                    provenance,
+                    vertex_count: positions.len(),
+                    source_position: |v| {
+                        let at = 3 * v as usize;
+                        [source[at], source[at + 1], source[at + 2]]
+                    },
+                    position: |v| positions[v as usize],
+                    triangles: &geometry.triangles,
+                    flip_winding,
+                    first_use: self.placed.insert((mesh_index, p)),
+                })
+                .map_err(|e| Located::new(&at, e))?;
+        }
+        Ok(())
+    }
+}
+
+/// A node's local transform: `matrix` (column-major), or T * R * S.
+fn local_transform(node: &gltf::json::Node) -> DMat4 {
+    if let Some(m) = node.matrix {
+        return DMat4::from_cols_array(&m.map(f64::from));
+    }
+    let t = node.translation.map_or(DVec3::ZERO, |t| DVec3::from_array(t.map(f64::from)));
+    let r = node.rotation.map_or(DQuat::IDENTITY, |r| quaternion(r.0.map(f64::from)));
+    let s = node.scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.map(f64::from)));
+    DMat4::from_scale_rotation_translation(s, r, t)
+}
+
+/// A rotation from `[x, y, z, w]`, normalized (files often store slightly denormalized quaternions).
+pub(super) fn quaternion(xyzw: [f64; 4]) -> DQuat {
+    let q = DQuat::from_array(xyzw);
+    let length = q.length();
+    if length > 0.0 && length.is_finite() { q / length } else { DQuat::IDENTITY }
+}

@@ -1,0 +1,221 @@
+//! The triangle soup every importer produces, and the builder that fills it.
+//!
+//! Importers hand the builder one *primitive instance* at a time (a glTF primitive placed by one node and
+//! instance, an OBJ model, a PLY file): its triangles as local vertex indices and a function that gives a
+//! vertex's world-space position. The builder
+//! * numbers the primitive's triangles with consecutive **source ids**, dropped ones included, so that a
+//!   triangle's index within its primitive is `source_id - first_source_triangle` of its [`SourceRange`];
+//! * drops degenerate triangles (a repeated vertex index, or zero area in world space) unless told to keep
+//!   them, and counts them either way;
+//! * copies only the vertices that kept triangles use, so unreferenced vertices cost nothing downstream.
+
+use bvhc_loader::SourceRange;
+use bvhc_loader::format::NO_INDEX;
+
+use super::report::{Degenerate, ImportReport};
+
+/// World-space triangles with provenance: the input of the builders and of the writer's id sections.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleSoup {
+    /// Vertex positions in world space.
+    pub positions: Vec<[f32; 3]>,
+    /// Vertex indices of each triangle, counter-clockwise seen from the front.
+    pub triangles: Vec<[u32; 3]>,
+    /// Each triangle's source id (see the module documentation).
+    pub source_ids: Vec<u32>,
+    /// The source ranges, ascending and disjoint; every source id lies in one of them.
+    pub sources: Vec<SourceRange>,
+}
+
+impl TriangleSoup {
+    /// The three vertex positions of triangle `i`.
+    pub fn vertices(&self, i: usize) -> [[f32; 3]; 3] {
+        self.triangles[i].map(|v| self.positions[v as usize])
+    }
+
+    /// Every triangle's vertex positions, in order.
+    pub fn triangle_vertices(&self) -> Vec<[[f32; 3]; 3]> {
+        (0..self.triangles.len()).map(|i| self.vertices(i)).collect()
+    }
+
+    /// The source range that a source id belongs to.
+    pub fn source_of(&self, source_id: u32) -> Option<&SourceRange> {
+        let after = self.sources.partition_point(|r| r.first_source_triangle <= source_id);
+        let range = self.sources.get(after.checked_sub(1)?)?;
+        (source_id - range.first_source_triangle < range.source_triangle_count).then_some(range)
+    }
+}
+
+/// Where a primitive instance came from; `NO_INDEX` where a field does not apply.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Provenance {
+    /// glTF node.
+    pub node_index: u32,
+    /// glTF mesh, or OBJ model.
+    pub mesh_index: u32,
+    /// glTF primitive within the mesh.
+    pub primitive_index: u32,
+    /// `EXT_mesh_gpu_instancing` instance.
+    pub instance_index: u32,
+}
+
+impl Provenance {
+    /// No node, mesh, primitive or instance (a PLY file).
+    pub const NONE: Provenance =
+        Provenance { node_index: NO_INDEX, mesh_index: NO_INDEX, primitive_index: NO_INDEX, instance_index: NO_INDEX };
+}
+
+/// One primitive instance handed to [`SoupBuilder::add`].
+pub struct PrimitiveInstance<'a, S: Fn(u32) -> [f64; 3], P: Fn(u32) -> [f32; 3]> {
+    /// Where it came from.
+    pub provenance: Provenance,
+    /// Number of vertices the local indices refer to; every index must be below it.
+    pub vertex_count: usize,
+    /// Position of a local vertex in the source's own coordinates and precision (for the zero-area test that
+    /// the source's authors would make).
+    pub source_position: S,
+    /// World-space position of a local vertex.
+    pub position: P,
+    /// Triangles as local vertex indices, in the primitive's order.
+    pub triangles: &'a [[u32; 3]],
+    /// Reverse the winding (the placement has a negative determinant).
+    pub flip_winding: bool,
+    /// Whether this is the first placement of this mesh data (counted in the "unique" figures).
+    pub first_use: bool,
+}
+
+/// Fills a [`TriangleSoup`] and the counts of an [`ImportReport`].
+pub struct SoupBuilder {
+    soup: TriangleSoup,
+    keep_degenerate: bool,
+    next_source_id: u64,
+    /// Local vertex -> soup vertex for the current primitive (`u32::MAX`: not copied yet); reused.
+    remap: Vec<u32>,
+    /// The figures for the report.
+    pub report: ImportReport,
+}
+
+impl SoupBuilder {
+    /// An empty builder.
+    pub fn new(keep_degenerate: bool) -> SoupBuilder {
+        SoupBuilder {
+            soup: TriangleSoup::default(),
+            keep_degenerate,
+            next_source_id: 0,
+            remap: Vec::new(),
+            report: ImportReport::default(),
+        }
+    }
+
+    /// Adds one primitive instance. Fails only when the scene outgrows u32 ids or indices.
+    pub fn add<S, P>(&mut self, primitive: PrimitiveInstance<'_, S, P>) -> Result<(), String>
+    where
+        S: Fn(u32) -> [f64; 3],
+        P: Fn(u32) -> [f32; 3],
+    {
+        let count = primitive.triangles.len();
+        if count == 0 {
+            return Ok(());
+        }
+        if let Some(t) =
+            primitive.triangles.iter().position(|t| t.iter().any(|&v| v as usize >= primitive.vertex_count))
+        {
+            return Err(format!("triangle {t}: vertex index out of range ({} vertices)", primitive.vertex_count));
+        }
+        let first = self.next_source_id;
+        self.next_source_id += count as u64;
+        if self.next_source_id > u64::from(u32::MAX) {
+            return Err("the scene has more than 2^32 - 1 triangles".to_string());
+        }
+        let p = primitive.provenance;
+        self.soup.sources.push(SourceRange {
+            first_source_triangle: first as u32,
+            source_triangle_count: count as u32,
+            file_index: 0,
+            node_index: p.node_index,
+            mesh_index: p.mesh_index,
+            primitive_index: p.primitive_index,
+            instance_index: p.instance_index,
+            reserved: 0,
+        });
+        self.remap.clear();
+        self.remap.resize(primitive.vertex_count, u32::MAX);
+        let report = &mut self.report;
+        report.source_triangles += count as u64;
+        if primitive.first_use {
+            report.unique_source_triangles += count as u64;
+        }
+        let mut referenced = 0usize;
+        for (k, &[a, b, c]) in primitive.triangles.iter().enumerate() {
+            if primitive.first_use {
+                for v in [a, b, c] {
+                    // Counted before dropping: a vertex used only by degenerate triangles is still referenced.
+                    if self.remap[v as usize] == u32::MAX {
+                        self.remap[v as usize] = u32::MAX - 1;
+                        referenced += 1;
+                    }
+                }
+            }
+            let repeated = a == b || b == c || a == c;
+            let positions = [a, b, c].map(&primitive.position);
+            let kind = if repeated {
+                Some(Degenerate::RepeatedIndex)
+            } else if is_zero_area_f64(&[a, b, c].map(&primitive.source_position)) {
+                Some(Degenerate::ZeroArea)
+            } else if is_zero_area(&positions) {
+                Some(Degenerate::ZeroAreaAfterPlacement)
+            } else {
+                None
+            };
+            if let Some(kind) = kind {
+                report.count_degenerate(kind, primitive.first_use);
+                if !self.keep_degenerate {
+                    continue;
+                }
+            }
+            let mut triangle = [0u32; 3];
+            for (slot, (v, position)) in triangle.iter_mut().zip([a, b, c].into_iter().zip(positions)) {
+                let mapped = &mut self.remap[v as usize];
+                if *mapped >= u32::MAX - 1 {
+                    *mapped = u32::try_from(self.soup.positions.len())
+                        .ok()
+                        .filter(|&index| index < u32::MAX - 1)
+                        .ok_or_else(|| "the scene has more than 2^32 - 2 vertices".to_string())?;
+                    self.soup.positions.push(position);
+                }
+                *slot = *mapped;
+            }
+            if primitive.flip_winding {
+                triangle.swap(1, 2);
+            }
+            self.soup.triangles.push(triangle);
+            self.soup.source_ids.push(first as u32 + k as u32);
+        }
+        if primitive.first_use {
+            report.unreferenced_vertices += (primitive.vertex_count - referenced) as u64;
+        }
+        Ok(())
+    }
+
+    /// The finished soup and report.
+    pub fn finish(self) -> (TriangleSoup, ImportReport) {
+        let mut report = self.report;
+        report.triangles = self.soup.triangles.len() as u64;
+        report.vertices = self.soup.positions.len() as u64;
+        (self.soup, report)
+    }
+}
+
+/// Whether an f32 triangle's area is exactly zero, with the cross product taken in f64 (so no non-degenerate
+/// f32 triangle is misjudged through underflow). Such a triangle can never be hit by a watertight ray test.
+pub fn is_zero_area(v: &[[f32; 3]; 3]) -> bool {
+    is_zero_area_f64(&v.map(|p| p.map(f64::from)))
+}
+
+/// Whether the cross product of the triangle's edges is exactly zero in f64.
+pub fn is_zero_area_f64(v: &[[f64; 3]; 3]) -> bool {
+    let e1: [f64; 3] = std::array::from_fn(|a| v[1][a] - v[0][a]);
+    let e2: [f64; 3] = std::array::from_fn(|a| v[2][a] - v[0][a]);
+    let cross = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+    cross == [0.0; 3]
+}
