@@ -23,6 +23,9 @@ fn world_matrices(document: &gltf::Document) -> Vec<Option<DMat4>> {
     worlds
 }
 
+/// A primitive as the oracle decodes it: local positions and its index list.
+type LocalPrimitive = (Vec<[f32; 3]>, Vec<u32>);
+
 /// Imports `relative` and checks every triangle against the oracle; returns (triangles, mirrored ones).
 fn check_against_oracle(relative: &str) -> Option<(usize, usize)> {
     let path = scene(relative)?;
@@ -31,7 +34,7 @@ fn check_against_oracle(relative: &str) -> Option<(usize, usize)> {
     let worlds = world_matrices(&document);
     let soup = &imported.soup;
     let mut mirrored = 0;
-    let mut decoded: std::collections::HashMap<(u32, u32), (Vec<[f32; 3]>, Vec<u32>)> = Default::default();
+    let mut decoded: std::collections::HashMap<(u32, u32), LocalPrimitive> = Default::default();
     for (t, &id) in soup.source_ids.iter().enumerate() {
         let range = soup.source_of(id).unwrap();
         let k = (id - range.first_source_triangle) as usize;
