@@ -112,3 +112,51 @@ fn degenerate_triangles_are_dropped_and_counted_or_kept() {
     assert_eq!(kept.soup.source_ids, [0, 1, 2]);
     assert_eq!(kept.report.degenerate(), 2);
 }
+
+/// A glTF whose POSITION accessor stores `components` (bytes already encoded) with the given component type,
+/// normalization and byte stride, and no indices.
+fn quantized_gltf(component_type: u32, normalized: bool, stride: usize, data: &[u8], count: usize) -> String {
+    use base64::Engine;
+    let uri = base64::engine::general_purpose::STANDARD.encode(data);
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"extensionsRequired":["KHR_mesh_quantization"],"extensionsUsed":["KHR_mesh_quantization"],
+        "scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+        "accessors":[{{"bufferView":0,"componentType":{component_type},"normalized":{normalized},"count":{count},"type":"VEC3"}}],
+        "bufferViews":[{{"buffer":0,"byteLength":{},"byteStride":{stride}}}],
+        "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{uri}"}}]}}"#,
+        data.len(),
+        data.len()
+    )
+}
+
+#[test]
+fn quantized_positions_decode_as_khr_mesh_quantization_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let options = ImportOptions { keep_degenerate: true, ..Default::default() };
+    // Signed bytes, normalized, stride 4: -128 clamps to -1, 127 is 1, 64 is 64/127.
+    let bytes: Vec<u8> =
+        [[-128i8, 0, 0, 0], [127, 0, 0, 0], [0, 64, 0, 0]].iter().flatten().map(|&b| b as u8).collect();
+    let path = write(dir.path(), "i8.gltf", quantized_gltf(5120, true, 4, &bytes, 3).as_bytes());
+    let soup = import(&path, &options).unwrap().soup;
+    assert_eq!(soup.vertices(0), [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, (64.0f64 / 127.0) as f32, 0.0]]);
+    // Unsigned bytes, normalized: 255 is 1.
+    let bytes = [255u8, 0, 0, 0, 0, 255, 0, 0, 0, 0, 51, 0];
+    let path = write(dir.path(), "u8.gltf", quantized_gltf(5121, true, 4, &bytes, 3).as_bytes());
+    let soup = import(&path, &options).unwrap().soup;
+    assert_eq!(soup.vertices(0), [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.2]]);
+    // Signed shorts, not normalized, stride 8: the integers themselves.
+    let shorts: Vec<u8> =
+        [[300i16, -2, 7, 0], [0, 1, 0, 0], [-32768, 0, 0, 0]].iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    let path = write(dir.path(), "i16.gltf", quantized_gltf(5122, false, 8, &shorts, 3).as_bytes());
+    let soup = import(&path, &options).unwrap().soup;
+    assert_eq!(soup.vertices(0), [[300.0, -2.0, 7.0], [0.0, 1.0, 0.0], [-32768.0, 0.0, 0.0]]);
+    // Unsigned shorts, normalized.
+    let shorts: Vec<u8> = [[65535u16, 0, 0, 0], [0, 65535, 0, 0], [0, 0, 13107, 0]]
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let path = write(dir.path(), "u16.gltf", quantized_gltf(5123, true, 8, &shorts, 3).as_bytes());
+    let soup = import(&path, &options).unwrap().soup;
+    assert_eq!(soup.vertices(0), [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.2]]);
+}
