@@ -5,7 +5,9 @@
 pub mod aabb;
 pub mod build;
 pub mod convert;
+pub mod cost;
 pub mod import;
+pub mod optimize;
 pub mod pack;
 
 pub use bvhc_loader as loader;

@@ -10,6 +10,7 @@ mod import_gltf;
 mod import_mutation;
 mod import_scenes;
 mod mutation;
+mod optimize;
 mod roundtrip;
 mod rules;
 mod scenes;

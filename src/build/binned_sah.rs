@@ -8,57 +8,17 @@
 //! `MEDIAN_FALLBACK_DEPTH + log2(n)` and keeps every tree within the format's depth rule. The result depends
 //! only on the input (no threads, no hashing), so builds are deterministic.
 
+use super::{BuildNode, BuildTree};
 use crate::aabb::Aabb;
 
 /// Bins per axis.
 pub const BIN_COUNT: usize = 16;
 /// Depth from which nodes are split at the median triangle, whatever the SAH says.
 pub const MEDIAN_FALLBACK_DEPTH: usize = 160;
-/// Cost of a traversal step in the SAH (the reference convention's c_T).
-pub const TRAVERSAL_COST: f64 = 3.0;
-/// Cost of a triangle test in the SAH (the reference convention's c_I).
-pub const INTERSECTION_COST: f64 = 2.0;
-
-/// A node of the mutable build tree.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum BuildNode {
-    /// Two children, indices into [`BuildTree::nodes`].
-    Inner {
-        /// The node's box.
-        aabb: Aabb,
-        /// Left child.
-        left: u32,
-        /// Right child.
-        right: u32,
-    },
-    /// Triangles `triangle_order[first .. first + count]`.
-    Leaf {
-        /// The node's box.
-        aabb: Aabb,
-        /// First position in [`BuildTree::triangle_order`].
-        first: u32,
-        /// Number of triangles, at least 1.
-        count: u32,
-    },
-}
-
-impl BuildNode {
-    /// The node's box.
-    pub fn aabb(&self) -> &Aabb {
-        match self {
-            BuildNode::Inner { aabb, .. } | BuildNode::Leaf { aabb, .. } => aabb,
-        }
-    }
-}
-
-/// A BVH over a triangle array; the root is node 0 (no nodes for no triangles).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct BuildTree {
-    /// The nodes.
-    pub nodes: Vec<BuildNode>,
-    /// Triangle indices in leaf order.
-    pub triangle_order: Vec<u32>,
-}
+/// Cost of a traversal step in the split decisions (the reference convention's c_T).
+const TRAVERSAL_COST: f64 = 3.0;
+/// Cost of a triangle test in the split decisions (the reference convention's c_I).
+const INTERSECTION_COST: f64 = 2.0;
 
 /// Builds a binned SAH tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
 pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {

@@ -1,0 +1,122 @@
+//! Optimizer parameters, their defaults and the presets.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use super::select::Selection;
+use crate::cost::SahConstants;
+
+/// Which optimization loop runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Algorithm {
+    /// Rounds of moves searched in parallel on a frozen tree and applied by gain (after Meister and Bittner
+    /// 2018); the same result for any number of threads.
+    #[default]
+    Parallel,
+    /// Bittner et al. 2013 exactly: one node at a time removed and its children reinserted; single-threaded.
+    /// The reference the parallel loop is checked against.
+    Sequential,
+}
+
+/// Everything the optimizer can be told. `Default` is the `balanced` preset.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OptimizeParams {
+    /// The loop.
+    pub algorithm: Algorithm,
+    /// How batch nodes are ranked (switches to random after `random_after` batches without progress).
+    pub selection: Selection,
+    /// Fraction of the eligible inner nodes per batch (`k`; the paper's 1% = 0.01).
+    pub batch_fraction: f64,
+    /// `p_R`: batches without progress before selection turns random (until the next progress).
+    pub random_after: u32,
+    /// `p_T`: batches without progress before the optimizer stops.
+    pub stop_after: u32,
+    /// A batch makes progress when it lowers the best cost by more than this fraction.
+    pub min_relative_improvement: f64,
+    /// Upper bound on batches.
+    pub max_batches: u32,
+    /// Wall-clock budget; the best tree so far is returned when it runs out.
+    #[serde(serialize_with = "serialize_seconds")]
+    pub time_budget: Option<Duration>,
+    /// Seed of the random selection.
+    pub seed: u64,
+    /// SAH constants of the reported cost and of leaf merging.
+    pub constants: SahConstants,
+}
+
+fn serialize_seconds<S: serde::Serializer>(budget: &Option<Duration>, s: S) -> Result<S::Ok, S::Error> {
+    match budget {
+        Some(d) => s.serialize_some(&d.as_secs_f64()),
+        None => s.serialize_none(),
+    }
+}
+
+impl Default for OptimizeParams {
+    fn default() -> Self {
+        OptimizeParams::preset(Preset::Balanced)
+    }
+}
+
+/// Named parameter sets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Preset {
+    /// Large batches, early stop: most of the gain in a fraction of the time.
+    Fast,
+    /// The default: converged trees at a moderate cost.
+    #[default]
+    Balanced,
+    /// Small batches, patient termination: the lowest cost.
+    MaxQuality,
+}
+
+impl Preset {
+    /// Every preset.
+    pub const ALL: [Preset; 3] = [Preset::Fast, Preset::Balanced, Preset::MaxQuality];
+
+    /// The name used in options and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Fast => "fast",
+            Preset::Balanced => "balanced",
+            Preset::MaxQuality => "max-quality",
+        }
+    }
+}
+
+impl OptimizeParams {
+    /// The parameters of a preset.
+    pub fn preset(preset: Preset) -> OptimizeParams {
+        let base = OptimizeParams {
+            algorithm: Algorithm::Parallel,
+            selection: Selection::Comb,
+            batch_fraction: 0.01,
+            random_after: 5,
+            stop_after: 10,
+            min_relative_improvement: 1e-4,
+            max_batches: 100_000,
+            time_budget: None,
+            seed: 0x6276_6863,
+            constants: SahConstants::default(),
+        };
+        match preset {
+            Preset::Fast => OptimizeParams {
+                batch_fraction: 0.05,
+                random_after: 2,
+                stop_after: 3,
+                min_relative_improvement: 1e-3,
+                ..base
+            },
+            Preset::Balanced => base,
+            Preset::MaxQuality => OptimizeParams {
+                batch_fraction: 0.01,
+                random_after: 10,
+                stop_after: 30,
+                min_relative_improvement: 0.0,
+                ..base
+            },
+        }
+    }
+}

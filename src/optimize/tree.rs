@@ -1,0 +1,310 @@
+//! The optimizer's mutable tree: binary, one triangle per leaf, parent links, boxes kept exact by refitting.
+//!
+//! Kept apart from the packed on-disk layout: the optimizer rewires links in place, then
+//! [`OptTree::to_build_tree`] hands a plain [`BuildTree`] to the leaf merger or the packer.
+
+use crate::aabb::Aabb;
+use crate::build::{BuildNode, BuildTree, build_binned_sah};
+
+/// Marks a missing link (the root's parent, a leaf's left child).
+pub const NONE: u32 = u32::MAX;
+
+/// A node: inner nodes have `left` and `right` children; a leaf has `left == NONE` and its triangle in `right`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OptNode {
+    /// Exact box: the union of the children's boxes, or the triangle's box.
+    pub aabb: Aabb,
+    /// Parent, `NONE` for the root.
+    pub parent: u32,
+    /// First child, `NONE` for a leaf.
+    pub left: u32,
+    /// Second child, or the leaf's triangle index.
+    pub right: u32,
+}
+
+/// A binary BVH with one triangle per leaf, as the optimizer needs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OptTree {
+    /// All nodes; `2 * triangles - 1` of them.
+    pub nodes: Vec<OptNode>,
+    /// The root's index.
+    pub root: u32,
+}
+
+/// Surface area in f32 (the optimizer's working precision; reported costs are summed in f64).
+#[inline(always)]
+pub fn area(aabb: &Aabb) -> f32 {
+    let dx = aabb.max[0] - aabb.min[0];
+    let dy = aabb.max[1] - aabb.min[1];
+    let dz = aabb.max[2] - aabb.min[2];
+    2.0 * (dx * dy + dy * dz + dz * dx)
+}
+
+impl OptTree {
+    /// The tree of `build`, with leaves of several triangles split (binned SAH) into one-triangle leaves.
+    pub fn from_build_tree(build: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> OptTree {
+        let mut tree = OptTree { nodes: Vec::with_capacity(2 * triangles.len()), root: NONE };
+        if build.nodes.is_empty() {
+            return tree;
+        }
+        tree.root = tree.add_build_subtree(build, 0, triangles, NONE);
+        tree
+    }
+
+    fn add_build_subtree(&mut self, build: &BuildTree, index: usize, triangles: &[[[f32; 3]; 3]], parent: u32) -> u32 {
+        // Iterative over the build tree: (build node, parent in self, is left child).
+        let mut stack = vec![(index, parent, true)];
+        let mut top = NONE;
+        while let Some((b, parent, is_left)) = stack.pop() {
+            let at = match build.nodes[b] {
+                BuildNode::Inner { aabb, left, right } => {
+                    let at = self.push(OptNode { aabb, parent, left: NONE, right: NONE });
+                    stack.push((right as usize, at, false));
+                    stack.push((left as usize, at, true));
+                    at
+                }
+                BuildNode::Leaf { first, count, .. } => {
+                    let order = &build.triangle_order[first as usize..(first + count) as usize];
+                    self.add_leaves(order, triangles, parent)
+                }
+            };
+            if parent == NONE {
+                top = at;
+            } else if is_left {
+                self.nodes[parent as usize].left = at;
+            } else {
+                self.nodes[parent as usize].right = at;
+            }
+        }
+        top
+    }
+
+    /// One leaf per triangle of `order`, under a binned SAH subtree when there are several.
+    fn add_leaves(&mut self, order: &[u32], triangles: &[[[f32; 3]; 3]], parent: u32) -> u32 {
+        if let [t] = order {
+            let aabb = Aabb::of_triangle(&triangles[*t as usize]);
+            return self.push(OptNode { aabb, parent, left: NONE, right: *t });
+        }
+        let local: Vec<[[f32; 3]; 3]> = order.iter().map(|&t| triangles[t as usize]).collect();
+        let mut sub = build_binned_sah(&local, 1);
+        for t in &mut sub.triangle_order {
+            *t = order[*t as usize];
+        }
+        self.add_build_subtree(&sub, 0, triangles, parent)
+    }
+
+    fn push(&mut self, node: OptNode) -> u32 {
+        self.nodes.push(node);
+        (self.nodes.len() - 1) as u32
+    }
+
+    /// Whether node `i` is a leaf.
+    #[inline(always)]
+    pub fn is_leaf(&self, i: u32) -> bool {
+        self.nodes[i as usize].left == NONE
+    }
+
+    /// Node `i`'s surface area.
+    #[inline(always)]
+    pub fn area(&self, i: u32) -> f32 {
+        area(&self.nodes[i as usize].aabb)
+    }
+
+    /// The other child of `i`'s parent (`i` must not be the root).
+    #[inline(always)]
+    pub fn sibling(&self, i: u32) -> u32 {
+        let p = &self.nodes[self.nodes[i as usize].parent as usize];
+        if p.left == i { p.right } else { p.left }
+    }
+
+    /// Replaces `old` by `new` among the children of `parent` (or as the root when `parent` is `NONE`).
+    pub fn replace_child(&mut self, parent: u32, old: u32, new: u32) {
+        if parent == NONE {
+            self.root = new;
+        } else {
+            let p = &mut self.nodes[parent as usize];
+            if p.left == old {
+                p.left = new;
+            } else {
+                p.right = new;
+            }
+        }
+        self.nodes[new as usize].parent = parent;
+    }
+
+    /// Recomputes boxes from `i` up to the root, stopping where a box does not change.
+    pub fn refit_from(&mut self, mut i: u32) {
+        while i != NONE {
+            let node = self.nodes[i as usize];
+            let aabb = self.nodes[node.left as usize].aabb.union(&self.nodes[node.right as usize].aabb);
+            if aabb == node.aabb {
+                return;
+            }
+            self.nodes[i as usize].aabb = aabb;
+            i = node.parent;
+        }
+    }
+
+    /// Sum of the inner nodes' areas and of the leaves' areas, each area in f64 as the cost module computes
+    /// it, summed in node-index order.
+    pub fn area_sums(&self) -> (f64, f64) {
+        let mut inner = 0.0;
+        let mut leaves = 0.0;
+        for node in &self.nodes {
+            let a = node.aabb.surface_area();
+            if node.left == NONE { leaves += a } else { inner += a }
+        }
+        (inner, leaves)
+    }
+
+    /// The root's area (0 for an empty tree).
+    pub fn root_area(&self) -> f64 {
+        if self.root == NONE { 0.0 } else { self.nodes[self.root as usize].aabb.surface_area() }
+    }
+
+    /// Depth-first order from the root (parents before children, left subtrees first).
+    pub fn depth_first(&self) -> Vec<u32> {
+        let mut order = Vec::with_capacity(self.nodes.len());
+        if self.root == NONE {
+            return order;
+        }
+        let mut stack = vec![self.root];
+        while let Some(i) = stack.pop() {
+            order.push(i);
+            let node = &self.nodes[i as usize];
+            if node.left != NONE {
+                stack.push(node.right);
+                stack.push(node.left);
+            }
+        }
+        order
+    }
+
+    /// Largest depth of a node (root 0).
+    pub fn max_depth(&self) -> usize {
+        let mut depth = vec![0usize; self.nodes.len()];
+        let mut deepest = 0;
+        for i in self.depth_first() {
+            let node = &self.nodes[i as usize];
+            if node.left != NONE {
+                let d = depth[i as usize] + 1;
+                depth[node.left as usize] = d;
+                depth[node.right as usize] = d;
+                deepest = deepest.max(d);
+            }
+        }
+        deepest
+    }
+
+    /// Rebuilds (median splits) every subtree that reaches below `max_depth`, so that no node is deeper.
+    pub fn limit_depth(&mut self, max_depth: usize, triangles: &[[[f32; 3]; 3]]) {
+        // Subtrees rooted at depth `cut` are rebuilt balanced: their height becomes ceil(log2(leaves)) <= 32.
+        let cut = max_depth.saturating_sub(33);
+        if self.max_depth() <= max_depth {
+            return;
+        }
+        let mut depth = vec![0usize; self.nodes.len()];
+        let mut roots = Vec::new();
+        for i in self.depth_first() {
+            let node = self.nodes[i as usize];
+            if depth[i as usize] == cut && node.left != NONE {
+                roots.push(i);
+            } else if node.left != NONE && depth[i as usize] < cut {
+                depth[node.left as usize] = depth[i as usize] + 1;
+                depth[node.right as usize] = depth[i as usize] + 1;
+            }
+        }
+        for subtree in roots {
+            self.rebuild_balanced(subtree, triangles);
+        }
+    }
+
+    /// Replaces the subtree under `top` by a balanced one over the same triangles, reusing its nodes.
+    fn rebuild_balanced(&mut self, top: u32, triangles: &[[[f32; 3]; 3]]) {
+        let mut inner = Vec::new();
+        let mut leaves = Vec::new();
+        let mut stack = vec![top];
+        while let Some(i) = stack.pop() {
+            let node = self.nodes[i as usize];
+            if node.left == NONE {
+                leaves.push(i);
+            } else {
+                inner.push(i);
+                stack.push(node.left);
+                stack.push(node.right);
+            }
+        }
+        leaves.sort_unstable();
+        inner.sort_unstable();
+        let centroid = |leaf: &u32| Aabb::of_triangle(&triangles[self.nodes[*leaf as usize].right as usize]).center();
+        let keys: Vec<([f32; 3], u32)> = leaves.iter().map(|l| (centroid(l), *l)).collect();
+        let parent = self.nodes[top as usize].parent;
+        let mut free = inner.into_iter();
+        let new_top = self.balanced(keys, &mut free, 0);
+        self.replace_child(parent, top, new_top);
+        self.refit_from(parent);
+    }
+
+    fn balanced(&mut self, mut keys: Vec<([f32; 3], u32)>, free: &mut impl Iterator<Item = u32>, axis: usize) -> u32 {
+        if let [(_, leaf)] = keys[..] {
+            return leaf;
+        }
+        let mid = keys.len() / 2;
+        keys.select_nth_unstable_by(mid, |a, b| a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1)));
+        let right_keys = keys.split_off(mid);
+        let node = free.next().expect("a binary tree has leaves - 1 inner nodes");
+        let left = self.balanced(keys, free, (axis + 1) % 3);
+        let right = self.balanced(right_keys, free, (axis + 1) % 3);
+        let aabb = self.nodes[left as usize].aabb.union(&self.nodes[right as usize].aabb);
+        self.nodes[left as usize].parent = node;
+        self.nodes[right as usize].parent = node;
+        self.nodes[node as usize] = OptNode { aabb, parent: NONE, left, right };
+        node
+    }
+
+    /// The tree as a build tree in depth-first order, one triangle per leaf.
+    pub fn to_build_tree(&self) -> BuildTree {
+        self.to_build_tree_with_leaves(&|_| false)
+    }
+
+    /// The tree as a build tree; nodes for which `collapse` holds become one leaf over all their triangles.
+    pub fn to_build_tree_with_leaves(&self, collapse: &dyn Fn(u32) -> bool) -> BuildTree {
+        let mut build = BuildTree::default();
+        if self.root == NONE {
+            return build;
+        }
+        build.nodes.push(BuildNode::Leaf { aabb: Aabb::EMPTY, first: 0, count: 0 });
+        let mut stack = vec![(self.root, 0usize)];
+        while let Some((i, slot)) = stack.pop() {
+            let node = self.nodes[i as usize];
+            if node.left == NONE || collapse(i) {
+                let first = build.triangle_order.len() as u32;
+                self.collect_triangles(i, &mut build.triangle_order);
+                let count = build.triangle_order.len() as u32 - first;
+                build.nodes[slot] = BuildNode::Leaf { aabb: node.aabb, first, count };
+            } else {
+                let left = build.nodes.len();
+                build.nodes.push(BuildNode::Leaf { aabb: Aabb::EMPTY, first: 0, count: 0 });
+                build.nodes.push(BuildNode::Leaf { aabb: Aabb::EMPTY, first: 0, count: 0 });
+                build.nodes[slot] = BuildNode::Inner { aabb: node.aabb, left: left as u32, right: left as u32 + 1 };
+                stack.push((node.right, left + 1));
+                stack.push((node.left, left));
+            }
+        }
+        build
+    }
+
+    /// Appends the triangles under `i`, left to right.
+    fn collect_triangles(&self, i: u32, out: &mut Vec<u32>) {
+        let mut stack = vec![i];
+        while let Some(j) = stack.pop() {
+            let node = &self.nodes[j as usize];
+            if node.left == NONE {
+                out.push(node.right);
+            } else {
+                stack.push(node.right);
+                stack.push(node.left);
+            }
+        }
+    }
+}

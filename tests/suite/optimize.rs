@@ -1,0 +1,293 @@
+//! The optimizer against oracles: exhaustive searches, invariants after every batch, cost never above the
+//! input, leaf merging never above its input, and the same tree for any number of threads.
+
+use std::ops::ControlFlow;
+
+use bvhc::aabb::Aabb;
+use bvhc::build::{BuildNode, BuildTree, Builder};
+use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::optimize::{
+    Algorithm, NONE, OptTree, OptimizeParams, Preset, SearchQueue, Selection, area, best_insertion, best_move, cost_of,
+    merge_leaves, optimize,
+};
+
+use crate::common::random_triangles;
+
+fn tree_for(triangles: &[[[f32; 3]; 3]], builder: Builder) -> OptTree {
+    OptTree::from_build_tree(&builder.build(triangles, 1), triangles)
+}
+
+/// Every invariant of an optimizer tree: links agree, boxes are exact unions, every triangle in one leaf.
+fn check_invariants(tree: &OptTree, triangles: &[[[f32; 3]; 3]]) {
+    let mut seen = vec![false; triangles.len()];
+    let mut reached = 0;
+    assert_eq!(tree.nodes[tree.root as usize].parent, NONE);
+    for i in tree.depth_first() {
+        reached += 1;
+        let node = tree.nodes[i as usize];
+        if node.left == NONE {
+            let t = node.right as usize;
+            assert!(!std::mem::replace(&mut seen[t], true), "triangle {t} in two leaves");
+            assert_eq!(node.aabb, Aabb::of_triangle(&triangles[t]), "leaf {i} box");
+        } else {
+            for child in [node.left, node.right] {
+                assert_eq!(tree.nodes[child as usize].parent, i, "node {child}'s parent link");
+            }
+            let union = tree.nodes[node.left as usize].aabb.union(&tree.nodes[node.right as usize].aabb);
+            assert_eq!(node.aabb, union, "node {i} box is not the union of its children");
+        }
+    }
+    assert!(seen.iter().all(|&s| s), "a triangle is in no leaf");
+    assert_eq!(reached, tree.nodes.len(), "unreachable nodes");
+}
+
+/// The inner-area sum in f64, the quantity the searches minimize.
+fn inner_area(tree: &OptTree) -> f64 {
+    tree.area_sums().0
+}
+
+/// Detaches the subtree `c` of a copy (its parent spliced out, as Bittner's removal does) and tries every
+/// insertion position: the minimum of `SA(new parent) + induced` over all positions.
+#[test]
+fn insertion_search_finds_the_exhaustive_minimum() {
+    for seed in 0..40u64 {
+        let triangles = random_triangles(seed, 8 + (seed as usize * 7) % 60, 1.0);
+        let tree = tree_for(&triangles, if seed % 2 == 0 { Builder::BinnedSah } else { Builder::SpatialMedian });
+        let mut queue = SearchQueue::default();
+        for c in 0..tree.nodes.len() as u32 {
+            let p = tree.nodes[c as usize].parent;
+            if p == NONE || tree.nodes[p as usize].parent == NONE {
+                continue;
+            }
+            let mut detached = tree.clone();
+            let s = detached.sibling(c);
+            let g = detached.nodes[p as usize].parent;
+            detached.replace_child(g, p, s);
+            detached.refit_from(g);
+            let l = detached.nodes[c as usize].aabb;
+            let cost_of_x = |x: u32| {
+                let mut cost = area(&detached.nodes[x as usize].aabb.union(&l));
+                let mut a = detached.nodes[x as usize].parent;
+                while a != NONE {
+                    let b = &detached.nodes[a as usize].aabb;
+                    cost += area(&b.union(&l)) - area(b);
+                    a = detached.nodes[a as usize].parent;
+                }
+                cost
+            };
+            let exhaustive = detached.depth_first().into_iter().map(cost_of_x).fold(f32::INFINITY, f32::min);
+            let found = best_insertion(&detached, &mut queue, &l);
+            let got = cost_of_x(found);
+            assert!(
+                got <= exhaustive * (1.0 + 1e-5) + 1e-6,
+                "seed {seed} node {c}: search {got}, exhaustive {exhaustive}"
+            );
+        }
+    }
+}
+
+/// Applies the move of `n` to sibling of `x` on a copy (or `None` when it is not a legal move).
+fn moved(tree: &OptTree, n: u32, x: u32) -> Option<OptTree> {
+    let p = tree.nodes[n as usize].parent;
+    let mut y = x;
+    while y != NONE {
+        if y == n {
+            return None; // inside the moving subtree
+        }
+        y = tree.nodes[y as usize].parent;
+    }
+    if x == p {
+        return None;
+    }
+    let mut copy = tree.clone();
+    let s = copy.sibling(n);
+    let g = copy.nodes[p as usize].parent;
+    copy.replace_child(g, p, s);
+    copy.refit_from(g);
+    let y = copy.nodes[x as usize].parent;
+    let aabb = copy.nodes[x as usize].aabb.union(&copy.nodes[n as usize].aabb);
+    copy.nodes[p as usize].aabb = aabb;
+    copy.nodes[p as usize].left = x;
+    copy.nodes[p as usize].right = n;
+    copy.replace_child(y, x, p);
+    copy.nodes[x as usize].parent = p;
+    copy.nodes[n as usize].parent = p;
+    copy.refit_from(y);
+    Some(copy)
+}
+
+/// The search without removal predicts the exact change of the inner-area sum, and no legal move is better.
+#[test]
+fn move_search_finds_the_exhaustive_best_move_and_its_exact_gain() {
+    let mut found_some = 0;
+    for seed in 100..130u64 {
+        let triangles = random_triangles(seed, 6 + (seed as usize * 5) % 40, 1.0);
+        let tree = tree_for(&triangles, Builder::SpatialMedian);
+        let before = inner_area(&tree);
+        let mut queue = SearchQueue::default();
+        for n in 0..tree.nodes.len() as u32 {
+            if tree.nodes[n as usize].parent == NONE {
+                continue;
+            }
+            let exhaustive = (0..tree.nodes.len() as u32)
+                .filter_map(|x| moved(&tree, n, x).map(|t| inner_area(&t) - before))
+                .fold(0.0f64, f64::min);
+            match best_move(&tree, &mut queue, n) {
+                None => assert!(exhaustive > -1e-4 * before, "seed {seed} node {n}: missed a gain of {exhaustive}"),
+                Some(m) => {
+                    let actual = inner_area(&moved(&tree, n, m.target).expect("a legal move")) - before;
+                    let tolerance = 1e-4 * before;
+                    assert!(
+                        (f64::from(m.delta) - actual).abs() <= tolerance,
+                        "seed {seed} node {n}: predicted {} actual {actual}",
+                        m.delta
+                    );
+                    assert!(
+                        actual <= exhaustive + tolerance,
+                        "seed {seed} node {n}: {actual} vs exhaustive {exhaustive}"
+                    );
+                    found_some += 1;
+                }
+            }
+        }
+    }
+    assert!(found_some > 50, "{found_some}");
+}
+
+fn params(algorithm: Algorithm, selection: Selection) -> OptimizeParams {
+    OptimizeParams { algorithm, selection, batch_fraction: 0.05, ..OptimizeParams::preset(Preset::Balanced) }
+}
+
+#[test]
+fn optimizing_keeps_every_invariant_and_never_raises_the_cost() {
+    let triangles = random_triangles(7, 3000, 10.0);
+    for algorithm in [Algorithm::Parallel, Algorithm::Sequential] {
+        for builder in [Builder::SpatialMedian, Builder::BinnedSah] {
+            let mut tree = tree_for(&triangles, builder);
+            let before = cost_of(&tree, SahConstants::default()).cost;
+            let mut batches = 0;
+            let report = optimize(&mut tree, &params(algorithm, Selection::Comb), &mut |_| {
+                batches += 1;
+                ControlFlow::Continue(())
+            });
+            check_invariants(&tree, &triangles);
+            let after = cost_of(&tree, SahConstants::default());
+            assert_eq!(after, report.best, "the returned tree is the best one");
+            assert!(after.cost <= before, "{algorithm:?} {builder:?}: {before} -> {}", after.cost);
+            assert!(report.batches == batches && batches > 0);
+        }
+    }
+}
+
+#[test]
+fn the_spatial_median_start_improves_a_lot() {
+    let triangles = random_triangles(8, 4000, 10.0);
+    for algorithm in [Algorithm::Parallel, Algorithm::Sequential] {
+        let mut tree = tree_for(&triangles, Builder::SpatialMedian);
+        let report = optimize(&mut tree, &params(algorithm, Selection::Comb), &mut |_| ControlFlow::Continue(()));
+        assert!(report.best.cost < 0.9 * report.initial.cost, "{algorithm:?}: {report:?}");
+    }
+}
+
+#[test]
+fn every_selection_strategy_converges() {
+    let triangles = random_triangles(9, 2000, 10.0);
+    for selection in Selection::ALL {
+        for algorithm in [Algorithm::Parallel, Algorithm::Sequential] {
+            let mut tree = tree_for(&triangles, Builder::SpatialMedian);
+            let report = optimize(&mut tree, &params(algorithm, selection), &mut |_| ControlFlow::Continue(()));
+            assert_eq!(report.stop, bvhc::optimize::StopReason::Converged, "{selection:?} {algorithm:?}");
+            assert!(report.best.cost < report.initial.cost, "{selection:?} {algorithm:?}: {report:?}");
+            check_invariants(&tree, &triangles);
+        }
+    }
+}
+
+#[test]
+fn one_and_several_threads_give_identical_trees() {
+    let triangles = random_triangles(10, 5000, 10.0);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
+            let mut tree = tree_for(&triangles, Builder::BinnedSah);
+            optimize(&mut tree, &OptimizeParams::default(), &mut |_| ControlFlow::Continue(()));
+            tree
+        })
+    };
+    let one = run(1);
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(4));
+    assert_eq!(one, run(1), "and from run to run");
+}
+
+#[test]
+fn cancellation_and_time_budget_return_the_best_tree_so_far() {
+    let triangles = random_triangles(11, 3000, 10.0);
+    let mut tree = tree_for(&triangles, Builder::SpatialMedian);
+    let report = optimize(&mut tree, &OptimizeParams::default(), &mut |p| {
+        if p.batch == 3 { ControlFlow::Break(()) } else { ControlFlow::Continue(()) }
+    });
+    assert_eq!((report.stop, report.batches), (bvhc::optimize::StopReason::Cancelled, 3));
+    check_invariants(&tree, &triangles);
+    let budget = OptimizeParams { time_budget: Some(std::time::Duration::ZERO), ..OptimizeParams::default() };
+    let report = optimize(&mut tree, &budget, &mut |_| ControlFlow::Continue(()));
+    assert_eq!((report.stop, report.batches), (bvhc::optimize::StopReason::TimeBudget, 1));
+}
+
+#[test]
+fn leaf_merging_never_raises_the_cost_and_respects_the_leaf_size() {
+    let constants = SahConstants::default();
+    for seed in 20..26u64 {
+        let triangles = random_triangles(seed, 1500, 10.0);
+        let mut tree = tree_for(&triangles, Builder::BinnedSah);
+        optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| ControlFlow::Continue(()));
+        let single = cost_of(&tree, constants).cost;
+        for max_leaf_size in [1, 2, 4, 8] {
+            let merged: BuildTree = merge_leaves(&tree, constants, max_leaf_size);
+            let cost = sah_of_build_tree(&merged, constants).cost;
+            assert!(cost <= single * (1.0 + 1e-9), "seed {seed}: merged {cost} > {single}");
+            let mut order = merged.triangle_order.clone();
+            order.sort_unstable();
+            assert_eq!(order, (0..triangles.len() as u32).collect::<Vec<_>>());
+            for node in &merged.nodes {
+                if let BuildNode::Leaf { count, .. } = node {
+                    assert!((*count as usize) <= max_leaf_size);
+                }
+            }
+            if max_leaf_size == 1 {
+                assert!((cost - single).abs() <= 1e-9 * single);
+            }
+        }
+    }
+}
+
+#[test]
+fn degenerate_inputs_run_through_every_preset() {
+    let point = [[1.0f32, 1.0, 1.0]; 3];
+    let cases: Vec<Vec<[[f32; 3]; 3]>> = vec![
+        vec![],
+        vec![point],
+        vec![point, point],
+        vec![point; 3000],
+        random_triangles(12, 3, 1.0),
+        (0..500).map(|i| [[i as f32, 0.0, 0.0], [i as f32, 1.0, 0.0], [i as f32, 0.0, 1.0]]).collect(),
+        random_triangles(13, 500, 1e-6),
+        random_triangles(14, 500, 1e6),
+    ];
+    for triangles in &cases {
+        for preset in Preset::ALL {
+            for builder in [Builder::SpatialMedian, Builder::BinnedSah] {
+                let mut tree = tree_for(triangles, builder);
+                if triangles.is_empty() {
+                    assert!(tree.nodes.is_empty());
+                    continue;
+                }
+                let report = optimize(&mut tree, &OptimizeParams::preset(preset), &mut |_| ControlFlow::Continue(()));
+                assert!(report.best.cost.is_finite() && report.initial.cost.is_finite(), "{report:?}");
+                check_invariants(&tree, triangles);
+                let merged = merge_leaves(&tree, SahConstants::default(), 8);
+                assert!(sah_of_build_tree(&merged, SahConstants::default()).cost.is_finite());
+                assert!(tree.max_depth() <= bvhc::loader::format::MAX_DEPTH);
+            }
+        }
+    }
+}
