@@ -81,7 +81,14 @@ fn run_bvhc(
         ControlFlow::Continue(())
     });
     let merged = sah_of_build_tree(&merge_leaves(&tree, constants, MAX_LEAF_SIZE), constants).cost;
-    let method = format!("bvhc {} + {} ({:?})", builder.name(), preset.name(), params.algorithm).to_lowercase();
+    let method = match params.algorithm {
+        bvhc::optimize::Algorithm::Parallel | bvhc::optimize::Algorithm::Alternating => {
+            format!("bvhc {} + {}", builder.name(), preset.name())
+        }
+        bvhc::optimize::Algorithm::Sequential => {
+            format!("bvhc {} + sequential reference (Bittner 2013 constants, 20 s cap)", builder.name())
+        }
+    };
     let row = Row {
         method,
         initial: Some(initial),
@@ -245,6 +252,7 @@ fn main() {
         let our_merged = rows.iter().filter_map(|r| r.merged).fold(f64::INFINITY, f64::min);
         rows.extend(obvhs_rows);
         print_rows(name, triangles.len(), &rows);
+        eprintln!("{name}: done");
         // Thread scaling of the default optimizer, and identical output.
         let run_with = |threads| {
             with_threads(threads, || {

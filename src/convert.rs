@@ -1,29 +1,103 @@
-//! The conversion pipeline as it stands: import -> binned SAH build -> pack -> write.
-//!
-//! The optimizer (issue #4) and the full command line and build-script API (issue #5) extend this module.
+//! The conversion pipeline: import -> initial build (one triangle per leaf) -> optimize -> depth limit ->
+//! leaf merging -> pack -> write (atomically). Deterministic: the same input and options give the same bytes,
+//! whatever the number of threads (nothing that varies between runs, such as times or absolute paths, is
+//! written into the file).
 
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 use bvhc_loader::BvhWriter;
+use bvhc_loader::format::MAX_DEPTH;
+use serde::Serialize;
 
-use crate::build::build_binned_sah;
-use crate::import::{ImportOptions, import};
+use crate::build::Builder;
+use crate::cost::{SahCost, sah_of_build_tree};
+use crate::import::{ImportOptions, ImportReport, import};
+use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
 use crate::pack::pack;
 
-/// Largest leaf the initial builder makes.
-pub const DEFAULT_MAX_LEAF_SIZE: usize = 4;
+/// Largest leaf the merger makes by default (the reference table's M = 3 uses 8).
+pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
 
-/// What a conversion produced.
-#[derive(Clone, Debug, PartialEq)]
+/// Everything a conversion can be told; `Default` is the balanced preset.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ConvertOptions {
+    /// Import options (glTF scene, keeping degenerate triangles).
+    #[serde(skip)]
+    pub import: ImportOptions,
+    /// The initial builder.
+    pub builder: Builder,
+    /// The preset the optimizer parameters came from (recorded for reference).
+    pub preset: Preset,
+    /// Optimizer parameters.
+    pub optimize: OptimizeParams,
+    /// Skip the optimizer entirely.
+    pub skip_optimization: bool,
+    /// Merge leaves bottom-up by SAH (up to `max_leaf_size` triangles each).
+    pub merge_leaves: bool,
+    /// Largest merged leaf.
+    pub max_leaf_size: usize,
+    /// Write the triangle_ids and source_table sections.
+    pub write_ids: bool,
+}
+
+impl Default for ConvertOptions {
+    fn default() -> Self {
+        ConvertOptions::preset(Preset::Balanced)
+    }
+}
+
+impl ConvertOptions {
+    /// The options of a preset.
+    pub fn preset(preset: Preset) -> ConvertOptions {
+        ConvertOptions {
+            import: ImportOptions::default(),
+            builder: Builder::BinnedSah,
+            preset,
+            optimize: OptimizeParams::preset(preset),
+            skip_optimization: false,
+            merge_leaves: true,
+            max_leaf_size: DEFAULT_MAX_LEAF_SIZE,
+            write_ids: true,
+        }
+    }
+}
+
+/// What a conversion produced and measured.
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ConvertReport {
     /// The output file.
     pub output: PathBuf,
+    /// Every input file read.
+    pub files_read: Vec<PathBuf>,
+    /// What the import read and skipped.
+    pub import: ImportReport,
+    /// The optimizer's report (absent when skipped).
+    pub optimization: Option<OptimizeReport>,
+    /// Cost of the written tree.
+    pub cost: SahCost,
     /// Triangles written.
     pub triangle_count: usize,
     /// Nodes written.
     pub node_count: usize,
     /// Bytes written.
     pub file_byte_len: usize,
+    /// Seconds per stage: import, build, optimize, write.
+    pub timings: Timings,
+}
+
+/// Seconds spent per stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Timings {
+    /// Import.
+    pub import: f64,
+    /// Initial build.
+    pub build: f64,
+    /// Optimization and leaf merging.
+    pub optimize: f64,
+    /// Packing, writing and verifying.
+    pub write: f64,
 }
 
 /// Why a conversion failed.
@@ -46,37 +120,81 @@ pub enum ConvertError {
     },
 }
 
-/// Converts `input` into the `.bvh` file `output`, written atomically.
+/// Converts `input` into the `.bvh` file `output` with the default options.
 pub fn convert(input: &Path, output: &Path) -> Result<ConvertReport, ConvertError> {
-    let soup = import(input, &ImportOptions::default())?.soup;
+    convert_with(input, output, &ConvertOptions::default(), &mut |_| ControlFlow::Continue(()))
+}
+
+/// Converts `input` into `output` (written atomically); `progress` sees every optimizer batch and may cancel
+/// it (the best tree so far is written).
+pub fn convert_with(
+    input: &Path,
+    output: &Path,
+    options: &ConvertOptions,
+    progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+) -> Result<ConvertReport, ConvertError> {
+    let mut timings = Timings::default();
+    let clock = Instant::now();
+    let imported = import(input, &options.import)?;
+    timings.import = lap(clock);
+    let soup = imported.soup;
     let triangles = soup.triangle_vertices();
-    u32::try_from(triangles.len())
-        .map_err(|_| ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() })?;
-    let packed = pack(&build_binned_sah(&triangles, DEFAULT_MAX_LEAF_SIZE), &triangles);
+    if u32::try_from(triangles.len()).is_err() {
+        return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
+    }
+    let clock = Instant::now();
+    let mut tree = OptTree::from_build_tree(&options.builder.build(&triangles, 1), &triangles);
+    timings.build = lap(clock);
+    let clock = Instant::now();
+    let optimization = (!options.skip_optimization).then(|| optimize(&mut tree, &options.optimize, progress));
+    tree.limit_depth(MAX_DEPTH, &triangles);
+    let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
+    let final_tree = merge_leaves(&tree, options.optimize.constants, leaf_size);
+    timings.optimize = lap(clock);
+    let clock = Instant::now();
+    let cost = sah_of_build_tree(&final_tree, options.optimize.constants);
+    let packed = pack(&final_tree, &triangles);
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
-    let metadata = metadata_json(input);
-    let file = BvhWriter::new(&packed.nodes, &packed.triangles)
-        .triangle_ids(&source_ids)
-        .source_table(&soup.sources)
-        .metadata(&metadata)
-        .write_atomic(output)?;
+    let metadata = metadata_json(input, options, &cost);
+    let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles).metadata(&metadata);
+    if options.write_ids {
+        writer = writer.triangle_ids(&source_ids).source_table(&soup.sources);
+    }
+    let file = writer.write_atomic(output)?;
+    timings.write = lap(clock);
     Ok(ConvertReport {
         output: output.to_path_buf(),
+        files_read: imported.files_read,
+        import: imported.report,
+        optimization,
+        cost,
         triangle_count: packed.triangles.len(),
         node_count: packed.nodes.len(),
         file_byte_len: file.as_bytes().len(),
+        timings,
     })
 }
 
-/// The metadata object: generator, format version, input file name (never a path), build options.
-fn metadata_json(input: &Path) -> String {
+fn lap(start: Instant) -> f64 {
+    Duration::as_secs_f64(&start.elapsed())
+}
+
+/// The metadata object: generator, format version, input file name (never a path), build options, cost.
+fn metadata_json(input: &Path, options: &ConvertOptions, cost: &SahCost) -> String {
     let file_name = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     serde_json::json!({
         "generator": concat!("bvhc ", env!("CARGO_PKG_VERSION")),
         "format_version": format!("{}.{}", bvhc_loader::format::VERSION_MAJOR, bvhc_loader::format::VERSION_MINOR),
         "inputs": [{ "file_name": file_name }],
-        "build": { "builder": "binned_sah", "max_leaf_size": DEFAULT_MAX_LEAF_SIZE },
+        "build": options,
+        "cost": {
+            "sah_cost": cost.cost,
+            "c_t": options.optimize.constants.traversal,
+            "c_i": options.optimize.constants.intersection,
+            "inner_area_ratio": cost.inner_area_ratio,
+            "leaf_area_ratio": cost.leaf_area_ratio,
+        },
     })
     .to_string()
 }

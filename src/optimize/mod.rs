@@ -100,62 +100,131 @@ pub fn optimize(
     params: &OptimizeParams,
     progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> OptimizeReport {
-    let start = Instant::now();
-    let initial = cost_of(tree, params.constants);
-    let mut report = OptimizeReport {
-        initial,
-        best: initial,
-        batches: 0,
-        moves: 0,
-        elapsed: Duration::ZERO,
-        stop: StopReason::NothingToDo,
+    let mut run = Run::new(tree, params);
+    let stop = match params.algorithm {
+        Algorithm::Parallel | Algorithm::Sequential => run.phase(tree, params, progress),
+        Algorithm::Alternating => loop {
+            let cycle_start = run.report.best.cost;
+            let parallel = OptimizeParams { algorithm: Algorithm::Parallel, ..params.clone() };
+            let stop = run.phase(tree, &parallel, progress);
+            if stop != StopReason::Converged {
+                break stop;
+            }
+            let reference = OptimizeParams {
+                time_budget: params.time_budget,
+                seed: params.seed,
+                constants: params.constants,
+                ..OptimizeParams::bittner_2013()
+            };
+            let stop = run.phase(tree, &reference, progress);
+            if stop != StopReason::Converged {
+                break stop;
+            }
+            if run.report.best.cost >= cycle_start * (1.0 - params.min_relative_improvement.max(1e-6)) {
+                break StopReason::Converged;
+            }
+        },
     };
-    let mut best_nodes = tree.nodes.clone();
-    let mut best_root = tree.root;
-    let mut progress_cost = initial.cost;
-    let mut stagnant = 0u32;
-    let mut rng = Pcg64Mcg::seed_from_u64(params.seed);
-    let mut queue = SearchQueue::default();
-    report.stop = loop {
-        if report.batches >= params.max_batches {
-            break StopReason::MaxBatches;
+    run.finish(tree, stop)
+}
+
+/// The state shared by the phases of one optimization: the best tree, counts, the clock.
+struct Run {
+    start: Instant,
+    report: OptimizeReport,
+    best_nodes: Vec<OptNode>,
+    best_root: u32,
+    rng: Pcg64Mcg,
+    queue: SearchQueue,
+}
+
+impl Run {
+    fn new(tree: &OptTree, params: &OptimizeParams) -> Run {
+        let initial = cost_of(tree, params.constants);
+        Run {
+            start: Instant::now(),
+            report: OptimizeReport {
+                initial,
+                best: initial,
+                batches: 0,
+                moves: 0,
+                elapsed: Duration::ZERO,
+                stop: StopReason::NothingToDo,
+            },
+            best_nodes: tree.nodes.clone(),
+            best_root: tree.root,
+            rng: Pcg64Mcg::seed_from_u64(params.seed),
+            queue: SearchQueue::default(),
         }
-        let selection = if stagnant >= params.random_after { Selection::Random } else { params.selection };
-        let batch = select_batch(tree, selection, params.batch_fraction, &mut rng);
-        if batch.is_empty() {
-            break StopReason::NothingToDo;
+    }
+
+    /// Batches of one loop (`params.algorithm` is Parallel or Sequential) until one of the stop rules holds.
+    fn phase(
+        &mut self,
+        tree: &mut OptTree,
+        params: &OptimizeParams,
+        progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+    ) -> StopReason {
+        let mut progress_cost = cost_of(tree, params.constants).cost;
+        let mut stagnant = 0u32;
+        let scheduled = params.decreasing_fractions && params.algorithm != Algorithm::Sequential;
+        let mut round = 0u32;
+        loop {
+            if self.report.batches >= params.max_batches {
+                return StopReason::MaxBatches;
+            }
+            let selection = if stagnant >= params.random_after { Selection::Random } else { params.selection };
+            let step = if scheduled { round % 16 } else { 0 };
+            let fraction = params.batch_fraction / f64::from(2 * step + 1);
+            round += 1;
+            let batch = select_batch(tree, selection, fraction, &mut self.rng);
+            if batch.is_empty() {
+                return StopReason::NothingToDo;
+            }
+            self.report.moves += match params.algorithm {
+                Algorithm::Sequential => sequential::run_batch(tree, &batch, &mut self.queue),
+                Algorithm::Parallel | Algorithm::Alternating => parallel::run_round(tree, &batch),
+            };
+            self.report.batches += 1;
+            let cost = cost_of(tree, params.constants);
+            if cost.cost < self.report.best.cost {
+                self.report.best = cost;
+                self.best_nodes.copy_from_slice(&tree.nodes);
+                self.best_root = tree.root;
+            }
+            let judged = !scheduled || step == 15;
+            if judged && self.report.best.cost < progress_cost * (1.0 - params.min_relative_improvement) {
+                progress_cost = self.report.best.cost;
+                stagnant = 0;
+            } else if judged {
+                stagnant += 1;
+            }
+            let elapsed = self.start.elapsed();
+            let now =
+                Progress { batch: self.report.batches, cost: cost.cost, best_cost: self.report.best.cost, elapsed };
+            if progress(&now).is_break() {
+                return StopReason::Cancelled;
+            }
+            if stagnant >= params.stop_after {
+                // Continue the next phase from the best tree, not from a worse last batch.
+                self.restore_best(tree);
+                return StopReason::Converged;
+            }
+            if params.time_budget.is_some_and(|budget| elapsed >= budget) {
+                return StopReason::TimeBudget;
+            }
         }
-        report.moves += match params.algorithm {
-            Algorithm::Sequential => sequential::run_batch(tree, &batch, &mut queue),
-            Algorithm::Parallel => parallel::run_round(tree, &batch),
-        };
-        report.batches += 1;
-        let cost = cost_of(tree, params.constants);
-        if cost.cost < report.best.cost {
-            report.best = cost;
-            best_nodes.copy_from_slice(&tree.nodes);
-            best_root = tree.root;
-        }
-        if cost.cost < progress_cost * (1.0 - params.min_relative_improvement) {
-            progress_cost = cost.cost;
-            stagnant = 0;
-        } else {
-            stagnant += 1;
-        }
-        let elapsed = start.elapsed();
-        let now = Progress { batch: report.batches, cost: cost.cost, best_cost: report.best.cost, elapsed };
-        if progress(&now).is_break() {
-            break StopReason::Cancelled;
-        }
-        if stagnant >= params.stop_after {
-            break StopReason::Converged;
-        }
-        if params.time_budget.is_some_and(|budget| elapsed >= budget) {
-            break StopReason::TimeBudget;
-        }
-    };
-    tree.nodes.copy_from_slice(&best_nodes);
-    tree.root = best_root;
-    report.elapsed = start.elapsed();
-    report
+    }
+
+    fn restore_best(&self, tree: &mut OptTree) {
+        tree.nodes.copy_from_slice(&self.best_nodes);
+        tree.root = self.best_root;
+    }
+
+    fn finish(mut self, tree: &mut OptTree, stop: StopReason) -> OptimizeReport {
+        self.restore_best(tree);
+        self.report.stop = stop;
+        self.report.elapsed = self.start.elapsed();
+        self.report
+    }
 }

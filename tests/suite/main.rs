@@ -3,6 +3,7 @@
 mod cli;
 mod common;
 mod compat;
+mod convert;
 mod golden;
 mod import_errors;
 mod import_formats;

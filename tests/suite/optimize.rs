@@ -155,7 +155,15 @@ fn move_search_finds_the_exhaustive_best_move_and_its_exact_gain() {
 }
 
 fn params(algorithm: Algorithm, selection: Selection) -> OptimizeParams {
-    OptimizeParams { algorithm, selection, batch_fraction: 0.05, ..OptimizeParams::preset(Preset::Balanced) }
+    OptimizeParams {
+        algorithm,
+        selection,
+        batch_fraction: 0.05,
+        decreasing_fractions: false,
+        stop_after: 5,
+        min_relative_improvement: 1e-4,
+        ..OptimizeParams::preset(Preset::Balanced)
+    }
 }
 
 #[test]

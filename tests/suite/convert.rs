@@ -1,0 +1,83 @@
+//! The whole pipeline: optimized and merged trees trace like brute force, and the bytes do not depend on the
+//! number of threads.
+
+use std::path::{Path, PathBuf};
+
+use bvhc::convert::{ConvertOptions, convert_with};
+use bvhc::import::{ImportOptions, import};
+use bvhc::loader::BvhFile;
+use bvhc::optimize::Preset;
+
+use crate::common::{assert_matches_brute_force, random_rays, scene};
+
+fn teapot() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj")
+}
+
+fn convert_in_pool(threads: usize, input: &Path, output: &Path, options: &ConvertOptions) -> Vec<u8> {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
+        convert_with(input, output, options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+    });
+    std::fs::read(output).unwrap()
+}
+
+#[test]
+fn output_bytes_do_not_depend_on_the_thread_count_or_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    for preset in Preset::ALL {
+        let options = ConvertOptions::preset(preset);
+        let one = convert_in_pool(1, &teapot(), &dir.path().join("one.bvh"), &options);
+        let two = convert_in_pool(2, &teapot(), &dir.path().join("two.bvh"), &options);
+        let again = convert_in_pool(2, &teapot(), &dir.path().join("again.bvh"), &options);
+        assert!(one == two && two == again, "{preset:?}");
+    }
+}
+
+fn check_scene_against_brute_force(path: &Path, preset: Preset) {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("scene.bvh");
+    let options = ConvertOptions::preset(preset);
+    let report = convert_with(path, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+    let optimization = report.optimization.as_ref().unwrap();
+    assert!(optimization.best.cost <= optimization.initial.cost);
+    let file = BvhFile::read(&output).unwrap();
+    file.view().verify().unwrap();
+    let soup = import(path, &ImportOptions::default()).unwrap().soup;
+    let triangles = soup.triangle_vertices();
+    // The ids in the file are source ids; map them back to soup indices for the brute-force comparison.
+    let index_of: std::collections::HashMap<u32, u32> =
+        soup.source_ids.iter().enumerate().map(|(i, &id)| (id, i as u32)).collect();
+    let ids: Vec<u32> = file.view().triangle_ids().unwrap().iter().map(|id| index_of[id]).collect();
+    let root = file.view().nodes()[0];
+    let center: [f32; 3] = std::array::from_fn(|a| 0.5 * (root.min[a] + root.max[a]));
+    let extent = (0..3).map(|a| root.max[a] - root.min[a]).fold(0.0, f32::max);
+    let rays: Vec<_> = random_rays(5, 300, 0.5 * extent)
+        .into_iter()
+        .map(|mut r| {
+            r.origin = std::array::from_fn(|a| r.origin[a] + center[a]);
+            r
+        })
+        .collect();
+    let hits = assert_matches_brute_force(&file.view().tracer(), &triangles, &rays, &ids);
+    assert!(hits > 30, "{hits}");
+    let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+    let recorded = metadata["cost"]["sah_cost"].as_f64().unwrap();
+    assert_eq!(recorded, report.cost.cost);
+    assert_eq!(metadata["build"]["preset"], serde_json::json!(preset));
+}
+
+#[test]
+fn optimized_teapot_traces_like_brute_force_for_every_preset() {
+    for preset in Preset::ALL {
+        check_scene_against_brute_force(&teapot(), preset);
+    }
+}
+
+#[test]
+fn optimized_real_scenes_trace_like_brute_force() {
+    for relative in ["khr-2cylinder-engine/2CylinderEngine.gltf", "stanford-bunny-ply/bun_zipper.ply"] {
+        if let Some(path) = scene(relative) {
+            check_scene_against_brute_force(&path, Preset::Balanced);
+        }
+    }
+}
