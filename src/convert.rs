@@ -110,6 +110,9 @@ pub enum ConvertError {
     /// The output could not be written.
     #[error(transparent)]
     Write(#[from] bvhc_loader::Error),
+    /// A bug in bvhc was caught before writing: please report it with the input.
+    #[error("internal error (please report with the input): {0}")]
+    Internal(String),
     /// The scene has more triangles than the format's u32 indices allow.
     #[error("{}: {count} triangles exceed the .bvh limit of 2^32 - 1", path.display())]
     TooLarge {
@@ -154,6 +157,7 @@ pub fn convert_with(
     let clock = Instant::now();
     let cost = sah_of_build_tree(&final_tree, options.optimize.constants);
     let packed = pack(&final_tree, &triangles);
+    check_every_triangle_once(&packed.triangle_ids, triangles.len())?;
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
     let metadata = metadata_json(input, options, &cost);
@@ -174,6 +178,19 @@ pub fn convert_with(
         file_byte_len: file.as_bytes().len(),
         timings,
     })
+}
+
+/// The file may legally repeat triangles (split references), so its verifier cannot notice a triangle lost or
+/// doubled by a builder bug; this O(n) check refuses to write such a tree.
+fn check_every_triangle_once(ids: &[u32], triangle_count: usize) -> Result<(), ConvertError> {
+    let mut seen = vec![false; triangle_count];
+    let all_once = ids.len() == triangle_count
+        && ids.iter().all(|&t| seen.get_mut(t as usize).is_some_and(|s| !std::mem::replace(s, true)));
+    if all_once {
+        Ok(())
+    } else {
+        Err(ConvertError::Internal("the built tree does not hold every triangle exactly once".to_string()))
+    }
 }
 
 fn lap(start: Instant) -> f64 {

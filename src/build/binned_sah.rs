@@ -5,8 +5,11 @@
 //! `c_T + c_I (A_left n_left + A_right n_right) / A_node` wins, and a node becomes a leaf when that is not
 //! cheaper than `c_I n` and it holds at most `max_leaf_size` triangles. Where the centroids coincide, or below
 //! [`MEDIAN_FALLBACK_DEPTH`], the node is split at the median triangle instead, which bounds the depth by
-//! `MEDIAN_FALLBACK_DEPTH + log2(n)` and keeps every tree within the format's depth rule. The result depends
-//! only on the input (no threads, no hashing), so builds are deterministic.
+//! `MEDIAN_FALLBACK_DEPTH + log2(n)` and keeps every tree within the format's depth rule.
+//!
+//! Nodes are laid out in preorder. Subtrees of more than [`PARALLEL_THRESHOLD`] triangles are built in parallel
+//! (rayon) into their own arrays and concatenated left then right, so the result is the same for any number
+//! of threads.
 
 use super::{BuildNode, BuildTree};
 use crate::aabb::Aabb;
@@ -15,6 +18,8 @@ use crate::aabb::Aabb;
 pub const BIN_COUNT: usize = 16;
 /// Depth from which nodes are split at the median triangle, whatever the SAH says.
 pub const MEDIAN_FALLBACK_DEPTH: usize = 160;
+/// Subtrees with more triangles than this are built in parallel.
+const PARALLEL_THRESHOLD: usize = 4096;
 /// Cost of a traversal step in the split decisions (the reference convention's c_T).
 const TRAVERSAL_COST: f64 = 3.0;
 /// Cost of a triangle test in the split decisions (the reference convention's c_I).
@@ -24,54 +29,71 @@ const INTERSECTION_COST: f64 = 2.0;
 pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {
     let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
     let centroids: Vec<[f32; 3]> = boxes.iter().map(Aabb::center).collect();
-    let mut builder =
-        Builder { boxes: &boxes, centroids: &centroids, max_leaf_size: max_leaf_size.max(1), nodes: Vec::new() };
+    let builder = Builder { boxes: &boxes, centroids: &centroids, max_leaf_size: max_leaf_size.max(1) };
     let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
+    let mut nodes = Vec::with_capacity(2 * triangles.len());
     if !order.is_empty() {
-        builder.nodes.push(BuildNode::Leaf { aabb: Aabb::EMPTY, first: 0, count: 0 });
-        builder.split(0, &mut order, 0, 0);
+        builder.build(&mut nodes, &mut order, 0, 0);
     }
-    BuildTree { nodes: builder.nodes, triangle_order: order }
+    BuildTree { nodes, triangle_order: order }
 }
 
 struct Builder<'a> {
     boxes: &'a [Aabb],
     centroids: &'a [[f32; 3]],
     max_leaf_size: usize,
-    nodes: Vec<BuildNode>,
 }
 
 impl Builder<'_> {
-    /// Fills node `slot` with a subtree over `order` (which starts at `first` of the whole order).
-    fn split(&mut self, slot: usize, order: &mut [u32], first: usize, depth: usize) {
+    /// Appends the subtree over `order` (positions `first..` of the whole order) to `nodes`, in preorder.
+    fn build(&self, nodes: &mut Vec<BuildNode>, order: &mut [u32], first: usize, depth: usize) {
         let aabb = order.iter().fold(Aabb::EMPTY, |b, &t| b.union(&self.boxes[t as usize]));
         let leaf = BuildNode::Leaf { aabb, first: first as u32, count: order.len() as u32 };
         if order.len() == 1 {
-            self.nodes[slot] = leaf;
+            nodes.push(leaf);
             return;
         }
         let mid = match self.best_sah_split(order, &aabb, depth) {
             SplitChoice::Leaf if order.len() <= self.max_leaf_size => {
-                self.nodes[slot] = leaf;
+                nodes.push(leaf);
                 return;
             }
             SplitChoice::Plane { axis, position } => partition(order, |t| self.centroids[t as usize][axis] < position),
-            SplitChoice::Leaf | SplitChoice::Median => {
-                let axis = aabb.longest_axis();
-                let mid = order.len() / 2;
-                order.select_nth_unstable_by(mid, |&a, &b| {
-                    self.centroids[a as usize][axis].total_cmp(&self.centroids[b as usize][axis]).then(a.cmp(&b))
-                });
-                mid
-            }
+            SplitChoice::Leaf | SplitChoice::Median => self.median_split(order, &aabb),
         };
-        let left = self.nodes.len() as u32;
-        self.nodes.push(leaf);
-        self.nodes.push(leaf);
-        self.nodes[slot] = BuildNode::Inner { aabb, left, right: left + 1 };
+        let at = nodes.len();
+        nodes.push(leaf); // replaced below
         let (left_order, right_order) = order.split_at_mut(mid);
-        self.split(left as usize, left_order, first, depth + 1);
-        self.split(left as usize + 1, right_order, first + mid, depth + 1);
+        if order_len_is_large(left_order.len() + right_order.len()) {
+            let (left, right) = rayon::join(
+                || self.build_detached(left_order, first, depth + 1),
+                || self.build_detached(right_order, first + mid, depth + 1),
+            );
+            append_shifted(nodes, &left);
+            let right_at = append_shifted(nodes, &right);
+            nodes[at] = BuildNode::Inner { aabb, left: at as u32 + 1, right: right_at as u32 };
+        } else {
+            self.build(nodes, left_order, first, depth + 1);
+            let right_at = nodes.len();
+            self.build(nodes, right_order, first + mid, depth + 1);
+            nodes[at] = BuildNode::Inner { aabb, left: at as u32 + 1, right: right_at as u32 };
+        }
+    }
+
+    /// A subtree in its own array (indices from 0).
+    fn build_detached(&self, order: &mut [u32], first: usize, depth: usize) -> Vec<BuildNode> {
+        let mut nodes = Vec::with_capacity(2 * order.len());
+        self.build(&mut nodes, order, first, depth);
+        nodes
+    }
+
+    fn median_split(&self, order: &mut [u32], aabb: &Aabb) -> usize {
+        let axis = aabb.longest_axis();
+        let mid = order.len() / 2;
+        order.select_nth_unstable_by(mid, |&a, &b| {
+            self.centroids[a as usize][axis].total_cmp(&self.centroids[b as usize][axis]).then(a.cmp(&b))
+        });
+        mid
     }
 
     fn best_sah_split(&self, order: &[u32], aabb: &Aabb, depth: usize) -> SplitChoice {
@@ -125,21 +147,37 @@ impl Builder<'_> {
     }
 }
 
+fn order_len_is_large(len: usize) -> bool {
+    len > PARALLEL_THRESHOLD
+}
+
+/// Appends `src` (indices from 0) to `dst`, shifting its child indices; returns where it starts.
+fn append_shifted(dst: &mut Vec<BuildNode>, src: &[BuildNode]) -> usize {
+    let offset = dst.len();
+    dst.extend(src.iter().map(|node| match *node {
+        BuildNode::Inner { aabb, left, right } => {
+            BuildNode::Inner { aabb, left: left + offset as u32, right: right + offset as u32 }
+        }
+        leaf => leaf,
+    }));
+    offset
+}
+
 enum SplitChoice {
     Leaf,
     Median,
     Plane { axis: usize, position: f32 },
 }
 
-/// Moves the items satisfying `goes_left` to the front, keeping a stable order; returns their count. Falls back
-/// to the middle when one side would be empty (possible through rounding at a bin boundary).
+/// Moves the items satisfying `goes_left` to the front (in place, deterministic); returns their count. Falls
+/// back to the middle when one side would be empty (possible through rounding at a bin boundary).
 fn partition(order: &mut [u32], goes_left: impl Fn(u32) -> bool) -> usize {
-    let (left, right): (Vec<u32>, Vec<u32>) = order.iter().partition(|&&t| goes_left(t));
-    if left.is_empty() || right.is_empty() {
-        return order.len() / 2;
+    let mut mid = 0;
+    for i in 0..order.len() {
+        if goes_left(order[i]) {
+            order.swap(i, mid);
+            mid += 1;
+        }
     }
-    let mid = left.len();
-    order[..mid].copy_from_slice(&left);
-    order[mid..].copy_from_slice(&right);
-    mid
+    if mid == 0 || mid == order.len() { order.len() / 2 } else { mid }
 }

@@ -52,15 +52,15 @@ impl OptTree {
     }
 
     fn add_build_subtree(&mut self, build: &BuildTree, index: usize, triangles: &[[[f32; 3]; 3]], parent: u32) -> u32 {
-        // Iterative over the build tree: (build node, parent in self, is left child).
-        let mut stack = vec![(index, parent, true)];
+        // Iterative over the build tree: (build node, parent in self, link from the parent: None for the top).
+        let mut stack: Vec<(usize, u32, Option<bool>)> = vec![(index, parent, None)];
         let mut top = NONE;
-        while let Some((b, parent, is_left)) = stack.pop() {
+        while let Some((b, parent, link)) = stack.pop() {
             let at = match build.nodes[b] {
                 BuildNode::Inner { aabb, left, right } => {
                     let at = self.push(OptNode { aabb, parent, left: NONE, right: NONE });
-                    stack.push((right as usize, at, false));
-                    stack.push((left as usize, at, true));
+                    stack.push((right as usize, at, Some(false)));
+                    stack.push((left as usize, at, Some(true)));
                     at
                 }
                 BuildNode::Leaf { first, count, .. } => {
@@ -68,12 +68,10 @@ impl OptTree {
                     self.add_leaves(order, triangles, parent)
                 }
             };
-            if parent == NONE {
-                top = at;
-            } else if is_left {
-                self.nodes[parent as usize].left = at;
-            } else {
-                self.nodes[parent as usize].right = at;
+            match link {
+                None => top = at,
+                Some(true) => self.nodes[parent as usize].left = at,
+                Some(false) => self.nodes[parent as usize].right = at,
             }
         }
         top

@@ -242,6 +242,44 @@ fn cancellation_and_time_budget_return_the_best_tree_so_far() {
 }
 
 #[test]
+fn builders_place_every_triangle_in_exactly_one_leaf_with_exact_boxes() {
+    // 20,000 triangles: large enough for the parallel subtree builds.
+    let triangles = random_triangles(15, 20_000, 10.0);
+    for builder in [Builder::SpatialMedian, Builder::BinnedSah] {
+        for max_leaf_size in [1, 4] {
+            let build = builder.build(&triangles, max_leaf_size);
+            let mut order = build.triangle_order.clone();
+            order.sort_unstable();
+            assert_eq!(order, (0..triangles.len() as u32).collect::<Vec<_>>(), "{builder:?}");
+            let mut covered = vec![false; triangles.len()];
+            let mut stack = vec![0usize];
+            while let Some(i) = stack.pop() {
+                match build.nodes[i] {
+                    BuildNode::Inner { aabb, left, right } => {
+                        let union = build.nodes[left as usize].aabb().union(build.nodes[right as usize].aabb());
+                        assert_eq!(aabb, union, "{builder:?} node {i}");
+                        stack.extend([left as usize, right as usize]);
+                    }
+                    BuildNode::Leaf { aabb, first, count } => {
+                        assert!((count as usize) <= max_leaf_size || max_leaf_size == 1 && count == 1);
+                        let slots = &build.triangle_order[first as usize..(first + count) as usize];
+                        let union =
+                            slots.iter().fold(Aabb::EMPTY, |b, &t| b.union(&Aabb::of_triangle(&triangles[t as usize])));
+                        assert_eq!(aabb, union, "{builder:?} leaf {i}");
+                        for &t in slots {
+                            assert!(!std::mem::replace(&mut covered[t as usize], true), "triangle {t} twice");
+                        }
+                    }
+                }
+            }
+            assert!(covered.iter().all(|&c| c), "{builder:?}: a triangle is unreachable");
+            let tree = OptTree::from_build_tree(&build, &triangles);
+            check_invariants(&tree, &triangles);
+        }
+    }
+}
+
+#[test]
 fn leaf_merging_never_raises_the_cost_and_respects_the_leaf_size() {
     let constants = SahConstants::default();
     for seed in 20..26u64 {
