@@ -11,6 +11,8 @@
 //! (rayon) into their own arrays and concatenated left then right, so the result is the same for any number
 //! of threads.
 
+use rayon::prelude::*;
+
 use super::{BuildNode, BuildTree};
 use crate::aabb::Aabb;
 
@@ -27,8 +29,8 @@ const INTERSECTION_COST: f64 = 2.0;
 
 /// Builds a binned SAH tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
 pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {
-    let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
-    let centroids: Vec<[f32; 3]> = boxes.iter().map(Aabb::center).collect();
+    let boxes: Vec<Aabb> = triangles.par_iter().map(Aabb::of_triangle).collect();
+    let centroids: Vec<[f32; 3]> = boxes.par_iter().map(Aabb::center).collect();
     let builder = Builder { boxes: &boxes, centroids: &centroids, max_leaf_size: max_leaf_size.max(1) };
     let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
     let mut nodes = Vec::with_capacity(2 * triangles.len());
@@ -47,7 +49,7 @@ struct Builder<'a> {
 impl Builder<'_> {
     /// Appends the subtree over `order` (positions `first..` of the whole order) to `nodes`, in preorder.
     fn build(&self, nodes: &mut Vec<BuildNode>, order: &mut [u32], first: usize, depth: usize) {
-        let aabb = order.iter().fold(Aabb::EMPTY, |b, &t| b.union(&self.boxes[t as usize]));
+        let aabb = self.bounds(order, |t| self.boxes[t as usize]);
         let leaf = BuildNode::Leaf { aabb, first: first as u32, count: order.len() as u32 };
         if order.len() == 1 {
             nodes.push(leaf);
@@ -100,7 +102,10 @@ impl Builder<'_> {
         if depth >= MEDIAN_FALLBACK_DEPTH {
             return SplitChoice::Median;
         }
-        let centroid_box = order.iter().fold(Aabb::EMPTY, |b, &t| b.grow(&self.centroids[t as usize]));
+        let centroid_box = self.bounds(order, |t| {
+            let c = self.centroids[t as usize];
+            Aabb { min: c, max: c }
+        });
         let leaf_cost = INTERSECTION_COST * order.len() as f64;
         let mut best = (f64::INFINITY, SplitChoice::Median);
         for axis in 0..3 {
@@ -110,12 +115,21 @@ impl Builder<'_> {
             }
             let scale = BIN_COUNT as f32 / (hi - lo);
             let bin_of = |c: f32| (((c - lo) * scale) as usize).min(BIN_COUNT - 1);
-            let mut bins = [(Aabb::EMPTY, 0usize); BIN_COUNT];
-            for &t in order {
-                let bin = &mut bins[bin_of(self.centroids[t as usize][axis])];
-                bin.0 = bin.0.union(&self.boxes[t as usize]);
-                bin.1 += 1;
-            }
+            let fill = |chunk: &[u32]| {
+                let mut bins = EMPTY_BINS;
+                for &t in chunk {
+                    let bin = &mut bins[bin_of(self.centroids[t as usize][axis])];
+                    bin.0 = bin.0.union(&self.boxes[t as usize]);
+                    bin.1 += 1;
+                }
+                bins
+            };
+            // Unions and counts do not depend on the order of reduction, so the parallel form is exact.
+            let bins = if order_len_is_large(order.len()) {
+                order.par_chunks(PARALLEL_THRESHOLD).map(fill).reduce(|| EMPTY_BINS, merge_bins)
+            } else {
+                fill(order)
+            };
             // Sweep from the right to get the right-side areas, then from the left.
             let mut right_area = [0.0f64; BIN_COUNT];
             let mut acc = (Aabb::EMPTY, 0usize);
@@ -144,6 +158,29 @@ impl Builder<'_> {
             }
         }
         best.1
+    }
+}
+
+/// Per bin: the box and the count of the triangles whose centroid falls into it.
+type Bins = [(Aabb, usize); BIN_COUNT];
+const EMPTY_BINS: Bins = [(Aabb::EMPTY, 0); BIN_COUNT];
+
+fn merge_bins(mut a: Bins, b: Bins) -> Bins {
+    for (x, y) in a.iter_mut().zip(b) {
+        *x = (x.0.union(&y.0), x.1 + y.1);
+    }
+    a
+}
+
+impl Builder<'_> {
+    /// The union of `item(t)` over `order` (in parallel chunks for large nodes; exact either way).
+    fn bounds(&self, order: &[u32], item: impl Fn(u32) -> Aabb + Sync) -> Aabb {
+        let fold = |chunk: &[u32]| chunk.iter().fold(Aabb::EMPTY, |b, &t| b.union(&item(t)));
+        if order_len_is_large(order.len()) {
+            order.par_chunks(PARALLEL_THRESHOLD).map(fold).reduce(|| Aabb::EMPTY, |a, b| a.union(&b))
+        } else {
+            fold(order)
+        }
     }
 }
 

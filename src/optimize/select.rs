@@ -71,7 +71,7 @@ pub fn is_eligible(tree: &OptTree, i: u32) -> bool {
 
 /// The batch: `fraction` of the eligible nodes (at least one), most inefficient first.
 pub fn select_batch(tree: &OptTree, selection: Selection, fraction: f64, rng: &mut Pcg64Mcg) -> Vec<u32> {
-    let eligible: Vec<u32> = (0..tree.nodes.len() as u32).filter(|&i| is_eligible(tree, i)).collect();
+    let eligible: Vec<u32> = (0..tree.nodes.len() as u32).into_par_iter().filter(|&i| is_eligible(tree, i)).collect();
     if eligible.is_empty() {
         return eligible;
     }

@@ -3,8 +3,13 @@
 //! Kept apart from the packed on-disk layout: the optimizer rewires links in place, then
 //! [`OptTree::to_build_tree`] hands a plain [`BuildTree`] to the leaf merger or the packer.
 
+use rayon::prelude::*;
+
 use crate::aabb::Aabb;
 use crate::build::{BuildNode, BuildTree, build_binned_sah};
+
+/// Nodes per chunk of the deterministic parallel area sums.
+const AREA_SUM_CHUNK: usize = 16 * 1024;
 
 /// Marks a missing link (the root's parent, a leaf's left child).
 pub const NONE: u32 = u32::MAX;
@@ -144,15 +149,20 @@ impl OptTree {
     }
 
     /// Sum of the inner nodes' areas and of the leaves' areas, each area in f64 as the cost module computes
-    /// it, summed in node-index order.
+    /// it. Summed in fixed chunks of node indices, chunk sums added in order: the same result for any number
+    /// of threads.
     pub fn area_sums(&self) -> (f64, f64) {
-        let mut inner = 0.0;
-        let mut leaves = 0.0;
-        for node in &self.nodes {
-            let a = node.aabb.surface_area();
-            if node.left == NONE { leaves += a } else { inner += a }
-        }
-        (inner, leaves)
+        let partial: Vec<(f64, f64)> = self
+            .nodes
+            .par_chunks(AREA_SUM_CHUNK)
+            .map(|chunk| {
+                chunk.iter().fold((0.0, 0.0), |(inner, leaves), node| {
+                    let a = node.aabb.surface_area();
+                    if node.left == NONE { (inner, leaves + a) } else { (inner + a, leaves) }
+                })
+            })
+            .collect();
+        partial.into_iter().fold((0.0, 0.0), |(i, l), (pi, pl)| (i + pi, l + pl))
     }
 
     /// The root's area (0 for an empty tree).
