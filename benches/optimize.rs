@@ -96,7 +96,7 @@ fn run_bvhc(
         merged: Some(merged),
         build: build_time,
         optimize: report.elapsed,
-        batches: report.batches.to_string(),
+        batches: format!("{} ({:?})", report.batches, report.stop).to_lowercase(),
     };
     (row, trace)
 }
@@ -240,8 +240,7 @@ fn main() {
                 rows.push(row);
             }
         }
-        let reference =
-            OptimizeParams { algorithm: bvhc::optimize::Algorithm::Sequential, ..OptimizeParams::default() };
+        let reference = OptimizeParams { time_budget: Some(Duration::from_secs(20)), ..OptimizeParams::bittner_2013() };
         rows.push(run_bvhc(&triangles, Builder::BinnedSah, Preset::Balanced, &reference).0);
         let tris = obvhs_triangles(&triangles);
         let mut obvhs_rows = Vec::new();

@@ -106,17 +106,21 @@ pub fn optimize(
         Algorithm::Alternating => loop {
             let cycle_start = run.report.best.cost;
             let parallel = OptimizeParams { algorithm: Algorithm::Parallel, ..params.clone() };
-            let stop = run.phase(tree, &parallel, progress);
-            if stop != StopReason::Converged {
-                break stop;
-            }
             let reference = OptimizeParams {
                 time_budget: params.time_budget,
                 seed: params.seed,
                 constants: params.constants,
                 ..OptimizeParams::bittner_2013()
             };
-            let stop = run.phase(tree, &reference, progress);
+            // One full sequential pass (every eligible node once, in measure order), then the published loop.
+            let full_pass = OptimizeParams { batch_fraction: 1.0, stop_after: 1, ..reference.clone() };
+            let mut stop = StopReason::Converged;
+            for phase in [&parallel, &full_pass, &reference] {
+                stop = run.phase(tree, phase, progress);
+                if stop != StopReason::Converged {
+                    break;
+                }
+            }
             if stop != StopReason::Converged {
                 break stop;
             }

@@ -18,9 +18,10 @@ pub enum Algorithm {
     /// Bittner et al. 2013 exactly: one node at a time removed and its children reinserted; single-threaded.
     /// The reference the parallel loop is checked against.
     Sequential,
-    /// Parallel rounds until they converge, then the sequential loop with the paper's constants until it
-    /// converges, repeated while a cycle lowers the cost by more than `min_relative_improvement` (at least
-    /// 1e-4): the sequential loop's forced reinsertions move the tree out of the parallel loop's local optimum.
+    /// Cycles of three phases, each run until it converges: parallel rounds; one full sequential pass (every
+    /// eligible node once, in measure order); the sequential loop with the published constants. Repeated while
+    /// a cycle lowers the cost by more than `min_relative_improvement` (at least 1e-6): the sequential loop's
+    /// forced reinsertions move the tree out of the parallel loop's local optimum.
     Alternating,
 }
 
@@ -76,7 +77,7 @@ pub enum Preset {
     /// The default: parallel sequences until one gains less than 0.1%.
     #[default]
     Balanced,
-    /// Parallel and sequential loops alternated until a cycle gains less than 0.02%: the lowest cost.
+    /// Parallel and sequential phases alternated until a cycle gains less than 0.02%: the lowest cost.
     MaxQuality,
 }
 
