@@ -16,6 +16,7 @@ use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, import};
 use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
 use crate::pack::pack;
+use crate::up_to_date::input_entries;
 
 /// Largest leaf the merger makes by default (the reference table's M = 3 uses 8).
 pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
@@ -24,7 +25,6 @@ pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ConvertOptions {
     /// Import options (glTF scene, keeping degenerate triangles).
-    #[serde(skip)]
     pub import: ImportOptions,
     /// The initial builder.
     pub builder: Builder,
@@ -49,6 +49,11 @@ impl Default for ConvertOptions {
 }
 
 impl ConvertOptions {
+    /// The options as recorded in the metadata's `build` object (and compared by the up-to-date check).
+    pub fn recorded(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+
     /// The options of a preset.
     pub fn preset(preset: Preset) -> ConvertOptions {
         ConvertOptions {
@@ -128,15 +133,38 @@ pub fn convert(input: &Path, output: &Path) -> Result<ConvertReport, ConvertErro
     convert_with(input, output, &ConvertOptions::default(), &mut |_| ControlFlow::Continue(()))
 }
 
-/// Converts `input` into `output` (written atomically); `progress` sees every optimizer batch and may cancel
-/// it (the best tree so far is written).
+/// A stage of the pipeline, as reported to the observer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Reading the scene.
+    Import,
+    /// The initial build.
+    Build,
+    /// Optimization and leaf merging.
+    Optimize,
+    /// Packing, writing and verifying.
+    Write,
+}
+
+/// What the pipeline tells its observer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Event<'a> {
+    /// A stage begins.
+    Stage(Stage),
+    /// An optimizer batch ended.
+    Batch(&'a Progress),
+}
+
+/// Converts `input` into `output` (written atomically). `observer` sees every stage and optimizer batch;
+/// returning `ControlFlow::Break` on a batch cancels the optimization (the best tree so far is written).
 pub fn convert_with(
     input: &Path,
     output: &Path,
     options: &ConvertOptions,
-    progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+    observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
 ) -> Result<ConvertReport, ConvertError> {
     let mut timings = Timings::default();
+    let _ = observer(Event::Stage(Stage::Import));
     let clock = Instant::now();
     let imported = import(input, &options.import)?;
     timings.import = lap(clock);
@@ -145,22 +173,28 @@ pub fn convert_with(
     if u32::try_from(triangles.len()).is_err() {
         return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
     }
+    let _ = observer(Event::Stage(Stage::Build));
     let clock = Instant::now();
     let mut tree = OptTree::from_build_tree(&options.builder.build(&triangles, 1), &triangles);
     timings.build = lap(clock);
+    let _ = observer(Event::Stage(Stage::Optimize));
     let clock = Instant::now();
-    let optimization = (!options.skip_optimization).then(|| optimize(&mut tree, &options.optimize, progress));
+    let optimization = (!options.skip_optimization)
+        .then(|| optimize(&mut tree, &options.optimize, &mut |p: &Progress| observer(Event::Batch(p))));
     tree.limit_depth(MAX_DEPTH, &triangles);
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
     let final_tree = merge_leaves(&tree, options.optimize.constants, leaf_size);
     timings.optimize = lap(clock);
+    let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
     let cost = sah_of_build_tree(&final_tree, options.optimize.constants);
     let packed = pack(&final_tree, &triangles);
     check_every_triangle_once(&packed.triangle_ids, triangles.len())?;
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
-    let metadata = metadata_json(input, options, &cost);
+    let inputs = input_entries(input, &imported.files_read)
+        .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
+    let metadata = metadata_json(inputs, options, &cost);
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles).metadata(&metadata);
     if options.write_ids {
         writer = writer.triangle_ids(&source_ids).source_table(&soup.sources);
@@ -197,14 +231,14 @@ fn lap(start: Instant) -> f64 {
     Duration::as_secs_f64(&start.elapsed())
 }
 
-/// The metadata object: generator, format version, input file name (never a path), build options, cost.
-fn metadata_json(input: &Path, options: &ConvertOptions, cost: &SahCost) -> String {
-    let file_name = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+/// The metadata object: generator, format version, inputs (names relative to the input, content hashes),
+/// build options, cost.
+fn metadata_json(inputs: Vec<serde_json::Value>, options: &ConvertOptions, cost: &SahCost) -> String {
     serde_json::json!({
         "generator": concat!("bvhc ", env!("CARGO_PKG_VERSION")),
         "format_version": format!("{}.{}", bvhc_loader::format::VERSION_MAJOR, bvhc_loader::format::VERSION_MINOR),
-        "inputs": [{ "file_name": file_name }],
-        "build": options,
+        "inputs": inputs,
+        "build": options.recorded(),
         "cost": {
             "sah_cost": cost.cost,
             "c_t": options.optimize.constants.traversal,
@@ -214,4 +248,16 @@ fn metadata_json(input: &Path, options: &ConvertOptions, cost: &SahCost) -> Stri
         },
     })
     .to_string()
+}
+
+/// The input files an existing output records, resolved next to `main_input` (empty when unreadable).
+pub fn recorded_inputs(output: &Path, main_input: &Path) -> Vec<PathBuf> {
+    let base = main_input.parent().unwrap_or(Path::new(""));
+    let Ok(file) = bvhc_loader::BvhFile::read(output) else { return Vec::new() };
+    let Some(Ok(text)) = file.view().metadata_str() else { return Vec::new() };
+    let metadata: serde_json::Value = serde_json::from_str(text).unwrap_or_default();
+    metadata["inputs"]
+        .as_array()
+        .map(|inputs| inputs.iter().filter_map(|e| e["file_name"].as_str()).map(|name| base.join(name)).collect())
+        .unwrap_or_default()
 }

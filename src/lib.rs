@@ -4,10 +4,15 @@
 
 pub mod aabb;
 pub mod build;
+pub mod conversion;
 pub mod convert;
 pub mod cost;
 pub mod import;
 pub mod optimize;
 pub mod pack;
+pub mod up_to_date;
+
+pub use conversion::{Conversion, ConversionOutcome};
+pub use optimize::Preset;
 
 pub use bvhc_loader as loader;

@@ -26,7 +26,8 @@ pub use soup::{Provenance, TriangleSoup, is_zero_area};
 use soup::SoupBuilder;
 
 /// Which glTF scene to import.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SceneSelector {
     /// The scene at this index.
     Index(usize),
@@ -35,7 +36,7 @@ pub enum SceneSelector {
 }
 
 /// Import options; the defaults suit conversion.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct ImportOptions {
     /// The glTF scene to import; default: the file's default scene, else scene 0.
     pub scene: Option<SceneSelector>,

@@ -1,0 +1,151 @@
+//! `bvhc INPUT -o OUTPUT`: the conversion, with a progress display on a terminal.
+
+use std::io::IsTerminal;
+use std::ops::ControlFlow;
+use std::time::Duration;
+
+use bvhc::Conversion;
+use bvhc::build::Builder;
+use bvhc::convert::{ConvertError, Event, Stage};
+use bvhc::import::SceneSelector;
+use bvhc::optimize::{Preset, Selection};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::args::{BuilderArg, ConvertArgs, PresetArg, SelectionArg};
+use super::{Exit, fail, loader_exit};
+
+fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
+    let (Some(input), Some(output)) = (&args.input, &args.output) else {
+        return Err("INPUT and -o OUTPUT are required".to_string());
+    };
+    let preset = match args.preset {
+        PresetArg::Fast => Preset::Fast,
+        PresetArg::Balanced => Preset::Balanced,
+        PresetArg::MaxQuality => Preset::MaxQuality,
+    };
+    let builder = match args.builder {
+        BuilderArg::BinnedSah => Builder::BinnedSah,
+        BuilderArg::SpatialMedian => Builder::SpatialMedian,
+    };
+    let selection = match args.selection {
+        SelectionArg::Comb => Selection::Comb,
+        SelectionArg::Sum => Selection::Sum,
+        SelectionArg::Min => Selection::Min,
+        SelectionArg::Area => Selection::Area,
+        SelectionArg::Random => Selection::Random,
+    };
+    let mut conversion = Conversion::new(input, output)
+        .preset(preset)
+        .builder(builder)
+        .selection(selection)
+        .max_leaf_size(args.max_leaf_size)
+        .merge_leaves(!args.no_merge)
+        .keep_degenerate(args.keep_degenerate)
+        .write_ids(!args.no_ids)
+        .force(args.force);
+    if let Some(seconds) = args.time_budget {
+        let budget =
+            Duration::try_from_secs_f64(seconds).map_err(|_| format!("--time-budget {seconds}: not a duration"))?;
+        conversion = conversion.time_budget(budget);
+    }
+    if let Some(scene) = &args.scene {
+        conversion = conversion.scene(match scene.parse::<usize>() {
+            Ok(index) => SceneSelector::Index(index),
+            Err(_) => SceneSelector::Name(scene.clone()),
+        });
+    }
+    if args.no_optimize {
+        let mut options = conversion.current_options().clone();
+        options.skip_optimization = true;
+        conversion = conversion.options(options);
+    }
+    Ok(conversion)
+}
+
+/// Runs the conversion; prints a summary (or JSON) on stdout unless `--quiet`.
+pub fn convert(args: &ConvertArgs) -> Exit {
+    let conversion = match conversion(args) {
+        Ok(conversion) => conversion,
+        Err(message) => return fail(Exit::InvalidInput, message),
+    };
+    let bar = (std::io::stderr().is_terminal() && !args.quiet).then(|| {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} [{elapsed}] {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        bar.enable_steady_tick(Duration::from_millis(100));
+        bar
+    });
+    let mut observe = |event: Event<'_>| {
+        if let Some(bar) = &bar {
+            match event {
+                Event::Stage(Stage::Import) => bar.set_message("importing"),
+                Event::Stage(Stage::Build) => bar.set_message("building"),
+                Event::Stage(Stage::Optimize) => bar.set_message("optimizing"),
+                Event::Stage(Stage::Write) => bar.set_message("merging leaves, writing"),
+                Event::Batch(p) => bar.set_message(format!(
+                    "optimizing: batch {}, cost {:.3} (best {:.3})",
+                    p.batch, p.cost, p.best_cost
+                )),
+            }
+        }
+        ControlFlow::Continue(())
+    };
+    let result = conversion.run_with_progress(&mut observe);
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    let outcome = match result {
+        Ok(outcome) => outcome,
+        Err(ConvertError::Import(error)) => return fail(Exit::InvalidInput, error),
+        Err(ConvertError::Write(error)) => return fail(loader_exit(&error).max_io(), error),
+        Err(ConvertError::TooLarge { path, count }) => {
+            return fail(Exit::InvalidInput, format!("{}: {count} triangles exceed the .bvh limit", path.display()));
+        }
+        Err(error) => return fail(Exit::Internal, error),
+    };
+    let output = args.output.as_deref().unwrap_or(std::path::Path::new(""));
+    if args.json {
+        let json = serde_json::json!({
+            "output": output,
+            "up_to_date": outcome.up_to_date,
+            "files_read": outcome.files_read,
+            "report": outcome.report,
+        });
+        println!("{json:#}");
+    } else if !args.quiet {
+        match &outcome.report {
+            None => {
+                println!("{} is up to date (same inputs, options and format); --force rebuilds it", output.display())
+            }
+            Some(r) => {
+                let dropped = r.import.degenerate();
+                let optimized = r.optimization.as_ref().map_or(String::new(), |o| {
+                    format!(", optimized {:.2} -> {:.2} in {} batches", o.initial.cost, o.best.cost, o.batches)
+                });
+                println!(
+                    "{}: {} triangles ({dropped} degenerate dropped), {} nodes, SAH cost {:.2}{optimized}, {} bytes, {:.2} s",
+                    output.display(),
+                    r.triangle_count,
+                    r.node_count,
+                    r.cost.cost,
+                    r.file_byte_len,
+                    r.timings.import + r.timings.build + r.timings.optimize + r.timings.write
+                );
+            }
+        }
+    }
+    Exit::Success
+}
+
+trait WriteExit {
+    fn max_io(self) -> Exit;
+}
+
+impl WriteExit for Exit {
+    /// A write failure is an I/O error unless the tree itself broke a rule (a bug).
+    fn max_io(self) -> Exit {
+        if self == Exit::InvalidInput { Exit::Internal } else { Exit::Io }
+    }
+}

@@ -1,0 +1,156 @@
+//! `bvhc verify FILE` and `bvhc info FILE [--json]`.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use bvhc::cost::{SahConstants, sah_of_packed};
+use bvhc::loader::{BvhFile, BvhView, PackedNode};
+
+use super::{Exit, fail, loader_exit};
+
+/// Reads and fully verifies a file; the error exit when it cannot be read or is invalid.
+fn read_verified(path: &Path) -> Result<BvhFile, Exit> {
+    let file = BvhFile::read(path).map_err(|e| fail(loader_exit(&e), format!("{}: {e}", path.display())))?;
+    file.view()
+        .verify()
+        .map_err(|v| fail(Exit::InvalidInput, format!("{}: invalid .bvh file: {v}", path.display())))?;
+    Ok(file)
+}
+
+/// `bvhc verify`: exit 0 only for a valid file.
+pub fn verify(path: &Path) -> Exit {
+    match read_verified(path) {
+        Ok(file) => {
+            let view = file.view();
+            let (major, minor) = view.version();
+            println!(
+                "{}: valid .bvh {major}.{minor} ({} nodes, {} triangles, every rule V1-V23 holds)",
+                path.display(),
+                view.nodes().len(),
+                view.triangles().len()
+            );
+            Exit::Success
+        }
+        Err(exit) => exit,
+    }
+}
+
+/// Tree statistics of a verified file.
+struct TreeStats {
+    leaf_count: usize,
+    max_depth: usize,
+    leaf_sizes: BTreeMap<u32, usize>,
+}
+
+fn tree_stats(nodes: &[PackedNode]) -> TreeStats {
+    let mut stats = TreeStats { leaf_count: 0, max_depth: 0, leaf_sizes: BTreeMap::new() };
+    let mut stack = if nodes.is_empty() { vec![] } else { vec![(0usize, 0usize)] };
+    while let Some((i, depth)) = stack.pop() {
+        stats.max_depth = stats.max_depth.max(depth);
+        let node = &nodes[i];
+        if node.is_leaf() {
+            stats.leaf_count += 1;
+            *stats.leaf_sizes.entry(node.count).or_default() += 1;
+        } else {
+            stack.push((node.index as usize, depth + 1));
+            stack.push((node.index as usize + 1, depth + 1));
+        }
+    }
+    stats
+}
+
+fn metadata(view: &BvhView<'_>) -> serde_json::Value {
+    view.metadata_str()
+        .and_then(|text| text.ok())
+        .and_then(|text| serde_json::from_str(text).ok())
+        .unwrap_or(serde_json::Value::Null)
+}
+
+/// `bvhc info`.
+pub fn info(path: &Path, json: bool) -> Exit {
+    let file = match read_verified(path) {
+        Ok(file) => file,
+        Err(exit) => return exit,
+    };
+    let view = file.view();
+    let stats = tree_stats(view.nodes());
+    let metadata = metadata(&view);
+    let constants = SahConstants {
+        traversal: metadata["cost"]["c_t"].as_f64().unwrap_or(SahConstants::default().traversal),
+        intersection: metadata["cost"]["c_i"].as_f64().unwrap_or(SahConstants::default().intersection),
+    };
+    let cost = sah_of_packed(view.nodes(), constants);
+    let (major, minor) = view.version();
+    let sections: Vec<serde_json::Value> = view
+        .sections()
+        .map(|s| {
+            serde_json::json!({
+                "kind": s.entry.kind,
+                "name": s.kind.map_or("unknown", |k| k.name()),
+                "flags": s.entry.section_flags,
+                "byte_offset": s.entry.section_byte_offset,
+                "byte_len": s.entry.section_byte_len,
+                "element_count": s.entry.element_count,
+            })
+        })
+        .collect();
+    if json {
+        let report = serde_json::json!({
+            "file": path,
+            "format_version": format!("{major}.{minor}"),
+            "file_byte_len": view.bytes().len(),
+            "sections": sections,
+            "triangle_count": view.triangles().len(),
+            "node_count": view.nodes().len(),
+            "leaf_count": stats.leaf_count,
+            "max_depth": stats.max_depth,
+            "leaf_size_histogram": stats.leaf_sizes,
+            "sah_cost": cost.cost,
+            "c_t": constants.traversal,
+            "c_i": constants.intersection,
+            "inner_area_ratio": cost.inner_area_ratio,
+            "leaf_area_ratio": cost.leaf_area_ratio,
+            "metadata": metadata,
+        });
+        println!("{report:#}");
+        return Exit::Success;
+    }
+    println!("{}: .bvh {major}.{minor}, {} bytes", path.display(), view.bytes().len());
+    println!("sections:");
+    for s in &sections {
+        println!(
+            "  {:<13} offset {:>10}  bytes {:>11}  elements {:>9}  flags {}",
+            s["name"].as_str().unwrap_or(""),
+            s["byte_offset"],
+            s["byte_len"],
+            s["element_count"],
+            s["flags"]
+        );
+    }
+    println!(
+        "tree: {} triangles, {} nodes, {} leaves, depth {}",
+        view.triangles().len(),
+        view.nodes().len(),
+        stats.leaf_count,
+        stats.max_depth
+    );
+    let histogram: Vec<String> = stats.leaf_sizes.iter().map(|(size, n)| format!("{size}: {n}")).collect();
+    println!("leaf sizes (triangles: leaves): {}", histogram.join(", "));
+    println!(
+        "SAH cost {:.3} with (c_T, c_I) = ({}, {}): A_I {:.3}, A_L {:.3}",
+        cost.cost, constants.traversal, constants.intersection, cost.inner_area_ratio, cost.leaf_area_ratio
+    );
+    if !metadata.is_null() {
+        println!("generator: {}", metadata["generator"].as_str().unwrap_or("?"));
+        for input in metadata["inputs"].as_array().into_iter().flatten() {
+            println!(
+                "input: {} ({})",
+                input["file_name"].as_str().unwrap_or("?"),
+                input["content_hash"].as_str().unwrap_or("no hash")
+            );
+        }
+        println!("build options: {}", metadata["build"]);
+        println!("timings: not recorded in the file (they would make identical builds differ); see `bvhc ... --json`");
+    }
+    Exit::Success
+}

@@ -1,0 +1,149 @@
+//! The build-script API: a builder-style conversion of one input into one output.
+//!
+//! ```no_run
+//! // build.rs
+//! let out = std::path::PathBuf::from(std::env::var("OUT_DIR").unwrap()).join("scene.bvh");
+//! let outcome = bvhc::Conversion::new("assets/scene.gltf", &out).preset(bvhc::Preset::Balanced).run()?;
+//! for file in &outcome.files_read {
+//!     println!("cargo:rerun-if-changed={}", file.display());
+//! }
+//! # Ok::<(), bvhc::convert::ConvertError>(())
+//! ```
+//!
+//! It never prints; it skips the work when the output is up to date (same inputs by content, same options,
+//! same format version) unless forced; the output is written atomically and is byte-identical for identical
+//! inputs and options, whatever the number of threads.
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use crate::build::Builder;
+use crate::convert::{ConvertError, ConvertOptions, ConvertReport, Event, convert_with};
+use crate::import::SceneSelector;
+use crate::optimize::{Preset, Selection};
+use crate::up_to_date::is_up_to_date;
+
+/// One input, one output, options; [`Conversion::run`] does the work.
+#[derive(Clone, Debug)]
+pub struct Conversion {
+    input: PathBuf,
+    output: PathBuf,
+    options: ConvertOptions,
+    force: bool,
+}
+
+/// What [`Conversion::run`] did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConversionOutcome {
+    /// Every input file the conversion depends on (for `cargo:rerun-if-changed`), the input first.
+    pub files_read: Vec<PathBuf>,
+    /// The output was up to date and nothing was done.
+    pub up_to_date: bool,
+    /// The conversion's report, when it ran.
+    pub report: Option<ConvertReport>,
+}
+
+impl Conversion {
+    /// Converts `input` into `output` with the `balanced` preset.
+    pub fn new(input: impl AsRef<Path>, output: impl AsRef<Path>) -> Conversion {
+        Conversion {
+            input: input.as_ref().to_path_buf(),
+            output: output.as_ref().to_path_buf(),
+            options: ConvertOptions::default(),
+            force: false,
+        }
+    }
+
+    /// Uses a preset's optimizer parameters (other options are kept).
+    pub fn preset(mut self, preset: Preset) -> Self {
+        let constants = self.options.optimize.constants;
+        self.options.preset = preset;
+        self.options.optimize =
+            crate::optimize::OptimizeParams { constants, ..crate::optimize::OptimizeParams::preset(preset) };
+        self
+    }
+
+    /// The initial builder.
+    pub fn builder(mut self, builder: Builder) -> Self {
+        self.options.builder = builder;
+        self
+    }
+
+    /// The optimizer's node selection.
+    pub fn selection(mut self, selection: Selection) -> Self {
+        self.options.optimize.selection = selection;
+        self
+    }
+
+    /// Largest merged leaf (1 disables merging in effect).
+    pub fn max_leaf_size(mut self, max_leaf_size: usize) -> Self {
+        self.options.max_leaf_size = max_leaf_size.max(1);
+        self
+    }
+
+    /// Whether to merge leaves.
+    pub fn merge_leaves(mut self, merge: bool) -> Self {
+        self.options.merge_leaves = merge;
+        self
+    }
+
+    /// A wall-clock budget for the optimizer. Note: the result then depends on the machine's speed.
+    pub fn time_budget(mut self, budget: Duration) -> Self {
+        self.options.optimize.time_budget = Some(budget);
+        self
+    }
+
+    /// Keep degenerate triangles.
+    pub fn keep_degenerate(mut self, keep: bool) -> Self {
+        self.options.import.keep_degenerate = keep;
+        self
+    }
+
+    /// Whether to write the triangle_ids and source_table sections.
+    pub fn write_ids(mut self, write: bool) -> Self {
+        self.options.write_ids = write;
+        self
+    }
+
+    /// The glTF scene to convert.
+    pub fn scene(mut self, scene: SceneSelector) -> Self {
+        self.options.import.scene = Some(scene);
+        self
+    }
+
+    /// Convert even when the output is up to date.
+    pub fn force(mut self, force: bool) -> Self {
+        self.force = force;
+        self
+    }
+
+    /// Replaces all options.
+    pub fn options(mut self, options: ConvertOptions) -> Self {
+        self.options = options;
+        self
+    }
+
+    /// The options in effect.
+    pub fn current_options(&self) -> &ConvertOptions {
+        &self.options
+    }
+
+    /// Runs the conversion (or recognizes that the output is up to date).
+    pub fn run(&self) -> Result<ConversionOutcome, ConvertError> {
+        self.run_with_progress(&mut |_| ControlFlow::Continue(()))
+    }
+
+    /// [`Conversion::run`], reporting stages and optimizer batches to `observer`, which may cancel.
+    pub fn run_with_progress(
+        &self,
+        observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
+    ) -> Result<ConversionOutcome, ConvertError> {
+        if !self.force && is_up_to_date(&self.output, &self.input, &self.options.recorded()) {
+            let files_read = crate::convert::recorded_inputs(&self.output, &self.input);
+            return Ok(ConversionOutcome { files_read, up_to_date: true, report: None });
+        }
+        let report = convert_with(&self.input, &self.output, &self.options, observer)?;
+        Ok(ConversionOutcome { files_read: report.files_read.clone(), up_to_date: false, report: Some(report) })
+    }
+}
