@@ -4,7 +4,7 @@
 
 use super::Located;
 use super::polygon::triangulate;
-use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
+use super::soup::{Provenance, SoupBuilder};
 
 pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Located> {
     let options =
@@ -43,18 +43,8 @@ pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Locate
         }
         let provenance = Provenance { mesh_index: m as u32, ..Provenance::NONE };
         builder
-            .add(PrimitiveInstance {
-                provenance,
-                vertex_count,
-                source_position: |v| source[v as usize],
-                position: |v| positions[v as usize],
-                triangles: &triangles,
-                flip_winding: false,
-                first_use: true,
-            })
+            .add_mesh_in_place(provenance, &source, &positions, &triangles)
             .map_err(|e| Located::new(&format!("model {m}"), e))?;
-        builder.report.mesh_placements += 1;
-        builder.report.file_mesh_triangles += triangles.len() as u64;
     }
     // tobj keeps only the vertices each model uses; count the file's unused ones from its text.
     builder.report.unreferenced_vertices = unreferenced_vertices(bytes);

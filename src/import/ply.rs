@@ -5,7 +5,7 @@ use ply_rs_bw::ply::{DefaultElement, PropertyAccess, PropertyAccessResult};
 
 use super::Located;
 use super::polygon::triangulate;
-use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
+use super::soup::{Provenance, SoupBuilder};
 
 #[derive(Default)]
 struct Vertex([f64; 3]);
@@ -138,18 +138,8 @@ pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Locate
         strip_triangles(strip, &mut triangles);
     }
     builder
-        .add(PrimitiveInstance {
-            provenance: Provenance::NONE,
-            vertex_count,
-            source_position: |v| source[v as usize],
-            position: |v| positions[v as usize],
-            triangles: &triangles,
-            flip_winding: false,
-            first_use: true,
-        })
+        .add_mesh_in_place(Provenance::NONE, &source, &positions, &triangles)
         .map_err(|e| Located::new("faces", e))?;
-    builder.report.mesh_placements += 1;
-    builder.report.file_mesh_triangles += triangles.len() as u64;
     Ok(())
 }
 

@@ -197,6 +197,29 @@ impl SoupBuilder {
         Ok(())
     }
 
+    /// Adds a mesh that is placed once, as it is (OBJ models, PLY files): its source positions, the same
+    /// rounded to f32, and its triangles; counts the placement and the file's triangles.
+    pub fn add_mesh_in_place(
+        &mut self,
+        provenance: Provenance,
+        source: &[[f64; 3]],
+        positions: &[[f32; 3]],
+        triangles: &[[u32; 3]],
+    ) -> Result<(), String> {
+        self.add(PrimitiveInstance {
+            provenance,
+            vertex_count: positions.len(),
+            source_position: |v| source[v as usize],
+            position: |v| positions[v as usize],
+            triangles,
+            flip_winding: false,
+            first_use: true,
+        })?;
+        self.report.mesh_placements += 1;
+        self.report.file_mesh_triangles += triangles.len() as u64;
+        Ok(())
+    }
+
     /// The finished soup and report.
     pub fn finish(self) -> (TriangleSoup, ImportReport) {
         let mut report = self.report;

@@ -270,12 +270,8 @@ impl OptTree {
         node
     }
 
-    /// The tree as a build tree in depth-first order, one triangle per leaf.
-    pub fn to_build_tree(&self) -> BuildTree {
-        self.to_build_tree_with_leaves(&|_| false)
-    }
-
-    /// The tree as a build tree; nodes for which `collapse` holds become one leaf over all their triangles.
+    /// The tree as a build tree in depth-first order; nodes for which `collapse` holds become one leaf over all
+    /// their triangles (the leaf merger's output), other leaves keep their one triangle.
     pub fn to_build_tree_with_leaves(&self, collapse: &dyn Fn(u32) -> bool) -> BuildTree {
         let mut build = BuildTree::default();
         if self.root == NONE {
