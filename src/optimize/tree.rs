@@ -1,7 +1,7 @@
 //! The optimizer's mutable tree: binary, one triangle per leaf, parent links, boxes kept exact by refitting.
 //!
 //! Kept apart from the packed on-disk layout: the optimizer rewires links in place, then
-//! [`OptTree::to_build_tree`] hands a plain [`BuildTree`] to the leaf merger or the packer.
+//! [`OptTree::to_build_tree_with_leaves`] hands a plain [`BuildTree`] to the packer.
 
 use rayon::prelude::*;
 
