@@ -16,5 +16,6 @@ mod roundtrip;
 mod rules;
 mod scenes;
 mod spec;
+mod stress;
 mod traversal;
 mod watertight;

@@ -8,6 +8,12 @@
 use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
 use crate::intersect::{PreparedRay, Ray};
 
+/// Boxes are culled against the closest hit so far padded by this factor (`1 + 2^-18`). The triangle test's `t`
+/// carries a rounding error of a few ulps (different triangles through the same point, such as the fan around
+/// a shared vertex, report `t`s an ulp or two apart), so culling at the exact best `t` could skip a box whose
+/// triangle reports a `t` an ulp smaller. With the pad, the closest hit equals a brute-force scan exactly.
+const CULL_PADDING: f32 = 1.0 + 1.0 / 262_144.0;
+
 /// The closest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -139,7 +145,8 @@ impl<'a> Tracer<'a> {
                 let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
                     break 'visit;
                 };
-                match (prepared.enter_box(left, t_max), prepared.enter_box(right, t_max)) {
+                let t_cull = t_max * CULL_PADDING;
+                match (prepared.enter_box(left, t_cull), prepared.enter_box(right, t_cull)) {
                     (Some(t_left), Some(t_right)) => {
                         let (near, far, t_far) =
                             if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
@@ -168,7 +175,7 @@ impl<'a> Tracer<'a> {
                 }
                 stack_len -= 1;
                 let (node, t_entry) = stack[stack_len];
-                if t_entry <= t_max {
+                if t_entry <= t_max * CULL_PADDING {
                     current = node;
                     break;
                 }
