@@ -1,0 +1,156 @@
+//! Traversal speed against obvhs 0.4 in the same run: rays per second, closest hit and any hit, one thread and
+//! all threads, on the kitchen and the full dragon.
+//!
+//! bvhc: the loader's watertight kernel over a tree converted with the balanced preset (leaves merged up to 8),
+//! opened from bytes as a renderer would. obvhs: its own traversal over its own `slow_build` tree (PLOC,
+//! reinsertion, collapsed leaves), with its Möller-Trumbore triangle test (not watertight). The same 1,000,000
+//! rays from fixed seeds for both; the share of rays on which they agree (hit or miss, and t within 1e-4
+//! relative) is printed as a sanity check.
+//!
+//! `cargo bench --bench traversal`; `BVHC_SCENES` overrides the scenes folder, `BVHC_BENCH_RAYS` the ray count.
+
+#[path = "common/rays.rs"]
+mod rays;
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use bvhc::convert::{ConvertOptions, convert_with};
+use bvhc::loader::{BvhFile, Ray, Tracer};
+use obvhs::BvhBuildParams;
+use obvhs::ray::RayHit;
+use rayon::prelude::*;
+use rays::{primary_rays, shadow_rays};
+
+fn median(repetitions: usize, mut f: impl FnMut()) -> Duration {
+    let mut samples: Vec<Duration> = (0..repetitions)
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed()
+        })
+        .collect();
+    samples.sort();
+    samples[samples.len() / 2]
+}
+
+fn obvhs_ray(ray: &Ray) -> obvhs::ray::Ray {
+    obvhs::ray::Ray::new(
+        glam::Vec3A::from_array(ray.origin),
+        glam::Vec3A::from_array(ray.direction),
+        ray.t_min,
+        ray.t_max,
+    )
+}
+
+struct Obvhs {
+    bvh: obvhs::bvh2::Bvh2,
+    triangles: Vec<obvhs::triangle::Triangle>,
+}
+
+impl Obvhs {
+    fn closest(&self, ray: &Ray) -> Option<f32> {
+        let mut hit = RayHit::none();
+        let found = self.bvh.ray_traverse(obvhs_ray(ray), &mut hit, |r, id| {
+            self.triangles[self.bvh.primitive_indices[id] as usize].intersect(r)
+        });
+        found.then_some(hit.t)
+    }
+
+    fn any(&self, ray: &Ray) -> bool {
+        !self.bvh.ray_traverse_miss(obvhs_ray(ray), |r, id| {
+            self.triangles[self.bvh.primitive_indices[id] as usize].intersect(r)
+        })
+    }
+}
+
+/// Mrays/s of `f` over `rays`, single-threaded and on all threads (median of 3 each).
+fn speeds(rays: &[Ray], f: impl Fn(&Ray) -> bool + Sync) -> (f64, f64) {
+    let mrays = |d: Duration| rays.len() as f64 / d.as_secs_f64() / 1e6;
+    let single = median(3, || {
+        std::hint::black_box(rays.iter().filter(|r| f(r)).count());
+    });
+    let all = median(3, || {
+        std::hint::black_box(rays.par_chunks(4096).map(|c| c.iter().filter(|r| f(r)).count()).sum::<usize>());
+    });
+    (mrays(single), mrays(all))
+}
+
+fn main() {
+    if !std::env::args().any(|a| a == "--bench") {
+        println!("traversal benchmark: smoke run only (use cargo bench --bench traversal)");
+        return;
+    }
+    let dir = std::env::var_os("BVHC_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
+    let out = tempfile::tempdir().unwrap();
+    println!(
+        "{ray_count} rays per set, {} threads for 'all'; medians of 3 in this run\n",
+        rayon::current_num_threads()
+    );
+    println!("| scene | query | bvhc 1 thread | obvhs 1 thread | ratio | bvhc all | obvhs all | ratio | agreement |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (name, relative) in [
+        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+    ] {
+        let path = dir.join(relative);
+        if !path.is_file() {
+            eprintln!("SKIPPED: {} not found", path.display());
+            continue;
+        }
+        let output = out.path().join("scene.bvh");
+        convert_with(&path, &output, &ConvertOptions::default(), &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+        let file = BvhFile::read(&output).unwrap();
+        let view = file.view();
+        let tracer: Tracer<'_> = view.tracer();
+        let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
+        let triangles: Vec<obvhs::triangle::Triangle> = soup
+            .triangle_vertices()
+            .iter()
+            .map(|t| obvhs::triangle::Triangle {
+                v0: glam::Vec3A::from_array(t[0]),
+                v1: glam::Vec3A::from_array(t[1]),
+                v2: glam::Vec3A::from_array(t[2]),
+            })
+            .collect();
+        let mut core = Duration::ZERO;
+        let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(&triangles, BvhBuildParams::slow_build(), &mut core);
+        let theirs = Obvhs { bvh, triangles };
+        let root = &view.nodes()[0];
+        for (query, rays) in [("closest hit", primary_rays(root, ray_count)), ("any hit", shadow_rays(root, ray_count))]
+        {
+            let closest = query == "closest hit";
+            let agree = rays
+                .iter()
+                .filter(|r| {
+                    if closest {
+                        match (tracer.closest_hit(r).map(|h| h.t), theirs.closest(r)) {
+                            (None, None) => true,
+                            (Some(a), Some(b)) => (a - b).abs() <= 1e-4 * a.abs().max(1e-6),
+                            _ => false,
+                        }
+                    } else {
+                        tracer.any_hit(r) == theirs.any(r)
+                    }
+                })
+                .count() as f64
+                / rays.len() as f64;
+            let (ours_1, ours_n) = if closest {
+                speeds(&rays, |r| tracer.closest_hit(r).is_some())
+            } else {
+                speeds(&rays, |r| tracer.any_hit(r))
+            };
+            let (theirs_1, theirs_n) =
+                if closest { speeds(&rays, |r| theirs.closest(r).is_some()) } else { speeds(&rays, |r| theirs.any(r)) };
+            println!(
+                "| {name} | {query} | {ours_1:.2} | {theirs_1:.2} | {:.2} | {ours_n:.2} | {theirs_n:.2} | {:.2} | {:.4} |",
+                ours_1 / theirs_1,
+                ours_n / theirs_n,
+                agree
+            );
+        }
+    }
+}
