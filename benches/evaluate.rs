@@ -1,0 +1,291 @@
+//! Run time against error, in the columns of the reference table (`../shared/guide/algorithm.md`): for each
+//! scene, SAH cost, build and optimization seconds, render seconds (a fixed set of primary and ambient
+//! occlusion rays through the loader's kernel on all threads; in brackets relative to M = 1), and average
+//! traversal steps and triangle tests per ray. Methods: M = 1 (spatial median), the binned SAH start, M = 2
+//! (optimized, one triangle per leaf) and M = 3 (leaves merged) for the balanced and max-quality presets, and,
+//! side by side in the same run, obvhs 0.4's presets and svenstaro's `bvh` 0.13, their trees repacked into
+//! the `.bvh` layout so that one cost definition and one kernel measure all of them. "error" is the cost above
+//! the lowest cost any method reached on that scene.
+//!
+//! `cargo bench --bench evaluate` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
+//! `BVHC_SCENES` overrides the folder.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use bvhc::aabb::Aabb;
+use bvhc::build::{BuildNode, BuildTree, Builder};
+use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::import::{ImportOptions, import};
+use bvhc::loader::{Ray, Tracer, TraversalStats};
+use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, optimize};
+use bvhc::pack::pack;
+use obvhs::BvhBuildParams;
+use rayon::prelude::*;
+
+type Triangle = [[f32; 3]; 3];
+
+const SCENES: &[(&str, &str)] = &[
+    ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+    ("igea", "aj-igea/igea.ply"),
+    ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+    ("dragon-res2", "stanford-dragon/dragon_vrip_res2.ply.gz"),
+    ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+    ("toycar", "khr-toy-car/ToyCar.gltf"),
+    ("bunny", "stanford-bunny-ply/bun_zipper.ply"),
+];
+
+struct Method {
+    name: String,
+    build: Duration,
+    optimize: Option<Duration>,
+    tree: BuildTree,
+}
+
+fn timed<T>(f: impl FnOnce() -> T) -> (T, Duration) {
+    let start = Instant::now();
+    let value = f();
+    (value, start.elapsed())
+}
+
+fn ours(triangles: &[Triangle]) -> Vec<Method> {
+    let constants = SahConstants::default();
+    let mut methods = Vec::new();
+    let (median, t) = timed(|| Builder::SpatialMedian.build(triangles, 1));
+    methods.push(Method { name: "M=1 spatial median".into(), build: t, optimize: None, tree: median });
+    let (sah, build) = timed(|| Builder::BinnedSah.build(triangles, 1));
+    methods.push(Method { name: "binned SAH start".into(), build, optimize: None, tree: sah.clone() });
+    for preset in [Preset::Balanced, Preset::MaxQuality] {
+        let mut tree = OptTree::from_build_tree(&sah, triangles);
+        let report = optimize(&mut tree, &OptimizeParams::preset(preset), &mut |_| std::ops::ControlFlow::Continue(()));
+        let (merged, merge_time) = timed(|| merge_leaves(&tree, constants, 8));
+        let single = merge_leaves(&tree, constants, 1);
+        methods.push(Method {
+            name: format!("M=2 {}", preset.name()),
+            build,
+            optimize: Some(report.elapsed),
+            tree: single,
+        });
+        methods.push(Method {
+            name: format!("M=3 {}", preset.name()),
+            build,
+            optimize: Some(report.elapsed + merge_time),
+            tree: merged,
+        });
+    }
+    methods
+}
+
+/// obvhs's tree as a build tree (children at `first_index`, `first_index + 1`, as in the `.bvh` layout).
+fn from_obvhs(bvh: &obvhs::bvh2::Bvh2) -> BuildTree {
+    let mut tree = BuildTree::default();
+    for node in &bvh.nodes {
+        let aabb = Aabb { min: node.aabb.min.to_array(), max: node.aabb.max.to_array() };
+        tree.nodes.push(if node.prim_count == 0 {
+            BuildNode::Inner { aabb, left: node.first_index, right: node.first_index + 1 }
+        } else {
+            BuildNode::Leaf { aabb, first: node.first_index, count: node.prim_count }
+        });
+    }
+    tree.triangle_order = bvh.primitive_indices.clone();
+    tree
+}
+
+fn obvhs_methods(triangles: &[Triangle]) -> Vec<Method> {
+    let tris: Vec<obvhs::triangle::Triangle> = triangles
+        .iter()
+        .map(|t| obvhs::triangle::Triangle {
+            v0: glam::Vec3A::from_array(t[0]),
+            v1: glam::Vec3A::from_array(t[1]),
+            v2: glam::Vec3A::from_array(t[2]),
+        })
+        .collect();
+    [
+        ("fast_build", BvhBuildParams::fast_build()),
+        ("medium_build", BvhBuildParams::medium_build()),
+        ("very_slow_build", BvhBuildParams::very_slow_build()),
+    ]
+    .into_iter()
+    .map(|(name, params)| {
+        // pre_split references a triangle from several leaves; keep one reference per triangle for repacking.
+        let params = BvhBuildParams { pre_split: false, ..params };
+        let mut core = Duration::ZERO;
+        let (bvh, build) = timed(|| obvhs::bvh2::builder::build_bvh2_from_tris(&tris, params, &mut core));
+        Method { name: format!("obvhs {name}"), build, optimize: None, tree: from_obvhs(&bvh) }
+    })
+    .collect()
+}
+
+struct Shape {
+    aabb: bvh::aabb::Aabb<f32, 3>,
+    node: usize,
+}
+
+impl bvh::aabb::Bounded<f32, 3> for Shape {
+    fn aabb(&self) -> bvh::aabb::Aabb<f32, 3> {
+        self.aabb
+    }
+}
+
+impl bvh::bounding_hierarchy::BHShape<f32, 3> for Shape {
+    fn set_bh_node_index(&mut self, index: usize) {
+        self.node = index;
+    }
+    fn bh_node_index(&self) -> usize {
+        self.node
+    }
+}
+
+fn svenstaro(triangles: &[Triangle]) -> Method {
+    let mut shapes: Vec<Shape> = triangles
+        .iter()
+        .map(|t| {
+            let b = Aabb::of_triangle(t);
+            let p = |c: [f32; 3]| nalgebra::Point3::new(c[0], c[1], c[2]);
+            Shape { aabb: bvh::aabb::Aabb::with_bounds(p(b.min), p(b.max)), node: 0 }
+        })
+        .collect();
+    let (built, build) = timed(|| bvh::bvh::Bvh::build(&mut shapes));
+    // Child boxes live in the parent; a node's own box is the union of its children's (a leaf: its shape's).
+    let to_aabb =
+        |b: &bvh::aabb::Aabb<f32, 3>| Aabb { min: [b.min.x, b.min.y, b.min.z], max: [b.max.x, b.max.y, b.max.z] };
+    let mut tree = BuildTree::default();
+    for node in &built.nodes {
+        tree.nodes.push(match node {
+            bvh::bvh::BvhNode::Node { child_l_index, child_l_aabb, child_r_index, child_r_aabb, .. } => {
+                BuildNode::Inner {
+                    aabb: to_aabb(child_l_aabb).union(&to_aabb(child_r_aabb)),
+                    left: *child_l_index as u32,
+                    right: *child_r_index as u32,
+                }
+            }
+            bvh::bvh::BvhNode::Leaf { shape_index, .. } => {
+                tree.triangle_order.push(*shape_index as u32);
+                BuildNode::Leaf {
+                    aabb: to_aabb(&shapes[*shape_index].aabb),
+                    first: tree.triangle_order.len() as u32 - 1,
+                    count: 1,
+                }
+            }
+        });
+    }
+    Method { name: "svenstaro bvh 0.13".into(), build, optimize: None, tree }
+}
+
+/// Primary rays (a 512 x 384 camera) and 4 ambient occlusion rays per primary hit, fixed for all methods.
+fn ray_set(tracer: &Tracer<'_>, min: [f32; 3], max: [f32; 3]) -> (Vec<Ray>, Vec<Ray>) {
+    let (width, height) = (512usize, 384usize);
+    let center: [f32; 3] = std::array::from_fn(|a| 0.5 * (min[a] + max[a]));
+    let size = (0..3).map(|a| max[a] - min[a]).fold(0.0f32, f32::max);
+    let dir = [0.55f32, 0.37, 0.75];
+    let eye: [f32; 3] = std::array::from_fn(|a| center[a] + dir[a] * size * 1.6);
+    let forward = dir.map(|c| -c);
+    let right = normalize([forward[2], 0.0, -forward[0]]);
+    let up = cross(right, forward);
+    let primary: Vec<Ray> = (0..width * height)
+        .map(|i| {
+            let (x, y) = ((i % width) as f32 / width as f32 - 0.5, 0.5 - (i / width) as f32 / height as f32);
+            Ray::new(eye, std::array::from_fn(|a| forward[a] + 0.8 * x * right[a] + 0.6 * y * up[a]))
+        })
+        .collect();
+    let mut ao = Vec::new();
+    for (i, ray) in primary.iter().enumerate() {
+        if let Some(hit) = tracer.closest_hit(ray) {
+            let point: [f32; 3] = std::array::from_fn(|a| ray.origin[a] + hit.t * ray.direction[a]);
+            for k in 0..4u64 {
+                let h = (i as u64 * 4 + k).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                let d: [f32; 3] = std::array::from_fn(|a| ((h >> (a * 16)) & 0xFFFF) as f32 / 32768.0 - 1.0);
+                ao.push(Ray { origin: point, direction: d, t_min: size * 1e-4, t_max: size * 0.2 });
+            }
+        }
+    }
+    (primary, ao)
+}
+
+fn normalize(a: [f32; 3]) -> [f32; 3] {
+    let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    a.map(|c| c / l)
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// Render seconds (median of 3, all threads), steps and triangle tests per ray.
+fn render(tracer: &Tracer<'_>, primary: &[Ray], ao: &[Ray]) -> (f64, f64, f64) {
+    let run = || {
+        let hits = primary
+            .par_chunks(1024)
+            .map(|c| c.iter().filter(|r| tracer.closest_hit(r).is_some()).count())
+            .sum::<usize>();
+        let occluded = ao.par_chunks(1024).map(|c| c.iter().filter(|r| tracer.any_hit(r)).count()).sum::<usize>();
+        std::hint::black_box((hits, occluded));
+    };
+    let mut samples: Vec<f64> = (0..3).map(|_| timed(run).1.as_secs_f64()).collect();
+    samples.sort_by(f64::total_cmp);
+    let mut stats = TraversalStats::default();
+    for r in primary {
+        tracer.closest_hit_counted(r, &mut stats);
+    }
+    for r in ao {
+        tracer.any_hit_counted(r, &mut stats);
+    }
+    let rays = (primary.len() + ao.len()) as f64;
+    (samples[1], stats.node_visits as f64 / rays, stats.triangle_tests as f64 / rays)
+}
+
+fn main() {
+    if !std::env::args().any(|a| a == "--bench") {
+        println!("evaluate: smoke run only (use cargo bench --bench evaluate)");
+        return;
+    }
+    let dir = std::env::var_os("BVHC_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    let wanted: Option<Vec<String>> =
+        std::env::var("BVHC_EVAL_SCENES").ok().map(|s| s.split(',').map(String::from).collect());
+    let constants = SahConstants::default();
+    println!(
+        "{} threads; SAH (c_T, c_I) = (3, 2) by bvhc's cost module; render: 512 x 384 primary rays + 4 AO rays per hit through bvhc's kernel; times in seconds from this run",
+        rayon::current_num_threads()
+    );
+    for (name, relative) in SCENES {
+        if wanted.as_ref().is_some_and(|w| !w.iter().any(|n| n == name)) {
+            continue;
+        }
+        let path = dir.join(relative);
+        if !path.is_file() {
+            eprintln!("SKIPPED: {} not found", path.display());
+            continue;
+        }
+        let triangles = import(&path, &ImportOptions::default()).unwrap().soup.triangle_vertices();
+        let mut methods = ours(&triangles);
+        methods.extend(obvhs_methods(&triangles));
+        methods.push(svenstaro(&triangles));
+        let packed: Vec<_> = methods.iter().map(|m| pack(&m.tree, &triangles)).collect();
+        let reference = &packed[1];
+        let tracer = Tracer::new(&reference.nodes, &reference.triangles, None);
+        let (min, max) = (reference.nodes[0].min, reference.nodes[0].max);
+        let (primary, ao) = ray_set(&tracer, min, max);
+        let costs: Vec<f64> = methods.iter().map(|m| sah_of_build_tree(&m.tree, constants).cost).collect();
+        let best = costs.iter().cloned().fold(f64::INFINITY, f64::min);
+        println!("\n### {name} ({} triangles; {} primary + {} AO rays)\n", triangles.len(), primary.len(), ao.len());
+        println!(
+            "| method | cost | error | build s | opt s | render s | steps | isect |\n|---|---|---|---|---|---|---|---|"
+        );
+        let mut baseline = None;
+        for ((method, tree), cost) in methods.iter().zip(&packed).zip(&costs) {
+            let tracer = Tracer::new(&tree.nodes, &tree.triangles, None);
+            let (seconds, steps, tests) = render(&tracer, &primary, &ao);
+            let base = *baseline.get_or_insert(seconds);
+            println!(
+                "| {} | {cost:.2} | {:.2} | {:.3} | {} | {seconds:.3} ({:.1}) | {steps:.2} | {tests:.2} |",
+                method.name,
+                cost - best,
+                method.build.as_secs_f64(),
+                method.optimize.map_or("-".to_string(), |d| format!("{:.3}", d.as_secs_f64())),
+                100.0 * seconds / base
+            );
+        }
+    }
+}
