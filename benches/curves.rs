@@ -8,6 +8,9 @@
 //!
 //! `cargo bench --bench curves`; `BVHC_CURVE_SCENES` picks scenes (default kitchen, dragon-res2, engine).
 
+#[path = "common/harness.rs"]
+mod harness;
+
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -110,13 +113,10 @@ fn render_seconds(tracer: &Tracer<'_>, rays: &[(Ray, bool)]) -> f64 {
 }
 
 fn main() {
-    if !std::env::args().any(|a| a == "--bench") {
-        println!("curves: smoke run only (use cargo bench --bench curves)");
+    if !harness::benchmarking("curves") {
         return;
     }
-    let dir = std::env::var_os("BVHC_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    let dir = harness::scenes_dir();
     let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("docs/curves");
     std::fs::create_dir_all(&out).unwrap();
     let scenes = std::env::var("BVHC_CURVE_SCENES").unwrap_or_else(|_| "kitchen,dragon-res2,engine".into());

@@ -10,7 +10,9 @@
 //! `cargo bench --bench evaluate` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
 //! `BVHC_SCENES` overrides the folder.
 
-use std::path::PathBuf;
+#[path = "common/harness.rs"]
+mod harness;
+
 use std::time::{Duration, Instant};
 
 use bvhc::aabb::Aabb;
@@ -235,13 +237,10 @@ fn render(tracer: &Tracer<'_>, primary: &[Ray], ao: &[Ray]) -> (f64, f64, f64) {
 }
 
 fn main() {
-    if !std::env::args().any(|a| a == "--bench") {
-        println!("evaluate: smoke run only (use cargo bench --bench evaluate)");
+    if !harness::benchmarking("evaluate") {
         return;
     }
-    let dir = std::env::var_os("BVHC_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    let dir = harness::scenes_dir();
     let wanted: Option<Vec<String>> =
         std::env::var("BVHC_EVAL_SCENES").ok().map(|s| s.split(',').map(String::from).collect());
     let constants = SahConstants::default();

@@ -4,9 +4,11 @@
 //! `cargo bench --bench import` prints a Markdown table (medians of this run). `BVHC_SCENES` overrides the
 //! scenes folder.
 
+#[path = "common/harness.rs"]
+mod harness;
+
 use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
 
 use bvhc::import::{ImportOptions, import};
 
@@ -15,18 +17,6 @@ const SCENES: &[&str] = &[
     "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz",
     "khr-2cylinder-engine/2CylinderEngine.gltf",
 ];
-
-fn median_of(repetitions: usize, mut f: impl FnMut()) -> Duration {
-    let mut samples: Vec<Duration> = (0..repetitions)
-        .map(|_| {
-            let start = Instant::now();
-            f();
-            start.elapsed()
-        })
-        .collect();
-    samples.sort();
-    samples[samples.len() / 2]
-}
 
 /// Reads every file the import read, gunzipping `.gz` ones: the floor of an import.
 fn bare_read(files: &[PathBuf]) -> usize {
@@ -46,13 +36,10 @@ fn bare_read(files: &[PathBuf]) -> usize {
 }
 
 fn main() {
-    if !std::env::args().any(|a| a == "--bench") {
-        println!("import benchmark: smoke run only (use cargo bench --bench import)");
+    if !harness::benchmarking("import") {
         return;
     }
-    let dir = std::env::var_os("BVHC_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    let dir = harness::scenes_dir();
     println!("| scene | triangles | bytes parsed | floor: read (+gunzip) | import | import / floor |");
     println!("|---|---|---|---|---|---|");
     for relative in SCENES {
@@ -65,8 +52,8 @@ fn main() {
         let first = import(Path::new(&path), &options).unwrap();
         let files = first.files_read.clone();
         let mut parsed = 0;
-        let floor = median_of(5, || parsed = bare_read(&files));
-        let full = median_of(5, || {
+        let floor = harness::median_time(5, || parsed = bare_read(&files));
+        let full = harness::median_time(5, || {
             std::hint::black_box(import(&path, &options).unwrap());
         });
         println!(

@@ -6,41 +6,19 @@
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use bvhc::build::build_binned_sah;
 use bvhc::import::{ImportOptions, import};
 use bvhc::loader::{BvhFile, BvhView, BvhWriter, MappedBvh, TraversalStats};
 use bvhc::pack::pack;
 
+#[path = "common/harness.rs"]
+mod harness;
 #[path = "common/rays.rs"]
 mod rays;
 
 use rays::{RAY_SEED, primary_rays, shadow_rays};
-
-fn median(mut samples: Vec<Duration>) -> Duration {
-    samples.sort();
-    samples[samples.len() / 2]
-}
-
-/// Median time of `repetitions` runs of `f`.
-fn time(repetitions: usize, mut f: impl FnMut()) -> Duration {
-    median(
-        (0..repetitions)
-            .map(|_| {
-                let start = Instant::now();
-                f();
-                start.elapsed()
-            })
-            .collect(),
-    )
-}
-
-fn scenes_dir() -> PathBuf {
-    std::env::var_os("BVHC_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"))
-}
 
 /// Converts a scene (binned SAH, at most 4 triangles per leaf, ids) into a `.bvh` file in `dir`.
 fn convert(scene: &Path, dir: &Path) -> (PathBuf, f64) {
@@ -76,17 +54,17 @@ fn measure(name: &str, path: &Path, ray_count: usize) -> Row {
     let file = BvhFile::read(path).expect("read");
     let bytes = file.as_bytes();
     let view = file.view();
-    let open = time(2001, || {
+    let open = harness::median_time(2001, || {
         black_box(BvhView::open(black_box(bytes)).unwrap());
     });
-    let map = time(201, || {
+    let map = harness::median_time(201, || {
         // SAFETY: the benchmark's private temporary file is not modified while mapped.
         #[allow(unsafe_code)]
         let mapped = unsafe { MappedBvh::open(path) }.unwrap();
         black_box(mapped.view().nodes().len());
     });
     let verify_repetitions = if bytes.len() > 1 << 20 { 5 } else { 201 };
-    let verify = time(verify_repetitions, || view.verify().unwrap());
+    let verify = harness::median_time(verify_repetitions, || view.verify().unwrap());
     let mut row = Row {
         name: name.to_string(),
         triangles: view.triangles().len(),
@@ -109,9 +87,11 @@ fn measure(name: &str, path: &Path, ray_count: usize) -> Row {
     let primary = primary_rays(root, ray_count);
     let shadow = shadow_rays(root, ray_count);
     let mut hits = 0usize;
-    let closest = time(3, || hits = primary.iter().filter(|r| black_box(tracer.closest_hit(r)).is_some()).count());
+    let closest = harness::median_time(3, || {
+        hits = primary.iter().filter(|r| black_box(tracer.closest_hit(r)).is_some()).count()
+    });
     let mut occluded = 0usize;
-    let any = time(3, || occluded = shadow.iter().filter(|r| black_box(tracer.any_hit(r))).count());
+    let any = harness::median_time(3, || occluded = shadow.iter().filter(|r| black_box(tracer.any_hit(r))).count());
     let mut stats = TraversalStats::default();
     for ray in &primary {
         tracer.closest_hit_counted(ray, &mut stats);
@@ -127,13 +107,12 @@ fn measure(name: &str, path: &Path, ray_count: usize) -> Row {
 
 fn main() {
     // `cargo bench` passes `--bench`; `cargo test --benches` passes nothing: then only check that it runs.
-    let benchmarking = std::env::args().any(|a| a == "--bench");
+    let benchmarking = harness::benchmarking("loader");
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let dir = tempfile::tempdir().expect("temporary directory");
     let golden = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/quad-v1.0.bvh");
     let mut rows = vec![measure("golden quad (fixture)", &golden, 0)];
     if !benchmarking {
-        println!("loader benchmark: smoke run only (use cargo bench --bench loader)");
         return;
     }
     let scenes = [
@@ -141,7 +120,7 @@ fn main() {
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
     ];
     for (name, relative) in scenes {
-        let scene = scenes_dir().join(relative);
+        let scene = harness::scenes_dir().join(relative);
         if !scene.is_file() {
             eprintln!("SKIPPED: {} not found (set BVHC_SCENES)", scene.display());
             continue;

@@ -7,8 +7,10 @@
 //! `cargo bench --bench optimize` (all scenes) or `BVHC_OPT_SCENES=kitchen,toycar cargo bench --bench optimize`.
 //! `BVHC_SCENES` overrides the scenes folder.
 
+#[path = "common/harness.rs"]
+mod harness;
+
 use std::ops::ControlFlow;
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use bvhc::aabb::Aabb;
@@ -199,13 +201,10 @@ fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
 }
 
 fn main() {
-    if !std::env::args().any(|a| a == "--bench") {
-        println!("optimize benchmark: smoke run only (use cargo bench --bench optimize)");
+    if !harness::benchmarking("optimize") {
         return;
     }
-    let dir = std::env::var_os("BVHC_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    let dir = harness::scenes_dir();
     let wanted: Option<Vec<String>> =
         std::env::var("BVHC_OPT_SCENES").ok().map(|s| s.split(',').map(String::from).collect());
     let threads = rayon::current_num_threads();

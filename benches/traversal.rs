@@ -9,11 +9,13 @@
 //!
 //! `cargo bench --bench traversal`; `BVHC_SCENES` overrides the scenes folder, `BVHC_BENCH_RAYS` the ray count.
 
+#[path = "common/harness.rs"]
+mod harness;
+
 #[path = "common/rays.rs"]
 mod rays;
 
-use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use bvhc::convert::{ConvertOptions, convert_with};
 use bvhc::loader::{BvhFile, Ray, Tracer};
@@ -21,18 +23,6 @@ use obvhs::BvhBuildParams;
 use obvhs::ray::RayHit;
 use rayon::prelude::*;
 use rays::{primary_rays, shadow_rays};
-
-fn median(repetitions: usize, mut f: impl FnMut()) -> Duration {
-    let mut samples: Vec<Duration> = (0..repetitions)
-        .map(|_| {
-            let start = Instant::now();
-            f();
-            start.elapsed()
-        })
-        .collect();
-    samples.sort();
-    samples[samples.len() / 2]
-}
 
 fn obvhs_ray(ray: &Ray) -> obvhs::ray::Ray {
     obvhs::ray::Ray::new(
@@ -67,23 +57,20 @@ impl Obvhs {
 /// Mrays/s of `f` over `rays`, single-threaded and on all threads (median of 3 each).
 fn speeds(rays: &[Ray], f: impl Fn(&Ray) -> bool + Sync) -> (f64, f64) {
     let mrays = |d: Duration| rays.len() as f64 / d.as_secs_f64() / 1e6;
-    let single = median(3, || {
+    let single = harness::median_time(3, || {
         std::hint::black_box(rays.iter().filter(|r| f(r)).count());
     });
-    let all = median(3, || {
+    let all = harness::median_time(3, || {
         std::hint::black_box(rays.par_chunks(4096).map(|c| c.iter().filter(|r| f(r)).count()).sum::<usize>());
     });
     (mrays(single), mrays(all))
 }
 
 fn main() {
-    if !std::env::args().any(|a| a == "--bench") {
-        println!("traversal benchmark: smoke run only (use cargo bench --bench traversal)");
+    if !harness::benchmarking("traversal") {
         return;
     }
-    let dir = std::env::var_os("BVHC_SCENES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    let dir = harness::scenes_dir();
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let out = tempfile::tempdir().unwrap();
     println!(

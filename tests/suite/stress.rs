@@ -25,7 +25,7 @@ use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, optimize};
 use bvhc::pack::pack;
 use rand::RngExt;
 
-use crate::common::{Triangle, brute_force_closest, rng};
+use crate::common::{Triangle, brute_force_closest, rng, unit_icosphere};
 
 /// Relative t error the kernel promises against the f64 plane intersection.
 const T_RELATIVE_ERROR: f64 = 1e-5;
@@ -50,71 +50,10 @@ struct Counts {
     worst_t_error: f64,
 }
 
-fn icosphere(levels: usize) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<[f64; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let mut f: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut cache = std::collections::HashMap::new();
-        let mut mid = |a: usize, b: usize, v: &mut Vec<[f64; 3]>| {
-            *cache.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push(std::array::from_fn(|k| (v[a][k] + v[b][k]) / 2.0));
-                v.len() - 1
-            })
-        };
-        f = f
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let (ab, bc, ca) = (mid(a, b, &mut v), mid(b, c, &mut v), mid(c, a, &mut v));
-                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-            })
-            .collect();
-    }
-    for p in &mut v {
-        let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        *p = p.map(|c| c / l);
-    }
-    (v, f)
-}
-
 /// A closed unit sphere scaled by `scale` and moved to `offset`, rounded to f32 (shared vertices stay shared:
 /// they round identically), with rays from inside: at every vertex, every edge midpoint, and random ones.
 fn sphere_case(name: &str, scale: f64, offset: f64) -> Case {
-    let (v, f) = icosphere(3);
+    let (v, f) = unit_icosphere(3);
     let place = |p: [f64; 3]| p.map(|c| (c * scale + offset) as f32);
     let vertices: Vec<[f32; 3]> = v.iter().map(|&p| place(p)).collect();
     let triangles: Vec<Triangle> = f.iter().map(|t| t.map(|i| vertices[i])).collect();

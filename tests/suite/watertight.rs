@@ -6,68 +6,10 @@ use rand::RngExt;
 
 use crate::common::*;
 
-/// An icosahedron subdivided `levels` times and pushed onto a sphere: a closed mesh with shared vertices.
+/// The shared icosphere with radius `radius`, rounded to f32 (shared vertices round identically).
 fn icosphere(levels: usize, radius: f32) -> (Vec<[f32; 3]>, Vec<[usize; 3]>) {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut vertices: Vec<[f32; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut midpoints = std::collections::HashMap::new();
-        let mut midpoint = |a: usize, b: usize, vertices: &mut Vec<[f32; 3]>| {
-            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                vertices.push(std::array::from_fn(|k| (vertices[a][k] + vertices[b][k]) * 0.5));
-                vertices.len() - 1
-            })
-        };
-        faces = faces
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let ab = midpoint(a, b, &mut vertices);
-                let bc = midpoint(b, c, &mut vertices);
-                let ca = midpoint(c, a, &mut vertices);
-                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-            })
-            .collect();
-    }
-    for v in &mut vertices {
-        let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        *v = v.map(|c| c / length * radius);
-    }
-    (vertices, faces)
+    let (vertices, faces) = unit_icosphere(levels);
+    (vertices.iter().map(|p| p.map(|c| (c * f64::from(radius)) as f32)).collect(), faces)
 }
 
 /// A cube `[-1, 1]^3` whose faces are `n x n` grids of axis-aligned quads (two triangles each).

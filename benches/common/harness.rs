@@ -1,0 +1,36 @@
+//! Helpers shared by the benchmark binaries: the smoke-run check, the scenes folder, the median of timed runs.
+
+#![allow(dead_code)] // each benchmark uses the part it needs
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Whether `cargo bench` runs this binary (it passes `--bench`); under `cargo test --benches` it says so and
+/// the benchmark returns after its smoke checks.
+pub fn benchmarking(name: &str) -> bool {
+    let yes = std::env::args().any(|a| a == "--bench");
+    if !yes {
+        println!("{name}: smoke run only (use cargo bench --bench {name})");
+    }
+    yes
+}
+
+/// The shared scenes folder: `BVHC_SCENES`, else `../shared/scenes` beside the repository.
+pub fn scenes_dir() -> PathBuf {
+    std::env::var_os("BVHC_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"))
+}
+
+/// The median wall-clock time of `repetitions` runs of `f`.
+pub fn median_time(repetitions: usize, mut f: impl FnMut()) -> Duration {
+    let mut samples: Vec<Duration> = (0..repetitions)
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed()
+        })
+        .collect();
+    samples.sort();
+    samples[samples.len() / 2]
+}
