@@ -94,14 +94,7 @@ fn from_obvhs(bvh: &obvhs::bvh2::Bvh2) -> BuildTree {
 }
 
 fn obvhs_methods(triangles: &[Triangle]) -> Vec<Method> {
-    let tris: Vec<obvhs::triangle::Triangle> = triangles
-        .iter()
-        .map(|t| obvhs::triangle::Triangle {
-            v0: glam::Vec3A::from_array(t[0]),
-            v1: glam::Vec3A::from_array(t[1]),
-            v2: glam::Vec3A::from_array(t[2]),
-        })
-        .collect();
+    let tris = harness::obvhs_triangles(triangles);
     [
         ("fast_build", BvhBuildParams::fast_build()),
         ("medium_build", BvhBuildParams::medium_build()),
@@ -241,8 +234,7 @@ fn main() {
         return;
     }
     let dir = harness::scenes_dir();
-    let wanted: Option<Vec<String>> =
-        std::env::var("BVHC_EVAL_SCENES").ok().map(|s| s.split(',').map(String::from).collect());
+    let wanted: Option<Vec<String>> = harness::wanted_scenes("BVHC_EVAL_SCENES");
     let constants = SahConstants::default();
     println!(
         "{} threads; SAH (c_T, c_I) = (3, 2) by bvhc's cost module; render: 512 x 384 primary rays + 4 AO rays per hit through bvhc's kernel; times in seconds from this run",

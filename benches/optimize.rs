@@ -109,17 +109,6 @@ fn obvhs_cost(bvh: &Bvh2) -> SahCost {
     sah_of_nodes(nodes, SahConstants::default())
 }
 
-fn obvhs_triangles(triangles: &[[[f32; 3]; 3]]) -> Vec<obvhs::triangle::Triangle> {
-    triangles
-        .iter()
-        .map(|t| obvhs::triangle::Triangle {
-            v0: glam::Vec3A::from_array(t[0]),
-            v1: glam::Vec3A::from_array(t[1]),
-            v2: glam::Vec3A::from_array(t[2]),
-        })
-        .collect()
-}
-
 /// obvhs presets: one triangle per leaf (`max_prims_per_leaf = 1`) and with the preset's own leaves.
 fn run_obvhs_presets(tris: &[obvhs::triangle::Triangle], rows: &mut Vec<Row>) -> (f64, Duration) {
     let presets: [(&str, BvhBuildParams); 6] = [
@@ -205,8 +194,7 @@ fn main() {
         return;
     }
     let dir = harness::scenes_dir();
-    let wanted: Option<Vec<String>> =
-        std::env::var("BVHC_OPT_SCENES").ok().map(|s| s.split(',').map(String::from).collect());
+    let wanted: Option<Vec<String>> = harness::wanted_scenes("BVHC_OPT_SCENES");
     let threads = rayon::current_num_threads();
     println!("threads: {threads}; costs by bvhc's cost module, (c_T, c_I) = (3, 2); times in seconds, this run");
     let mut summary = Vec::new();
@@ -241,7 +229,7 @@ fn main() {
         }
         let reference = OptimizeParams { time_budget: Some(Duration::from_secs(20)), ..OptimizeParams::bittner_2013() };
         rows.push(run_bvhc(&triangles, Builder::BinnedSah, Preset::Balanced, &reference).0);
-        let tris = obvhs_triangles(&triangles);
+        let tris = harness::obvhs_triangles(&triangles);
         let mut obvhs_rows = Vec::new();
         let preset_best = run_obvhs_presets(&tris, &mut obvhs_rows);
         let passes_best = run_obvhs_passes(&tris, 10, &mut obvhs_rows);

@@ -94,15 +94,7 @@ fn main() {
         let view = file.view();
         let tracer: Tracer<'_> = view.tracer();
         let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
-        let triangles: Vec<obvhs::triangle::Triangle> = soup
-            .triangle_vertices()
-            .iter()
-            .map(|t| obvhs::triangle::Triangle {
-                v0: glam::Vec3A::from_array(t[0]),
-                v1: glam::Vec3A::from_array(t[1]),
-                v2: glam::Vec3A::from_array(t[2]),
-            })
-            .collect();
+        let triangles = harness::obvhs_triangles(&soup.triangle_vertices());
         let mut core = Duration::ZERO;
         let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(&triangles, BvhBuildParams::slow_build(), &mut core);
         let theirs = Obvhs { bvh, triangles };

@@ -34,3 +34,20 @@ pub fn median_time(repetitions: usize, mut f: impl FnMut()) -> Duration {
     samples.sort();
     samples[samples.len() / 2]
 }
+
+/// The scene names listed in the environment variable `variable` (comma-separated), or `None` for all.
+pub fn wanted_scenes(variable: &str) -> Option<Vec<String>> {
+    std::env::var(variable).ok().map(|s| s.split(',').map(String::from).collect())
+}
+
+/// Triangles in obvhs's type, for building its trees over the same geometry.
+pub fn obvhs_triangles(triangles: &[[[f32; 3]; 3]]) -> Vec<obvhs::triangle::Triangle> {
+    triangles
+        .iter()
+        .map(|t| obvhs::triangle::Triangle {
+            v0: glam::Vec3A::from_array(t[0]),
+            v1: glam::Vec3A::from_array(t[1]),
+            v2: glam::Vec3A::from_array(t[2]),
+        })
+        .collect()
+}
