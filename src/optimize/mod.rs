@@ -12,6 +12,7 @@
 //! Both loops keep the best tree seen (batch costs are not monotone) and return it; both are deterministic, and
 //! the parallel one gives the same tree for any number of threads.
 
+mod invariants;
 mod merge;
 mod parallel;
 mod params;
@@ -100,7 +101,18 @@ pub fn optimize(
     params: &OptimizeParams,
     progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> OptimizeReport {
-    let mut run = Run::new(tree, params);
+    optimize_inspected(tree, params, progress, &mut |_| {})
+}
+
+/// [`optimize`], with `inspect` called on the tree after every batch (before its cost is taken): for property
+/// tests that check [`OptTree::check_invariants`] after every round, and for debugging.
+pub fn optimize_inspected(
+    tree: &mut OptTree,
+    params: &OptimizeParams,
+    progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+    inspect: &mut dyn FnMut(&OptTree),
+) -> OptimizeReport {
+    let mut run = Run::new(tree, params, inspect);
     let stop = match params.algorithm {
         Algorithm::Parallel | Algorithm::Sequential => run.phase(tree, params, progress),
         Algorithm::Alternating => loop {
@@ -133,17 +145,18 @@ pub fn optimize(
 }
 
 /// The state shared by the phases of one optimization: the best tree, counts, the clock.
-struct Run {
+struct Run<'i> {
     start: Instant,
     report: OptimizeReport,
     best_nodes: Vec<OptNode>,
     best_root: u32,
     rng: Pcg64Mcg,
     queue: SearchQueue,
+    inspect: &'i mut dyn FnMut(&OptTree),
 }
 
-impl Run {
-    fn new(tree: &OptTree, params: &OptimizeParams) -> Run {
+impl<'i> Run<'i> {
+    fn new(tree: &OptTree, params: &OptimizeParams, inspect: &'i mut dyn FnMut(&OptTree)) -> Run<'i> {
         let initial = cost_of(tree, params.constants);
         Run {
             start: Instant::now(),
@@ -159,6 +172,7 @@ impl Run {
             best_root: tree.root,
             rng: Pcg64Mcg::seed_from_u64(params.seed),
             queue: SearchQueue::default(),
+            inspect,
         }
     }
 
@@ -190,6 +204,7 @@ impl Run {
                 Algorithm::Parallel | Algorithm::Alternating => parallel::run_round(tree, &batch),
             };
             self.report.batches += 1;
+            (self.inspect)(tree);
             let cost = cost_of(tree, params.constants);
             if cost.cost < self.report.best.cost {
                 self.report.best = cost;

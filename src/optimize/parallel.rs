@@ -33,26 +33,51 @@ pub fn run_round(tree: &mut OptTree, batch: &[u32]) -> u64 {
     let mut moves: Vec<Move> = proposals.into_iter().flatten().collect();
     moves.sort_unstable_by(|a, b| a.delta.total_cmp(&b.delta).then(a.node.cmp(&b.node)));
     let mut locked = vec![0u64; tree.nodes.len().div_ceil(64)];
-    let is_locked = |locked: &[u64], i: u32| i != NONE && locked[i as usize / 64] & (1 << (i % 64)) != 0;
     let mut applied = 0;
     for m in moves {
-        let c = m.node;
-        let p = tree.nodes[c as usize].parent;
-        let s = tree.sibling(c);
-        let g = tree.nodes[p as usize].parent;
-        let x = m.target;
-        let y = tree.nodes[x as usize].parent;
-        let touched = [c, p, s, g, x, y];
-        if touched.iter().any(|&i| is_locked(&locked, i)) || is_in_subtree(tree, x, c) {
+        let Some(touched) = touched_if_free(tree, &locked, m) else {
             continue;
-        }
-        apply(tree, c, x);
+        };
+        apply(tree, m.node, m.target);
         for i in touched.into_iter().filter(|&i| i != NONE) {
             locked[i as usize / 64] |= 1 << (i % 64);
         }
         applied += 1;
     }
     applied
+}
+
+/// Whether node `i` was touched by a move applied earlier in this round.
+fn is_locked(locked: &[u64], i: u32) -> bool {
+    i != NONE && locked[i as usize / 64] & (1 << (i % 64)) != 0
+}
+
+/// The six nodes whose links move `m` changes (the moved node `c`, its parent `p`, sibling `s` and grandparent
+/// `g`, the target `x` and its parent `y`), or `None` when an earlier move of this round touched one of them or
+/// the move is no longer legal.
+///
+/// Invariant relied on: a move rewires only its six touched nodes, so a node that is not locked has the links
+/// it had in the frozen tree the proposals were searched on. The links are therefore read one step at a time,
+/// each only after the node it is read from was found unlocked: `c` before its parent, `p` before its children
+/// and parent, `x` before its parent. (Reading `c`'s sibling first was the bug behind a panic on real scenes:
+/// when an earlier move in the round had removed the root's child, `c` could have become the root.)
+fn touched_if_free(tree: &OptTree, locked: &[u64], m: Move) -> Option<[u32; 6]> {
+    let (c, x) = (m.node, m.target);
+    if is_locked(locked, c) || is_locked(locked, x) {
+        return None;
+    }
+    let p = tree.nodes[c as usize].parent;
+    if p == NONE || is_locked(locked, p) {
+        return None;
+    }
+    let s = tree.sibling(c);
+    let g = tree.nodes[p as usize].parent;
+    let y = tree.nodes[x as usize].parent;
+    let touched = [c, p, s, g, x, y];
+    if touched.iter().any(|&i| is_locked(locked, i)) || x == p || is_in_subtree(tree, x, c) {
+        return None;
+    }
+    Some(touched)
 }
 
 /// Whether `x` lies in the subtree of `c` (or is `c`).

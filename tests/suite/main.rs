@@ -12,6 +12,7 @@ mod import_mutation;
 mod import_scenes;
 mod mutation;
 mod optimize;
+mod optimize_property;
 mod roundtrip;
 mod rules;
 mod scenes;

@@ -17,28 +17,12 @@ fn tree_for(triangles: &[[[f32; 3]; 3]], builder: Builder) -> OptTree {
     OptTree::from_build_tree(&builder.build(triangles, 1), triangles)
 }
 
-/// Every invariant of an optimizer tree: links agree, boxes are exact unions, every triangle in one leaf.
+/// Every invariant of an optimizer tree (the library's own check): links agree, boxes are exact unions,
+/// every triangle in one leaf, every node reachable once.
 fn check_invariants(tree: &OptTree, triangles: &[[[f32; 3]; 3]]) {
-    let mut seen = vec![false; triangles.len()];
-    let mut reached = 0;
-    assert_eq!(tree.nodes[tree.root as usize].parent, NONE);
-    for i in tree.depth_first() {
-        reached += 1;
-        let node = tree.nodes[i as usize];
-        if node.left == NONE {
-            let t = node.right as usize;
-            assert!(!std::mem::replace(&mut seen[t], true), "triangle {t} in two leaves");
-            assert_eq!(node.aabb, Aabb::of_triangle(&triangles[t]), "leaf {i} box");
-        } else {
-            for child in [node.left, node.right] {
-                assert_eq!(tree.nodes[child as usize].parent, i, "node {child}'s parent link");
-            }
-            let union = tree.nodes[node.left as usize].aabb.union(&tree.nodes[node.right as usize].aabb);
-            assert_eq!(node.aabb, union, "node {i} box is not the union of its children");
-        }
+    if let Err(broken) = tree.check_invariants(triangles) {
+        panic!("{broken}");
     }
-    assert!(seen.iter().all(|&s| s), "a triangle is in no leaf");
-    assert_eq!(reached, tree.nodes.len(), "unreachable nodes");
 }
 
 /// The inner-area sum in f64, the quantity the searches minimize.
