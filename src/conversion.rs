@@ -139,6 +139,10 @@ impl Conversion {
         &self,
         observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     ) -> Result<ConversionOutcome, ConvertError> {
+        // Before the up-to-date check opens the output: a FIFO there would block it, and the output must never be
+        // the input.
+        bvhc_loader::check_replaceable(&self.output)?;
+        crate::convert::refuse_output_among(&self.output, std::slice::from_ref(&self.input))?;
         if !self.force && is_up_to_date(&self.output, &self.input, &self.options.recorded()) {
             let files_read = crate::convert::recorded_inputs(&self.output, &self.input);
             return Ok(ConversionOutcome { files_read, up_to_date: true, report: None });

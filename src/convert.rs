@@ -118,6 +118,15 @@ pub enum ConvertError {
     /// A bug in bvhc was caught before writing: please report it with the input.
     #[error("internal error (please report with the input): {0}")]
     Internal(String),
+    /// The output names one of the files the conversion reads (the input, or a glTF buffer): writing it would
+    /// destroy the input.
+    #[error("{}: the output is one of the inputs ({}); choose another output path", output.display(), input.display())]
+    OutputIsInput {
+        /// The output path.
+        output: PathBuf,
+        /// The input file it names.
+        input: PathBuf,
+    },
     /// The scene has more triangles than the format's u32 indices allow.
     #[error("{}: {count} triangles exceed the .bvh limit of 2^32 - 1", path.display())]
     TooLarge {
@@ -164,10 +173,13 @@ pub fn convert_with(
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
 ) -> Result<ConvertReport, ConvertError> {
     let mut timings = Timings::default();
+    bvhc_loader::check_replaceable(output)?;
+    refuse_output_among(output, std::slice::from_ref(&input.to_path_buf()))?;
     let _ = observer(Event::Stage(Stage::Import));
     let clock = Instant::now();
     let imported = import(input, &options.import)?;
     timings.import = lap(clock);
+    refuse_output_among(output, &imported.files_read)?;
     let soup = imported.soup;
     let triangles = soup.triangle_vertices();
     if u32::try_from(triangles.len()).is_err() {
@@ -212,6 +224,30 @@ pub fn convert_with(
         file_byte_len: file.as_bytes().len(),
         timings,
     })
+}
+
+/// Fails when `output` is (the same file as) one of `inputs`.
+pub fn refuse_output_among(output: &Path, inputs: &[PathBuf]) -> Result<(), ConvertError> {
+    match inputs.iter().find(|input| is_same_file(output, input)) {
+        Some(input) => Err(ConvertError::OutputIsInput { output: output.to_path_buf(), input: input.clone() }),
+        None => Ok(()),
+    }
+}
+
+/// Whether two paths name the same existing file (same device and inode on Unix, so hard links and symbolic
+/// links count; the same canonical path elsewhere).
+pub fn is_same_file(a: &Path, b: &Path) -> bool {
+    let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) else { return false };
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        ma.dev() == mb.dev() && ma.ino() == mb.ino()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (ma, mb);
+        matches!((std::fs::canonicalize(a), std::fs::canonicalize(b)), (Ok(x), Ok(y)) if x == y)
+    }
 }
 
 /// The file may legally repeat triangles (split references), so its verifier cannot notice a triangle lost or

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use bvhc::import::ImportLimits;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 /// bvhc: an offline BVH compiler. Converts a scene into an optimized, memory-mappable .bvh file.
@@ -22,9 +23,9 @@ pub struct Cli {
     /// The conversion's arguments.
     #[command(flatten)]
     pub convert: ConvertArgs,
-    /// Worker threads (default: all cores). The output does not depend on it.
-    #[arg(long, global = true, value_name = "N")]
-    pub threads: Option<usize>,
+    /// Worker threads, 1 to 1024 (default: all cores). The output does not depend on it.
+    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub threads: Option<u16>,
 }
 
 /// Subcommands.
@@ -75,8 +76,8 @@ pub struct ConvertArgs {
     #[arg(long)]
     pub no_optimize: bool,
     /// Stop optimizing after this many seconds (the result then depends on the machine's speed).
-    #[arg(long, value_name = "SECONDS")]
-    pub time_budget: Option<f64>,
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub time_budget: Option<std::time::Duration>,
     /// Keep degenerate triangles instead of dropping them.
     #[arg(long)]
     pub keep_degenerate: bool,
@@ -95,6 +96,35 @@ pub struct ConvertArgs {
     /// Print a JSON report on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Import limit: bytes of any one file read, after gunzip.
+    #[arg(long, value_name = "BYTES", default_value_t = ImportLimits::default().max_input_bytes)]
+    pub max_input_bytes: u64,
+    /// Import limit: triangles placed (instancing multiplies), degenerate ones included.
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_triangles)]
+    pub max_triangles: u64,
+    /// Import limit: scalar values decoded (glTF accessors, OBJ and PLY vertex coordinates).
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_decoded_values)]
+    pub max_decoded_values: u64,
+    /// Import limit: glTF mesh placements (nodes with a mesh times their GPU instances).
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_placements)]
+    pub max_placements: u64,
+    /// Import limit: vertices of one OBJ or PLY polygon.
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_polygon_vertices)]
+    pub max_polygon_vertices: u64,
+    /// Follow glTF buffer URIs that leave the input's folder (`../`, absolute paths); off by default so that an
+    /// untrusted asset cannot copy other files into the output.
+    #[arg(long)]
+    pub allow_outside_buffers: bool,
+}
+
+/// `--time-budget`: a finite, non-negative number of seconds, at most a year.
+fn parse_seconds(text: &str) -> Result<std::time::Duration, String> {
+    const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
+    let seconds: f64 = text.trim().parse().map_err(|_| format!("'{text}' is not a number of seconds"))?;
+    if !(0.0..=MAX_SECONDS).contains(&seconds) {
+        return Err(format!("'{text}': expected seconds from 0 to {MAX_SECONDS} (a year)"));
+    }
+    Ok(std::time::Duration::from_secs_f64(seconds))
 }
 
 /// `bvhc render`'s arguments.

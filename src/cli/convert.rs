@@ -7,11 +7,12 @@ use std::time::Duration;
 use bvhc::Conversion;
 use bvhc::build::Builder;
 use bvhc::convert::{ConvertError, Event, Stage};
-use bvhc::import::SceneSelector;
+use bvhc::import::{ErrorKind, ImportLimits, SceneSelector};
 use bvhc::optimize::{Preset, Selection};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::args::{BuilderArg, ConvertArgs, PresetArg, SelectionArg};
+use super::output::{outln, print};
 use super::{Exit, fail, loader_exit};
 
 fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
@@ -43,9 +44,7 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
         .keep_degenerate(args.keep_degenerate)
         .write_ids(!args.no_ids)
         .force(args.force);
-    if let Some(seconds) = args.time_budget {
-        let budget =
-            Duration::try_from_secs_f64(seconds).map_err(|_| format!("--time-budget {seconds}: not a duration"))?;
+    if let Some(budget) = args.time_budget {
         conversion = conversion.time_budget(budget);
     }
     if let Some(scene) = &args.scene {
@@ -54,11 +53,17 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
             Err(_) => SceneSelector::Name(scene.clone()),
         });
     }
-    if args.no_optimize {
-        let mut options = conversion.current_options().clone();
-        options.skip_optimization = true;
-        conversion = conversion.options(options);
-    }
+    let mut options = conversion.current_options().clone();
+    options.skip_optimization = args.no_optimize;
+    options.import.limits = ImportLimits {
+        max_input_bytes: args.max_input_bytes,
+        max_triangles: args.max_triangles,
+        max_decoded_values: args.max_decoded_values,
+        max_placements: args.max_placements,
+        max_polygon_vertices: args.max_polygon_vertices,
+    };
+    options.import.allow_buffers_outside_input_folder = args.allow_outside_buffers;
+    conversion = conversion.options(options);
     Ok(conversion)
 }
 
@@ -66,7 +71,7 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
 pub fn convert(args: &ConvertArgs) -> Exit {
     let conversion = match conversion(args) {
         Ok(conversion) => conversion,
-        Err(message) => return fail(Exit::InvalidInput, message),
+        Err(message) => return fail(Exit::Usage, message),
     };
     let bar = (std::io::stderr().is_terminal() && !args.quiet).then(|| {
         let bar = ProgressBar::new_spinner();
@@ -98,7 +103,11 @@ pub fn convert(args: &ConvertArgs) -> Exit {
     }
     let outcome = match result {
         Ok(outcome) => outcome,
-        Err(ConvertError::Import(error)) => return fail(Exit::InvalidInput, error),
+        Err(ConvertError::Import(error)) => {
+            let exit = if error.kind == ErrorKind::Unreadable { Exit::Io } else { Exit::InvalidInput };
+            return fail(exit, error);
+        }
+        Err(error @ ConvertError::OutputIsInput { .. }) => return fail(Exit::Io, error),
         Err(ConvertError::Write(error)) => return fail(loader_exit(&error).max_io(), error),
         Err(ConvertError::TooLarge { path, count }) => {
             return fail(Exit::InvalidInput, format!("{}: {count} triangles exceed the .bvh limit", path.display()));
@@ -106,6 +115,7 @@ pub fn convert(args: &ConvertArgs) -> Exit {
         Err(error) => return fail(Exit::Internal, error),
     };
     let output = args.output.as_deref().unwrap_or(std::path::Path::new(""));
+    let mut out = String::new();
     if args.json {
         let json = serde_json::json!({
             "output": output,
@@ -113,19 +123,21 @@ pub fn convert(args: &ConvertArgs) -> Exit {
             "files_read": outcome.files_read,
             "report": outcome.report,
         });
-        println!("{json:#}");
+        outln!(out, "{json:#}");
     } else if !args.quiet {
         match &outcome.report {
             None => {
-                println!("{} is up to date (same inputs, options and format); --force rebuilds it", output.display())
+                outln!(out, "{} is up to date (same inputs, options and format); --force rebuilds it", output.display())
             }
             Some(r) => {
-                let dropped = r.import.degenerate();
+                let degenerate = r.import.degenerate();
+                let verdict = if args.keep_degenerate { "kept" } else { "dropped" };
                 let optimized = r.optimization.as_ref().map_or(String::new(), |o| {
                     format!(", optimized {:.2} -> {:.2} in {} batches", o.initial.cost, o.best.cost, o.batches)
                 });
-                println!(
-                    "{}: {} triangles ({dropped} degenerate dropped), {} nodes, SAH cost {:.2}{optimized}, {} bytes, {:.2} s",
+                outln!(
+                    out,
+                    "{}: {} triangles ({degenerate} degenerate {verdict}), {} nodes, SAH cost {:.2}{optimized}, {} bytes, {:.2} s",
                     output.display(),
                     r.triangle_count,
                     r.node_count,
@@ -136,7 +148,7 @@ pub fn convert(args: &ConvertArgs) -> Exit {
             }
         }
     }
-    Exit::Success
+    print(&out, Exit::Success)
 }
 
 trait WriteExit {

@@ -6,6 +6,7 @@ use std::path::Path;
 use bvhc::cost::{SahConstants, sah_of_packed};
 use bvhc::loader::{BvhFile, BvhView, PackedNode};
 
+use super::output::{outln, print};
 use super::{Exit, fail, loader_exit};
 
 /// Reads and fully verifies a file; the error exit when it cannot be read or is invalid.
@@ -23,13 +24,15 @@ pub fn verify(path: &Path) -> Exit {
         Ok(file) => {
             let view = file.view();
             let (major, minor) = view.version();
-            println!(
+            let mut out = String::new();
+            outln!(
+                out,
                 "{}: valid .bvh {major}.{minor} ({} nodes, {} triangles, every rule V1-V23 holds)",
                 path.display(),
                 view.nodes().len(),
                 view.triangles().len()
             );
-            Exit::Success
+            print(&out, Exit::Success)
         }
         Err(exit) => exit,
     }
@@ -112,13 +115,14 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "leaf_area_ratio": cost.leaf_area_ratio,
             "metadata": metadata,
         });
-        println!("{report:#}");
-        return Exit::Success;
+        return print(&format!("{report:#}\n"), Exit::Success);
     }
-    println!("{}: .bvh {major}.{minor}, {} bytes", path.display(), view.bytes().len());
-    println!("sections:");
+    let mut out = String::new();
+    outln!(out, "{}: .bvh {major}.{minor}, {} bytes", path.display(), view.bytes().len());
+    outln!(out, "sections:");
     for s in &sections {
-        println!(
+        outln!(
+            out,
             "  {:<13} offset {:>10}  bytes {:>11}  elements {:>9}  flags {}",
             s["name"].as_str().unwrap_or(""),
             s["byte_offset"],
@@ -127,7 +131,8 @@ pub fn info(path: &Path, json: bool) -> Exit {
             s["flags"]
         );
     }
-    println!(
+    outln!(
+        out,
         "tree: {} triangles, {} nodes, {} leaves, depth {}",
         view.triangles().len(),
         view.nodes().len(),
@@ -135,22 +140,31 @@ pub fn info(path: &Path, json: bool) -> Exit {
         stats.max_depth
     );
     let histogram: Vec<String> = stats.leaf_sizes.iter().map(|(size, n)| format!("{size}: {n}")).collect();
-    println!("leaf sizes (triangles: leaves): {}", histogram.join(", "));
-    println!(
+    outln!(out, "leaf sizes (triangles: leaves): {}", histogram.join(", "));
+    outln!(
+        out,
         "SAH cost {:.3} with (c_T, c_I) = ({}, {}): A_I {:.3}, A_L {:.3}",
-        cost.cost, constants.traversal, constants.intersection, cost.inner_area_ratio, cost.leaf_area_ratio
+        cost.cost,
+        constants.traversal,
+        constants.intersection,
+        cost.inner_area_ratio,
+        cost.leaf_area_ratio
     );
     if !metadata.is_null() {
-        println!("generator: {}", metadata["generator"].as_str().unwrap_or("?"));
+        outln!(out, "generator: {}", metadata["generator"].as_str().unwrap_or("?"));
         for input in metadata["inputs"].as_array().into_iter().flatten() {
-            println!(
+            outln!(
+                out,
                 "input: {} ({})",
                 input["file_name"].as_str().unwrap_or("?"),
                 input["content_hash"].as_str().unwrap_or("no hash")
             );
         }
-        println!("build options: {}", metadata["build"]);
-        println!("timings: not recorded in the file (they would make identical builds differ); see `bvhc ... --json`");
+        outln!(out, "build options: {}", metadata["build"]);
+        outln!(
+            out,
+            "timings: not recorded in the file (they would make identical builds differ); see `bvhc ... --json`"
+        );
     }
-    Exit::Success
+    print(&out, Exit::Success)
 }

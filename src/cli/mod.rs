@@ -8,7 +8,9 @@
 mod args;
 mod convert;
 mod info;
+mod output;
 mod render;
+mod signals;
 
 use std::process::ExitCode;
 
@@ -23,6 +25,8 @@ pub enum Exit {
     Success = 0,
     /// 1: the input is invalid.
     InvalidInput = 1,
+    /// 2: the command line is wrong.
+    Usage = 2,
     /// 3: a file could not be read or written.
     Io = 3,
     /// 4: a bug was caught.
@@ -37,8 +41,7 @@ impl From<Exit> for ExitCode {
 
 /// Prints an error to stderr and returns its exit code.
 pub fn fail(exit: Exit, message: impl std::fmt::Display) -> Exit {
-    eprintln!("bvhc: error: {message}");
-    exit
+    output::error_line(exit, format_args!("{message}"))
 }
 
 /// The exit code of a loader error.
@@ -54,9 +57,17 @@ pub fn loader_exit(error: &bvhc::loader::Error) -> Exit {
 pub fn run() -> ExitCode {
     let cli = Cli::parse();
     if let Some(threads) = cli.threads
-        && let Err(error) = rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global()
+        && let Err(error) = rayon::ThreadPoolBuilder::new().num_threads(usize::from(threads)).build_global()
     {
         return fail(Exit::Internal, format!("cannot start {threads} threads: {error}")).into();
+    }
+    let output = match &cli.command {
+        Some(Command::Render(args)) => Some(args.output.clone()),
+        Some(_) => None,
+        None => cli.convert.output.clone(),
+    };
+    if let Some(output) = output {
+        signals::clean_up_on_signal(&output);
     }
     let exit = match cli.command {
         Some(Command::Verify { file }) => info::verify(&file),

@@ -6,6 +6,7 @@ use bvhc::loader::{BvhFile, PackedTriangle, Ray, TraversalStats};
 use rayon::prelude::*;
 
 use super::args::RenderArgs;
+use super::output::print;
 use super::{Exit, fail, loader_exit};
 
 type Vec3 = [f32; 3];
@@ -65,6 +66,12 @@ fn shade(triangle: &PackedTriangle, direction: Vec3) -> Vec3 {
 
 /// Renders and writes the PNG.
 pub fn render(args: &RenderArgs) -> Exit {
+    if bvhc::convert::is_same_file(&args.output, &args.file) {
+        return fail(
+            Exit::Io,
+            format!("{}: the output is the input .bvh file; choose another output path", args.output.display()),
+        );
+    }
     let file = match BvhFile::read(&args.file) {
         Ok(file) => file,
         Err(e) => return fail(loader_exit(&e), format!("{}: {e}", args.file.display())),
@@ -125,6 +132,7 @@ pub fn render(args: &RenderArgs) -> Exit {
         return fail(Exit::Io, error);
     }
     let mean = steps.iter().map(|&s| u64::from(s)).sum::<u64>() as f64 / steps.len() as f64;
-    println!("{}: {width} x {height}, {mean:.1} traversal steps per pixel on average", args.output.display());
-    Exit::Success
+    let summary =
+        format!("{}: {width} x {height}, {mean:.1} traversal steps per pixel on average\n", args.output.display());
+    print(&summary, Exit::Success)
 }

@@ -11,15 +11,17 @@
 //! ```
 
 mod gltf;
+mod limits;
 mod obj;
+mod obj_text;
 mod ply;
 mod polygon;
 mod report;
 mod soup;
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
+pub use limits::ImportLimits;
 pub use report::ImportReport;
 pub use soup::{Provenance, TriangleSoup, is_zero_area};
 
@@ -43,6 +45,14 @@ pub struct ImportOptions {
     /// Keep degenerate triangles (repeated index or zero area) instead of dropping them; they are counted
     /// either way.
     pub keep_degenerate: bool,
+    /// The resource budget (not recorded in output files: it changes whether an import succeeds, never what it
+    /// produces).
+    #[serde(skip)]
+    pub limits: ImportLimits,
+    /// Follow glTF buffer URIs that leave the input's folder (`../`, absolute paths). Off by default: an
+    /// untrusted asset must not copy bytes of other files into the output.
+    #[serde(skip)]
+    pub allow_buffers_outside_input_folder: bool,
 }
 
 /// The file formats bvhc reads.
@@ -90,6 +100,18 @@ pub struct Import {
     pub format: SceneFormat,
 }
 
+/// What kind of failure an [`ImportError`] is (the command line maps it to its exit code).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// The file's content breaks a rule of its format (or of bvhc's import).
+    Invalid,
+    /// A file could not be read: missing, unreadable, a directory, a FIFO or device, a read error.
+    Unreadable,
+    /// The input exceeds a limit of [`ImportLimits`] (or memory ran out).
+    Limit,
+}
+
 /// Why a scene could not be imported: the file, the part of it (mesh/primitive/accessor, line) and the rule.
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {location}: {message}", path.display())]
@@ -100,6 +122,8 @@ pub struct ImportError {
     pub location: String,
     /// What is wrong.
     pub message: String,
+    /// The kind of failure.
+    pub kind: ErrorKind,
 }
 
 /// An error inside a file, before the file's path is attached.
@@ -107,49 +131,55 @@ pub struct ImportError {
 pub(crate) struct Located {
     location: String,
     message: String,
+    kind: ErrorKind,
 }
 
 impl Located {
+    /// A broken rule of the file's format.
     pub(crate) fn new(location: &str, message: String) -> Located {
-        Located { location: location.to_string(), message }
+        Located::of_kind(ErrorKind::Invalid, location, message)
+    }
+
+    pub(crate) fn of_kind(kind: ErrorKind, location: &str, message: String) -> Located {
+        Located { location: location.to_string(), message, kind }
+    }
+
+    pub(crate) fn kind(&self) -> ErrorKind {
+        self.kind
+    }
+
+    pub(crate) fn message(&self) -> &str {
+        &self.message
+    }
+
+    /// The same error with its message rewritten.
+    pub(crate) fn with_message(self, rewrite: impl FnOnce(&str) -> String) -> Located {
+        Located { message: rewrite(&self.message), ..self }
     }
 }
 
 /// Imports the scene at `path` (format from the extension).
 pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportError> {
-    let error = |location: &str, message: String| ImportError {
-        path: path.to_path_buf(),
-        location: location.to_string(),
-        message,
-    };
+    let error =
+        |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let (format, gzipped) = SceneFormat::from_file_name(&name).ok_or_else(|| {
-        error("file name", "unsupported file type (expected .gltf, .glb, .obj, .ply, .obj.gz or .ply.gz)".to_string())
+        error(Located::new(
+            "file name",
+            "unsupported file type (expected .gltf, .glb, .obj, .ply, .obj.gz or .ply.gz)".to_string(),
+        ))
     })?;
-    let bytes = read_file(path, gzipped).map_err(|e| error("file", e))?;
-    let mut builder = SoupBuilder::new(options.keep_degenerate);
+    let bytes = limits::read_regular_file(path, gzipped, options.limits.max_input_bytes).map_err(error)?;
+    let mut builder = SoupBuilder::new(options.keep_degenerate, &options.limits);
     let mut files_read = vec![path.to_path_buf()];
     let result = match format {
         SceneFormat::Gltf | SceneFormat::Glb => {
-            gltf::read(path, &bytes, options.scene.as_ref(), &mut builder).map(|more| files_read.extend(more))
+            gltf::read(path, &bytes, options, &mut builder).map(|more| files_read.extend(more))
         }
-        SceneFormat::Obj => obj::read(&bytes, &mut builder),
-        SceneFormat::Ply => ply::read(&bytes, &mut builder),
+        SceneFormat::Obj => obj::read(&bytes, &options.limits, &mut builder),
+        SceneFormat::Ply => ply::read(&bytes, &options.limits, &mut builder),
     };
-    result.map_err(|e| error(&e.location, e.message))?;
+    result.map_err(error)?;
     let (soup, report) = builder.finish();
     Ok(Import { soup, files_read, report, format })
-}
-
-/// The file's bytes, gunzipped when `gzipped`.
-fn read_file(path: &Path, gzipped: bool) -> Result<Vec<u8>, String> {
-    let raw = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
-    if !gzipped {
-        return Ok(raw);
-    }
-    let mut bytes = Vec::with_capacity(raw.len() * 4);
-    flate2::read::MultiGzDecoder::new(raw.as_slice())
-        .read_to_end(&mut bytes)
-        .map_err(|e| format!("gzip decompression failed: {e}"))?;
-    Ok(bytes)
 }

@@ -2,11 +2,14 @@
 //! (concave ones by ear clipping), negative indices resolved by tobj. `.mtl` files are never read: geometry
 //! does not need them, and a missing one is not an error.
 
-use super::Located;
+use super::obj_text::checked_text;
 use super::polygon::triangulate;
 use super::soup::{Provenance, SoupBuilder};
+use super::{ImportLimits, Located};
 
-pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Located> {
+pub(super) fn read(bytes: &[u8], limits: &ImportLimits, builder: &mut SoupBuilder) -> Result<(), Located> {
+    let text = checked_text(bytes, limits)?;
+    let bytes: &[u8] = &text;
     let options =
         tobj::LoadOptions { single_index: false, triangulate: false, ignore_points: true, ignore_lines: true };
     let (models, _materials) = tobj::load_obj_buf(&mut &bytes[..], &options, |_| Err(tobj::LoadError::OpenFileFailed))

@@ -3,9 +3,10 @@
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, PropertyAccess, PropertyAccessResult};
 
-use super::Located;
+use super::limits::limit_message;
 use super::polygon::triangulate;
 use super::soup::{Provenance, SoupBuilder};
+use super::{ErrorKind, ImportLimits, Located};
 
 #[derive(Default)]
 struct Vertex([f64; 3]);
@@ -87,11 +88,12 @@ impl PropertyAccess for Face {
     }
 }
 
-pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Located> {
+pub(super) fn read(bytes: &[u8], limits: &ImportLimits, builder: &mut SoupBuilder) -> Result<(), Located> {
     let mut reader = Reader::new(bytes);
     let vertex_parser = Parser::<Vertex>::new();
     let header =
         vertex_parser.read_header(&mut reader).map_err(|e| Located::new("header", format!("malformed PLY: {e}")))?;
+    check_declared_counts(&header, bytes.len(), limits)?;
     let mut source: Vec<[f64; 3]> = Vec::new();
     let mut polygons: Vec<Vec<i64>> = Vec::new();
     let mut strips: Vec<Vec<i64>> = Vec::new();
@@ -130,6 +132,15 @@ pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Locate
     let mut triangles = Vec::new();
     for (f, face) in polygons.iter().enumerate() {
         let polygon = checked_indices(face, vertex_count).map_err(|e| Located::new(&format!("face {f}"), e))?;
+        if polygon.len() as u64 > limits.max_polygon_vertices {
+            let message = limit_message(
+                polygon.len() as u64,
+                limits.max_polygon_vertices,
+                "polygon vertices",
+                "--max-polygon-vertices",
+            );
+            return Err(Located::of_kind(ErrorKind::Limit, &format!("face {f}"), message));
+        }
         triangulate(&polygon, &positions, &mut triangles);
     }
     for (s, strip) in strips.iter().enumerate() {
@@ -140,6 +151,37 @@ pub(super) fn read(bytes: &[u8], builder: &mut SoupBuilder) -> Result<(), Locate
     builder
         .add_mesh_in_place(Provenance::NONE, &source, &positions, &triangles)
         .map_err(|e| Located::new("faces", e))?;
+    Ok(())
+}
+
+/// Checks the header's element counts before any payload is parsed (the parser reserves room for each record):
+/// every record takes at least one byte of the file, vertices count against the decoded-values budget and
+/// faces and strips against the triangle budget.
+fn check_declared_counts(
+    header: &ply_rs_bw::ply::Header,
+    file_byte_len: usize,
+    limits: &ImportLimits,
+) -> Result<(), Located> {
+    for (name, element) in &header.elements {
+        let at = format!("element '{name}'");
+        let count = element.count as u64;
+        if count > file_byte_len as u64 {
+            return Err(Located::new(
+                &at,
+                format!("declares {count} records but the file has only {file_byte_len} bytes"),
+            ));
+        }
+        let (amount, limit, what, option) = match name.as_str() {
+            "vertex" => {
+                (count.saturating_mul(3), limits.max_decoded_values, "vertex coordinates", "--max-decoded-values")
+            }
+            "face" | "tristrips" => (count, limits.max_triangles, "faces", "--max-triangles"),
+            _ => continue,
+        };
+        if amount > limit {
+            return Err(Located::of_kind(ErrorKind::Limit, &at, limit_message(amount, limit, what, option)));
+        }
+    }
     Ok(())
 }
 

@@ -9,6 +9,8 @@
 //!   them, and counts them either way;
 //! * copies only the vertices that kept triangles use, so unreferenced vertices cost nothing downstream.
 
+use crate::import::ImportLimits;
+use crate::import::limits::Meter;
 use bvhc_loader::SourceRange;
 use bvhc_loader::format::NO_INDEX;
 
@@ -93,21 +95,28 @@ pub struct SoupBuilder {
     remap: Vec<u32>,
     /// The figures for the report.
     pub report: ImportReport,
+    /// Triangles placed so far against [`ImportLimits::max_triangles`].
+    triangle_budget: Meter,
+    /// Mesh placements so far against [`ImportLimits::max_placements`].
+    pub(crate) placement_budget: Meter,
 }
 
 impl SoupBuilder {
     /// An empty builder.
-    pub fn new(keep_degenerate: bool) -> SoupBuilder {
+    pub fn new(keep_degenerate: bool, limits: &ImportLimits) -> SoupBuilder {
         SoupBuilder {
             soup: TriangleSoup::default(),
             keep_degenerate,
             next_source_id: 0,
             remap: Vec::new(),
             report: ImportReport::default(),
+            triangle_budget: Meter::new(limits.max_triangles, "triangles", "--max-triangles"),
+            placement_budget: Meter::new(limits.max_placements, "mesh placements", "--max-placements"),
         }
     }
 
-    /// Adds one primitive instance. Fails only when the scene outgrows u32 ids or indices.
+    /// Adds one primitive instance. Fails when the scene outgrows the triangle budget or u32 ids or indices,
+    /// or memory for it cannot be had; the budget is checked before anything is allocated.
     pub fn add<S, P>(&mut self, primitive: PrimitiveInstance<'_, S, P>) -> Result<(), String>
     where
         S: Fn(u32) -> [f64; 3],
@@ -122,6 +131,10 @@ impl SoupBuilder {
         {
             return Err(format!("triangle {t}: vertex index out of range ({} vertices)", primitive.vertex_count));
         }
+        self.triangle_budget.take(count as u64)?;
+        let soup = &mut self.soup;
+        let reserved = soup.triangles.try_reserve(count).and_then(|()| soup.source_ids.try_reserve(count));
+        reserved.map_err(|_| format!("out of memory adding {count} triangles"))?;
         let first = self.next_source_id;
         self.next_source_id += count as u64;
         if self.next_source_id > u64::from(u32::MAX) {
@@ -235,10 +248,15 @@ pub fn is_zero_area(v: &[[f32; 3]; 3]) -> bool {
     is_zero_area_f64(&v.map(|p| p.map(f64::from)))
 }
 
-/// Whether the cross product of the triangle's edges is exactly zero in f64.
+/// Whether the triangle's three vertices are exactly collinear (or coincide): its cross product is zero in
+/// exact arithmetic. Decided by Shewchuk's adaptive exact orientation predicate (the `robust` crate) on the
+/// three axis-aligned projections, so the verdict does not depend on the order of the vertices, unlike an f64
+/// cross product, whose edge differences round (a vertex at 1e17 next to one at 1 once made a real triangle
+/// look flat). Exact for coordinates within the f32 range, which every importer checks.
 pub fn is_zero_area_f64(v: &[[f64; 3]; 3]) -> bool {
-    let e1: [f64; 3] = std::array::from_fn(|a| v[1][a] - v[0][a]);
-    let e2: [f64; 3] = std::array::from_fn(|a| v[2][a] - v[0][a]);
-    let cross = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
-    cross == [0.0; 3]
+    let projected = |a: usize, b: usize| {
+        let p = |i: usize| robust::Coord { x: v[i][a], y: v[i][b] };
+        robust::orient2d(p(0), p(1), p(2)) == 0.0
+    };
+    projected(0, 1) && projected(1, 2) && projected(2, 0)
 }

@@ -183,7 +183,7 @@ fn bad_input_exit_codes_leave_no_output() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("out.bvh");
     let missing = bvhc(&[&dir.path().join("missing.obj"), &"-o", &output]);
-    assert_eq!(missing.status.code(), Some(1));
+    assert_eq!(missing.status.code(), Some(3), "an unreadable input is exit 3, as the README says");
     assert!(stderr(&missing).contains("missing.obj"));
     let unsupported = dir.path().join("scene.fbx");
     std::fs::write(&unsupported, b"Kaydara FBX Binary").unwrap();

@@ -21,6 +21,7 @@
 //! for bytes already known to be valid. Opening checks the structural rules in O(number of sections);
 //! [`BvhView::verify`] checks every rule.
 
+mod atomic;
 mod checksum;
 mod error;
 mod file;
@@ -31,6 +32,10 @@ mod verify;
 mod view;
 mod writer;
 
+pub use atomic::{
+    TEMPORARY_PREFIX, TEMPORARY_SUFFIX, check_replaceable, directory_of, remove_own_temporary_files, sweep_stale,
+    write_atomic,
+};
 pub use checksum::{header_checksum, section_checksum};
 pub use error::{Error, Rule, Violation};
 pub use file::{BvhFile, MappedBvh};
@@ -39,4 +44,4 @@ pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use traverse::{Hit, Tracer, TraversalCounter, TraversalStats};
 pub use verify::verify_tree;
 pub use view::{BvhView, SectionInfo};
-pub use writer::{BvhWriter, write_atomic};
+pub use writer::BvhWriter;

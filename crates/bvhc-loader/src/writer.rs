@@ -4,9 +4,9 @@
 //! table order at 64-byte-aligned offsets, zero padding), fills in the checksums, and then runs the full
 //! verifier over the result, so it never hands out a file that a reader would reject.
 
-use std::io::Write;
 use std::path::Path;
 
+use crate::atomic::write_atomic;
 use crate::checksum::{header_checksum, section_checksum};
 use crate::error::Error;
 use crate::file::{AlignedBuffer, BvhFile};
@@ -189,19 +189,4 @@ fn plan(kind: u32, section_flags: u32, element_byte_len: u32, count: usize, byte
         },
         bytes,
     }
-}
-
-/// Writes `bytes` to `path` atomically: into a temporary file in the same directory, flushed to disk, then
-/// renamed over `path`. A failure leaves any previous file at `path` untouched and no partial file behind.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
-    let io = |source| Error::Io { path: path.to_path_buf(), source };
-    let directory = match path.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent,
-        _ => Path::new("."),
-    };
-    let mut temporary = tempfile::Builder::new().prefix(".bvhc-").suffix(".tmp").tempfile_in(directory).map_err(io)?;
-    temporary.write_all(bytes).map_err(io)?;
-    temporary.as_file().sync_all().map_err(io)?;
-    temporary.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
 }

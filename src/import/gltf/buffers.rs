@@ -7,6 +7,9 @@ use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
 use base64::Engine;
+
+use crate::import::limits::{Meter, limit_message, read_prefix, read_regular_file};
+use crate::import::{ErrorKind, ImportOptions};
 use gltf::json::accessor::{ComponentType, Type};
 use gltf::json::validation::Checked;
 use gltf::json::{self, Root};
@@ -39,10 +42,14 @@ pub(super) struct Buffers<'a> {
     decoded: HashMap<usize, Rc<Decoded>>,
     /// External buffer files read, in the order they were read.
     pub files_read: Vec<PathBuf>,
+    /// Values decoded so far against [`ImportLimits::max_decoded_values`](crate::import::ImportLimits).
+    decoded_budget: Meter,
+    max_input_bytes: u64,
+    allow_outside: bool,
 }
 
 impl<'a> Buffers<'a> {
-    pub(super) fn new(root: &'a Root, gltf_path: &Path, glb_bin: Option<&'a [u8]>) -> Self {
+    pub(super) fn new(root: &'a Root, gltf_path: &Path, glb_bin: Option<&'a [u8]>, options: &ImportOptions) -> Self {
         let base_dir = gltf_path.parent().map(Path::to_path_buf).unwrap_or_default();
         Buffers {
             root,
@@ -51,7 +58,15 @@ impl<'a> Buffers<'a> {
             loaded: vec![None; root.buffers.len()],
             decoded: HashMap::new(),
             files_read: Vec::new(),
+            decoded_budget: Meter::new(options.limits.max_decoded_values, "accessor values", "--max-decoded-values"),
+            max_input_bytes: options.limits.max_input_bytes,
+            allow_outside: options.allow_buffers_outside_input_folder,
         }
+    }
+
+    /// The `count` accessor `index` declares, before anything is decoded.
+    pub(super) fn declared_count(&self, index: usize) -> Option<u64> {
+        self.root.accessors.get(index).map(|a| u64::from(a.count.0))
     }
 
     /// The bytes of buffer `index` (at least its `byteLength`), loaded on first use.
@@ -69,7 +84,7 @@ impl<'a> Buffers<'a> {
                 _ => return Err(format!("{at} has no uri and is not the binary chunk of a GLB file")),
             },
             Some(uri) if uri.starts_with("data:") => decode_data_uri(uri).map_err(|e| format!("{at}: {e}"))?,
-            Some(uri) => self.read_external(uri).map_err(|e| format!("{at}: {e}"))?,
+            Some(uri) => self.read_external(uri, buffer.byte_length.0).map_err(|e| format!("{at}: {e}"))?,
         };
         let declared = buffer.byte_length.0;
         if (bytes.len() as u64) < declared {
@@ -80,15 +95,45 @@ impl<'a> Buffers<'a> {
         Ok(bytes)
     }
 
-    fn read_external(&mut self, uri: &str) -> Result<Vec<u8>, String> {
+    /// Reads at most `byte_len` bytes of the file a relative `uri` names. Only regular files under the glTF
+    /// file's folder are read (after resolving `..` and symbolic links), unless the options allow more.
+    fn read_external(&mut self, uri: &str, byte_len: u64) -> Result<Vec<u8>, String> {
         if uri.contains("://") {
             return Err(format!("uri '{uri}' is not a relative file path; bvhc reads local files only"));
         }
         let decoded = percent_encoding::percent_decode_str(uri)
             .decode_utf8()
             .map_err(|_| format!("uri '{uri}' is not valid percent-encoded UTF-8"))?;
-        let path = self.base_dir.join(decoded.as_ref());
-        let bytes = std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let relative = Path::new(decoded.as_ref());
+        if !self.allow_outside && (relative.has_root() || relative.is_absolute()) {
+            return Err(format!(
+                "uri '{uri}' is an absolute path; buffers are read only from the input's folder (--allow-outside-buffers allows more)"
+            ));
+        }
+        let path = self.base_dir.join(relative);
+        if !self.allow_outside {
+            let folder = std::fs::canonicalize(if self.base_dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                &self.base_dir
+            })
+            .map_err(|e| format!("cannot read the input's folder: {e}"))?;
+            let resolved = std::fs::canonicalize(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            if !resolved.starts_with(&folder) {
+                return Err(format!(
+                    "uri '{uri}' leaves the input's folder; buffers are read only from there (--allow-outside-buffers allows more)"
+                ));
+            }
+        }
+        if byte_len > self.max_input_bytes {
+            return Err(limit_message(byte_len, self.max_input_bytes, "bytes (byteLength)", "--max-input-bytes"));
+        }
+        let bytes = read_regular_file(&path, false, byte_len).or_else(|e| match e.kind() {
+            // A file longer than byteLength: read its first byteLength bytes, as a glTF reader does.
+            ErrorKind::Limit => read_prefix(&path, byte_len),
+            _ => Err(e.message().to_string()),
+        });
+        let bytes = bytes.map_err(|e| format!("{}: {e}", path.display()))?;
         self.files_read.push(path);
         Ok(bytes)
     }
@@ -113,6 +158,7 @@ impl<'a> Buffers<'a> {
         };
         let components = components_of(kind);
         let count = usize::try_from(accessor.count.0).map_err(|_| "count too large".to_string())?;
+        self.decoded_budget.take((count as u64).saturating_mul(components as u64))?;
         let layout = Layout { component, components, normalized: accessor.normalized };
         let mut values = match accessor.buffer_view {
             Some(view) => {

@@ -5,6 +5,7 @@ use gltf::json::Root;
 
 use super::buffers::Buffers;
 use super::{Located, quaternion};
+use crate::import::limits::Meter;
 
 /// Extensions that change geometry and that bvhc decodes.
 const DECODED: &[&str] = &["KHR_mesh_quantization", "EXT_mesh_gpu_instancing"];
@@ -55,9 +56,12 @@ pub(super) fn check_required(root: &Root) -> Result<(), Located> {
 }
 
 /// The per-instance transforms of a node with `EXT_mesh_gpu_instancing`, `None` without it.
+/// The instance count (the first attribute's declared accessor count) is taken from `placements` before any
+/// accessor is decoded.
 pub(super) fn instance_transforms(
     node: &gltf::json::Node,
     buffers: &mut Buffers<'_>,
+    placements: &mut Meter,
 ) -> Result<Option<Vec<DMat4>>, String> {
     let Some(extension) = node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing")) else {
         return Ok(None);
@@ -66,6 +70,11 @@ pub(super) fn instance_transforms(
     let Some(attributes) = attributes else {
         return Err("EXT_mesh_gpu_instancing without an attributes object".to_string());
     };
+    let declared = ["TRANSLATION", "ROTATION", "SCALE"]
+        .iter()
+        .find_map(|name| attributes.get(*name).and_then(|v| v.as_u64()))
+        .and_then(|index| buffers.declared_count(index as usize));
+    placements.take(declared.unwrap_or(1)).map_err(|e| format!("EXT_mesh_gpu_instancing: {e}"))?;
     let mut read = |name: &str, components: usize| -> Result<Option<Vec<f64>>, String> {
         let Some(value) = attributes.get(name) else { return Ok(None) };
         let index = value.as_u64().ok_or_else(|| format!("EXT_mesh_gpu_instancing {name} is not an accessor index"))?;

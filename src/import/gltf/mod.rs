@@ -18,15 +18,16 @@ use gltf::json::Root;
 
 use self::buffers::Buffers;
 use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
-use super::{Located, SceneSelector};
+use super::{ErrorKind, ImportOptions, Located, SceneSelector};
 
 /// Reads a `.gltf` (JSON) or `.glb` file's scene into `builder`; returns the external files it read.
 pub(super) fn read(
     path: &Path,
     bytes: &[u8],
-    scene: Option<&SceneSelector>,
+    options: &ImportOptions,
     builder: &mut SoupBuilder,
 ) -> Result<Vec<PathBuf>, Located> {
+    let scene = options.scene.as_ref();
     let (json, bin) = if bytes.starts_with(b"glTF") {
         let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| Located::new("GLB container", e.to_string()))?;
         (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
@@ -37,7 +38,7 @@ pub(super) fn read(
     extensions::check_required(&root)?;
     let roots = scene_roots(&root, scene)?;
     builder.report.file_mesh_triangles = primitive::file_mesh_triangles(&root);
-    let mut buffers = Buffers::new(&root, path, bin.as_deref());
+    let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
     let mut walker = Walker { root: &root, buffers: &mut buffers, builder, placed: HashSet::new() };
     walker.walk(&roots)?;
     Ok(buffers.files_read)
@@ -100,8 +101,12 @@ impl Walker<'_, '_> {
                 return Err(Located::new(&at, "its world transform is not finite".to_string()));
             }
             if let Some(mesh) = node.mesh {
-                let instances =
-                    extensions::instance_transforms(node, self.buffers).map_err(|e| Located::new(&at, e))?;
+                let placements = &mut self.builder.placement_budget;
+                let instances = extensions::instance_transforms(node, self.buffers, placements)
+                    .map_err(|e| Located::of_kind(limit_or_invalid(&e), &at, e))?;
+                if instances.is_none() {
+                    placements.take(1).map_err(|e| Located::of_kind(ErrorKind::Limit, &at, e))?;
+                }
                 if node.skin.is_some() {
                     self.builder.report.skinned_placements += instances.as_ref().map_or(1, Vec::len) as u64;
                 }
@@ -139,7 +144,7 @@ impl Walker<'_, '_> {
         for (p, json_primitive) in mesh.primitives.iter().enumerate() {
             let at = format!("mesh {mesh_index} primitive {p}");
             let Some(geometry) = primitive::geometry(json_primitive, self.buffers, &mut self.builder.report)
-                .map_err(|e| Located::new(&at, e))?
+                .map_err(|e| Located::of_kind(limit_or_invalid(&e), &at, e))?
             else {
                 continue;
             };
@@ -175,9 +180,21 @@ impl Walker<'_, '_> {
                     flip_winding,
                     first_use: self.placed.insert((mesh_index, p)),
                 })
-                .map_err(|e| Located::new(&at, e))?;
+                .map_err(|e| Located::of_kind(limit_or_invalid(&e), &at, e))?;
         }
         Ok(())
+    }
+}
+
+/// The kind of a buffer, accessor or soup error: the limit messages (and out-of-memory ones) are
+/// [`ErrorKind::Limit`], unreadable external buffers [`ErrorKind::Unreadable`], the rest broken rules.
+fn limit_or_invalid(message: &str) -> ErrorKind {
+    if message.contains("import limit") || message.contains("out of memory") {
+        ErrorKind::Limit
+    } else if message.contains("cannot read") {
+        ErrorKind::Unreadable
+    } else {
+        ErrorKind::Invalid
     }
 }
 

@@ -1,0 +1,26 @@
+//! Clean exit on SIGINT, SIGTERM and SIGHUP: the output is written through a temporary file in its
+//! directory (`bvhc_loader::write_atomic`), which an interrupted run would leave behind. A watcher thread waits
+//! for the signals; when one arrives it removes this process's temporary files in the output's directory and
+//! exits with 128 + the signal number, as a shell reports a process killed by it. The output itself is
+//! untouched: the rename that replaces it either happened or did not.
+
+use std::path::Path;
+
+/// Starts the watcher for a command that writes into `output`'s directory. Failing to install it (no
+/// threads, say) only loses the clean-up, so it is not an error.
+#[cfg(unix)]
+pub fn clean_up_on_signal(output: &Path) {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let directory = bvhc::loader::directory_of(output).to_path_buf();
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else { return };
+    let _ = std::thread::Builder::new().name("signals".to_string()).spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            bvhc::loader::remove_own_temporary_files(&directory);
+            std::process::exit(128 + signal);
+        }
+    });
+}
+
+/// Without Unix signals there is nothing to install; stale files are swept by the next write.
+#[cfg(not(unix))]
+pub fn clean_up_on_signal(_output: &Path) {}
