@@ -25,10 +25,20 @@ pub fn input_entries(main_input: &Path, files_read: &[PathBuf]) -> std::io::Resu
         .collect()
 }
 
-/// `file` relative to `base` with `/` separators, or its bare file name when it lies elsewhere.
+/// `file` relative to `base` with `/` separators (`..` kept for a buffer beside the input's folder), or its
+/// bare file name when no relative path exists (an absolute path, which never reaches the metadata).
 fn relative_name(base: &Path, file: &Path) -> String {
-    let relative = file.strip_prefix(base).unwrap_or_else(|_| Path::new(file.file_name().unwrap_or_default()));
-    relative.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
+    use std::path::Component;
+    let relative = file.strip_prefix(base).unwrap_or(file);
+    let is_relative =
+        relative.components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir | Component::ParentDir));
+    let relative = if is_relative { relative } else { Path::new(file.file_name().unwrap_or_default()) };
+    relative
+        .components()
+        .filter(|c| !matches!(c, Component::CurDir))
+        .map(|c| c.as_os_str().to_string_lossy())
+        .collect::<Vec<_>>()
+        .join("/")
 }
 
 /// Whether `output` is a valid `.bvh` file whose metadata records `build` options equal to `build`, the

@@ -47,7 +47,7 @@ pub(super) fn read(bytes: &[u8], limits: &ImportLimits, builder: &mut SoupBuilde
         let provenance = Provenance { mesh_index: m as u32, ..Provenance::NONE };
         builder
             .add_mesh_in_place(provenance, &source, &positions, &triangles)
-            .map_err(|e| Located::new(&format!("model {m}"), e))?;
+            .map_err(|(kind, e)| Located::of_kind(kind, &format!("model {m}"), e))?;
     }
     // tobj keeps only the vertices each model uses; count the file's unused ones from its text.
     builder.report.unreferenced_vertices = unreferenced_vertices(bytes);

@@ -150,7 +150,7 @@ pub(super) fn read(bytes: &[u8], limits: &ImportLimits, builder: &mut SoupBuilde
     }
     builder
         .add_mesh_in_place(Provenance::NONE, &source, &positions, &triangles)
-        .map_err(|e| Located::new("faces", e))?;
+        .map_err(|(kind, e)| Located::of_kind(kind, "faces", e))?;
     Ok(())
 }
 

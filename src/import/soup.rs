@@ -9,8 +9,8 @@
 //!   them, and counts them either way;
 //! * copies only the vertices that kept triangles use, so unreferenced vertices cost nothing downstream.
 
-use crate::import::ImportLimits;
 use crate::import::limits::Meter;
+use crate::import::{ErrorKind, ImportLimits};
 use bvhc_loader::SourceRange;
 use bvhc_loader::format::NO_INDEX;
 
@@ -117,7 +117,7 @@ impl SoupBuilder {
 
     /// Adds one primitive instance. Fails when the scene outgrows the triangle budget or u32 ids or indices,
     /// or memory for it cannot be had; the budget is checked before anything is allocated.
-    pub fn add<S, P>(&mut self, primitive: PrimitiveInstance<'_, S, P>) -> Result<(), String>
+    pub fn add<S, P>(&mut self, primitive: PrimitiveInstance<'_, S, P>) -> Result<(), (ErrorKind, String)>
     where
         S: Fn(u32) -> [f64; 3],
         P: Fn(u32) -> [f32; 3],
@@ -129,16 +129,17 @@ impl SoupBuilder {
         if let Some(t) =
             primitive.triangles.iter().position(|t| t.iter().any(|&v| v as usize >= primitive.vertex_count))
         {
-            return Err(format!("triangle {t}: vertex index out of range ({} vertices)", primitive.vertex_count));
+            let message = format!("triangle {t}: vertex index out of range ({} vertices)", primitive.vertex_count);
+            return Err((ErrorKind::Invalid, message));
         }
-        self.triangle_budget.take(count as u64)?;
+        self.triangle_budget.take(count as u64).map_err(|e| (ErrorKind::Limit, e))?;
         let soup = &mut self.soup;
         let reserved = soup.triangles.try_reserve(count).and_then(|()| soup.source_ids.try_reserve(count));
-        reserved.map_err(|_| format!("out of memory adding {count} triangles"))?;
+        reserved.map_err(|_| (ErrorKind::Limit, format!("out of memory adding {count} triangles")))?;
         let first = self.next_source_id;
         self.next_source_id += count as u64;
         if self.next_source_id > u64::from(u32::MAX) {
-            return Err("the scene has more than 2^32 - 1 triangles".to_string());
+            return Err((ErrorKind::Limit, "the scene has more than 2^32 - 1 triangles".to_string()));
         }
         let p = primitive.provenance;
         self.soup.sources.push(SourceRange {
@@ -193,7 +194,7 @@ impl SoupBuilder {
                     *mapped = u32::try_from(self.soup.positions.len())
                         .ok()
                         .filter(|&index| index < u32::MAX - 1)
-                        .ok_or_else(|| "the scene has more than 2^32 - 2 vertices".to_string())?;
+                        .ok_or_else(|| (ErrorKind::Limit, "the scene has more than 2^32 - 2 vertices".to_string()))?;
                     self.soup.positions.push(position);
                 }
                 *slot = *mapped;
@@ -218,7 +219,7 @@ impl SoupBuilder {
         source: &[[f64; 3]],
         positions: &[[f32; 3]],
         triangles: &[[u32; 3]],
-    ) -> Result<(), String> {
+    ) -> Result<(), (ErrorKind, String)> {
         self.add(PrimitiveInstance {
             provenance,
             vertex_count: positions.len(),

@@ -1,10 +1,12 @@
 //! The integration test suite: one binary, one module per subject.
 
 mod cli;
+mod cli_hardening;
 mod common;
 mod compat;
 mod convert;
 mod golden;
+mod hardening;
 mod import_errors;
 mod import_formats;
 mod import_gltf;

@@ -66,7 +66,7 @@ impl<'a> Buffers<'a> {
 
     /// The `count` accessor `index` declares, before anything is decoded.
     pub(super) fn declared_count(&self, index: usize) -> Option<u64> {
-        self.root.accessors.get(index).map(|a| u64::from(a.count.0))
+        self.root.accessors.get(index).map(|a| a.count.0)
     }
 
     /// The bytes of buffer `index` (at least its `byteLength`), loaded on first use.

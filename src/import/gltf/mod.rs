@@ -180,7 +180,7 @@ impl Walker<'_, '_> {
                     flip_winding,
                     first_use: self.placed.insert((mesh_index, p)),
                 })
-                .map_err(|e| Located::of_kind(limit_or_invalid(&e), &at, e))?;
+                .map_err(|(kind, e)| Located::of_kind(kind, &at, e))?;
         }
         Ok(())
     }

@@ -1,0 +1,244 @@
+//! Regression tests for the command-line reproducers (`shared/repro/README.md`, second table): full disks and
+//! closed pipes, exit codes, outputs that are inputs or not regular files, file modes, and signals.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+use crate::cli::{bvhc, files_in, stderr, stdout, teapot};
+use crate::hardening::repro;
+
+fn no_panic(output: &std::process::Output) {
+    assert!(!stderr(output).contains("panicked"), "{}", stderr(output));
+    assert_ne!(output.status.code(), Some(101), "{}", stderr(output));
+}
+
+fn good_bvh(dir: &Path) -> std::path::PathBuf {
+    let path = dir.join("good.bvh");
+    let run = bvhc(&[&repro("obj-with-bom.obj"), &"-o", &path, &"-q"]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    path
+}
+
+/// Runs bvhc with stdout (or stderr) redirected to /dev/full.
+fn to_dev_full(args: &[&dyn AsRef<std::ffi::OsStr>], stream_is_stderr: bool) -> std::process::Output {
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").expect("/dev/full");
+    let mut command = Command::new(env!("CARGO_BIN_EXE_bvhc"));
+    command.args(args.iter().map(|a| a.as_ref()));
+    if stream_is_stderr {
+        command.stderr(full).stdout(Stdio::piped());
+    } else {
+        command.stdout(full).stderr(Stdio::piped());
+    }
+    command.output().unwrap()
+}
+
+#[test]
+fn a_full_disk_on_stdout_or_stderr_is_exit_3_without_panic() {
+    if !Path::new("/dev/full").exists() {
+        eprintln!("SKIPPED: no /dev/full on this system");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let good = good_bvh(dir.path());
+    let png = dir.path().join("x.png");
+    let out = dir.path().join("again.bvh");
+    let scene = teapot();
+    let cases: Vec<Vec<&dyn AsRef<std::ffi::OsStr>>> = vec![
+        vec![&"info", &good],
+        vec![&"info", &good, &"--json"],
+        vec![&"verify", &good],
+        vec![&"render", &good, &"-o", &png, &"--width", &"8", &"--height", &"8"],
+        vec![&scene, &"-o", &out, &"--json", &"--preset", &"fast"],
+    ];
+    for args in &cases {
+        let run = to_dev_full(args, false);
+        no_panic(&run);
+        assert_eq!(run.status.code(), Some(3), "{:?}", stderr(&run));
+        assert!(stderr(&run).contains("cannot write to standard output"), "{}", stderr(&run));
+    }
+    let run = to_dev_full(&[&"verify", &dir.path().join("missing.bvh")], true);
+    no_panic(&run);
+    assert_eq!(run.status.code(), Some(3));
+}
+
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = good_bvh(dir.path());
+    for args in [vec!["info", "--json"], vec!["info"], vec!["verify"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_bvhc"))
+            .args(&args)
+            .arg(&good)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take()); // the reader is gone before bvhc writes: `| head -c 0`
+        let run = child.wait_with_output().unwrap();
+        no_panic(&run);
+        assert_eq!(run.status.code(), Some(0), "{args:?}: {}", stderr(&run));
+        assert_eq!(stderr(&run), "", "{args:?}: quiet");
+    }
+}
+
+#[test]
+fn unreadable_inputs_are_exit_3() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("x.bvh");
+    std::fs::create_dir(dir.path().join("folder.obj")).unwrap();
+    for input in [dir.path().join("missing.obj"), dir.path().join("folder.obj")] {
+        let run = bvhc(&[&input, &"-o", &output]);
+        assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+        assert!(stderr(&run).contains("cannot read"), "{}", stderr(&run));
+    }
+    assert!(!output.exists());
+}
+
+#[test]
+fn outputs_that_are_inputs_or_not_regular_files_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let same = dir.path().join("same.obj");
+    std::fs::copy(repro("obj-with-bom.obj"), &same).unwrap();
+    let original = std::fs::read(&same).unwrap();
+    let run = bvhc(&[&same, &"-o", &same]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert!(stderr(&run).contains("the output is one of the inputs"), "{}", stderr(&run));
+    assert_eq!(std::fs::read(&same).unwrap(), original, "the input is intact");
+    // A glTF file's own buffer as the output.
+    let gltf = dir.path().join("scene.gltf");
+    let triangle: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.].iter().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(dir.path().join("scene.bin"), &triangle).unwrap();
+    std::fs::write(&gltf, r#"{"asset":{"version":"2.0"},"buffers":[{"uri":"scene.bin","byteLength":36}],"bufferViews":[{"buffer":0,"byteLength":36}],"accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}],"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]}"#).unwrap();
+    let run = bvhc(&[&gltf, &"-o", &dir.path().join("scene.bin")]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert_eq!(std::fs::read(dir.path().join("scene.bin")).unwrap(), triangle);
+    // render onto its own input.
+    let good = good_bvh(dir.path());
+    let before = std::fs::read(&good).unwrap();
+    let run = bvhc(&[&"render", &good, &"-o", &good]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert_eq!(std::fs::read(&good).unwrap(), before);
+    // A device node (as root it used to be replaced by a regular file).
+    if Path::new("/dev/null").exists() {
+        let run = bvhc(&[&same, &"-o", &"/dev/null"]);
+        assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+        assert!(stderr(&run).contains("not a regular file"), "{}", stderr(&run));
+        assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
+    }
+    #[cfg(unix)]
+    {
+        let fifo = dir.path().join("o.bvh");
+        if Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+            let run = bvhc(&[&same, &"-o", &fifo]); // used to hang in the up-to-date check
+            assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+        } else {
+            eprintln!("SKIPPED (part): mkfifo is not available");
+        }
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn new_outputs_get_the_umask_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    for (umask, mode) in [("022", 0o644), ("077", 0o600), ("002", 0o664)] {
+        let output = dir.path().join(format!("u{umask}.bvh"));
+        let script = format!("umask {umask}; exec \"$0\" \"$1\" -o \"$2\" -q --preset fast");
+        let run = Command::new("sh")
+            .args(["-c", &script, env!("CARGO_BIN_EXE_bvhc")])
+            .arg(teapot())
+            .arg(&output)
+            .output()
+            .unwrap();
+        assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+        assert_eq!(std::fs::metadata(&output).unwrap().permissions().mode() & 0o777, mode, "umask {umask}");
+    }
+}
+
+#[test]
+fn bad_option_values_are_usage_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("x.bvh");
+    let scene = teapot();
+    for bad in [
+        ["--time-budget", "nan"],
+        ["--time-budget=-1", ""],
+        ["--time-budget", "1e300"],
+        ["--threads", "100000"],
+        ["--threads", "0"],
+    ] {
+        let args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&scene, &"-o", &output, &bad[0], &bad[1]];
+        let args: Vec<&dyn AsRef<std::ffi::OsStr>> = args.into_iter().filter(|a| !a.as_ref().is_empty()).collect();
+        let run = bvhc(&args);
+        assert_eq!(run.status.code(), Some(2), "{bad:?}: {}", stderr(&run));
+        assert!(stderr(&run).contains("invalid value"), "{bad:?}: {}", stderr(&run));
+    }
+    assert!(!output.exists());
+}
+
+#[test]
+fn the_summary_says_whether_degenerate_triangles_were_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("x.bvh");
+    let kept = bvhc(&[&repro("keep-degenerate-message.obj"), &"-o", &output, &"--keep-degenerate"]);
+    assert!(stdout(&kept).contains("2 triangles (1 degenerate kept)"), "{}", stdout(&kept));
+    let dropped = bvhc(&[&repro("keep-degenerate-message.obj"), &"-o", &output, &"--force"]);
+    assert!(stdout(&dropped).contains("1 triangles (1 degenerate dropped)"), "{}", stdout(&dropped));
+}
+
+/// A scene that takes the optimizer long enough to be interrupted (max-quality on 20,000 triangles).
+fn slow_scene(dir: &Path) -> std::path::PathBuf {
+    let path = dir.join("slow.obj");
+    let mut text = String::new();
+    for (i, t) in crate::common::random_triangles(77, 20_000, 100.0).iter().enumerate() {
+        for v in t {
+            text += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+        }
+        text += &format!("f {} {} {}\n", 3 * i + 1, 3 * i + 2, 3 * i + 3);
+    }
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[cfg(unix)]
+#[test]
+fn signals_leave_no_temporary_file_and_stale_ones_are_swept() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = slow_scene(dir.path());
+    let out_dir = dir.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let output = out_dir.join("slow.bvh");
+    std::fs::write(&output, b"previous").unwrap();
+    for (signal, code) in [("INT", 130), ("TERM", 143), ("HUP", 129)] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_bvhc"))
+            .arg(&scene)
+            .arg("-o")
+            .arg(&output)
+            .args(["--preset", "max-quality", "--force", "-q"])
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(400));
+        // Stand in for the temporary file a write in progress holds at the moment the signal arrives.
+        let pending = out_dir.join(format!(
+            "{}{}-pending{}",
+            bvhc::loader::TEMPORARY_PREFIX,
+            child.id(),
+            bvhc::loader::TEMPORARY_SUFFIX
+        ));
+        std::fs::write(&pending, b"partial").unwrap();
+        let sent = Command::new("kill").arg(format!("-{signal}")).arg(child.id().to_string()).status().unwrap();
+        assert!(sent.success());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(code), "SIG{signal}");
+        assert_eq!(files_in(&out_dir), ["slow.bvh"], "SIG{signal}: no temporary file left");
+        assert_eq!(std::fs::read(&output).unwrap(), b"previous", "SIG{signal}: the output is untouched");
+    }
+    // A killed run's temporary file (its process is gone) is swept by the next write into that folder.
+    let stale =
+        out_dir.join(format!("{}{}-x{}", bvhc::loader::TEMPORARY_PREFIX, u32::MAX - 1, bvhc::loader::TEMPORARY_SUFFIX));
+    std::fs::write(&stale, b"stale").unwrap();
+    let run = bvhc(&[&teapot(), &"-o", &out_dir.join("teapot.bvh"), &"-q", &"--preset", &"fast"]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    assert!(!stale.exists() || !cfg!(target_os = "linux"), "stale temporary file swept");
+}
