@@ -448,6 +448,108 @@ fn v23_metadata() {
 }
 
 #[test]
+fn v23_metadata_has_no_bom_or_nul() {
+    for bad in ["\u{feff}{}", "{\"a\":1}\0"] {
+        let tree = packed_tree(&random_triangles(71, 4, 1.0), 1);
+        let error = BvhWriter::new(&tree.nodes, &tree.triangles).metadata(bad).build().unwrap_err();
+        assert_eq!(error.rule(), Some(Rule::Metadata), "{bad:?}: {error}");
+    }
+}
+
+#[test]
+fn v24_repeated_id() {
+    expect(
+        Rule::RepeatedId,
+        |b| {
+            let at = data(b, IDS);
+            let first = read_u32(b, at);
+            write_u32(b, at + 4, first)
+        },
+        true,
+    );
+}
+
+/// The triangle (0,0,0), (2,0,0), (0,2,0) referenced from two leaves with the boxes `a` and `b`.
+fn split_file(a: ([f32; 3], [f32; 3]), b: ([f32; 3], [f32; 3])) -> Result<BvhFile, bvhc::loader::Error> {
+    let triangle = PackedTriangle { vertices: [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]] };
+    let nodes = [
+        PackedNode { min: [0.0; 3], max: [2.0, 2.0, 0.0], index: 1, count: 0 },
+        PackedNode { min: a.0, max: a.1, index: 0, count: 1 },
+        PackedNode { min: b.0, max: b.1, index: 1, count: 1 },
+    ];
+    BvhWriter::new(&nodes, &[triangle, triangle]).triangle_ids(&[0, 0]).split_references(true).build()
+}
+
+#[test]
+fn v25_split_coverage() {
+    // Split at x = 1: the left box holds x in [0, 1], the right one the rest of the triangle (y <= 1 there).
+    let covering = split_file(([0.0; 3], [1.0, 2.0, 0.0]), ([1.0, 0.0, 0.0], [2.0, 1.0, 0.0])).unwrap();
+    let tracer = covering.view().tracer();
+    for (x, y) in [(0.5, 0.5), (1.5, 0.25), (0.99, 1.0), (1.0, 0.99), (0.1, 1.8)] {
+        let hit = tracer.closest_hit(&bvhc::loader::Ray::new([x, y, 1.0], [0.0, 0.0, -1.0]));
+        assert!(hit.is_some_and(|h| h.source_triangle_id == Some(0)), "ray at ({x}, {y}) must hit");
+    }
+    // The right box stops at y = 0.5, so the piece 1 <= x, 0.5 < y <= 2 - x is covered by no leaf.
+    let gap = split_file(([0.0; 3], [1.0, 2.0, 0.0]), ([1.0, 0.0, 0.0], [2.0, 0.5, 0.0]));
+    assert_eq!(gap.err().and_then(|e| e.rule()), Some(Rule::SplitCoverage));
+    // One leaf whose box covers half of a triangle: every other rule holds.
+    let triangle = PackedTriangle { vertices: [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]] };
+    let half = [PackedNode { min: [0.0; 3], max: [1.0, 2.0, 0.0], index: 0, count: 1 }];
+    let error = BvhWriter::new(&half, &[triangle]).split_references(true).build().unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::SplitCoverage), "{error}");
+}
+
+#[test]
+fn v26_file_index() {
+    // The good file's metadata has no `inputs`, so every file_index must be 0.
+    expect(
+        Rule::FileIndex,
+        |b| {
+            let at = data(b, SOURCES) + 8;
+            write_u32(b, at, 1)
+        },
+        true,
+    );
+    let tree = packed_tree(&random_triangles(72, 4, 1.0), 1);
+    let mut ranges = single_source_range(tree.triangles.len());
+    ranges[0].file_index = 2;
+    let two_inputs = r#"{"inputs":[{"file_name":"a.gltf"},{"file_name":"a.bin"}]}"#;
+    let writer = BvhWriter::new(&tree.nodes, &tree.triangles).triangle_ids(&tree.triangle_ids).source_table(&ranges);
+    assert_eq!(writer.clone().metadata(two_inputs).build().err().and_then(|e| e.rule()), Some(Rule::FileIndex));
+    ranges[0].file_index = 1;
+    let writer = BvhWriter::new(&tree.nodes, &tree.triangles).triangle_ids(&tree.triangle_ids).source_table(&ranges);
+    assert!(writer.metadata(two_inputs).build().is_ok());
+}
+
+#[test]
+fn v27_absolute_file_name() {
+    let tree = packed_tree(&random_triangles(73, 4, 1.0), 1);
+    for name in ["/etc/passwd", "//server/share/a.bin", "C:\\scenes\\a.gltf", "\\\\server\\a.bin"] {
+        let metadata = serde_json::json!({ "inputs": [{ "file_name": name }] }).to_string();
+        let error = BvhWriter::new(&tree.nodes, &tree.triangles).metadata(&metadata).build().unwrap_err();
+        assert_eq!(error.rule(), Some(Rule::AbsoluteFileName), "{name}: {error}");
+    }
+    for name in ["a.gltf", "../buffers/a.bin", "sub/a.bin"] {
+        let metadata = format!(r#"{{"inputs":[{{"file_name":"{name}"}}]}}"#);
+        assert!(BvhWriter::new(&tree.nodes, &tree.triangles).metadata(&metadata).build().is_ok(), "{name}");
+    }
+}
+
+#[test]
+fn v28_format_version() {
+    expect(
+        Rule::FormatVersion,
+        |b| {
+            let metadata = data(b, METADATA_SECTION);
+            let text = std::str::from_utf8(&b[metadata..metadata + METADATA.len()]).unwrap().to_string();
+            let at = metadata + text.find("\"1.0\"").unwrap() + 3;
+            b[at] = b'1' // "1.1": the header says 1.0
+        },
+        true,
+    );
+}
+
+#[test]
 fn every_rule_has_a_test_here() {
     // Keeps this table complete when a rule is added: each rule's number appears in a test name above.
     let source = include_str!("rules.rs");

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 /// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
 ///
-/// V1-V10 are structural and checked by every open; V11-V23 are checked by [`crate::BvhView::verify`].
+/// V1-V10 are structural and checked by every open; V11-V28 are checked by [`crate::BvhView::verify`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum Rule {
@@ -53,13 +53,23 @@ pub enum Rule {
     SourceTable,
     /// V22: with a source table, every triangle id lies in one of its ranges.
     TriangleIdRange,
-    /// V23: metadata is UTF-8 text holding one JSON object.
+    /// V23: metadata is UTF-8 text without a byte order mark or NUL byte, holding one JSON object.
     Metadata,
+    /// V24: without `SPLIT_REFERENCES`, triangle ids are distinct.
+    RepeatedId,
+    /// V25: with `SPLIT_REFERENCES`, the leaves that reference a triangle cover all of it.
+    SplitCoverage,
+    /// V26: every source range's `file_index` names an entry of the metadata's `inputs` (0 without them).
+    FileIndex,
+    /// V27: no metadata `inputs[].file_name` is an absolute path.
+    AbsoluteFileName,
+    /// V28: the metadata's `format_version` equals the header's version.
+    FormatVersion,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 23] = [
+    pub const ALL: [Rule; 28] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -83,6 +93,11 @@ impl Rule {
         Rule::SourceTable,
         Rule::TriangleIdRange,
         Rule::Metadata,
+        Rule::RepeatedId,
+        Rule::SplitCoverage,
+        Rule::FileIndex,
+        Rule::AbsoluteFileName,
+        Rule::FormatVersion,
     ];
 
     /// The rule's number in the spec (1 for V1).

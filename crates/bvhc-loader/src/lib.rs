@@ -29,6 +29,8 @@ pub mod format;
 mod intersect;
 mod traverse;
 mod verify;
+mod verify_metadata;
+mod verify_references;
 mod view;
 mod writer;
 

@@ -1,9 +1,8 @@
-//! The full verifier: rules V11-V23 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! The full verifier: rules V11-V28 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
-
-use serde::de::IgnoredAny;
 
 use crate::checksum::{header_checksum, section_checksum};
 use crate::error::{Rule, Violation, violation};
@@ -13,7 +12,7 @@ use crate::format::{
 use crate::view::{BvhView, section_bytes};
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V23; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V28; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke.
     pub fn verify(&self) -> Result<(), Violation> {
@@ -21,7 +20,8 @@ impl BvhView<'_> {
         verify_reserved_and_padding(self)?;
         verify_tree(self.nodes(), self.triangles(), self.has_split_references())?;
         verify_sources(self)?;
-        verify_metadata(self)
+        crate::verify_metadata::verify_metadata(self)?;
+        crate::verify_references::verify_references(self)
     }
 }
 
@@ -272,14 +272,4 @@ fn verify_sources(view: &BvhView<'_>) -> Result<(), Violation> {
         }
     }
     Ok(())
-}
-
-/// V23.
-fn verify_metadata(view: &BvhView<'_>) -> Result<(), Violation> {
-    let Some(text) = view.metadata_str() else {
-        return Ok(());
-    };
-    serde_json::from_str::<std::collections::BTreeMap<String, IgnoredAny>>(text?)
-        .map(|_| ())
-        .map_err(|e| violation(Rule::Metadata, format!("metadata section: not one JSON object ({e})")))
 }

@@ -1,0 +1,140 @@
+//! Rules V24 and V25 of `format-spec/bvh-1.md`: how triangles may be referenced.
+//!
+//! V24: without `SPLIT_REFERENCES` every triangle id is distinct (each source triangle stored once). Checked on a
+//! sorted copy of the ids (memory: 4 bytes per triangle, less than the file).
+//!
+//! V25: with `SPLIT_REFERENCES`, the *references* of a triangle (the records with the same id, when ids are
+//! stored, and the same vertices) lie in leaves whose boxes together cover every point of the triangle. This is
+//! what makes traversal exact with split references: a ray that meets the triangle meets it inside one of those
+//! boxes, which the conservative box test never rejects. Checked by subtracting the leaf boxes from the triangle
+//! (convex polygons clipped by the boxes' planes in f64): what is left must be negligible, its area at most
+//! `2^-40` of the triangle's, a margin far above f64 rounding of the clip points and far below any gap a ray
+//! could pass (a zero-area triangle must have each vertex in one of the boxes).
+
+use crate::BvhView;
+use crate::error::{Rule, Violation, violation};
+use crate::format::{PackedNode, PackedTriangle};
+
+/// The leftover area, relative to the triangle's, under which a triangle counts as covered.
+const COVERAGE_TOLERANCE: f64 = 1.0 / (1u64 << 40) as f64;
+
+pub(crate) fn verify_references(view: &BvhView<'_>) -> Result<(), Violation> {
+    if view.has_split_references() {
+        verify_split_coverage(view.nodes(), view.triangles(), view.triangle_ids())
+    } else {
+        verify_distinct_ids(view.triangle_ids().unwrap_or(&[]))
+    }
+}
+
+/// V24.
+fn verify_distinct_ids(ids: &[u32]) -> Result<(), Violation> {
+    let mut sorted: Vec<(u32, u32)> = ids.iter().enumerate().map(|(t, &id)| (id, t as u32)).collect();
+    sorted.sort_unstable();
+    match sorted.windows(2).find(|w| w[0].0 == w[1].0) {
+        Some(w) => Err(violation(
+            Rule::RepeatedId,
+            format!("triangles {} and {}: both have id {} but SPLIT_REFERENCES is not set", w[0].1, w[1].1, w[0].0),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// V25. Nodes and triangles already passed V14-V19, so every leaf range is in bounds.
+fn verify_split_coverage(nodes: &[PackedNode], triangles: &[PackedTriangle], ids: Option<&[u32]>) -> Result<(), Violation> {
+    // (id or 0, vertex bits, triangle index, leaf) for every record, grouped by the first two.
+    let mut references: Vec<(u32, [u32; 9], u32, u32)> = Vec::with_capacity(triangles.len());
+    for (leaf, node) in nodes.iter().enumerate().filter(|(_, n)| n.is_leaf()) {
+        for t in node.index..node.index + node.count {
+            let v = &triangles[t as usize].vertices;
+            let bits = std::array::from_fn(|k| v[k / 3][k % 3].to_bits());
+            let id = ids.map_or(0, |ids| ids[t as usize]);
+            references.push((id, bits, t, leaf as u32));
+        }
+    }
+    references.sort_unstable();
+    for group in references.chunk_by(|a, b| a.0 == b.0 && a.1 == b.1) {
+        let t = group[0].2 as usize;
+        let boxes: Vec<&PackedNode> = group.iter().map(|r| &nodes[r.3 as usize]).collect();
+        if !is_covered(&triangles[t].vertices, &boxes) {
+            let leaves: Vec<u32> = group.iter().map(|r| r.3).collect();
+            return Err(violation(
+                Rule::SplitCoverage,
+                format!("triangle {t}: the boxes of its leaves {leaves:?} do not cover all of it"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+type Point = [f64; 3];
+
+/// Whether the boxes cover the triangle (see the module doc for the tolerance).
+fn is_covered(vertices: &[[f32; 3]; 3], boxes: &[&PackedNode]) -> bool {
+    let triangle: Vec<Point> = vertices.iter().map(|v| v.map(f64::from)).collect();
+    let area = polygon_area(&triangle);
+    if area == 0.0 {
+        return vertices.iter().all(|v| boxes.iter().any(|b| (0..3).all(|a| b.min[a] <= v[a] && v[a] <= b.max[a])));
+    }
+    let mut pieces = vec![triangle];
+    for b in boxes {
+        let mut outside = Vec::new();
+        for piece in pieces {
+            subtract_box(piece, b, &mut outside);
+        }
+        outside.retain(|p| polygon_area(p) > 0.0);
+        pieces = outside;
+    }
+    pieces.iter().map(|p| polygon_area(p)).sum::<f64>() <= COVERAGE_TOLERANCE * area
+}
+
+/// Appends the parts of convex `piece` outside box `b` (at most six convex polygons).
+fn subtract_box(mut piece: Vec<Point>, b: &PackedNode, outside: &mut Vec<Vec<Point>>) {
+    for a in 0..3 {
+        for (plane, keep_below) in [(f64::from(b.min[a]), false), (f64::from(b.max[a]), true)] {
+            let (inside, out) = split(&piece, a, plane, keep_below);
+            if out.len() >= 3 {
+                outside.push(out);
+            }
+            if inside.len() < 3 {
+                return;
+            }
+            piece = inside;
+        }
+    }
+}
+
+/// Splits a convex polygon by the plane `x[a] = plane` into the part on the box's side (`x[a] <= plane` when
+/// `keep_below`, else `x[a] >= plane`) and the rest (Sutherland-Hodgman).
+fn split(polygon: &[Point], a: usize, plane: f64, keep_below: bool) -> (Vec<Point>, Vec<Point>) {
+    let side = |p: &Point| if keep_below { plane - p[a] } else { p[a] - plane };
+    let (mut inside, mut outside) = (Vec::new(), Vec::new());
+    for (i, p) in polygon.iter().enumerate() {
+        let q = &polygon[(i + 1) % polygon.len()];
+        let (sp, sq) = (side(p), side(q));
+        if sp >= 0.0 {
+            inside.push(*p);
+        } else {
+            outside.push(*p);
+        }
+        if (sp >= 0.0) != (sq >= 0.0) && sp != sq {
+            let f = sp / (sp - sq);
+            let mut x: Point = std::array::from_fn(|k| p[k] + f * (q[k] - p[k]));
+            x[a] = plane;
+            inside.push(x);
+            outside.push(x);
+        }
+    }
+    (inside, outside)
+}
+
+/// Area of a planar polygon (half the length of its Newell normal).
+fn polygon_area(polygon: &[Point]) -> f64 {
+    let mut normal = [0.0f64; 3];
+    for (i, p) in polygon.iter().enumerate() {
+        let q = &polygon[(i + 1) % polygon.len()];
+        normal[0] += (p[1] - q[1]) * (p[2] + q[2]);
+        normal[1] += (p[2] - q[2]) * (p[0] + q[0]);
+        normal[2] += (p[0] - q[0]) * (p[1] + q[1]);
+    }
+    0.5 * (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt()
+}
