@@ -50,8 +50,13 @@ impl Default for ConvertOptions {
 
 impl ConvertOptions {
     /// The options as recorded in the metadata's `build` object (and compared by the up-to-date check).
+    /// `max_leaf_size` is recorded as 1 when leaves are not merged (the file then has one triangle per leaf).
     pub fn recorded(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or_default()
+        let mut recorded = serde_json::to_value(self).unwrap_or_default();
+        if !self.merge_leaves {
+            recorded["max_leaf_size"] = serde_json::json!(1);
+        }
+        recorded
     }
 
     /// The options of a preset.
@@ -206,7 +211,7 @@ pub fn convert_with(
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
-    let metadata = metadata_json(inputs, options, &cost);
+    let metadata = metadata_json(inputs, options, &cost, &imported.report);
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles).metadata(&metadata);
     if options.write_ids {
         writer = writer.triangle_ids(&source_ids).source_table(&soup.sources);
@@ -267,9 +272,16 @@ fn lap(start: Instant) -> f64 {
     Duration::as_secs_f64(&start.elapsed())
 }
 
-/// The metadata object: generator, format version, inputs (names relative to the input, content hashes),
-/// build options, cost.
-fn metadata_json(inputs: Vec<serde_json::Value>, options: &ConvertOptions, cost: &SahCost) -> String {
+/// The metadata object (`format-spec/metadata.schema.json`): generator, format version, inputs (names relative
+/// to the input, content hashes), build options, cost, and what became of the scene's triangles.
+fn metadata_json(
+    inputs: Vec<serde_json::Value>,
+    options: &ConvertOptions,
+    cost: &SahCost,
+    import: &ImportReport,
+) -> String {
+    let keep = options.import.keep_degenerate;
+    let dropped = |count: u64| if keep { 0 } else { count };
     serde_json::json!({
         "generator": concat!("bvhc ", env!("CARGO_PKG_VERSION")),
         "format_version": format!("{}.{}", bvhc_loader::format::VERSION_MAJOR, bvhc_loader::format::VERSION_MINOR),
@@ -281,6 +293,16 @@ fn metadata_json(inputs: Vec<serde_json::Value>, options: &ConvertOptions, cost:
             "c_i": options.optimize.constants.intersection,
             "inner_area_ratio": cost.inner_area_ratio,
             "leaf_area_ratio": cost.leaf_area_ratio,
+        },
+        "triangles": {
+            "source_triangle_count": import.source_triangles,
+            "stored_count": import.triangles,
+            "dropped": {
+                "repeated_index": dropped(import.degenerate_repeated_index),
+                "zero_area": dropped(import.degenerate_zero_area),
+                "zero_area_after_placement": dropped(import.degenerate_zero_area_after_placement),
+            },
+            "degenerate_kept": if keep { import.degenerate() } else { 0 },
         },
     })
     .to_string()

@@ -27,7 +27,7 @@ pub fn verify(path: &Path) -> Exit {
             let mut out = String::new();
             outln!(
                 out,
-                "{}: valid .bvh {major}.{minor} ({} nodes, {} triangles, every rule V1-V23 holds)",
+                "{}: valid .bvh {major}.{minor} ({} nodes, {} triangles, every rule V1-V28 holds)",
                 path.display(),
                 view.nodes().len(),
                 view.triangles().len()

@@ -98,6 +98,8 @@ fn convert_json_report_and_options() {
     assert_eq!(report["report"]["triangle_count"], 6320);
     assert!(report["files_read"][0].as_str().unwrap().ends_with("teapot.obj"));
     let file = bvhc::loader::BvhFile::read(&output).unwrap();
+    let metadata = crate::common::assert_metadata_matches_schema(&file);
+    assert_eq!(metadata["build"]["max_leaf_size"], 1, "--no-merge is recorded as one triangle per leaf");
     assert!(file.view().triangle_ids().is_none(), "--no-ids omits the id sections");
     assert!(file.view().nodes().iter().all(|n| !n.is_leaf() || n.count == 1), "--no-merge keeps single leaves");
     let quiet = bvhc(&[&teapot(), &"-o", &output, &"--quiet", &"--force"]);

@@ -204,3 +204,24 @@ pub fn unit_icosphere(levels: usize) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
     }
     (v, f)
 }
+
+/// The metadata JSON Schema of `format-spec/`, compiled once.
+fn metadata_schema() -> &'static jsonschema::Validator {
+    static SCHEMA: std::sync::OnceLock<jsonschema::Validator> = std::sync::OnceLock::new();
+    SCHEMA.get_or_init(|| {
+        let text = include_str!("../../format-spec/metadata.schema.json");
+        let schema: serde_json::Value = serde_json::from_str(text).expect("the schema is JSON");
+        jsonschema::validator_for(&schema).expect("the schema is a valid JSON Schema")
+    })
+}
+
+/// Asserts that a written file's metadata (when it has one) validates against `format-spec/metadata.schema.json`;
+/// returns the metadata.
+pub fn assert_metadata_matches_schema(file: &BvhFile) -> serde_json::Value {
+    let Some(text) = file.view().metadata_str() else { return serde_json::Value::Null };
+    let metadata: serde_json::Value = serde_json::from_str(text.expect("UTF-8")).expect("metadata is JSON");
+    let errors: Vec<String> =
+        metadata_schema().iter_errors(&metadata).map(|e| format!("{e} at {}", e.instance_path())).collect();
+    assert!(errors.is_empty(), "metadata breaks the schema: {errors:?}\n{metadata:#}");
+    metadata
+}

@@ -12,6 +12,9 @@ fn a_higher_minor_version_is_read_and_its_reserved_fields_are_not_judged() {
     bytes[10] = 7; // version_minor 7
     bytes[40] = 1; // a reserved header field that minor 7 may use
     bytes[12] = 1; // a header flag that minor 7 may define
+    // The metadata's format_version follows the header (V28): "1.0" -> "1.7".
+    let at = bytes.windows(5).position(|w| w == b"\"1.0\"").unwrap() + 3;
+    bytes[at] = b'7';
     refresh_checksums(&mut bytes);
     let file = BvhFile::from_bytes(&bytes).unwrap();
     assert_eq!(file.view().version(), (1, 7));

@@ -42,6 +42,7 @@ fn check_scene_against_brute_force(path: &Path, preset: Preset) {
     assert!(optimization.best.cost <= optimization.initial.cost);
     let file = BvhFile::read(&output).unwrap();
     file.view().verify().unwrap();
+    crate::common::assert_metadata_matches_schema(&file);
     let soup = import(path, &ImportOptions::default()).unwrap().soup;
     let triangles = soup.triangle_vertices();
     // The ids in the file are source ids; map them back to soup indices for the brute-force comparison.

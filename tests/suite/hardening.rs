@@ -153,7 +153,7 @@ fn buffer_uris_stay_under_the_input_folder() {
         let output = dir.path().join("out.bvh");
         bvhc::convert::convert_with(&gltf, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
         let file = bvhc::loader::BvhFile::read(&output).unwrap();
-        let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+        let metadata = crate::common::assert_metadata_matches_schema(&file);
         for input in metadata["inputs"].as_array().unwrap() {
             let name = input["file_name"].as_str().unwrap();
             assert!(!name.starts_with('/') && !Path::new(name).is_absolute(), "{uri}: absolute name {name}");
@@ -228,7 +228,7 @@ fn huge_extents_give_finite_costs() {
     let report = bvhc::convert::convert(&repro("sah-cost-nan-huge-extent.obj"), &output).unwrap();
     assert!(report.cost.cost.is_finite() && report.cost.cost > 0.0, "{:?}", report.cost);
     let file = bvhc::loader::BvhFile::read(&output).unwrap();
-    let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+    let metadata = crate::common::assert_metadata_matches_schema(&file);
     assert!(metadata["cost"]["sah_cost"].as_f64().is_some_and(f64::is_finite), "{metadata}");
 }
 
@@ -244,6 +244,8 @@ fn the_optimizer_reproducer_converts_with_every_preset() {
             })
             .unwrap();
         assert_eq!(report.triangle_count, 9);
-        bvhc::loader::BvhFile::read(&output).unwrap().view().verify().unwrap();
+        let file = bvhc::loader::BvhFile::read(&output).unwrap();
+        file.view().verify().unwrap();
+        crate::common::assert_metadata_matches_schema(&file);
     }
 }

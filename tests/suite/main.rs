@@ -12,6 +12,7 @@ mod import_formats;
 mod import_gltf;
 mod import_mutation;
 mod import_scenes;
+mod metadata_schema;
 mod mutation;
 mod optimize;
 mod optimize_property;

@@ -61,3 +61,53 @@ fn the_spec_constants_match_the_code() {
         assert!(SPEC.contains(&row), "{row}");
     }
 }
+
+/// The cost of section 5.6, computed from the spec's text alone over a file's nodes: (A_I, A_L).
+fn cost_as_specified(nodes: &[bvhc::loader::PackedNode]) -> (f64, f64) {
+    let area = |n: &bvhc::loader::PackedNode| {
+        let e: Vec<f64> = (0..3).map(|a| (f64::from(n.max[a]) - f64::from(n.min[a])).max(0.0)).collect();
+        2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0])
+    };
+    let Some(root) = nodes.first().map(area).filter(|&a| a > 0.0) else { return (0.0, 0.0) };
+    let inner: f64 = nodes.iter().filter(|n| !n.is_leaf()).map(area).sum();
+    let leaves: f64 = nodes.iter().filter(|n| n.is_leaf()).map(|n| f64::from(n.count) * area(n)).sum();
+    (inner / root, leaves / root)
+}
+
+#[test]
+fn bvhc_info_reports_the_cost_exactly_as_the_spec_defines_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let teapot = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let huge = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/repro/sah-cost-nan-huge-extent.obj");
+    for (input, extra) in [(&teapot, None), (&teapot, Some("--no-merge")), (&huge, None)] {
+        let output = dir.path().join("x.bvh");
+        let mut args = vec![
+            input.as_os_str().to_owned(),
+            "-o".into(),
+            output.as_os_str().to_owned(),
+            "-q".into(),
+            "--force".into(),
+        ];
+        args.extend(extra.map(std::ffi::OsString::from));
+        assert!(std::process::Command::new(env!("CARGO_BIN_EXE_bvhc")).args(&args).status().unwrap().success());
+        let info = std::process::Command::new(env!("CARGO_BIN_EXE_bvhc"))
+            .arg("info")
+            .arg(&output)
+            .arg("--json")
+            .output()
+            .unwrap();
+        let report: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+        let file = bvhc::loader::BvhFile::read(&output).unwrap();
+        let (a_i, a_l) = cost_as_specified(file.view().nodes());
+        let (c_t, c_i) =
+            (report["metadata"]["cost"]["c_t"].as_f64().unwrap(), report["metadata"]["cost"]["c_i"].as_f64().unwrap());
+        assert_eq!(report["inner_area_ratio"].as_f64(), Some(a_i), "{input:?} {extra:?}");
+        assert_eq!(report["leaf_area_ratio"].as_f64(), Some(a_l));
+        assert_eq!(report["sah_cost"].as_f64(), Some(c_t * a_i + c_i * a_l));
+        assert_eq!(
+            report["metadata"]["cost"]["sah_cost"], report["sah_cost"],
+            "the file's own cost is the same figure"
+        );
+        assert!(a_i.is_finite() && a_l.is_finite());
+    }
+}

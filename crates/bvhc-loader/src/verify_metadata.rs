@@ -20,13 +20,19 @@ pub(crate) fn verify_metadata(view: &BvhView<'_>) -> Result<(), Violation> {
         if let Some(name) = input.get("file_name").and_then(Value::as_str)
             && is_absolute_path(name)
         {
-            return Err(violation(Rule::AbsoluteFileName, format!("metadata inputs[{i}]: file_name '{name}' is an absolute path")));
+            return Err(violation(
+                Rule::AbsoluteFileName,
+                format!("metadata inputs[{i}]: file_name '{name}' is an absolute path"),
+            ));
         }
     }
     if let Some(stated) = metadata.get("format_version") {
         let (major, minor) = view.version();
         if stated.as_str() != Some(format!("{major}.{minor}").as_str()) {
-            return Err(violation(Rule::FormatVersion, format!("metadata format_version {stated} but the header says {major}.{minor}")));
+            return Err(violation(
+                Rule::FormatVersion,
+                format!("metadata format_version {stated} but the header says {major}.{minor}"),
+            ));
         }
     }
     Ok(())
@@ -49,8 +55,15 @@ fn verify_file_indices(view: &BvhView<'_>, input_count: usize, has_inputs: bool)
     let bound = if has_inputs { input_count as u64 } else { 1 };
     for (i, range) in view.source_table().unwrap_or(&[]).iter().enumerate() {
         if u64::from(range.file_index) >= bound {
-            let what = if has_inputs { format!("the metadata lists {input_count} inputs") } else { "without metadata inputs it must be 0".to_string() };
-            return Err(violation(Rule::FileIndex, format!("source_table range {i}: file_index {} but {what}", range.file_index)));
+            let what = if has_inputs {
+                format!("the metadata lists {input_count} inputs")
+            } else {
+                "without metadata inputs it must be 0".to_string()
+            };
+            return Err(violation(
+                Rule::FileIndex,
+                format!("source_table range {i}: file_index {} but {what}", range.file_index),
+            ));
         }
     }
     Ok(())
@@ -59,5 +72,6 @@ fn verify_file_indices(view: &BvhView<'_>, input_count: usize, has_inputs: bool)
 /// Whether `name` is absolute on any common system: `/x`, `\x`, `//server`, or a drive letter `C:`.
 pub(crate) fn is_absolute_path(name: &str) -> bool {
     let bytes = name.as_bytes();
-    matches!(bytes.first(), Some(b'/' | b'\\')) || (bytes.len() >= 2 && bytes[0].is_ascii_alphabetic() && bytes[1] == b':')
+    matches!(bytes.first(), Some(b'/' | b'\\'))
+        || (bytes.len() >= 2 && bytes[0].is_ascii_alphabetic() && bytes[1] == b':')
 }

@@ -40,7 +40,11 @@ fn verify_distinct_ids(ids: &[u32]) -> Result<(), Violation> {
 }
 
 /// V25. Nodes and triangles already passed V14-V19, so every leaf range is in bounds.
-fn verify_split_coverage(nodes: &[PackedNode], triangles: &[PackedTriangle], ids: Option<&[u32]>) -> Result<(), Violation> {
+fn verify_split_coverage(
+    nodes: &[PackedNode],
+    triangles: &[PackedTriangle],
+    ids: Option<&[u32]>,
+) -> Result<(), Violation> {
     // (id or 0, vertex bits, triangle index, leaf) for every record, grouped by the first two.
     let mut references: Vec<(u32, [u32; 9], u32, u32)> = Vec::with_capacity(triangles.len());
     for (leaf, node) in nodes.iter().enumerate().filter(|(_, n)| n.is_leaf()) {

@@ -1,0 +1,93 @@
+//! Every kind of file bvhc writes validates against `format-spec/metadata.schema.json`: every preset, builder,
+//! leaf setting, id setting, degenerate handling and input format; and the schema is strict enough to reject
+//! what it should.
+
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+
+use bvhc::build::Builder;
+use bvhc::convert::{ConvertOptions, convert_with};
+use bvhc::import::SceneSelector;
+use bvhc::loader::BvhFile;
+use bvhc::optimize::Preset;
+
+use crate::common::{assert_metadata_matches_schema, scene};
+use crate::hardening::repro;
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
+}
+
+fn convert_and_check(input: &std::path::Path, options: &ConvertOptions) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("out.bvh");
+    convert_with(input, &output, options, &mut |_| ControlFlow::Continue(())).unwrap();
+    assert_metadata_matches_schema(&BvhFile::read(&output).unwrap())
+}
+
+#[test]
+fn every_written_file_matches_the_metadata_schema() {
+    let teapot = fixture("scenes/teapot.obj");
+    for preset in Preset::ALL {
+        convert_and_check(&teapot, &ConvertOptions::preset(preset));
+    }
+    let mut options = ConvertOptions::preset(Preset::Fast);
+    options.builder = Builder::SpatialMedian;
+    options.merge_leaves = false;
+    let metadata = convert_and_check(&teapot, &options);
+    assert_eq!(metadata["build"]["max_leaf_size"], 1, "one triangle per leaf is recorded as such");
+    options.write_ids = false;
+    options.skip_optimization = true;
+    options.optimize.time_budget = Some(std::time::Duration::from_millis(1500));
+    convert_and_check(&teapot, &options);
+    // Dropped and kept degenerate triangles are counted by kind.
+    let degenerate = repro("keep-degenerate-message.obj");
+    let dropped = convert_and_check(&degenerate, &ConvertOptions::preset(Preset::Fast));
+    assert_eq!(dropped["triangles"]["source_triangle_count"], 2);
+    assert_eq!(dropped["triangles"]["stored_count"], 1);
+    assert_eq!(dropped["triangles"]["dropped"]["zero_area"], 1);
+    let mut keep = ConvertOptions::preset(Preset::Fast);
+    keep.import.keep_degenerate = true;
+    let kept = convert_and_check(&degenerate, &keep);
+    assert_eq!(
+        (kept["triangles"]["stored_count"].as_u64(), kept["triangles"]["degenerate_kept"].as_u64()),
+        (Some(2), Some(1))
+    );
+    assert_eq!(kept["triangles"]["dropped"]["zero_area"], 0);
+    // glTF with buffers, a chosen scene, PLY, gzip: from the shared scenes when present.
+    let mut with_scene = ConvertOptions::preset(Preset::Fast);
+    with_scene.import.scene = Some(SceneSelector::Index(0));
+    for (relative, options) in [
+        ("khr-2cylinder-engine/2CylinderEngine.gltf", with_scene),
+        ("stanford-bunny-ply/bun_zipper.ply", ConvertOptions::preset(Preset::Fast)),
+        ("bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz", ConvertOptions::preset(Preset::Fast)),
+    ] {
+        match scene(relative) {
+            Some(path) => {
+                let metadata = convert_and_check(&path, &options);
+                assert!(metadata["inputs"].as_array().is_some_and(|i| !i.is_empty()));
+            }
+            None => eprintln!("SKIPPED: {relative} not in the shared scenes"),
+        }
+    }
+}
+
+#[test]
+fn the_schema_rejects_what_the_spec_forbids() {
+    let text = include_str!("../../format-spec/metadata.schema.json");
+    let schema: serde_json::Value = serde_json::from_str(text).unwrap();
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    let good = serde_json::json!({"generator": "x", "format_version": "1.0", "inputs": [{"file_name": "a.obj", "content_hash": "xxh3-64:0123456789abcdef"}]});
+    assert!(validator.is_valid(&good));
+    for bad in [
+        serde_json::json!({"inputs": [{"file_name": "/etc/passwd"}]}),
+        serde_json::json!({"inputs": [{"file_name": "C:/scene.gltf"}]}),
+        serde_json::json!({"format_version": "2.0"}),
+        serde_json::json!({"inputs": [{"file_name": "a.obj", "content_hash": "md5:00"}]}),
+        serde_json::json!({"cost": {"sah_cost": -1, "c_t": 3, "c_i": 2, "inner_area_ratio": 1, "leaf_area_ratio": 1}}),
+        serde_json::json!({"build": {"builder": "octree"}}),
+        serde_json::json!([]),
+    ] {
+        assert!(!validator.is_valid(&bad), "{bad}");
+    }
+}
