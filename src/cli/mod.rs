@@ -8,9 +8,11 @@
 mod args;
 mod convert;
 mod info;
+mod legend;
 mod output;
 mod render;
 mod signals;
+mod view;
 
 use std::process::ExitCode;
 

@@ -2,51 +2,58 @@
 //! pixel, parallel over rows (deterministic). Shading: the geometric normal as color, lit from the eye; or a
 //! heat map of traversal steps per pixel.
 
-use bvhc::loader::{BvhFile, PackedTriangle, Ray, TraversalStats};
+use bvhc::loader::{BvhFile, PackedTriangle, TraversalStats};
 use rayon::prelude::*;
 
 use super::args::RenderArgs;
+use super::legend::{Canvas, draw_heat_legend};
 use super::output::print;
+use super::view;
 use super::{Exit, fail, loader_exit};
 
-type Vec3 = [f32; 3];
+pub type Vec3 = [f32; 3];
 
-fn sub(a: Vec3, b: Vec3) -> Vec3 {
+/// A pinhole camera: where it is, what it looks at, and its vertical field of view.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub fov_degrees: f32,
+}
+
+pub fn sub(a: Vec3, b: Vec3) -> Vec3 {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 fn cross(a: Vec3, b: Vec3) -> Vec3 {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
-fn dot(a: Vec3, b: Vec3) -> f32 {
+pub fn dot(a: Vec3, b: Vec3) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
-fn normalize(a: Vec3) -> Vec3 {
+pub fn normalize(a: Vec3) -> Vec3 {
     let length = dot(a, a).sqrt();
     if length > 0.0 { a.map(|c| c / length) } else { [0.0, 0.0, 1.0] }
 }
 
-/// Eye and target: parsed from `--camera`, or looking at the scene's box from above and to the side.
-fn camera(args: &RenderArgs, min: Vec3, max: Vec3) -> Result<(Vec3, Vec3), String> {
-    if let Some(text) = &args.camera {
-        let values: Vec<f32> = text
-            .split(',')
-            .map(|v| v.trim().parse::<f32>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| format!("--camera '{text}': expected six numbers ex,ey,ez,tx,ty,tz"))?;
-        let [ex, ey, ez, tx, ty, tz] = values[..] else {
-            return Err(format!("--camera '{text}': expected six numbers ex,ey,ez,tx,ty,tz"));
-        };
-        return Ok(([ex, ey, ez], [tx, ty, tz]));
+/// The camera given by `--camera ex,ey,ez,tx,ty,tz`, if any.
+fn camera_argument(args: &RenderArgs) -> Result<Option<Camera>, String> {
+    let Some(text) = &args.camera else { return Ok(None) };
+    let values: Vec<f32> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("--camera '{text}': expected six numbers ex,ey,ez,tx,ty,tz"))?;
+    let [ex, ey, ez, tx, ty, tz] = values[..] else {
+        return Err(format!("--camera '{text}': expected six numbers ex,ey,ez,tx,ty,tz"));
+    };
+    if !values.iter().all(|v| v.is_finite()) || [ex, ey, ez] == [tx, ty, tz] {
+        return Err(format!("--camera '{text}': the eye and the target must be finite and different points"));
     }
-    let center: Vec3 = std::array::from_fn(|a| 0.5 * (min[a] + max[a]));
-    let radius = 0.5 * dot(sub(max, min), sub(max, min)).sqrt();
-    let direction = normalize([0.9, 0.6, 1.3]);
-    // A 45 degree field of view sees a sphere of this radius whole from 2.6 radii; the box rarely fills it.
-    Ok((std::array::from_fn(|a| center[a] + direction[a] * radius * 2.0), center))
+    Ok(Some(Camera { eye: [ex, ey, ez], target: [tx, ty, tz], fov_degrees: 45.0 }))
 }
 
 /// A color ramp for the heat map: blue, cyan, green, yellow, red.
-fn heat(t: f32) -> Vec3 {
+pub fn heat(t: f32) -> Vec3 {
     let t = t.clamp(0.0, 1.0) * 4.0;
     let stops: [Vec3; 5] = [[0.1, 0.1, 0.6], [0.0, 0.7, 0.9], [0.1, 0.8, 0.2], [1.0, 0.9, 0.1], [0.9, 0.1, 0.1]];
     let i = (t as usize).min(3);
@@ -82,28 +89,22 @@ pub fn render(args: &RenderArgs) -> Exit {
     }
     let (width, height) = (args.width.clamp(1, 16384) as usize, args.height.clamp(1, 16384) as usize);
     let (min, max) = view.nodes().first().map_or(([0.0; 3], [1.0; 3]), |root| (root.min, root.max));
-    let (eye, target) = match camera(args, min, max) {
-        Ok(camera) => camera,
+    let tracer = view.tracer();
+    let (camera, inside) = match camera_argument(args) {
+        Ok(Some(camera)) => (camera, false),
+        Ok(None) => view::default_camera(&tracer, view.triangles(), min, max),
         Err(message) => return fail(Exit::InvalidInput, message),
     };
-    let forward = normalize(sub(target, eye));
-    let right = normalize(cross(forward, [0.0, 1.0, 0.0]));
-    let up = cross(right, forward);
-    let half_height = (22.5f32).to_radians().tan();
-    let half_width = half_height * width as f32 / height as f32;
-    let tracer = view.tracer();
     let mut steps = vec![0u32; width * height];
     let mut pixels = vec![0u8; width * height * 3];
     pixels.par_chunks_mut(width * 3).zip(steps.par_chunks_mut(width)).enumerate().for_each(|(y, (row, row_steps))| {
         for x in 0..width {
-            let sx = (2.0 * (x as f32 + 0.5) / width as f32 - 1.0) * half_width;
-            let sy = (1.0 - 2.0 * (y as f32 + 0.5) / height as f32) * half_height;
-            let direction = normalize(std::array::from_fn(|a| forward[a] + sx * right[a] + sy * up[a]));
+            let ray = camera.primary_ray(x, y, width, height);
             let mut stats = TraversalStats::default();
-            let hit = tracer.closest_hit_counted(&Ray::new(eye, direction), &mut stats);
+            let hit = tracer.closest_hit_counted(&ray, &mut stats);
             row_steps[x] = stats.node_visits as u32;
             let color = match hit {
-                Some(hit) => shade(&view.triangles()[hit.triangle_index as usize], direction),
+                Some(hit) => shade(&view.triangles()[hit.triangle_index as usize], ray.direction),
                 None => [0.12, 0.12, 0.14],
             };
             for c in 0..3 {
@@ -111,14 +112,21 @@ pub fn render(args: &RenderArgs) -> Exit {
             }
         }
     });
+    let mut legend = String::new();
     if args.heatmap {
-        let most = steps.iter().copied().max().unwrap_or(1).max(1) as f32;
+        let most = steps.iter().copied().max().unwrap_or(1).max(1);
         for (pixel, &s) in pixels.chunks_exact_mut(3).zip(&steps) {
-            let color = heat(s as f32 / most);
+            let color = heat(s as f32 / most as f32);
             for c in 0..3 {
                 pixel[c] = (color[c] * 255.0 + 0.5) as u8;
             }
         }
+        let mut canvas = Canvas { pixels: &mut pixels, width, height };
+        let drawn = draw_heat_legend(&mut canvas, most, heat);
+        legend = format!(
+            "; heat map from blue (0 steps) through cyan, green, yellow to red ({most} steps){}",
+            if drawn { ", legend at the bottom" } else { "" }
+        );
     }
     let mut png_bytes = Vec::new();
     let mut encoder = png::Encoder::new(&mut png_bytes, width as u32, height as u32);
@@ -132,7 +140,12 @@ pub fn render(args: &RenderArgs) -> Exit {
         return fail(Exit::Io, error);
     }
     let mean = steps.iter().map(|&s| u64::from(s)).sum::<u64>() as f64 / steps.len() as f64;
-    let summary =
-        format!("{}: {width} x {height}, {mean:.1} traversal steps per pixel on average\n", args.output.display());
+    let where_from = if inside { "from inside the scene's box" } else { "from outside" };
+    let [ex, ey, ez] = camera.eye;
+    let [tx, ty, tz] = camera.target;
+    let summary = format!(
+        "{}: {width} x {height}, {mean:.1} traversal steps per pixel on average; camera {where_from}: --camera {ex},{ey},{ez},{tx},{ty},{tz}{legend}\n",
+        args.output.display()
+    );
     print(&summary, Exit::Success)
 }

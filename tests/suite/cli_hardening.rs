@@ -242,3 +242,49 @@ fn signals_leave_no_temporary_file_and_stale_ones_are_swept() {
     assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
     assert!(!stale.exists() || !cfg!(target_os = "linux"), "stale temporary file swept");
 }
+
+/// Decodes an RGB8 PNG written by `bvhc render`.
+fn read_png(path: &Path) -> (usize, usize, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    (info.width as usize, info.height as usize, pixels)
+}
+
+#[test]
+fn the_heat_map_has_a_legend_and_interiors_are_shown_from_inside() {
+    let dir = tempfile::tempdir().unwrap();
+    let teapot_bvh = dir.path().join("teapot.bvh");
+    assert!(bvhc(&[&teapot(), &"-o", &teapot_bvh, &"-q", &"--preset", &"fast"]).status.success());
+    let image = dir.path().join("heat.png");
+    let run = bvhc(&[&"render", &teapot_bvh, &"-o", &image, &"--width", &"320", &"--height", &"240", &"--heatmap"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stdout(&run).contains("camera from outside") && stdout(&run).contains("legend at the bottom"),
+        "{}",
+        stdout(&run)
+    );
+    let most: u32 = stdout(&run).split("yellow to red (").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+    assert!(most > 0);
+    let (width, height, pixels) = read_png(&image);
+    let pixel = |x: usize, y: usize| &pixels[3 * (y * width + x)..3 * (y * width + x) + 3];
+    // The colour bar: blue at its left end (0 steps), red at its right end (the maximum).
+    let bar_y = height - 22 + 5;
+    let (left, right) = (pixel(8, bar_y), pixel(width - 9, bar_y));
+    assert!(left[2] > left[0] && left[2] > left[1], "left end {left:?} is blue");
+    assert!(right[0] > 200 && right[1] < 60 && right[2] < 60, "right end {right:?} is red");
+    // White label pixels below the bar.
+    let labels = (height - 10..height).any(|y| (0..width).any(|x| pixel(x, y) == [255, 255, 255]));
+    assert!(labels, "the legend has labels");
+    // A closed building seen from outside is one box: the default view goes inside it.
+    match crate::common::scene("trimesh-no-indices-3storybuilding/no_indices_3storybuilding.glb") {
+        Some(building) => {
+            let bvh = dir.path().join("building.bvh");
+            assert!(bvhc(&[&building, &"-o", &bvh, &"-q"]).status.success());
+            let run = bvhc(&[&"render", &bvh, &"-o", &dir.path().join("b.png"), &"--width", &"64", &"--height", &"48"]);
+            assert!(stdout(&run).contains("camera from inside the scene's box"), "{}", stdout(&run));
+        }
+        None => eprintln!("SKIPPED (part): the 3-storey building is not in the shared scenes"),
+    }
+}
