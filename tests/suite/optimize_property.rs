@@ -47,7 +47,7 @@ fn small_scene(seed: u64) -> Vec<Triangle> {
 #[test]
 fn every_preset_keeps_the_invariants_after_every_batch_on_thousands_of_small_scenes() {
     let mut batches_checked = 0u64;
-    for seed in 0..1_200u64 {
+    for seed in 0..2_000u64 {
         let triangles = small_scene(seed);
         let builder = if seed % 2 == 0 { Builder::BinnedSah } else { Builder::SpatialMedian };
         for preset in Preset::ALL {
