@@ -458,6 +458,11 @@ fn v23_metadata_has_no_bom_or_nul() {
 
 #[test]
 fn v24_repeated_id() {
+    // Sparse ids (a bitmap over them would be larger than the section) take the sorted path.
+    let tree = packed_tree(&random_triangles(74, 2, 1.0), 1);
+    let build = |ids: &[u32]| BvhWriter::new(&tree.nodes, &tree.triangles).triangle_ids(ids).build();
+    assert!(build(&[5, 3_000_000_000]).is_ok());
+    assert_eq!(build(&[3_000_000_000, 3_000_000_000]).err().and_then(|e| e.rule()), Some(Rule::RepeatedId));
     expect(
         Rule::RepeatedId,
         |b| {

@@ -1,7 +1,7 @@
 //! Rules V24 and V25 of `format-spec/bvh-1.md`: how triangles may be referenced.
 //!
-//! V24: without `SPLIT_REFERENCES` every triangle id is distinct (each source triangle stored once). Checked on a
-//! sorted copy of the ids (memory: 4 bytes per triangle, less than the file).
+//! V24: without `SPLIT_REFERENCES` every triangle id is distinct (each source triangle stored once). Checked with a
+//! bitmap of the ids, or a sorted copy when they are sparse (memory: less than the ids section).
 //!
 //! V25: with `SPLIT_REFERENCES`, the *references* of a triangle (the records with the same id, when ids are
 //! stored, and the same vertices) lie in leaves whose boxes together cover every point of the triangle. This is
@@ -26,17 +26,36 @@ pub(crate) fn verify_references(view: &BvhView<'_>) -> Result<(), Violation> {
     }
 }
 
-/// V24.
+/// V24. With a bitmap over `0..=max id` when it is no larger than the ids themselves (always so for files whose
+/// ids number the scene's triangles), else on a sorted copy; either way memory stays below the section's size.
 fn verify_distinct_ids(ids: &[u32]) -> Result<(), Violation> {
+    let Some(&max_id) = ids.iter().max() else { return Ok(()) };
+    let words = (max_id as usize + 1).div_ceil(64);
+    if words * 8 <= ids.len() * 4 {
+        let mut seen = vec![0u64; words];
+        for (t, &id) in ids.iter().enumerate() {
+            let (word, bit) = (id as usize / 64, 1u64 << (id % 64));
+            if seen[word] & bit != 0 {
+                let first = ids.iter().position(|&other| other == id).unwrap_or(t);
+                return Err(repeated(first as u32, t as u32, id));
+            }
+            seen[word] |= bit;
+        }
+        return Ok(());
+    }
     let mut sorted: Vec<(u32, u32)> = ids.iter().enumerate().map(|(t, &id)| (id, t as u32)).collect();
     sorted.sort_unstable();
     match sorted.windows(2).find(|w| w[0].0 == w[1].0) {
-        Some(w) => Err(violation(
-            Rule::RepeatedId,
-            format!("triangles {} and {}: both have id {} but SPLIT_REFERENCES is not set", w[0].1, w[1].1, w[0].0),
-        )),
+        Some(w) => Err(repeated(w[0].1, w[1].1, w[0].0)),
         None => Ok(()),
     }
+}
+
+fn repeated(first: u32, second: u32, id: u32) -> Violation {
+    violation(
+        Rule::RepeatedId,
+        format!("triangles {first} and {second}: both have id {id} but SPLIT_REFERENCES is not set"),
+    )
 }
 
 /// V25. Nodes and triangles already passed V14-V19, so every leaf range is in bounds.
