@@ -25,23 +25,27 @@ pub(super) fn checked_text<'a>(bytes: &'a [u8], limits: &ImportLimits) -> Result
     } else {
         Cow::Borrowed(bytes)
     };
+    let line_of = |at: usize| format!("line {}", 1 + text[..at].iter().filter(|&&b| b == b'\n').count());
+    let line_start = |at: usize| text[..at].iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+    // `contains` on bytes is a memchr; the position is looked up only when there is a NUL.
+    if let Some(at) = text.contains(&0).then(|| text.iter().position(|&b| b == 0)).flatten() {
+        let column = at - line_start(at) + 1;
+        return Err(Located::new(&line_of(at), format!("NUL byte at column {column}: this is not a text OBJ file")));
+    }
+    if let Err(e) = std::str::from_utf8(&text) {
+        let at = e.valid_up_to();
+        let (byte, column) = (text[at], at - line_start(at) + 1);
+        let message =
+            format!("not valid UTF-8 (byte 0x{byte:02X} at column {column}); OBJ files are read as UTF-8 text");
+        return Err(Located::new(&line_of(at), message));
+    }
     let mut vertex_values = 0u64;
+    // A face with more corners than the limit needs at least two bytes per corner: only longer lines are counted.
+    let long_line = usize::try_from(limits.max_polygon_vertices).unwrap_or(usize::MAX).saturating_mul(2);
     for (n, line) in text.split(|&b| b == b'\n').enumerate() {
-        let at = || format!("line {}", n + 1);
-        if let Some(column) = line.iter().position(|&b| b == 0) {
-            return Err(Located::new(&at(), format!("NUL byte at column {}: this is not a text OBJ file", column + 1)));
-        }
-        if let Err(e) = std::str::from_utf8(line) {
-            let column = e.valid_up_to() + 1;
-            let byte = line[e.valid_up_to()];
-            return Err(Located::new(
-                &at(),
-                format!("not valid UTF-8 (byte 0x{byte:02X} at column {column}); OBJ files are read as UTF-8 text"),
-            ));
-        }
         match line {
             [b'v', b' ' | b'\t', ..] => vertex_values += 3,
-            [b'f', b' ' | b'\t', rest @ ..] => {
+            [b'f', b' ' | b'\t', rest @ ..] if line.len() > long_line => {
                 let corners = rest.split(|b| b.is_ascii_whitespace()).filter(|t| !t.is_empty()).count() as u64;
                 if corners > limits.max_polygon_vertices {
                     let message = limit_message(
@@ -50,7 +54,7 @@ pub(super) fn checked_text<'a>(bytes: &'a [u8], limits: &ImportLimits) -> Result
                         "polygon vertices",
                         "--max-polygon-vertices",
                     );
-                    return Err(Located::of_kind(ErrorKind::Limit, &at(), message));
+                    return Err(Located::of_kind(ErrorKind::Limit, &format!("line {}", n + 1), message));
                 }
             }
             _ => {}

@@ -36,13 +36,16 @@ pub struct OptTree {
     pub root: u32,
 }
 
-/// Surface area in f32, the optimizer's working precision (reported costs are summed in f64). The extents are
-/// taken in f64, so that a box wider than `f32::MAX` gives a large finite area rather than infinity; areas
-/// beyond `f32::MAX` saturate there.
+/// Surface area in f32, the optimizer's working precision (reported costs are summed in f64 by
+/// [`Aabb::surface_area`]). Saturates at `f32::MAX`: a box wider than about 1e19 would otherwise give infinity,
+/// or NaN (infinity times a zero extent), and NaN gains would make the searches compare nothing. `f32::min`
+/// returns the other operand for NaN, so one instruction covers both cases.
 #[inline(always)]
 pub fn area(aabb: &Aabb) -> f32 {
-    let e: [f64; 3] = std::array::from_fn(|a| f64::from(aabb.max[a]) - f64::from(aabb.min[a]));
-    (2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0])).min(f64::from(f32::MAX)) as f32
+    let dx = aabb.max[0] - aabb.min[0];
+    let dy = aabb.max[1] - aabb.min[1];
+    let dz = aabb.max[2] - aabb.min[2];
+    (2.0 * (dx * dy + dy * dz + dz * dx)).min(f32::MAX)
 }
 
 impl OptTree {
