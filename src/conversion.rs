@@ -20,7 +20,7 @@ use std::time::Duration;
 
 use crate::build::Builder;
 use crate::convert::{ConvertError, ConvertOptions, ConvertReport, Event, convert_with};
-use crate::import::SceneSelector;
+use crate::import::{ImportLimits, SceneSelector};
 use crate::optimize::{Preset, Selection};
 use crate::up_to_date::is_up_to_date;
 
@@ -109,6 +109,19 @@ impl Conversion {
     /// The glTF scene to convert.
     pub fn scene(mut self, scene: SceneSelector) -> Self {
         self.options.import.scene = Some(scene);
+        self
+    }
+
+    /// The import's resource budget (see [`ImportLimits`]; the defaults bound an import to a few GiB).
+    pub fn import_limits(mut self, limits: ImportLimits) -> Self {
+        self.options.import.limits = limits;
+        self
+    }
+
+    /// Follow glTF buffer URIs that leave the scene's folder (off by default: an untrusted asset must not copy
+    /// other files into the output).
+    pub fn allow_buffers_outside_input_folder(mut self, allow: bool) -> Self {
+        self.options.import.allow_buffers_outside_input_folder = allow;
         self
     }
 

@@ -53,16 +53,17 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
             Err(_) => SceneSelector::Name(scene.clone()),
         });
     }
+    conversion = conversion
+        .import_limits(ImportLimits {
+            max_input_bytes: args.max_input_bytes,
+            max_triangles: args.max_triangles,
+            max_decoded_values: args.max_decoded_values,
+            max_placements: args.max_placements,
+            max_polygon_vertices: args.max_polygon_vertices,
+        })
+        .allow_buffers_outside_input_folder(args.allow_outside_buffers);
     let mut options = conversion.current_options().clone();
     options.skip_optimization = args.no_optimize;
-    options.import.limits = ImportLimits {
-        max_input_bytes: args.max_input_bytes,
-        max_triangles: args.max_triangles,
-        max_decoded_values: args.max_decoded_values,
-        max_placements: args.max_placements,
-        max_polygon_vertices: args.max_polygon_vertices,
-    };
-    options.import.allow_buffers_outside_input_folder = args.allow_outside_buffers;
     conversion = conversion.options(options);
     Ok(conversion)
 }
