@@ -46,6 +46,27 @@ pub enum Command {
     },
     /// Render a picture of a .bvh file with the loader's own traversal kernel.
     Render(RenderArgs),
+    /// Trace a binary ray file through a .bvh file; write the hits and report rays per second.
+    Trace(TraceArgs),
+}
+
+/// `bvhc trace`'s arguments (record layouts: `format-spec/rays-and-hits.md`).
+#[derive(Debug, Args)]
+pub struct TraceArgs {
+    /// The .bvh file.
+    pub file: PathBuf,
+    /// The rays: 32-byte records (origin xyz, direction xyz, t_min, t_max; little-endian f32).
+    #[arg(long, value_name = "RAYS.bin")]
+    pub rays: PathBuf,
+    /// Where to write the hits: 24-byte records, or with --any-hit one byte per ray.
+    #[arg(short, long, value_name = "HITS.bin")]
+    pub output: Option<PathBuf>,
+    /// Only ask whether each ray hits anything (occlusion).
+    #[arg(long)]
+    pub any_hit: bool,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `bvhc INPUT -o OUTPUT` and its options.

@@ -12,6 +12,7 @@ mod legend;
 mod output;
 mod render;
 mod signals;
+mod trace;
 mod view;
 
 use std::process::ExitCode;
@@ -65,6 +66,7 @@ pub fn run() -> ExitCode {
     }
     let output = match &cli.command {
         Some(Command::Render(args)) => Some(args.output.clone()),
+        Some(Command::Trace(args)) => args.output.clone(),
         Some(_) => None,
         None => cli.convert.output.clone(),
     };
@@ -75,6 +77,7 @@ pub fn run() -> ExitCode {
         Some(Command::Verify { file }) => info::verify(&file),
         Some(Command::Info { file, json }) => info::info(&file, json),
         Some(Command::Render(args)) => render::render(&args),
+        Some(Command::Trace(args)) => trace::trace(&args),
         None => convert::convert(&cli.convert),
     };
     exit.into()

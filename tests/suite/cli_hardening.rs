@@ -187,11 +187,11 @@ fn the_summary_says_whether_degenerate_triangles_were_kept() {
     assert!(stdout(&dropped).contains("1 triangles (1 degenerate dropped)"), "{}", stdout(&dropped));
 }
 
-/// A scene that takes the optimizer long enough to be interrupted (max-quality on 20,000 triangles).
+/// A scene that takes the optimizer long enough to be interrupted (max-quality on 80,000 triangles: seconds).
 fn slow_scene(dir: &Path) -> std::path::PathBuf {
     let path = dir.join("slow.obj");
     let mut text = String::new();
-    for (i, t) in crate::common::random_triangles(77, 20_000, 100.0).iter().enumerate() {
+    for (i, t) in crate::common::random_triangles(77, 80_000, 100.0).iter().enumerate() {
         for v in t {
             text += &format!("v {} {} {}\n", v[0], v[1], v[2]);
         }

@@ -21,5 +21,6 @@ mod rules;
 mod scenes;
 mod spec;
 mod stress;
+mod trace;
 mod traversal;
 mod watertight;

@@ -1,0 +1,139 @@
+//! `bvhc trace FILE.bvh --rays RAYS.bin [-o HITS.bin] [--any-hit] [--json]`: traces a binary ray file through
+//! the loader's `Tracer` (the same kernel a renderer links), in parallel over fixed chunks of rays (so the hits
+//! do not depend on `--threads`), and reports rays per second of the tracing alone. Record layouts:
+//! `format-spec/rays-and-hits.md`.
+
+use std::time::Instant;
+
+use bvhc::loader::{BvhFile, Hit, Ray};
+use rayon::prelude::*;
+
+use super::args::TraceArgs;
+use super::output::print;
+use super::{Exit, fail, loader_exit};
+
+/// Bytes of one ray record.
+pub const RAY_RECORD_BYTE_LEN: usize = 32;
+/// Bytes of one closest-hit record.
+pub const HIT_RECORD_BYTE_LEN: usize = 24;
+/// `triangle_index` and `source_triangle_id` of a miss, and `source_triangle_id` of a file without ids.
+pub const NO_INDEX: u32 = u32::MAX;
+/// Rays per parallel chunk.
+const CHUNK: usize = 4096;
+
+/// Parses ray records; the error names the first bad ray and the rule it breaks.
+pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
+    if !bytes.len().is_multiple_of(RAY_RECORD_BYTE_LEN) {
+        return Err(format!("{} bytes is not a whole number of {RAY_RECORD_BYTE_LEN}-byte ray records", bytes.len()));
+    }
+    let mut rays = Vec::new();
+    rays.try_reserve_exact(bytes.len() / RAY_RECORD_BYTE_LEN).map_err(|_| "out of memory for the rays".to_string())?;
+    for (i, record) in bytes.chunks_exact(RAY_RECORD_BYTE_LEN).enumerate() {
+        let f: Vec<f32> = record.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let ray = Ray { origin: [f[0], f[1], f[2]], direction: [f[3], f[4], f[5]], t_min: f[6], t_max: f[7] };
+        let finite = f[..7].iter().all(|v| v.is_finite()) && !ray.t_max.is_nan();
+        if !finite {
+            return Err(format!("ray {i}: origin, direction and t_min must be finite, t_max not NaN"));
+        }
+        if ray.direction == [0.0; 3] {
+            return Err(format!("ray {i}: the direction is zero"));
+        }
+        if !(0.0 <= ray.t_min && ray.t_min <= ray.t_max) {
+            return Err(format!("ray {i}: needs 0 <= t_min <= t_max (t_min {}, t_max {})", ray.t_min, ray.t_max));
+        }
+        rays.push(ray);
+    }
+    Ok(rays)
+}
+
+/// The 24-byte record of a closest-hit result.
+pub fn hit_record(hit: Option<&Hit>) -> [u8; HIT_RECORD_BYTE_LEN] {
+    let (t, triangle, source, u, v) = match hit {
+        Some(h) => (h.t, h.triangle_index, h.source_triangle_id.unwrap_or(NO_INDEX), h.u, h.v),
+        None => (f32::INFINITY, NO_INDEX, NO_INDEX, 0.0, 0.0),
+    };
+    let mut record = [0u8; HIT_RECORD_BYTE_LEN];
+    record[0..4].copy_from_slice(&t.to_le_bytes());
+    record[4..8].copy_from_slice(&triangle.to_le_bytes());
+    record[8..12].copy_from_slice(&source.to_le_bytes());
+    record[12..16].copy_from_slice(&u.to_le_bytes());
+    record[16..20].copy_from_slice(&v.to_le_bytes());
+    record
+}
+
+/// Runs `bvhc trace`.
+pub fn trace(args: &TraceArgs) -> Exit {
+    if let Some(output) = &args.output
+        && [&args.file, &args.rays].iter().any(|input| bvhc::convert::is_same_file(output, input))
+    {
+        return fail(Exit::Io, format!("{}: the output is one of the inputs; choose another path", output.display()));
+    }
+    let file = match BvhFile::read(&args.file) {
+        Ok(file) => file,
+        Err(e) => return fail(loader_exit(&e), format!("{}: {e}", args.file.display())),
+    };
+    let view = file.view();
+    if let Err(v) = view.verify() {
+        return fail(Exit::InvalidInput, format!("{}: invalid .bvh file: {v}", args.file.display()));
+    }
+    let bytes = match read_ray_file(&args.rays) {
+        Ok(bytes) => bytes,
+        Err(message) => return fail(Exit::Io, format!("{}: {message}", args.rays.display())),
+    };
+    let rays = match parse_rays(&bytes) {
+        Ok(rays) => rays,
+        Err(message) => return fail(Exit::InvalidInput, format!("{}: {message}", args.rays.display())),
+    };
+    drop(bytes);
+    let tracer = view.tracer();
+    let start = Instant::now();
+    let (records, hits): (Vec<u8>, usize) = if args.any_hit {
+        let occluded: Vec<u8> =
+            rays.par_chunks(CHUNK).flat_map_iter(|c| c.iter().map(|r| u8::from(tracer.any_hit(r)))).collect();
+        let hits = occluded.iter().filter(|&&o| o == 1).count();
+        (occluded, hits)
+    } else {
+        let found: Vec<Option<Hit>> =
+            rays.par_chunks(CHUNK).flat_map_iter(|c| c.iter().map(|r| tracer.closest_hit(r))).collect();
+        let hits = found.iter().filter(|h| h.is_some()).count();
+        (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    if let Some(output) = &args.output
+        && let Err(error) = bvhc::loader::write_atomic(output, &records)
+    {
+        return fail(Exit::Io, error);
+    }
+    let rays_per_second = if seconds > 0.0 { rays.len() as f64 / seconds } else { 0.0 };
+    let text = if args.json {
+        let report = serde_json::json!({
+            "file": args.file,
+            "rays": rays.len(),
+            "hits": hits,
+            "any_hit": args.any_hit,
+            "threads": rayon::current_num_threads(),
+            "seconds": seconds,
+            "rays_per_second": rays_per_second,
+        });
+        format!("{report:#}\n")
+    } else {
+        format!(
+            "{}: {} rays, {hits} hit ({}), {seconds:.3} s tracing, {:.2} Mrays/s on {} threads\n",
+            args.rays.display(),
+            rays.len(),
+            if args.any_hit { "any hit" } else { "closest hit" },
+            rays_per_second / 1e6,
+            rayon::current_num_threads()
+        )
+    };
+    print(&text, Exit::Success)
+}
+
+/// The ray file's bytes: a regular file only.
+fn read_ray_file(path: &std::path::Path) -> Result<Vec<u8>, String> {
+    let metadata = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    if !metadata.is_file() {
+        return Err("cannot read: not a regular file".to_string());
+    }
+    std::fs::read(path).map_err(|e| format!("cannot read: {e}"))
+}

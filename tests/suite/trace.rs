@@ -1,0 +1,98 @@
+//! `bvhc trace`: the hit file equals `Tracer` on the same file and rays (closest and any hit), is the same for
+//! any thread count, the JSON report has its keys, and bad ray files are refused naming the ray.
+
+use std::path::Path;
+
+use bvhc::loader::{BvhFile, Ray};
+
+use crate::cli::{bvhc, stderr, stdout, teapot};
+use crate::common::random_rays;
+
+fn ray_bytes(rays: &[Ray]) -> Vec<u8> {
+    rays.iter()
+        .flat_map(|r| r.origin.into_iter().chain(r.direction).chain([r.t_min, r.t_max]))
+        .flat_map(f32::to_le_bytes)
+        .collect()
+}
+
+fn word(record: &[u8], at: usize) -> [u8; 4] {
+    record[at..at + 4].try_into().unwrap()
+}
+
+fn teapot_bvh(dir: &Path) -> std::path::PathBuf {
+    let bvh = dir.join("teapot.bvh");
+    assert!(bvhc(&[&teapot(), &"-o", &bvh, &"-q", &"--preset", &"fast"]).status.success());
+    bvh
+}
+
+#[test]
+fn trace_writes_what_the_tracer_finds() {
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = teapot_bvh(dir.path());
+    let mut rays = random_rays(91, 5_000, 4.0);
+    rays.push(Ray { origin: [0.0, 1.5, 10.0], direction: [0.0, 0.0, -1.0], t_min: 0.0, t_max: f32::INFINITY });
+    rays.push(Ray { origin: [100.0, 100.0, 100.0], direction: [1.0, 0.0, 0.0], t_min: 0.0, t_max: 1.0 });
+    let ray_file = dir.path().join("rays.bin");
+    std::fs::write(&ray_file, ray_bytes(&rays)).unwrap();
+    let file = BvhFile::read(&bvh).unwrap();
+    let tracer = file.view().tracer();
+    let mut outputs = Vec::new();
+    for threads in ["1", "2"] {
+        let hits = dir.path().join(format!("hits{threads}.bin"));
+        let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &hits, &"--json", &"--threads", &threads]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+        assert_eq!(report["rays"], rays.len());
+        assert!(report["seconds"].as_f64().is_some() && report["rays_per_second"].as_f64().is_some());
+        let bytes = std::fs::read(&hits).unwrap();
+        assert_eq!(bytes.len(), 24 * rays.len());
+        let mut hit_count = 0;
+        for (ray, record) in rays.iter().zip(bytes.chunks_exact(24)) {
+            let t = f32::from_le_bytes(word(record, 0));
+            let triangle = u32::from_le_bytes(word(record, 4));
+            let source = u32::from_le_bytes(word(record, 8));
+            match tracer.closest_hit(ray) {
+                Some(hit) => {
+                    hit_count += 1;
+                    assert_eq!((t, triangle, Some(source)), (hit.t, hit.triangle_index, hit.source_triangle_id));
+                    assert_eq!(f32::from_le_bytes(word(record, 12)), hit.u);
+                    assert_eq!(f32::from_le_bytes(word(record, 16)), hit.v);
+                }
+                None => assert_eq!((t, triangle, source), (f32::INFINITY, u32::MAX, u32::MAX)),
+            }
+            assert_eq!(word(record, 20), [0; 4]);
+        }
+        assert_eq!(report["hits"], hit_count);
+        assert!(hit_count > 100, "the rays hit the teapot");
+        outputs.push(bytes);
+    }
+    assert_eq!(outputs[0], outputs[1], "the same hits for 1 and 2 threads");
+    let occluded = dir.path().join("occluded.bin");
+    let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &occluded, &"--any-hit"]);
+    assert!(run.status.success() && stdout(&run).contains("Mrays/s"), "{}", stderr(&run));
+    let flags = std::fs::read(&occluded).unwrap();
+    let expected: Vec<u8> = rays.iter().map(|r| u8::from(tracer.any_hit(r))).collect();
+    assert_eq!(flags, expected);
+}
+
+#[test]
+fn bad_ray_files_are_refused_naming_the_ray() {
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = teapot_bvh(dir.path());
+    let good = Ray { origin: [0.0; 3], direction: [0.0, 0.0, 1.0], t_min: 0.0, t_max: 1.0 };
+    let cases = [
+        (ray_bytes(&[good])[..31].to_vec(), "not a whole number"),
+        (ray_bytes(&[good, Ray { direction: [f32::NAN, 0.0, 0.0], ..good }]), "ray 1: origin, direction"),
+        (ray_bytes(&[Ray { direction: [0.0; 3], ..good }]), "ray 0: the direction is zero"),
+        (ray_bytes(&[good, good, Ray { t_min: 2.0, ..good }]), "ray 2: needs 0 <= t_min <= t_max"),
+    ];
+    for (bytes, message) in cases {
+        let rays = dir.path().join("bad.bin");
+        std::fs::write(&rays, bytes).unwrap();
+        let run = bvhc(&[&"trace", &bvh, &"--rays", &rays]);
+        assert_eq!(run.status.code(), Some(1), "{message}");
+        assert!(stderr(&run).contains(message), "{}", stderr(&run));
+    }
+    let run = bvhc(&[&"trace", &bvh, &"--rays", &dir.path().join("missing.bin")]);
+    assert_eq!(run.status.code(), Some(3));
+}
