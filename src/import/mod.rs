@@ -126,6 +126,48 @@ pub struct ImportError {
     pub kind: ErrorKind,
 }
 
+/// A problem found inside a glTF buffer, accessor, primitive or extension, before its location (mesh,
+/// primitive, node) is attached: its kind and its message.
+#[derive(Debug)]
+pub(crate) struct Problem {
+    kind: ErrorKind,
+    message: String,
+}
+
+impl Problem {
+    pub(crate) fn of_kind(kind: ErrorKind, message: String) -> Problem {
+        Problem { kind, message }
+    }
+
+    /// An import limit was exceeded (the message says which and how to raise it).
+    pub(crate) fn limit(message: String) -> Problem {
+        Problem::of_kind(ErrorKind::Limit, message)
+    }
+
+    /// The same problem with `prefix` put before its message (e.g. `"accessor 3: "`).
+    pub(crate) fn prefixed(self, prefix: &str) -> Problem {
+        Problem { message: format!("{prefix}{}", self.message), ..self }
+    }
+
+    /// The problem located in the file.
+    pub(crate) fn at(self, location: &str) -> Located {
+        Located::of_kind(self.kind, location, self.message)
+    }
+}
+
+/// A broken rule of the format.
+impl From<String> for Problem {
+    fn from(message: String) -> Problem {
+        Problem::of_kind(ErrorKind::Invalid, message)
+    }
+}
+
+impl From<&str> for Problem {
+    fn from(message: &str) -> Problem {
+        Problem::from(message.to_string())
+    }
+}
+
 /// An error inside a file, before the file's path is attached.
 #[derive(Debug)]
 pub(crate) struct Located {

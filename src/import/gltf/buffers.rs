@@ -9,7 +9,7 @@ use std::rc::Rc;
 use base64::Engine;
 
 use crate::import::limits::{Meter, limit_message, read_prefix, read_regular_file};
-use crate::import::{ErrorKind, ImportOptions};
+use crate::import::{ErrorKind, ImportOptions, Problem};
 use gltf::json::accessor::{ComponentType, Type};
 use gltf::json::validation::Checked;
 use gltf::json::{self, Root};
@@ -70,10 +70,10 @@ impl<'a> Buffers<'a> {
     }
 
     /// The bytes of buffer `index` (at least its `byteLength`), loaded on first use.
-    fn buffer(&mut self, index: usize) -> Result<Rc<Vec<u8>>, String> {
+    fn buffer(&mut self, index: usize) -> Result<Rc<Vec<u8>>, Problem> {
         let at = format!("buffer {index}");
         let Some(buffer) = self.root.buffers.get(index) else {
-            return Err(format!("{at} does not exist (the file has {} buffers)", self.root.buffers.len()));
+            return Err(format!("{at} does not exist (the file has {} buffers)", self.root.buffers.len()).into());
         };
         if let Some(Some(bytes)) = self.loaded.get(index) {
             return Ok(Rc::clone(bytes));
@@ -81,14 +81,14 @@ impl<'a> Buffers<'a> {
         let bytes = match &buffer.uri {
             None => match self.glb_bin {
                 Some(bin) if index == 0 => bin.to_vec(),
-                _ => return Err(format!("{at} has no uri and is not the binary chunk of a GLB file")),
+                _ => return Err(format!("{at} has no uri and is not the binary chunk of a GLB file").into()),
             },
             Some(uri) if uri.starts_with("data:") => decode_data_uri(uri).map_err(|e| format!("{at}: {e}"))?,
-            Some(uri) => self.read_external(uri, buffer.byte_length.0).map_err(|e| format!("{at}: {e}"))?,
+            Some(uri) => self.read_external(uri, buffer.byte_length.0).map_err(|e| e.prefixed(&format!("{at}: ")))?,
         };
         let declared = buffer.byte_length.0;
         if (bytes.len() as u64) < declared {
-            return Err(format!("{at}: byteLength is {declared} but only {} bytes are available", bytes.len()));
+            return Err(format!("{at}: byteLength is {declared} but only {} bytes are available", bytes.len()).into());
         }
         let bytes = Rc::new(bytes);
         self.loaded[index] = Some(Rc::clone(&bytes));
@@ -97,17 +97,20 @@ impl<'a> Buffers<'a> {
 
     /// Reads at most `byte_len` bytes of the file a relative `uri` names. Only regular files under the glTF
     /// file's folder are read (after resolving `..` and symbolic links), unless the options allow more.
-    fn read_external(&mut self, uri: &str, byte_len: u64) -> Result<Vec<u8>, String> {
+    fn read_external(&mut self, uri: &str, byte_len: u64) -> Result<Vec<u8>, Problem> {
         if uri.contains("://") {
-            return Err(format!("uri '{uri}' is not a relative file path; bvhc reads local files only"));
+            return Err(format!("uri '{uri}' is not a relative file path; bvhc reads local files only").into());
         }
         let decoded = percent_encoding::percent_decode_str(uri)
             .decode_utf8()
             .map_err(|_| format!("uri '{uri}' is not valid percent-encoded UTF-8"))?;
         let relative = Path::new(decoded.as_ref());
         if !self.allow_outside && (relative.has_root() || relative.is_absolute()) {
-            return Err(format!(
-                "uri '{uri}' is an absolute path; buffers are read only from the input's folder (--allow-outside-buffers allows more)"
+            return Err(Problem::of_kind(
+                ErrorKind::Unreadable,
+                format!(
+                    "uri '{uri}' is an absolute path; buffers are read only from the input's folder (--allow-outside-buffers allows more)"
+                ),
             ));
         }
         let path = self.base_dir.join(relative);
@@ -120,45 +123,52 @@ impl<'a> Buffers<'a> {
             .map_err(|e| format!("cannot read the input's folder: {e}"))?;
             let resolved = std::fs::canonicalize(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
             if !resolved.starts_with(&folder) {
-                return Err(format!(
+                return Err(unreadable(format!(
                     "uri '{uri}' leaves the input's folder; buffers are read only from there (--allow-outside-buffers allows more)"
-                ));
+                )));
             }
         }
         if byte_len > self.max_input_bytes {
-            return Err(limit_message(byte_len, self.max_input_bytes, "bytes (byteLength)", "--max-input-bytes"));
+            return Err(Problem::limit(limit_message(
+                byte_len,
+                self.max_input_bytes,
+                "bytes (byteLength)",
+                "--max-input-bytes",
+            )));
         }
-        let bytes = read_regular_file(&path, false, byte_len).or_else(|e| match e.kind() {
+        let bytes = match read_regular_file(&path, false, byte_len) {
+            Ok(bytes) => bytes,
             // A file longer than byteLength: read its first byteLength bytes, as a glTF reader does.
-            ErrorKind::Limit => read_prefix(&path, byte_len),
-            _ => Err(e.message().to_string()),
-        });
-        let bytes = bytes.map_err(|e| format!("{}: {e}", path.display()))?;
+            Err(e) if e.kind() == ErrorKind::Limit => {
+                read_prefix(&path, byte_len).map_err(|m| unreadable(format!("{}: {m}", path.display())))?
+            }
+            Err(e) => return Err(Problem::of_kind(e.kind(), format!("{}: {}", path.display(), e.message()))),
+        };
         self.files_read.push(path);
         Ok(bytes)
     }
 
     /// Accessor `index` decoded to f64 (cached: a mesh placed many times is decoded once).
-    pub(super) fn accessor(&mut self, index: usize) -> Result<Rc<Decoded>, String> {
+    pub(super) fn accessor(&mut self, index: usize) -> Result<Rc<Decoded>, Problem> {
         if let Some(decoded) = self.decoded.get(&index) {
             return Ok(Rc::clone(decoded));
         }
-        let decoded = Rc::new(self.decode(index).map_err(|e| format!("accessor {index}: {e}"))?);
+        let decoded = Rc::new(self.decode(index).map_err(|e| e.prefixed(&format!("accessor {index}: ")))?);
         self.decoded.insert(index, Rc::clone(&decoded));
         Ok(decoded)
     }
 
-    fn decode(&mut self, index: usize) -> Result<Decoded, String> {
+    fn decode(&mut self, index: usize) -> Result<Decoded, Problem> {
         let root = self.root;
         let accessor =
             root.accessors.get(index).ok_or_else(|| format!("does not exist ({} accessors)", root.accessors.len()))?;
-        let Checked::Valid(kind) = accessor.type_ else { return Err("invalid type".to_string()) };
+        let Checked::Valid(kind) = accessor.type_ else { return Err("invalid type".to_string().into()) };
         let Checked::Valid(json::accessor::GenericComponentType(component)) = accessor.component_type else {
-            return Err("invalid componentType".to_string());
+            return Err("invalid componentType".to_string().into());
         };
         let components = components_of(kind);
         let count = usize::try_from(accessor.count.0).map_err(|_| "count too large".to_string())?;
-        self.decoded_budget.take((count as u64).saturating_mul(components as u64))?;
+        self.decoded_budget.take((count as u64).saturating_mul(components as u64)).map_err(Problem::limit)?;
         let layout = Layout { component, components, normalized: accessor.normalized };
         let mut values = match accessor.buffer_view {
             Some(view) => {
@@ -171,7 +181,7 @@ impl<'a> Buffers<'a> {
             }
         };
         if let Some(sparse) = &accessor.sparse {
-            self.apply_sparse(sparse, count, &layout, &mut values).map_err(|e| format!("sparse: {e}"))?;
+            self.apply_sparse(sparse, count, &layout, &mut values).map_err(|e| e.prefixed("sparse: "))?;
         }
         Ok(Decoded { components, values })
     }
@@ -184,11 +194,11 @@ impl<'a> Buffers<'a> {
         count: usize,
         layout: &Layout,
         strided: bool,
-    ) -> Result<Vec<f64>, String> {
+    ) -> Result<Vec<f64>, Problem> {
         let root = self.root;
         let at = format!("bufferView {view}");
         let buffer_view = root.buffer_views.get(view).ok_or_else(|| format!("{at} does not exist"))?;
-        let bytes = self.buffer(buffer_view.buffer.value()).map_err(|e| format!("{at}: {e}"))?;
+        let bytes = self.buffer(buffer_view.buffer.value()).map_err(|e| e.prefixed(&format!("{at}: ")))?;
         let view_start = buffer_view.byte_offset.map_or(0, |o| o.0);
         let view_len = buffer_view.byte_length.0;
         let view_end = view_start.checked_add(view_len).filter(|&end| end <= bytes.len() as u64).ok_or_else(|| {
@@ -197,7 +207,9 @@ impl<'a> Buffers<'a> {
         let element = layout.element_byte_len() as u64;
         let stride = match buffer_view.byte_stride.filter(|_| strided) {
             Some(stride) if (stride.0 as u64) < element => {
-                return Err(format!("{at}: byteStride {} is smaller than an element ({element} bytes)", stride.0));
+                return Err(
+                    format!("{at}: byteStride {} is smaller than an element ({element} bytes)", stride.0).into()
+                );
             }
             Some(stride) => stride.0 as u64,
             None => element,
@@ -210,7 +222,7 @@ impl<'a> Buffers<'a> {
             if needed.is_none_or(|n| n > view_len) {
                 return Err(format!(
                     "{count} elements of {element} bytes (stride {stride}) from byte {offset} do not fit in {at} ({view_len} bytes)"
-                ));
+                ).into());
             }
         }
         let data = &bytes[view_start as usize..view_end as usize];
@@ -230,10 +242,10 @@ impl<'a> Buffers<'a> {
         count: usize,
         layout: &Layout,
         values: &mut [f64],
-    ) -> Result<(), String> {
+    ) -> Result<(), Problem> {
         let substitutions = usize::try_from(sparse.count.0).map_err(|_| "count too large".to_string())?;
         let Checked::Valid(index_type) = sparse.indices.component_type else {
-            return Err("invalid indices componentType".to_string());
+            return Err("invalid indices componentType".to_string().into());
         };
         let index_layout = Layout { component: index_type.0, components: 1, normalized: false };
         let indices = self.read_view(
@@ -254,7 +266,7 @@ impl<'a> Buffers<'a> {
         for (k, &target) in indices.iter().enumerate() {
             let target = target as usize;
             if target >= count {
-                return Err(format!("index {target} (substitution {k}) is not below count {count}"));
+                return Err(format!("index {target} (substitution {k}) is not below count {count}").into());
             }
             values[target * components..(target + 1) * components]
                 .copy_from_slice(&replacements[k * components..(k + 1) * components]);
@@ -333,4 +345,9 @@ fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
             .with_decode_padding_mode(base64::engine::DecodePaddingMode::Indifferent),
     );
     engine.decode(data.trim()).map_err(|e| format!("data URI: invalid base64 ({e})"))
+}
+
+/// A buffer that could not be read (as opposed to one that breaks a rule).
+fn unreadable(message: String) -> Problem {
+    Problem::of_kind(ErrorKind::Unreadable, message)
 }

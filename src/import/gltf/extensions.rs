@@ -5,6 +5,7 @@ use gltf::json::Root;
 
 use super::buffers::Buffers;
 use super::{Located, quaternion};
+use crate::import::Problem;
 use crate::import::limits::Meter;
 
 /// Extensions that change geometry and that bvhc decodes.
@@ -62,28 +63,30 @@ pub(super) fn instance_transforms(
     node: &gltf::json::Node,
     buffers: &mut Buffers<'_>,
     placements: &mut Meter,
-) -> Result<Option<Vec<DMat4>>, String> {
+) -> Result<Option<Vec<DMat4>>, Problem> {
     let Some(extension) = node.extensions.as_ref().and_then(|e| e.others.get("EXT_mesh_gpu_instancing")) else {
         return Ok(None);
     };
     let attributes = extension.get("attributes").and_then(|a| a.as_object());
     let Some(attributes) = attributes else {
-        return Err("EXT_mesh_gpu_instancing without an attributes object".to_string());
+        return Err("EXT_mesh_gpu_instancing without an attributes object".to_string().into());
     };
     let declared = ["TRANSLATION", "ROTATION", "SCALE"]
         .iter()
         .find_map(|name| attributes.get(*name).and_then(|v| v.as_u64()))
         .and_then(|index| buffers.declared_count(index as usize));
-    placements.take(declared.unwrap_or(1)).map_err(|e| format!("EXT_mesh_gpu_instancing: {e}"))?;
-    let mut read = |name: &str, components: usize| -> Result<Option<Vec<f64>>, String> {
+    placements.take(declared.unwrap_or(1)).map_err(|e| Problem::limit(format!("EXT_mesh_gpu_instancing: {e}")))?;
+    let mut read = |name: &str, components: usize| -> Result<Option<Vec<f64>>, Problem> {
         let Some(value) = attributes.get(name) else { return Ok(None) };
         let index = value.as_u64().ok_or_else(|| format!("EXT_mesh_gpu_instancing {name} is not an accessor index"))?;
-        let decoded = buffers.accessor(index as usize).map_err(|e| format!("EXT_mesh_gpu_instancing {name}: {e}"))?;
+        let decoded =
+            buffers.accessor(index as usize).map_err(|e| e.prefixed(&format!("EXT_mesh_gpu_instancing {name}: ")))?;
         if decoded.components != components {
             return Err(format!(
                 "EXT_mesh_gpu_instancing {name}: accessor has {} components, not {components}",
                 decoded.components
-            ));
+            )
+            .into());
         }
         Ok(Some(decoded.values.clone()))
     };
@@ -95,10 +98,10 @@ pub(super) fn instance_transforms(
         .filter_map(|(values, n)| values.as_ref().map(|v| v.len() / n))
         .collect();
     let Some(&count) = counts.first() else {
-        return Err("EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION, SCALE".to_string());
+        return Err("EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION, SCALE".to_string().into());
     };
     if counts.iter().any(|&c| c != count) {
-        return Err(format!("EXT_mesh_gpu_instancing attributes have different counts {counts:?}"));
+        return Err(format!("EXT_mesh_gpu_instancing attributes have different counts {counts:?}").into());
     }
     let transforms = (0..count)
         .map(|i| {

@@ -102,8 +102,8 @@ impl Walker<'_, '_> {
             }
             if let Some(mesh) = node.mesh {
                 let placements = &mut self.builder.placement_budget;
-                let instances = extensions::instance_transforms(node, self.buffers, placements)
-                    .map_err(|e| Located::of_kind(limit_or_invalid(&e), &at, e))?;
+                let instances =
+                    extensions::instance_transforms(node, self.buffers, placements).map_err(|e| e.at(&at))?;
                 if instances.is_none() {
                     placements.take(1).map_err(|e| Located::of_kind(ErrorKind::Limit, &at, e))?;
                 }
@@ -143,8 +143,8 @@ impl Walker<'_, '_> {
         let mut world_positions: Vec<[f32; 3]> = Vec::new();
         for (p, json_primitive) in mesh.primitives.iter().enumerate() {
             let at = format!("mesh {mesh_index} primitive {p}");
-            let Some(geometry) = primitive::geometry(json_primitive, self.buffers, &mut self.builder.report)
-                .map_err(|e| Located::of_kind(limit_or_invalid(&e), &at, e))?
+            let Some(geometry) =
+                primitive::geometry(json_primitive, self.buffers, &mut self.builder.report).map_err(|e| e.at(&at))?
             else {
                 continue;
             };
@@ -183,18 +183,6 @@ impl Walker<'_, '_> {
                 .map_err(|(kind, e)| Located::of_kind(kind, &at, e))?;
         }
         Ok(())
-    }
-}
-
-/// The kind of a buffer, accessor or soup error: the limit messages (and out-of-memory ones) are
-/// [`ErrorKind::Limit`], unreadable external buffers [`ErrorKind::Unreadable`], the rest broken rules.
-fn limit_or_invalid(message: &str) -> ErrorKind {
-    if message.contains("import limit") || message.contains("out of memory") {
-        ErrorKind::Limit
-    } else if message.contains("cannot read") {
-        ErrorKind::Unreadable
-    } else {
-        ErrorKind::Invalid
     }
 }
 

@@ -6,6 +6,7 @@ use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 
 use super::buffers::{Buffers, Decoded};
+use crate::import::Problem;
 use crate::import::report::ImportReport;
 
 /// A primitive's positions (local space) and triangles (local indices, in the primitive's order).
@@ -20,8 +21,8 @@ pub(super) fn geometry(
     primitive: &gltf::json::mesh::Primitive,
     buffers: &mut Buffers<'_>,
     report: &mut ImportReport,
-) -> Result<Option<Geometry>, String> {
-    let Checked::Valid(mode) = primitive.mode else { return Err("invalid mode".to_string()) };
+) -> Result<Option<Geometry>, Problem> {
+    let Checked::Valid(mode) = primitive.mode else { return Err("invalid mode".to_string().into()) };
     if matches!(mode, Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip) {
         report.skipped_point_and_line_primitives += 1;
         return Ok(None);
@@ -30,19 +31,19 @@ pub(super) fn geometry(
         report.skipped_primitives_without_positions += 1;
         return Ok(None);
     };
-    let positions = buffers.accessor(position_accessor.value()).map_err(|e| format!("POSITION {e}"))?;
+    let positions = buffers.accessor(position_accessor.value()).map_err(|e| e.prefixed("POSITION "))?;
     if positions.components != 3 {
-        return Err(format!("POSITION accessor {} is not VEC3", position_accessor.value()));
+        return Err(format!("POSITION accessor {} is not VEC3", position_accessor.value()).into());
     }
     if let Some(i) = positions.values.iter().position(|v| !v.is_finite()) {
-        return Err(format!("POSITION accessor {}: vertex {} is not finite", position_accessor.value(), i / 3));
+        return Err(format!("POSITION accessor {}: vertex {} is not finite", position_accessor.value(), i / 3).into());
     }
     let vertex_count = positions.count();
     let indices: Vec<u32> = match primitive.indices {
         Some(accessor) => {
-            let decoded = buffers.accessor(accessor.value()).map_err(|e| format!("indices {e}"))?;
+            let decoded = buffers.accessor(accessor.value()).map_err(|e| e.prefixed("indices "))?;
             if decoded.components != 1 {
-                return Err(format!("indices accessor {} is not SCALAR", accessor.value()));
+                return Err(format!("indices accessor {} is not SCALAR", accessor.value()).into());
             }
             let mut indices = Vec::with_capacity(decoded.values.len());
             for (k, &v) in decoded.values.iter().enumerate() {
@@ -50,7 +51,8 @@ pub(super) fn geometry(
                     return Err(format!(
                         "indices accessor {}: index {k} is {v}, not below the vertex count {vertex_count}",
                         accessor.value()
-                    ));
+                    )
+                    .into());
                 }
                 indices.push(v as u32);
             }
