@@ -7,13 +7,23 @@
 //! rays from fixed seeds for both; the share of rays on which they agree (hit or miss, and t within 1e-4
 //! relative) is printed as a sanity check.
 //!
-//! `cargo bench --bench traversal`; `BVHC_SCENES` overrides the scenes folder, `BVHC_BENCH_RAYS` the ray count.
+//! With `--features embree` (Debian's `libembree-dev` 3.13.5 installed), a second table compares with Embree:
+//! same triangles, same rays, single thread, Embree HIGH without and with `RTC_SCENE_FLAG_ROBUST`, single rays
+//! (`rtcIntersect1` / `rtcOccluded1`) and 8-wide packets on the primary set, on the kitchen, the dragon, the
+//! 2CylinderEngine and the toy car; hit counts are printed so any disagreement shows.
+//!
+//! `cargo bench --bench traversal [--features embree]`; `BVHC_SCENES` overrides the scenes folder,
+//! `BVHC_BENCH_RAYS` the ray count.
 
 #[path = "common/harness.rs"]
 mod harness;
 
 #[path = "common/rays.rs"]
 mod rays;
+
+#[cfg(feature = "embree")]
+#[path = "common/embree.rs"]
+mod embree;
 
 use std::time::Duration;
 
@@ -70,6 +80,8 @@ fn main() {
     if !harness::benchmarking("traversal") {
         return;
     }
+    #[cfg(feature = "embree")]
+    against_embree();
     let dir = harness::scenes_dir();
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let out = tempfile::tempdir().unwrap();
@@ -132,4 +144,117 @@ fn main() {
             );
         }
     }
+}
+
+/// Mrays/s of `f` over `rays` on this thread (median of 5).
+#[cfg(feature = "embree")]
+fn single_thread_speed(rays: &[Ray], f: impl Fn(&Ray) -> bool) -> (f64, usize) {
+    let hits = rays.iter().filter(|r| f(r)).count();
+    let time = harness::median_time(5, || {
+        std::hint::black_box(rays.iter().filter(|r| f(r)).count());
+    });
+    (rays.len() as f64 / time.as_secs_f64() / 1e6, hits)
+}
+
+/// Mrays/s of 8-ray packets over `rays` on this thread (median of 5); `f` returns the hits in a packet.
+#[cfg(feature = "embree")]
+fn packet_speed(rays: &[Ray], f: impl Fn(&[Ray]) -> usize) -> (f64, usize) {
+    let hits = rays.chunks(8).map(&f).sum();
+    let time = harness::median_time(5, || {
+        std::hint::black_box(rays.chunks(8).map(&f).sum::<usize>());
+    });
+    (rays.len() as f64 / time.as_secs_f64() / 1e6, hits)
+}
+
+/// The Embree table (see the module doc). Embree runs on its own thread with flush-to-zero and
+/// denormals-are-zero set, as it asks; bvhc on the main thread with the default floating-point mode.
+#[cfg(feature = "embree")]
+fn against_embree() {
+    let dir = harness::scenes_dir();
+    let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
+    let out = tempfile::tempdir().unwrap();
+    println!(
+        "Embree 3 (HIGH) against bvhc's binary kernel, one thread, medians of 5 in this run; {ray_count} incoherent"
+    );
+    println!(
+        "rays (closest: primary_rays, any: shadow_rays) and a 1024x768 primary set (packets: 8 pixels of a row).\n"
+    );
+    println!(
+        "| scene | rays | query (Embree API) | Embree | Embree robust | bvhc binary, single rays | bvhc / Embree | bvhc / robust | hits Embree / robust / bvhc |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (name, relative) in [
+        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+        ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+        ("toy car", "khr-toy-car/ToyCar.gltf"),
+    ] {
+        let path = dir.join(relative);
+        if !path.is_file() {
+            eprintln!("SKIPPED: {} not found", path.display());
+            continue;
+        }
+        let output = out.path().join("scene.bvh");
+        convert_with(&path, &output, &ConvertOptions::default(), &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+        let file = BvhFile::read(&output).unwrap();
+        let view = file.view();
+        let tracer = view.tracer();
+        let triangles: Vec<[[f32; 3]; 3]> = view.triangles().iter().map(|t| t.vertices).collect();
+        let root = view.nodes()[0];
+        let sets = [
+            ("incoherent", "closest", primary_rays(&root, ray_count)),
+            ("incoherent", "any", shadow_rays(&root, ray_count)),
+            ("primary 1024x768", "closest", rays::camera_rays(&root, 1024, 768)),
+        ];
+        for (set, query, rays) in &sets {
+            let closest = *query == "closest";
+            let (ours, our_hits) = if closest {
+                single_thread_speed(rays, |r| tracer.closest_hit(r).is_some())
+            } else {
+                single_thread_speed(rays, |r| tracer.any_hit(r))
+            };
+            let embree_runs = std::thread::scope(|scope| {
+                scope
+                    .spawn(|| {
+                        embree::set_flush_to_zero();
+                        [false, true].map(|robust| {
+                            let scene = embree::Embree::new(&triangles, robust);
+                            let single = if closest {
+                                single_thread_speed(rays, |r| scene.closest(r).is_some())
+                            } else {
+                                single_thread_speed(rays, |r| scene.any(r))
+                            };
+                            let packets = if closest {
+                                packet_speed(rays, |p| scene.closest8(p))
+                            } else {
+                                packet_speed(rays, |p| scene.any8(p))
+                            };
+                            (single, packets)
+                        })
+                    })
+                    .join()
+                    .unwrap()
+            });
+            let [(plain, plain8), (robust, robust8)] = embree_runs;
+            println!(
+                "| {name} | {set} | {query} (single) | {:.2} | {:.2} | {ours:.2} | {:.2} | {:.2} | {} / {} / {our_hits} |",
+                plain.0,
+                robust.0,
+                ours / plain.0,
+                ours / robust.0,
+                plain.1,
+                robust.1
+            );
+            println!(
+                "| {name} | {set} | {query} (Embree 8-packets) | {:.2} | {:.2} | {ours:.2} | {:.2} | {:.2} | {} / {} / {our_hits} |",
+                plain8.0,
+                robust8.0,
+                ours / plain8.0,
+                ours / robust8.0,
+                plain8.1,
+                robust8.1
+            );
+        }
+    }
+    println!();
 }

@@ -40,3 +40,34 @@ pub fn shadow_rays(root: &PackedNode, count: usize) -> Vec<Ray> {
         })
         .collect()
 }
+
+/// A `width` x `height` primary ray set in pixel order (rows top to bottom): a pinhole camera with a 45 degree
+/// vertical field of view, from above and to the side of the scene's box (as `bvhc render`'s outside view).
+#[allow(dead_code)] // used by the benchmarks built with the `embree` feature
+pub fn camera_rays(root: &PackedNode, width: usize, height: usize) -> Vec<Ray> {
+    let center: [f32; 3] = std::array::from_fn(|a| 0.5 * (root.min[a] + root.max[a]));
+    let extent: [f32; 3] = std::array::from_fn(|a| root.max[a] - root.min[a]);
+    let radius = 0.5 * (extent[0] * extent[0] + extent[1] * extent[1] + extent[2] * extent[2]).sqrt();
+    let normalize = |v: [f32; 3]| {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|c| c / l)
+    };
+    let cross =
+        |a: [f32; 3], b: [f32; 3]| [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    let back = normalize([0.9, 0.6, 1.3]);
+    let eye: [f32; 3] = std::array::from_fn(|a| center[a] + back[a] * radius * 2.0);
+    let forward = back.map(|c| -c);
+    let right = normalize(cross(forward, [0.0, 1.0, 0.0]));
+    let up = cross(right, forward);
+    let half_height = 22.5f32.to_radians().tan();
+    let half_width = half_height * width as f32 / height as f32;
+    let mut rays = Vec::with_capacity(width * height);
+    for y in 0..height {
+        for x in 0..width {
+            let sx = (2.0 * (x as f32 + 0.5) / width as f32 - 1.0) * half_width;
+            let sy = (1.0 - 2.0 * (y as f32 + 0.5) / height as f32) * half_height;
+            rays.push(Ray::new(eye, normalize(std::array::from_fn(|a| forward[a] + sx * right[a] + sy * up[a]))));
+        }
+    }
+    rays
+}
