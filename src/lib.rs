@@ -11,6 +11,7 @@ pub mod import;
 pub mod optimize;
 pub mod pack;
 pub mod up_to_date;
+pub mod wide;
 
 pub use conversion::{Conversion, ConversionOutcome};
 pub use optimize::Preset;

@@ -24,3 +24,4 @@ mod stress;
 mod trace;
 mod traversal;
 mod watertight;
+mod wide;

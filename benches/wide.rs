@@ -1,0 +1,79 @@
+//! The wide collapse (Ylitie et al. 2017) on real scenes: time, node and leaf counts, fill, and the bytes a
+//! wide node section and 4-triangle packets would take against the binary nodes + triangles, for N = 4 and 8.
+//! The trees are the balanced preset's optimized binary trees; the costs are the placeholder constants of
+//! `WideCosts::default()` (node visit = packet test) until the SIMD kernel's calibration measures them.
+//!
+//! `cargo bench --bench wide`; `BVHC_SCENES` overrides the scenes folder.
+
+#[path = "common/harness.rs"]
+mod harness;
+
+use std::ops::ControlFlow;
+
+use bvhc::build::Builder;
+use bvhc::optimize::{OptTree, OptimizeParams, merge_leaves, optimize};
+use bvhc::wide::{WideChild, WideCosts, collapse};
+
+/// Bytes per N-wide node in structure-of-arrays order: 6 f32 bounds and one u32 reference per child.
+fn wide_node_bytes(width: usize) -> usize {
+    (7 * 4 * width).next_multiple_of(64)
+}
+
+/// Bytes per packet of 4 triangles: 9 f32 coordinates and one u32 index per lane.
+const PACKET_BYTES: usize = 4 * 10 * 4;
+
+fn main() {
+    if !harness::benchmarking("wide") {
+        return;
+    }
+    let dir = harness::scenes_dir();
+    println!(
+        "| scene | triangles | N | collapse ms | wide nodes | children / node | leaves | triangles / leaf | packets | wide bytes / binary bytes |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
+    for (name, relative) in [
+        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+        ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+    ] {
+        let path = dir.join(relative);
+        if !path.is_file() {
+            eprintln!("SKIPPED: {} not found", path.display());
+            continue;
+        }
+        let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
+        let triangles = soup.triangle_vertices();
+        let mut tree = OptTree::from_build_tree(&Builder::BinnedSah.build(&triangles, 1), &triangles);
+        optimize(&mut tree, &OptimizeParams::default(), &mut |_| ControlFlow::Continue(()));
+        let merged = merge_leaves(&tree, Default::default(), 8);
+        let binary_bytes = 32 * merged.nodes.len() + 36 * triangles.len();
+        for width in [4, 8] {
+            let costs = WideCosts { width, ..WideCosts::default() };
+            let mut wide = None;
+            let time = harness::median_time(3, || wide = Some(collapse(&tree, &costs)));
+            let wide = wide.unwrap();
+            let children: usize = wide.nodes.iter().map(|n| n.children.len()).sum();
+            let leaves: Vec<u32> = wide
+                .nodes
+                .iter()
+                .flat_map(|n| n.children.iter())
+                .filter_map(|(_, c)| match c {
+                    WideChild::Leaf { count, .. } => Some(*count),
+                    WideChild::Node(_) => None,
+                })
+                .collect();
+            let packets: usize = leaves.iter().map(|&c| (c as usize).div_ceil(4)).sum();
+            let wide_bytes = wide_node_bytes(width) * wide.nodes.len() + PACKET_BYTES * packets;
+            println!(
+                "| {name} | {} | {width} | {:.1} | {} | {:.2} | {} | {:.2} | {packets} | {:.2} |",
+                triangles.len(),
+                time.as_secs_f64() * 1e3,
+                wide.nodes.len(),
+                children as f64 / wide.nodes.len() as f64,
+                leaves.len(),
+                triangles.len() as f64 / leaves.len() as f64,
+                wide_bytes as f64 / binary_bytes as f64
+            );
+        }
+    }
+}

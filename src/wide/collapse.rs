@@ -1,0 +1,247 @@
+//! Collapse of a binary BVH into an N-wide one by dynamic programming, after H. Ylitie, T. Karras, S. Laine,
+//! "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", High Performance Graphics 2017,
+//! section 3: optimal under the SAH for the given binary topology.
+//!
+//! Symbols: for a binary node `n` and a slot count `i` in `1..=N`, `C(n, i)` is the lowest cost of covering
+//! `n`'s subtree with at most `i` wide children (leaves or wide nodes), areas unnormalized:
+//! - `C_leaf(n) = packet_test * ceil(t(n) / W) * SA(n)` when `t(n) <= max_leaf_size` triangles, else infinite;
+//! - `C_internal(n) = node_visit * SA(n) + C_distribute(n, N)`, with
+//!   `C_distribute(n, j) = min over k in 1..j of C(left, k) + C(right, j - k)`;
+//! - `C(n, 1) = min(C_leaf(n), C_internal(n))`, and `C(n, i) = min(C(n, i - 1), C_distribute(n, i))` for `i > 1`;
+//! - a binary leaf (one triangle) has `C(n, i) = C_leaf(n)` for every `i`.
+//!
+//! The root is always a wide node (unless the scene has one leaf's worth of triangles and a leaf is cheaper).
+//! Deviations from the paper: leaves are priced per packet of `W` triangles tested together (the SIMD
+//! kernel's unit of work) rather than per triangle; no quantization (the CPU layout stores f32 boxes). O(n N^2)
+//! time, O(n N) memory.
+
+use crate::aabb::Aabb;
+use crate::optimize::{NONE, OptTree};
+
+use super::{WideChild, WideNode, WideTree};
+
+/// The collapse's parameters: the width, the leaf limit, and the two costs of the kernel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WideCosts {
+    /// Children per wide node (2 to 16; 4 and 8 are what SIMD kernels use).
+    pub width: usize,
+    /// Triangles tested together in one packet (`W`).
+    pub packet_width: usize,
+    /// Most triangles in one leaf.
+    pub max_leaf_size: usize,
+    /// Cost of visiting one wide node (testing all its child boxes).
+    pub node_visit: f64,
+    /// Cost of testing one packet of triangles.
+    pub packet_test: f64,
+}
+
+impl Default for WideCosts {
+    /// 8-wide nodes, packets of 4, leaves of up to 8 triangles, and a packet test priced like a node visit
+    /// (placeholders until the kernel's calibration measures them).
+    fn default() -> Self {
+        WideCosts { width: 8, packet_width: 4, max_leaf_size: 8, node_visit: 1.0, packet_test: 1.0 }
+    }
+}
+
+impl WideCosts {
+    /// The cost factor of a leaf of `count` triangles (times its area).
+    pub fn leaf(&self, count: usize) -> f64 {
+        self.packet_test * count.div_ceil(self.packet_width.max(1)) as f64
+    }
+}
+
+/// Per binary node: the costs `C(n, 1..=N)` and how each was reached.
+struct Table {
+    width: usize,
+    /// `cost[n * width + (i - 1)] = C(n, i)`.
+    cost: Vec<f64>,
+    /// `split[n * width + (i - 1)]`: 0 when `C(n, i) = C(n, 1)` (one child), else `k`: `k` slots to the left
+    /// child and `i - k` to the right one.
+    split: Vec<u8>,
+    /// Whether `C(n, 1)` is a leaf (else a wide node).
+    is_leaf: Vec<bool>,
+    /// Triangles under each node.
+    triangles: Vec<u32>,
+}
+
+/// Collapses `tree` (the optimizer's binary tree, one triangle per leaf) into a `costs.width`-wide tree.
+pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
+    let width = costs.width.clamp(2, 16);
+    let costs = WideCosts {
+        width,
+        packet_width: costs.packet_width.max(1),
+        max_leaf_size: costs.max_leaf_size.max(1),
+        ..*costs
+    };
+    let mut wide = WideTree { width, nodes: Vec::new(), triangle_order: Vec::new(), root_box: Aabb::EMPTY };
+    if tree.root == NONE {
+        return wide;
+    }
+    let table = fill_table(tree, &costs);
+    wide.root_box = tree.nodes[tree.root as usize].aabb;
+    let root = tree.root;
+    // The root is stored as a wide node either way: with one leaf child (cost node + leaf) or with the DP's
+    // children (node + C_distribute), so compare the leaf with C_distribute alone.
+    let root_node = tree.nodes[root as usize];
+    let root_as_leaf = root_node.left == NONE
+        || (table.triangles[root as usize] as usize <= costs.max_leaf_size
+            && costs.leaf(table.triangles[root as usize] as usize) * root_node.aabb.surface_area()
+                <= best_distribution(&table, root_node.left as usize, root_node.right as usize, width).0);
+    if root_as_leaf {
+        // The whole scene is cheapest as one leaf: a root node with that single leaf child.
+        let mut children = Vec::new();
+        push_leaf(tree, root, &mut wide.triangle_order, &mut children);
+        wide.nodes.push(WideNode { children });
+        return wide;
+    }
+    // Depth first: each wide node's children are gathered from the DP's decisions, inner ones expanded in order.
+    wide.nodes.push(WideNode { children: Vec::new() });
+    let mut stack = vec![(0u32, root)];
+    while let Some((wide_index, binary)) = stack.pop() {
+        let mut slots = Vec::new();
+        let node = tree.nodes[binary as usize];
+        distribute(&table, tree, node.left, node.right, width, &mut slots);
+        let mut children = Vec::with_capacity(slots.len());
+        let mut expand = Vec::new();
+        for n in slots {
+            if table.is_leaf[n as usize] {
+                push_leaf(tree, n, &mut wide.triangle_order, &mut children);
+            } else {
+                let index = wide.nodes.len() as u32 + expand.len() as u32;
+                children.push((tree.nodes[n as usize].aabb, WideChild::Node(index)));
+                expand.push(n);
+            }
+        }
+        wide.nodes[wide_index as usize].children = children;
+        // Reserve the child nodes now (so indices are as assigned), fill them in child order.
+        let first_new = wide.nodes.len() as u32;
+        wide.nodes.extend(expand.iter().map(|_| WideNode { children: Vec::new() }));
+        for (k, &n) in expand.iter().enumerate().rev() {
+            stack.push((first_new + k as u32, n));
+        }
+    }
+    // Leaves were appended in the order nodes were expanded, which is not depth-first child order; renumber so
+    // that leaf ranges are consecutive in depth-first order, as the file format requires.
+    relayout_leaves(&mut wide);
+    wide
+}
+
+fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
+    let width = costs.width;
+    let n = tree.nodes.len();
+    let mut table = Table {
+        width,
+        cost: vec![f64::INFINITY; n * width],
+        split: vec![0; n * width],
+        is_leaf: vec![false; n],
+        triangles: vec![0; n],
+    };
+    for &node_index in tree.depth_first().iter().rev() {
+        let i = node_index as usize;
+        let node = tree.nodes[i];
+        let area = node.aabb.surface_area();
+        if node.left == NONE {
+            table.triangles[i] = 1;
+            table.is_leaf[i] = true;
+            let leaf = costs.leaf(1) * area;
+            table.cost[i * width..(i + 1) * width].fill(leaf);
+            continue;
+        }
+        let (l, r) = (node.left as usize, node.right as usize);
+        table.triangles[i] = table.triangles[l] + table.triangles[r];
+        let leaf = if table.triangles[i] as usize <= costs.max_leaf_size {
+            costs.leaf(table.triangles[i] as usize) * area
+        } else {
+            f64::INFINITY
+        };
+        let (distribute_all, _) = best_distribution(&table, l, r, width);
+        let internal = costs.node_visit * area + distribute_all;
+        table.is_leaf[i] = leaf <= internal;
+        table.cost[i * width] = leaf.min(internal);
+        for slots in 2..=width {
+            let (distributed, k) = best_distribution(&table, l, r, slots);
+            let previous = table.cost[i * width + slots - 2];
+            let at = i * width + slots - 1;
+            if distributed < previous {
+                table.cost[at] = distributed;
+                table.split[at] = k as u8;
+            } else {
+                table.cost[at] = previous;
+                table.split[at] = table.split[at - 1];
+            }
+        }
+    }
+    table
+}
+
+/// `C_distribute` over `slots` slots for children `l`, `r`: the best cost and the left child's share.
+fn best_distribution(table: &Table, l: usize, r: usize, slots: usize) -> (f64, usize) {
+    let w = table.width;
+    (1..slots)
+        .map(|k| (table.cost[l * w + k - 1] + table.cost[r * w + slots - k - 1], k))
+        .fold((f64::INFINITY, 1), |best, candidate| if candidate.0 < best.0 { candidate } else { best })
+}
+
+/// The binary nodes that become the children of a wide node over binary children `l` and `r`, `slots` at most.
+fn distribute(table: &Table, tree: &OptTree, l: u32, r: u32, slots: usize, out: &mut Vec<u32>) {
+    let (_, k) = best_distribution(table, l as usize, r as usize, slots);
+    gather(table, tree, l, k, out);
+    gather(table, tree, r, slots - k, out);
+}
+
+/// The children that binary node `n` contributes with at most `slots` slots.
+fn gather(table: &Table, tree: &OptTree, n: u32, slots: usize, out: &mut Vec<u32>) {
+    let split = table.split[n as usize * table.width + slots - 1] as usize;
+    let node = tree.nodes[n as usize];
+    if split == 0 || node.left == NONE {
+        out.push(n);
+    } else {
+        gather(table, tree, node.left, split, out);
+        gather(table, tree, node.right, slots - split, out);
+    }
+}
+
+/// Appends a leaf over the triangles under binary node `n`.
+fn push_leaf(tree: &OptTree, n: u32, order: &mut Vec<u32>, children: &mut Vec<(Aabb, WideChild)>) {
+    let first = order.len() as u32;
+    let mut stack = vec![n];
+    while let Some(j) = stack.pop() {
+        let node = tree.nodes[j as usize];
+        if node.left == NONE {
+            order.push(node.right);
+        } else {
+            stack.push(node.right);
+            stack.push(node.left);
+        }
+    }
+    let count = order.len() as u32 - first;
+    children.push((tree.nodes[n as usize].aabb, WideChild::Leaf { first, count }));
+}
+
+/// Renumbers leaf ranges so that, depth first in child order, they are consecutive from 0.
+fn relayout_leaves(wide: &mut WideTree) {
+    let old_order = std::mem::take(&mut wide.triangle_order);
+    let mut order = Vec::with_capacity(old_order.len());
+    // Leaves are renumbered in depth-first order: a node's leaves and subtrees interleave as its children do.
+    let mut pending = vec![(0u32, 0usize)];
+    while let Some((i, next_child)) = pending.pop() {
+        let children = &mut wide.nodes[i as usize].children;
+        let mut k = next_child;
+        while k < children.len() {
+            match children[k].1 {
+                WideChild::Leaf { first, count } => {
+                    let new_first = order.len() as u32;
+                    order.extend_from_slice(&old_order[first as usize..(first + count) as usize]);
+                    children[k].1 = WideChild::Leaf { first: new_first, count };
+                    k += 1;
+                }
+                WideChild::Node(c) => {
+                    pending.push((i, k + 1));
+                    pending.push((c, 0));
+                    break;
+                }
+            }
+        }
+    }
+    wide.triangle_order = order;
+}
