@@ -3,14 +3,22 @@
 //! The trees are the balanced preset's optimized binary trees; the costs are the placeholder constants of
 //! `WideCosts::default()` (node visit = packet test) until the SIMD kernel's calibration measures them.
 //!
+//! Then rays per second, one thread, of the 8-wide in-memory kernel (portable and AVX2 box tests, the binary
+//! kernel's watertight triangle test) against the binary kernel over the same optimized tree merged to leaves
+//! of up to 8 triangles, on 500,000 incoherent rays (`primary_rays`, closest hit; `shadow_rays`, any hit).
+//!
 //! `cargo bench --bench wide`; `BVHC_SCENES` overrides the scenes folder.
 
 #[path = "common/harness.rs"]
 mod harness;
 
+#[path = "common/rays.rs"]
+mod rays;
+
 use std::ops::ControlFlow;
 
 use bvhc::build::Builder;
+use bvhc::loader::{KernelPath, PackedTriangle, Ray, WideTracer};
 use bvhc::optimize::{OptTree, OptimizeParams, merge_leaves, optimize};
 use bvhc::wide::{WideChild, WideCosts, collapse};
 
@@ -26,6 +34,7 @@ fn main() {
     if !harness::benchmarking("wide") {
         return;
     }
+    let mut speeds = Vec::new();
     let dir = harness::scenes_dir();
     println!(
         "| scene | triangles | N | collapse ms | wide nodes | children / node | leaves | triangles / leaf | packets | wide bytes / binary bytes |"
@@ -74,6 +83,54 @@ fn main() {
                 triangles.len() as f64 / leaves.len() as f64,
                 wide_bytes as f64 / binary_bytes as f64
             );
+            if width == 8 {
+                speeds.push((name, kernel_speeds(&merged, &triangles, &wide)));
+            }
         }
     }
+    println!("\n| scene | query | binary | wide portable | wide AVX2 | AVX2 / binary |");
+    println!("|---|---|---|---|---|---|");
+    for (name, rows) in speeds {
+        for (query, binary, portable, avx2) in rows {
+            println!("| {name} | {query} | {binary:.2} | {portable:.2} | {avx2:.2} | {:.2} |", avx2 / binary);
+        }
+    }
+}
+
+/// Mrays/s (median of 3, one thread) of the binary and the wide kernels: (query, binary, portable, AVX2).
+fn kernel_speeds(
+    merged: &bvhc::build::BuildTree,
+    triangles: &[[[f32; 3]; 3]],
+    wide: &bvhc::wide::WideTree,
+) -> Vec<(&'static str, f64, f64, f64)> {
+    let packed_tree = bvhc::pack::pack(merged, triangles);
+    let file = bvhc::loader::BvhWriter::new(&packed_tree.nodes, &packed_tree.triangles).build().unwrap();
+    let binary = file.view().tracer();
+    let soup: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
+    let bvh = bvhc::wide::pack_wide(wide, &soup).unwrap();
+    let portable = WideTracer::new(&bvh, None, KernelPath::Portable);
+    let avx2 = WideTracer::new(&bvh, None, KernelPath::Avx2);
+    let root = &file.view().nodes()[0];
+    let speed = |rays: &[Ray], f: &dyn Fn(&Ray) -> bool| {
+        let time = harness::median_time(3, || {
+            std::hint::black_box(rays.iter().filter(|r| f(r)).count());
+        });
+        rays.len() as f64 / time.as_secs_f64() / 1e6
+    };
+    let closest = rays::primary_rays(root, 500_000);
+    let any = rays::shadow_rays(root, 500_000);
+    vec![
+        (
+            "closest",
+            speed(&closest, &|r| binary.closest_hit(r).is_some()),
+            speed(&closest, &|r| portable.closest_hit(r).is_some()),
+            speed(&closest, &|r| avx2.closest_hit(r).is_some()),
+        ),
+        (
+            "any",
+            speed(&any, &|r| binary.any_hit(r)),
+            speed(&any, &|r| portable.any_hit(r)),
+            speed(&any, &|r| avx2.any_hit(r)),
+        ),
+    ]
 }

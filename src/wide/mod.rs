@@ -3,8 +3,10 @@
 //! `WideTree` keeps each child's box and either a child node or a leaf's triangle range.
 
 mod collapse;
+mod pack;
 
 pub use collapse::{WideCosts, collapse};
+pub use pack::pack_wide;
 
 use crate::aabb::Aabb;
 

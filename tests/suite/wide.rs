@@ -194,3 +194,44 @@ fn the_collapse_is_optimal_for_the_binary_topology() {
         }
     }
 }
+
+/// Wide traversal (every kernel path) equals the binary kernel and brute force: closest t (a triangle at that t)
+/// and any hit, on random scenes and the stress scenes' kinds of rays (axis-parallel, +0/-0 components).
+#[test]
+fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
+    use bvhc::loader::{KernelPath, PackedTriangle, WideTracer};
+    for (seed, count, extent) in [(11u64, 1usize, 1.0f32), (12, 7, 1.0), (13, 300, 10.0), (14, 3000, 100.0)] {
+        let triangles = random_triangles(seed, count, extent);
+        let tree = binary(&triangles);
+        let packed: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
+        let ids: Vec<u32> = (0..triangles.len() as u32).map(|i| 1000 + i).collect();
+        let binary_file = crate::common::write_file(&crate::common::packed_tree(&triangles, 4));
+        let binary_tracer = binary_file.view().tracer();
+        let rays = crate::common::random_rays(seed + 50, 4000, extent * 1.5);
+        for (width, max_leaf_size) in [(8, 8), (4, 4), (8, 1)] {
+            let wide = collapse(&tree, &WideCosts { width, max_leaf_size, ..WideCosts::default() });
+            let bvh = bvhc::wide::pack_wide(&wide, &packed).unwrap();
+            for path in [KernelPath::Portable, KernelPath::Avx2] {
+                if !path.is_supported() {
+                    eprintln!("SKIPPED (part): {path:?} is not supported on this machine");
+                    continue;
+                }
+                let tracer = WideTracer::new(&bvh, Some(&ids), path);
+                for ray in &rays {
+                    let ours = tracer.closest_hit(ray);
+                    let reference = binary_tracer.closest_hit(ray);
+                    assert_eq!(ours.map(|h| h.t), reference.map(|h| h.t), "{path:?} width {width}: {ray:?}");
+                    if let Some(hit) = ours {
+                        assert_eq!(hit.source_triangle_id, Some(1000 + hit.triangle_index));
+                        let brute = crate::common::brute_force_closest(&triangles, ray).unwrap();
+                        assert_eq!(hit.t, brute.0);
+                        let prepared = bvhc::loader::PreparedRay::new(ray);
+                        let at_t = prepared.intersect_triangle(&packed[hit.triangle_index as usize], f32::INFINITY);
+                        assert_eq!(at_t.map(|h| h.t), Some(hit.t), "the reported triangle is hit at t");
+                    }
+                    assert_eq!(tracer.any_hit(ray), binary_tracer.any_hit(ray), "{path:?}: any hit {ray:?}");
+                }
+            }
+        }
+    }
+}

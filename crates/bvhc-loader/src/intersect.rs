@@ -21,7 +21,7 @@ use crate::format::{PackedNode, PackedTriangle};
 /// Machine epsilon for f32 rounding, 2^-24.
 const EPSILON: f32 = f32::EPSILON * 0.5;
 /// Ize's padding of the slab exit distance, `1 + 2 gamma(3)`.
-const EXIT_PADDING: f32 = 1.0 + 2.0 * (3.0 * EPSILON) / (1.0 - 3.0 * EPSILON);
+pub(crate) const EXIT_PADDING: f32 = 1.0 + 2.0 * (3.0 * EPSILON) / (1.0 - 3.0 * EPSILON);
 
 /// A ray: points `origin + t * direction` for `t` in `[t_min, t_max]`.
 ///

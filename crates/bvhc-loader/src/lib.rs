@@ -32,6 +32,7 @@ mod verify;
 mod verify_metadata;
 mod verify_references;
 mod view;
+mod wide;
 mod writer;
 
 pub use atomic::{
@@ -46,4 +47,5 @@ pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use traverse::{Hit, Tracer, TraversalCounter, TraversalStats};
 pub use verify::verify_tree;
 pub use view::{BvhView, SectionInfo};
+pub use wide::{EMPTY_SLOT, KernelPath, LEAF_BIT, MAX_LEAF_FIRST, WIDE, WideBvh, WideNode8, WideTracer};
 pub use writer::BvhWriter;

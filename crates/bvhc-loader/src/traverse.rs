@@ -12,7 +12,7 @@ use crate::intersect::{PreparedRay, Ray};
 /// carries a rounding error of a few ulps (different triangles through the same point, such as the fan around
 /// a shared vertex, report `t`s an ulp or two apart), so culling at the exact best `t` could skip a box whose
 /// triangle reports a `t` an ulp smaller. With the pad, the closest hit equals a brute-force scan exactly.
-const CULL_PADDING: f32 = 1.0 + 1.0 / 262_144.0;
+pub(crate) const CULL_PADDING: f32 = 1.0 + 1.0 / 262_144.0;
 
 /// The closest hit of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]

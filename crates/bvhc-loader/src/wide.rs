@@ -1,0 +1,357 @@
+//! An 8-wide BVH and its traversal: one ray against the eight child boxes of a node at a time, in SIMD lanes
+//! (AVX2) or in a portable loop that gives bit-identical box results, with the binary kernel's watertight
+//! triangle test in leaves. This is the in-memory form of the wide node section planned for format 1.1
+//! (issue 10); it is not yet stored in `.bvh` files.
+//!
+//! Layout (`WideNode8`, 256 bytes, 64-byte aligned): the children's boxes in structure-of-arrays order
+//! (`min[axis][lane]`, `max[axis][lane]`), so one 256-bit load feeds one slab test of all eight; then one child
+//! reference per lane: an inner node's index, a leaf (`LEAF_BIT | (count - 1) << 28 | first`, triangles
+//! `first .. first + count` of the tree's leaf-order triangles, 1 to 8 of them), or `EMPTY_SLOT` (its box is
+//! `+inf..-inf`, which no ray enters).
+//!
+//! The box test is the binary kernel's (Ize 2013: exit distances scaled by `1 + 2 gamma(3)`, compare-selects
+//! that ignore the NaN of an origin on the slab plane of a zero direction component), lane by lane: `max_ps` and
+//! `min_ps` are exactly those compare-selects, and no operation is fused, so both paths visit the same nodes.
+//! Children are visited nearest first; every pushed entry keeps its entry distance and is skipped on pop when a
+//! closer hit was found (with the binary kernel's cull padding).
+
+use crate::format::{MAX_DEPTH, PackedTriangle};
+use crate::intersect::{EXIT_PADDING, PreparedRay, Ray};
+use crate::traverse::{CULL_PADDING, Hit};
+
+/// Children per wide node.
+pub const WIDE: usize = 8;
+/// Marks a leaf child reference.
+pub const LEAF_BIT: u32 = 1 << 31;
+/// An unused child slot.
+pub const EMPTY_SLOT: u32 = u32::MAX;
+/// Largest first-triangle index a leaf reference can hold.
+pub const MAX_LEAF_FIRST: u32 = (1 << 28) - 1;
+
+/// One 8-wide node (see the module doc for the encoding).
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WideNode8 {
+    /// Children's box minima, per axis then per lane.
+    pub min: [[f32; WIDE]; 3],
+    /// Children's box maxima, per axis then per lane.
+    pub max: [[f32; WIDE]; 3],
+    /// Child references, per lane.
+    pub child: [u32; WIDE],
+    /// Zero.
+    pub reserved: [u32; WIDE],
+}
+
+const _: () = assert!(std::mem::size_of::<WideNode8>() == 256);
+
+impl WideNode8 {
+    /// A node with every slot empty.
+    pub const EMPTY: WideNode8 = WideNode8 {
+        min: [[f32::INFINITY; WIDE]; 3],
+        max: [[f32::NEG_INFINITY; WIDE]; 3],
+        child: [EMPTY_SLOT; WIDE],
+        reserved: [0; WIDE],
+    };
+
+    /// The leaf reference for triangles `first .. first + count` (`count` in 1..=8, `first <= MAX_LEAF_FIRST`).
+    pub fn leaf(first: u32, count: u32) -> Option<u32> {
+        ((1..=8).contains(&count) && first <= MAX_LEAF_FIRST).then_some(LEAF_BIT | ((count - 1) << 28) | first)
+    }
+}
+
+/// An 8-wide BVH checked at construction: references in range, children after their parents, leaf ranges inside
+/// the triangles, depth at most `MAX_DEPTH`. Traversal relies on these (it still never indexes out of bounds).
+#[derive(Clone, Debug)]
+pub struct WideBvh {
+    nodes: Vec<WideNode8>,
+    triangles: Vec<PackedTriangle>,
+    triangle_index: Vec<u32>,
+    root_min: [f32; 3],
+    root_max: [f32; 3],
+}
+
+impl WideBvh {
+    /// `nodes` (the root first), `order[k]` = the index in `triangles` of leaf-order triangle `k`, and the root's
+    /// box. Fails naming the first node or slot that breaks a rule.
+    pub fn new(
+        nodes: Vec<WideNode8>,
+        order: &[u32],
+        triangles: &[PackedTriangle],
+        root_box: ([f32; 3], [f32; 3]),
+    ) -> Result<WideBvh, String> {
+        let mut depth = vec![0usize; nodes.len()];
+        let mut parents = vec![0u8; nodes.len()];
+        for (i, node) in nodes.iter().enumerate() {
+            for (lane, &child) in node.child.iter().enumerate() {
+                if child == EMPTY_SLOT {
+                    continue;
+                }
+                if child & LEAF_BIT != 0 {
+                    let (first, count) = leaf_range(child);
+                    if first as usize + count as usize > order.len() {
+                        return Err(format!(
+                            "node {i} lane {lane}: leaf {first}+{count} outside {} triangles",
+                            order.len()
+                        ));
+                    }
+                    continue;
+                }
+                let c = child as usize;
+                if c <= i || c >= nodes.len() {
+                    return Err(format!("node {i} lane {lane}: child {c} must come after it and exist"));
+                }
+                parents[c] = parents[c].saturating_add(1);
+                depth[c] = depth[i] + 1;
+                if depth[c] > MAX_DEPTH {
+                    return Err(format!("node {c}: deeper than {MAX_DEPTH}"));
+                }
+            }
+        }
+        if let Some(c) = parents.iter().skip(1).position(|&p| p != 1) {
+            return Err(format!("node {}: {} parents", c + 1, parents[c + 1]));
+        }
+        let reordered = order
+            .iter()
+            .map(|&t| triangles.get(t as usize).copied().ok_or_else(|| format!("triangle {t} out of range")))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(WideBvh {
+            nodes,
+            triangles: reordered,
+            triangle_index: order.to_vec(),
+            root_min: root_box.0,
+            root_max: root_box.1,
+        })
+    }
+
+    /// The nodes.
+    pub fn nodes(&self) -> &[WideNode8] {
+        &self.nodes
+    }
+}
+
+fn leaf_range(child: u32) -> (u32, u32) {
+    (child & MAX_LEAF_FIRST, ((child >> 28) & 7) + 1)
+}
+
+/// Which implementation of the box test runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KernelPath {
+    /// Plain Rust, any machine.
+    Portable,
+    /// AVX2 (x86-64), chosen at run time.
+    Avx2,
+}
+
+impl KernelPath {
+    /// The fastest path this machine supports.
+    pub fn best() -> KernelPath {
+        if KernelPath::Avx2.is_supported() { KernelPath::Avx2 } else { KernelPath::Portable }
+    }
+
+    /// Whether this machine can run the path.
+    pub fn is_supported(self) -> bool {
+        match self {
+            KernelPath::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            KernelPath::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(not(target_arch = "x86_64"))]
+            KernelPath::Avx2 => false,
+        }
+    }
+}
+
+/// Per-ray constants of the wide box test.
+struct WideRay {
+    origin: [f32; 3],
+    inverse_direction: [f32; 3],
+    negative: [bool; 3],
+    t_min: f32,
+}
+
+/// Closest-hit and any-hit queries over a [`WideBvh`].
+pub struct WideTracer<'a> {
+    bvh: &'a WideBvh,
+    triangle_ids: Option<&'a [u32]>,
+    path: KernelPath,
+}
+
+/// Stack entries: each visited node pushes at most 7.
+const STACK_LEN: usize = (WIDE - 1) * MAX_DEPTH + 1;
+
+impl<'a> WideTracer<'a> {
+    /// A tracer on `path` (the portable one when `path` is not supported here). `triangle_ids` are indexed by
+    /// the triangles' indices as given to [`WideBvh::new`].
+    pub fn new(bvh: &'a WideBvh, triangle_ids: Option<&'a [u32]>, path: KernelPath) -> WideTracer<'a> {
+        let path = if path.is_supported() { path } else { KernelPath::Portable };
+        WideTracer { bvh, triangle_ids, path }
+    }
+
+    /// The closest hit.
+    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        let (k, hit) = self.traverse::<false>(ray)?;
+        let triangle_index = self.bvh.triangle_index[k];
+        Some(Hit {
+            t: hit.t,
+            triangle_index,
+            source_triangle_id: self.triangle_ids.and_then(|ids| ids.get(triangle_index as usize).copied()),
+            u: hit.u,
+            v: hit.v,
+        })
+    }
+
+    /// Whether any triangle is hit.
+    pub fn any_hit(&self, ray: &Ray) -> bool {
+        self.traverse::<true>(ray).is_some()
+    }
+
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<(usize, crate::intersect::TriangleHit)> {
+        let prepared = PreparedRay::new(ray);
+        let wide_ray = WideRay {
+            origin: ray.origin,
+            inverse_direction: ray.direction.map(|c| 1.0 / c),
+            negative: ray.direction.map(f32::is_sign_negative),
+            t_min: ray.t_min,
+        };
+        if self.bvh.nodes.is_empty() || !enters_root(&wide_ray, self.bvh.root_min, self.bvh.root_max, ray.t_max) {
+            return None;
+        }
+        let mut t_max = ray.t_max;
+        let mut found = None;
+        let mut stack = [(0u32, 0f32); STACK_LEN];
+        let mut stack_len = 0usize;
+        let mut current = 0u32;
+        loop {
+            if current & LEAF_BIT != 0 {
+                let (first, count) = leaf_range(current);
+                let range = first as usize..first as usize + count as usize;
+                for (k, triangle) in self.bvh.triangles.get(range).unwrap_or(&[]).iter().enumerate() {
+                    if let Some(hit) = prepared.intersect_triangle(triangle, t_max) {
+                        found = Some((first as usize + k, hit));
+                        if ANY_HIT {
+                            return found;
+                        }
+                        t_max = hit.t;
+                    }
+                }
+            } else if let Some(node) = self.bvh.nodes.get(current as usize) {
+                let (mask, t_near) = self.box_test(node, &wide_ray, t_max * CULL_PADDING);
+                // The hit children, nearest first (insertion sort of at most 8).
+                let mut order = [(0u32, 0f32); WIDE];
+                let mut n = 0;
+                for (lane, (&child, &t)) in node.child.iter().zip(&t_near).enumerate() {
+                    if mask & (1 << lane) != 0 && child != EMPTY_SLOT {
+                        let entry = (child, t);
+                        let mut at = n;
+                        while at > 0 && order[at - 1].1 > entry.1 {
+                            order[at] = order[at - 1];
+                            at -= 1;
+                        }
+                        order[at] = entry;
+                        n += 1;
+                    }
+                }
+                if n > 0 {
+                    for &entry in order[1..n].iter().rev() {
+                        if let Some(slot) = stack.get_mut(stack_len) {
+                            *slot = entry;
+                            stack_len += 1;
+                        }
+                    }
+                    current = order[0].0;
+                    continue;
+                }
+            }
+            loop {
+                if stack_len == 0 {
+                    return found;
+                }
+                stack_len -= 1;
+                let (next, t_entry) = stack[stack_len];
+                if t_entry <= t_max * CULL_PADDING {
+                    current = next;
+                    break;
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    #[allow(unsafe_code)] // the AVX2 call, under the runtime check of `WideTracer::new`
+    fn box_test(&self, node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
+        match self.path {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::new`).
+            KernelPath::Avx2 => unsafe { avx2::box_test(node, ray, t_far) },
+            _ => portable_box_test(node, ray, t_far),
+        }
+    }
+}
+
+fn enters_root(ray: &WideRay, min: [f32; 3], max: [f32; 3], t_max: f32) -> bool {
+    let mut node = WideNode8::EMPTY;
+    for axis in 0..3 {
+        node.min[axis][0] = min[axis];
+        node.max[axis][0] = max[axis];
+    }
+    portable_box_test(&node, ray, t_max).0 & 1 != 0
+}
+
+/// The slab test of all eight lanes, in plain Rust: the binary kernel's `enter_box` per lane.
+fn portable_box_test(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
+    let mut near = [ray.t_min; WIDE];
+    let mut far = [t_far; WIDE];
+    for axis in 0..3 {
+        let (entry, exit) =
+            if ray.negative[axis] { (&node.max[axis], &node.min[axis]) } else { (&node.min[axis], &node.max[axis]) };
+        let (o, inv) = (ray.origin[axis], ray.inverse_direction[axis]);
+        for lane in 0..WIDE {
+            let t_entry = (entry[lane] - o) * inv;
+            let t_exit = (exit[lane] - o) * inv * EXIT_PADDING;
+            near[lane] = if t_entry > near[lane] { t_entry } else { near[lane] };
+            far[lane] = if t_exit < far[lane] { t_exit } else { far[lane] };
+        }
+    }
+    let mask = near.iter().zip(&far).enumerate().fold(0u8, |m, (lane, (n, f))| if n <= f { m | 1 << lane } else { m });
+    (mask, near)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)] // intrinsics: every block states what it relies on
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    use super::{WIDE, WideNode8, WideRay};
+    use crate::intersect::EXIT_PADDING;
+
+    /// The slab test of all eight lanes in AVX2; the same operations, in the same order, as the portable one.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn box_test(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
+        let mut near = _mm256_set1_ps(ray.t_min);
+        let mut far = _mm256_set1_ps(t_far);
+        let pad = _mm256_set1_ps(EXIT_PADDING);
+        for axis in 0..3 {
+            let (entry, exit) = if ray.negative[axis] {
+                (&node.max[axis], &node.min[axis])
+            } else {
+                (&node.min[axis], &node.max[axis])
+            };
+            let o = _mm256_set1_ps(ray.origin[axis]);
+            let inv = _mm256_set1_ps(ray.inverse_direction[axis]);
+            // SAFETY: `entry` and `exit` are `[f32; 8]`, 32 readable bytes each; unaligned loads need no more.
+            let (entry, exit) = unsafe { (_mm256_loadu_ps(entry.as_ptr()), _mm256_loadu_ps(exit.as_ptr())) };
+            let t_entry = _mm256_mul_ps(_mm256_sub_ps(entry, o), inv);
+            let t_exit = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(exit, o), inv), pad);
+            // max_ps(a, b) = a > b ? a : b and min_ps(a, b) = a < b ? a : b: the portable compare-selects.
+            near = _mm256_max_ps(t_entry, near);
+            far = _mm256_min_ps(t_exit, far);
+        }
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u8;
+        let mut out = [0f32; WIDE];
+        // SAFETY: `out` has room for 8 f32.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), near) };
+        (mask, out)
+    }
+}
