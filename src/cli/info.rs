@@ -10,7 +10,7 @@ use super::output::{outln, print};
 use super::{Exit, fail, loader_exit};
 
 /// Reads and fully verifies a file; the error exit when it cannot be read or is invalid.
-fn read_verified(path: &Path) -> Result<BvhFile, Exit> {
+pub(super) fn read_verified(path: &Path) -> Result<BvhFile, Exit> {
     let file = BvhFile::read(path).map_err(|e| fail(loader_exit(&e), format!("{}: {e}", path.display())))?;
     file.view()
         .verify()

@@ -2,14 +2,15 @@
 //! pixel, parallel over rows (deterministic). Shading: the geometric normal as color, lit from the eye; or a
 //! heat map of traversal steps per pixel.
 
-use bvhc::loader::{BvhFile, PackedTriangle, TraversalStats};
+use bvhc::loader::{PackedTriangle, TraversalStats};
 use rayon::prelude::*;
 
 use super::args::RenderArgs;
+use super::info::read_verified;
 use super::legend::{Canvas, draw_heat_legend};
 use super::output::print;
 use super::view;
-use super::{Exit, fail, loader_exit};
+use super::{Exit, fail};
 
 pub type Vec3 = [f32; 3];
 
@@ -79,14 +80,11 @@ pub fn render(args: &RenderArgs) -> Exit {
             format!("{}: the output is the input .bvh file; choose another output path", args.output.display()),
         );
     }
-    let file = match BvhFile::read(&args.file) {
+    let file = match read_verified(&args.file) {
         Ok(file) => file,
-        Err(e) => return fail(loader_exit(&e), format!("{}: {e}", args.file.display())),
+        Err(exit) => return exit,
     };
     let view = file.view();
-    if let Err(v) = view.verify() {
-        return fail(Exit::InvalidInput, format!("{}: invalid .bvh file: {v}", args.file.display()));
-    }
     let (width, height) = (args.width.clamp(1, 16384) as usize, args.height.clamp(1, 16384) as usize);
     let (min, max) = view.nodes().first().map_or(([0.0; 3], [1.0; 3]), |root| (root.min, root.max));
     let tracer = view.tracer();

@@ -5,12 +5,13 @@
 
 use std::time::Instant;
 
-use bvhc::loader::{BvhFile, Hit, Ray};
+use bvhc::loader::{Hit, Ray};
 use rayon::prelude::*;
 
 use super::args::TraceArgs;
+use super::info::read_verified;
 use super::output::print;
-use super::{Exit, fail, loader_exit};
+use super::{Exit, fail};
 
 /// Bytes of one ray record.
 pub const RAY_RECORD_BYTE_LEN: usize = 32;
@@ -68,14 +69,11 @@ pub fn trace(args: &TraceArgs) -> Exit {
     {
         return fail(Exit::Io, format!("{}: the output is one of the inputs; choose another path", output.display()));
     }
-    let file = match BvhFile::read(&args.file) {
+    let file = match read_verified(&args.file) {
         Ok(file) => file,
-        Err(e) => return fail(loader_exit(&e), format!("{}: {e}", args.file.display())),
+        Err(exit) => return exit,
     };
     let view = file.view();
-    if let Err(v) = view.verify() {
-        return fail(Exit::InvalidInput, format!("{}: invalid .bvh file: {v}", args.file.display()));
-    }
     let bytes = match read_ray_file(&args.rays) {
         Ok(bytes) => bytes,
         Err(message) => return fail(Exit::Io, format!("{}: {message}", args.rays.display())),
