@@ -104,6 +104,7 @@ impl<'a> Tracer<'a> {
     }
 
     #[inline(always)]
+    #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Found {
         let prepared = PreparedRay::new(ray);
         let nodes = self.nodes;
@@ -111,7 +112,8 @@ impl<'a> Tracer<'a> {
         prepared.enter_box(root, ray.t_max)?;
         let mut t_max = ray.t_max;
         let mut found: Found = None;
-        let mut stack = [(0u32, 0f32); MAX_DEPTH];
+        // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
+        let mut stack = [const { std::mem::MaybeUninit::<(u32, f32)>::uninit() }; MAX_DEPTH];
         let mut stack_len = 0usize;
         let mut current = 0u32;
         let mut visits_left = nodes.len();
@@ -151,7 +153,7 @@ impl<'a> Tracer<'a> {
                         let (near, far, t_far) =
                             if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
                         if let Some(slot) = stack.get_mut(stack_len) {
-                            *slot = (far, t_far);
+                            slot.write((far, t_far));
                             stack_len += 1;
                         }
                         current = near;
@@ -174,7 +176,9 @@ impl<'a> Tracer<'a> {
                     return found;
                 }
                 stack_len -= 1;
-                let (node, t_entry) = stack[stack_len];
+                // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
+                // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
+                let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
                 if t_entry <= t_max * CULL_PADDING {
                     current = node;
                     break;

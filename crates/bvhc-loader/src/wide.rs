@@ -15,6 +15,8 @@
 //! Children are visited nearest first; every pushed entry keeps its entry distance and is skipped on pop when a
 //! closer hit was found (with the binary kernel's cull padding).
 
+use std::mem::MaybeUninit;
+
 use crate::format::{MAX_DEPTH, PackedTriangle};
 use crate::intersect::{EXIT_PADDING, PreparedRay, Ray};
 use crate::traverse::{CULL_PADDING, Hit};
@@ -204,6 +206,7 @@ impl<'a> WideTracer<'a> {
         self.traverse::<true>(ray).is_some()
     }
 
+    #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
     fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<(usize, crate::intersect::TriangleHit)> {
         let prepared = PreparedRay::new(ray);
         let wide_ray = WideRay {
@@ -217,7 +220,8 @@ impl<'a> WideTracer<'a> {
         }
         let mut t_max = ray.t_max;
         let mut found = None;
-        let mut stack = [(0u32, 0f32); STACK_LEN];
+        // Not zeroed: 14 KiB of memset per ray cost more than a node visit. Entries below `stack_len` are written.
+        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK_LEN];
         let mut stack_len = 0usize;
         let mut current = 0u32;
         loop {
@@ -238,22 +242,26 @@ impl<'a> WideTracer<'a> {
                 // The hit children, nearest first (insertion sort of at most 8).
                 let mut order = [(0u32, 0f32); WIDE];
                 let mut n = 0;
-                for (lane, (&child, &t)) in node.child.iter().zip(&t_near).enumerate() {
-                    if mask & (1 << lane) != 0 && child != EMPTY_SLOT {
-                        let entry = (child, t);
-                        let mut at = n;
-                        while at > 0 && order[at - 1].1 > entry.1 {
-                            order[at] = order[at - 1];
-                            at -= 1;
-                        }
-                        order[at] = entry;
-                        n += 1;
+                let mut lanes = mask;
+                while lanes != 0 {
+                    let lane = lanes.trailing_zeros() as usize;
+                    lanes &= lanes - 1;
+                    let entry = (node.child[lane], t_near[lane]);
+                    if entry.0 == EMPTY_SLOT {
+                        continue; // never hit (its box is +inf..-inf); kept out for safety on odd input
                     }
+                    let mut at = n;
+                    while at > 0 && order[at - 1].1 > entry.1 {
+                        order[at] = order[at - 1];
+                        at -= 1;
+                    }
+                    order[at] = entry;
+                    n += 1;
                 }
                 if n > 0 {
                     for &entry in order[1..n].iter().rev() {
                         if let Some(slot) = stack.get_mut(stack_len) {
-                            *slot = entry;
+                            slot.write(entry);
                             stack_len += 1;
                         }
                     }
@@ -266,7 +274,9 @@ impl<'a> WideTracer<'a> {
                     return found;
                 }
                 stack_len -= 1;
-                let (next, t_entry) = stack[stack_len];
+                // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
+                // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
+                let (next, t_entry) = unsafe { stack[stack_len].assume_init() };
                 if t_entry <= t_max * CULL_PADDING {
                     current = next;
                     break;
