@@ -103,6 +103,16 @@ impl PreparedRay {
         }
     }
 
+    /// The ray's origin and `t_min`.
+    pub(crate) fn origin_and_t_min(&self) -> ([f32; 3], f32) {
+        (self.origin, self.t_min)
+    }
+
+    /// The permuted axes `[kx, ky, kz]` and the shear `[sx, sy, sz]` of Woop et al.'s test.
+    pub(crate) fn shear(&self) -> ([usize; 3], [f32; 3]) {
+        ([self.kx, self.ky, self.kz], [self.sx, self.sy, self.sz])
+    }
+
     /// The distance at which the ray enters `node`'s box, if it overlaps the box within `[t_min, t_max]`.
     #[inline(always)]
     pub fn enter_box(&self, node: &PackedNode, t_max: f32) -> Option<f32> {

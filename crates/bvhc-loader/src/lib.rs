@@ -33,6 +33,7 @@ mod verify_metadata;
 mod verify_references;
 mod view;
 mod wide;
+mod wide_packets;
 mod writer;
 
 pub use atomic::{

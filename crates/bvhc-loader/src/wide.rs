@@ -1,6 +1,7 @@
 //! An 8-wide BVH and its traversal: one ray against the eight child boxes of a node at a time, in SIMD lanes
-//! (AVX2) or in a portable loop that gives bit-identical box results, with the binary kernel's watertight
-//! triangle test in leaves. This is the in-memory form of the wide node section planned for format 1.1
+//! (AVX2) or in a portable loop that gives bit-identical box results; leaves are tested four triangles at a time
+//! (`wide_packets`, SSE2) on the SIMD path and one at a time with the binary kernel's watertight test on the
+//! portable one, with identical hits. This is the in-memory form of the wide node section planned for format 1.1
 //! (issue 10); it is not yet stored in `.bvh` files.
 //!
 //! Layout (`WideNode8`, 256 bytes, 64-byte aligned): the children's boxes in structure-of-arrays order
@@ -18,8 +19,9 @@
 use std::mem::MaybeUninit;
 
 use crate::format::{MAX_DEPTH, PackedTriangle};
-use crate::intersect::{EXIT_PADDING, PreparedRay, Ray};
+use crate::intersect::{EXIT_PADDING, PreparedRay, Ray, TriangleHit};
 use crate::traverse::{CULL_PADDING, Hit};
+use crate::wide_packets::{LANES, Packet4};
 
 /// Children per wide node.
 pub const WIDE: usize = 8;
@@ -66,7 +68,11 @@ impl WideNode8 {
 #[derive(Clone, Debug)]
 pub struct WideBvh {
     nodes: Vec<WideNode8>,
+    /// Leaf-order triangles, each leaf padded to a multiple of 4 with NaN triangles (never hit).
     triangles: Vec<PackedTriangle>,
+    /// The same, four to a packet.
+    packets: Vec<Packet4>,
+    /// Per padded slot: the triangle's index as given to `new` (`u32::MAX` for padding).
     triangle_index: Vec<u32>,
     root_min: [f32; 3],
     root_max: [f32; 3],
@@ -112,17 +118,29 @@ impl WideBvh {
         if let Some(c) = parents.iter().skip(1).position(|&p| p != 1) {
             return Err(format!("node {}: {} parents", c + 1, parents[c + 1]));
         }
-        let reordered = order
-            .iter()
-            .map(|&t| triangles.get(t as usize).copied().ok_or_else(|| format!("triangle {t} out of range")))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(WideBvh {
-            nodes,
-            triangles: reordered,
-            triangle_index: order.to_vec(),
-            root_min: root_box.0,
-            root_max: root_box.1,
-        })
+        // Lay each leaf out at a multiple of 4 and rewrite its reference.
+        let mut nodes = nodes;
+        let pad = PackedTriangle { vertices: [[f32::NAN; 3]; 3] };
+        let mut padded = Vec::with_capacity(order.len() + order.len() / 2);
+        let mut triangle_index = Vec::with_capacity(padded.capacity());
+        for node in &mut nodes {
+            for child in node.child.iter_mut().filter(|c| **c != EMPTY_SLOT && **c & LEAF_BIT != 0) {
+                let (first, count) = leaf_range(*child);
+                let new_first = padded.len() as u32;
+                for &t in &order[first as usize..(first + count) as usize] {
+                    padded.push(*triangles.get(t as usize).ok_or_else(|| format!("triangle {t} out of range"))?);
+                    triangle_index.push(t);
+                }
+                while !padded.len().is_multiple_of(LANES) {
+                    padded.push(pad);
+                    triangle_index.push(u32::MAX);
+                }
+                *child = WideNode8::leaf(new_first, count)
+                    .ok_or_else(|| "too many triangles for leaf references".to_string())?;
+            }
+        }
+        let packets = padded.chunks(LANES).map(Packet4::new).collect();
+        Ok(WideBvh { nodes, triangles: padded, packets, triangle_index, root_min: root_box.0, root_max: root_box.1 })
     }
 
     /// The nodes.
@@ -140,7 +158,7 @@ fn leaf_range(child: u32) -> (u32, u32) {
 pub enum KernelPath {
     /// Plain Rust, any machine.
     Portable,
-    /// AVX2 (x86-64), chosen at run time.
+    /// AVX2 box tests and SSE2 triangle packets (x86-64), chosen at run time.
     Avx2,
 }
 
@@ -207,7 +225,7 @@ impl<'a> WideTracer<'a> {
     }
 
     #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<(usize, crate::intersect::TriangleHit)> {
+    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<(usize, TriangleHit)> {
         let prepared = PreparedRay::new(ray);
         let wide_ray = WideRay {
             origin: ray.origin,
@@ -227,15 +245,12 @@ impl<'a> WideTracer<'a> {
         loop {
             if current & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(current);
-                let range = first as usize..first as usize + count as usize;
-                for (k, triangle) in self.bvh.triangles.get(range).unwrap_or(&[]).iter().enumerate() {
-                    if let Some(hit) = prepared.intersect_triangle(triangle, t_max) {
-                        found = Some((first as usize + k, hit));
-                        if ANY_HIT {
-                            return found;
-                        }
-                        t_max = hit.t;
+                if let Some(hit) = self.leaf_hit(&prepared, first as usize, count as usize, t_max) {
+                    found = Some(hit);
+                    if ANY_HIT {
+                        return found;
                     }
+                    t_max = hit.1.t;
                 }
             } else if let Some(node) = self.bvh.nodes.get(current as usize) {
                 let (mask, t_near) = self.box_test(node, &wide_ray, t_max * CULL_PADDING);
@@ -283,6 +298,34 @@ impl<'a> WideTracer<'a> {
                 }
             }
         }
+    }
+
+    /// The closest hit among leaf triangles `first .. first + count` (padded slots), within `t_max`.
+    #[inline(always)]
+    fn leaf_hit(&self, ray: &PreparedRay, first: usize, count: usize, t_max: f32) -> Option<(usize, TriangleHit)> {
+        let triangles = self.bvh.triangles.get(first..first + count)?;
+        #[cfg(target_arch = "x86_64")]
+        if self.path == KernelPath::Avx2 {
+            let mut best = None;
+            let mut limit = t_max;
+            for (p, chunk) in triangles.chunks(LANES).enumerate() {
+                let packet = self.bvh.packets.get(first / LANES + p)?;
+                if let Some((lane, hit)) = crate::wide_packets::closest_in_packet(packet, chunk, ray, limit) {
+                    limit = hit.t;
+                    best = Some((first + p * LANES + lane, hit));
+                }
+            }
+            return best;
+        }
+        let mut best = None;
+        let mut limit = t_max;
+        for (k, triangle) in triangles.iter().enumerate() {
+            if let Some(hit) = ray.intersect_triangle(triangle, limit) {
+                limit = hit.t;
+                best = Some((first + k, hit));
+            }
+        }
+        best
     }
 
     #[inline(always)]
