@@ -225,3 +225,33 @@ pub fn assert_metadata_matches_schema(file: &BvhFile) -> serde_json::Value {
     assert!(errors.is_empty(), "metadata breaks the schema: {errors:?}\n{metadata:#}");
     metadata
 }
+
+/// The 8-wide BVH of `triangles` (binned SAH, one triangle per leaf, collapsed with the default costs), with
+/// triangle indices into `triangles`.
+pub fn wide_bvh(triangles: &[Triangle]) -> bvhc::loader::WideBvh {
+    let tree = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
+    wide_bvh_of(&tree, triangles)
+}
+
+/// [`wide_bvh`] from a given binary optimizer tree.
+pub fn wide_bvh_of(tree: &bvhc::optimize::OptTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
+    let wide = bvhc::wide::collapse(tree, &bvhc::wide::WideCosts::default());
+    let packed: Vec<bvhc::loader::PackedTriangle> =
+        triangles.iter().map(|&vertices| bvhc::loader::PackedTriangle { vertices }).collect();
+    bvhc::wide::pack_wide(&wide, &packed).expect("a collapsed tree packs")
+}
+
+/// The wide kernel paths this machine runs (the others are reported as skipped).
+pub fn kernel_paths() -> Vec<bvhc::loader::KernelPath> {
+    use bvhc::loader::KernelPath;
+    [KernelPath::Portable, KernelPath::Avx2]
+        .into_iter()
+        .filter(|p| {
+            let supported = p.is_supported();
+            if !supported {
+                eprintln!("SKIPPED (part): kernel path {p:?} is not supported on this machine");
+            }
+            supported
+        })
+        .collect()
+}

@@ -261,6 +261,17 @@ fn run_case(case: &Case) -> Counts {
     let file =
         BvhWriter::new(&packed.nodes, &packed.triangles).triangle_ids(&packed.triangle_ids).build().expect("verifies");
     let tracer = file.view().tracer();
+    // The wide kernel, every path, over the same optimized tree: the same answers as brute force.
+    let wide = crate::common::wide_bvh_of(&opt, &case.triangles);
+    for path in crate::common::kernel_paths() {
+        let wide_tracer = bvhc::loader::WideTracer::new(&wide, None, path);
+        for ray in &case.rays {
+            let brute = brute_force_closest(&case.triangles, ray).map(|(t, _)| t);
+            let got = wide_tracer.closest_hit(ray);
+            assert_eq!(got.map(|h| h.t), brute, "{}: wide kernel {path:?}, ray {ray:?}", case.name);
+            assert_eq!(wide_tracer.any_hit(ray), brute.is_some(), "{}: wide any-hit {path:?}", case.name);
+        }
+    }
     let root = file.view().nodes()[0];
     let scale = f64::from((0..3).map(|a| root.max[a] - root.min[a]).fold(0.0, f32::max)).max(1e-30);
     let mut counts = Counts::default();
