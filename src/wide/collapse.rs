@@ -36,8 +36,10 @@ pub struct WideCosts {
 }
 
 impl Default for WideCosts {
-    /// 8-wide nodes, packets of 4, leaves of up to 8 triangles, and a packet test priced like a node visit
-    /// (placeholders until the kernel's calibration measures them).
+    /// 8-wide nodes, packets of 4, leaves of up to 8 triangles, and a packet test priced like a node visit.
+    /// `cargo bench --bench calibrate` fits a packet test at 1.9-4.4 node visits on this kernel (kitchen, engine,
+    /// dragon res2; 2026-12-01), but trees collapsed with the fitted ratio traced no faster than with 1 : 1
+    /// (-5% to +5%, within this machine's noise), so the placeholder stays until the fit is better conditioned.
     fn default() -> Self {
         WideCosts { width: 8, packet_width: 4, max_leaf_size: 8, node_visit: 1.0, packet_test: 1.0 }
     }

@@ -20,7 +20,7 @@ use std::mem::MaybeUninit;
 
 use crate::format::{MAX_DEPTH, PackedTriangle};
 use crate::intersect::{EXIT_PADDING, PreparedRay, Ray, TriangleHit};
-use crate::traverse::{CULL_PADDING, Hit};
+use crate::traverse::{CULL_PADDING, Hit, TraversalCounter};
 use crate::wide_packets::{LANES, Packet4};
 
 /// Children per wide node.
@@ -208,7 +208,13 @@ impl<'a> WideTracer<'a> {
 
     /// The closest hit.
     pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        let (k, hit) = self.traverse::<false>(ray)?;
+        self.closest_hit_counted(ray, &mut ())
+    }
+
+    /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (on the SIMD path, packets of
+    /// four count as one test each) into `counter`.
+    pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        let (k, hit) = self.traverse::<false>(ray, counter)?;
         let triangle_index = self.bvh.triangle_index[k];
         Some(Hit {
             t: hit.t,
@@ -221,11 +227,15 @@ impl<'a> WideTracer<'a> {
 
     /// Whether any triangle is hit.
     pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray).is_some()
+        self.traverse::<true>(ray, &mut ()).is_some()
     }
 
     #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray) -> Option<(usize, TriangleHit)> {
+    fn traverse<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+    ) -> Option<(usize, TriangleHit)> {
         let prepared = PreparedRay::new(ray);
         let wide_ray = WideRay {
             origin: ray.origin,
@@ -245,7 +255,7 @@ impl<'a> WideTracer<'a> {
         loop {
             if current & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(current);
-                if let Some(hit) = self.leaf_hit(&prepared, first as usize, count as usize, t_max) {
+                if let Some(hit) = self.leaf_hit(&prepared, first as usize, count as usize, t_max, counter) {
                     found = Some(hit);
                     if ANY_HIT {
                         return found;
@@ -253,6 +263,7 @@ impl<'a> WideTracer<'a> {
                     t_max = hit.1.t;
                 }
             } else if let Some(node) = self.bvh.nodes.get(current as usize) {
+                counter.node_visited();
                 let (mask, t_near) = self.box_test(node, &wide_ray, t_max * CULL_PADDING);
                 // The hit children, nearest first (insertion sort of at most 8).
                 let mut order = [(0u32, 0f32); WIDE];
@@ -302,7 +313,14 @@ impl<'a> WideTracer<'a> {
 
     /// The closest hit among leaf triangles `first .. first + count` (padded slots), within `t_max`.
     #[inline(always)]
-    fn leaf_hit(&self, ray: &PreparedRay, first: usize, count: usize, t_max: f32) -> Option<(usize, TriangleHit)> {
+    fn leaf_hit(
+        &self,
+        ray: &PreparedRay,
+        first: usize,
+        count: usize,
+        t_max: f32,
+        counter: &mut impl TraversalCounter,
+    ) -> Option<(usize, TriangleHit)> {
         let triangles = self.bvh.triangles.get(first..first + count)?;
         #[cfg(target_arch = "x86_64")]
         if self.path == KernelPath::Avx2 {
@@ -310,6 +328,7 @@ impl<'a> WideTracer<'a> {
             let mut limit = t_max;
             for (p, chunk) in triangles.chunks(LANES).enumerate() {
                 let packet = self.bvh.packets.get(first / LANES + p)?;
+                counter.triangle_tested();
                 if let Some((lane, hit)) = crate::wide_packets::closest_in_packet(packet, chunk, ray, limit) {
                     limit = hit.t;
                     best = Some((first + p * LANES + lane, hit));
@@ -320,6 +339,7 @@ impl<'a> WideTracer<'a> {
         let mut best = None;
         let mut limit = t_max;
         for (k, triangle) in triangles.iter().enumerate() {
+            counter.triangle_tested();
             if let Some(hit) = ray.intersect_triangle(triangle, limit) {
                 limit = hit.t;
                 best = Some((first + k, hit));
