@@ -214,7 +214,7 @@ impl<'a> WideTracer<'a> {
     /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (on the SIMD path, packets of
     /// four count as one test each) into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        let (k, hit) = self.traverse::<false>(ray, counter)?;
+        let (k, hit) = self.dispatch::<false>(ray, counter)?;
         let triangle_index = self.bvh.triangle_index[k];
         Some(Hit {
             t: hit.t,
@@ -227,11 +227,42 @@ impl<'a> WideTracer<'a> {
 
     /// Whether any triangle is hit.
     pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.traverse::<true>(ray, &mut ()).is_some()
+        self.dispatch::<true>(ray, &mut ()).is_some()
     }
 
+    /// The traversal compiled for the tracer's path: for AVX2 the whole loop is one `target_feature` function,
+    /// so the box test and the packets inline into it instead of being called per node.
+    #[inline(always)]
+    #[allow(unsafe_code)] // the AVX2 entry, under the runtime check of `WideTracer::new`
+    fn dispatch<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+    ) -> Option<(usize, TriangleHit)> {
+        match self.path {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::new`).
+            KernelPath::Avx2 => unsafe { self.traverse_avx2::<ANY_HIT>(ray, counter) },
+            _ => self.traverse::<ANY_HIT, false>(ray, counter),
+        }
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code)]
+    unsafe fn traverse_avx2<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+    ) -> Option<(usize, TriangleHit)> {
+        self.traverse::<ANY_HIT, true>(ray, counter)
+    }
+
+    #[inline(always)]
     #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
-    fn traverse<const ANY_HIT: bool>(
+    fn traverse<const ANY_HIT: bool, const SIMD: bool>(
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
@@ -255,7 +286,7 @@ impl<'a> WideTracer<'a> {
         loop {
             if current & LEAF_BIT != 0 {
                 let (first, count) = leaf_range(current);
-                if let Some(hit) = self.leaf_hit(&prepared, first as usize, count as usize, t_max, counter) {
+                if let Some(hit) = self.leaf_hit::<SIMD>(&prepared, first as usize, count as usize, t_max, counter) {
                     found = Some(hit);
                     if ANY_HIT {
                         return found;
@@ -264,7 +295,7 @@ impl<'a> WideTracer<'a> {
                 }
             } else if let Some(node) = self.bvh.nodes.get(current as usize) {
                 counter.node_visited();
-                let (mask, t_near) = self.box_test(node, &wide_ray, t_max * CULL_PADDING);
+                let (mask, t_near) = Self::box_test::<SIMD>(node, &wide_ray, t_max * CULL_PADDING);
                 // The hit children, nearest first (insertion sort of at most 8).
                 let mut order = [(0u32, 0f32); WIDE];
                 let mut n = 0;
@@ -313,7 +344,7 @@ impl<'a> WideTracer<'a> {
 
     /// The closest hit among leaf triangles `first .. first + count` (padded slots), within `t_max`.
     #[inline(always)]
-    fn leaf_hit(
+    fn leaf_hit<const SIMD: bool>(
         &self,
         ray: &PreparedRay,
         first: usize,
@@ -323,7 +354,7 @@ impl<'a> WideTracer<'a> {
     ) -> Option<(usize, TriangleHit)> {
         let triangles = self.bvh.triangles.get(first..first + count)?;
         #[cfg(target_arch = "x86_64")]
-        if self.path == KernelPath::Avx2 {
+        if SIMD {
             let mut best = None;
             let mut limit = t_max;
             for (p, chunk) in triangles.chunks(LANES).enumerate() {
@@ -349,14 +380,15 @@ impl<'a> WideTracer<'a> {
     }
 
     #[inline(always)]
-    #[allow(unsafe_code)] // the AVX2 call, under the runtime check of `WideTracer::new`
-    fn box_test(&self, node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
-        match self.path {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::new`).
-            KernelPath::Avx2 => unsafe { avx2::box_test(node, ray, t_far) },
-            _ => portable_box_test(node, ray, t_far),
+    #[allow(unsafe_code)] // the AVX2 call, only reached from `traverse_avx2`
+    fn box_test<const SIMD: bool>(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
+        #[cfg(target_arch = "x86_64")]
+        if SIMD {
+            // SAFETY: SIMD is true only inside `traverse_avx2`, which runs only after the AVX2 check of
+            // `WideTracer::new`.
+            return unsafe { avx2::box_test(node, ray, t_far) };
         }
+        portable_box_test(node, ray, t_far)
     }
 }
 
@@ -401,6 +433,7 @@ mod avx2 {
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
+    #[inline]
     pub(super) unsafe fn box_test(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
         let mut near = _mm256_set1_ps(ray.t_min);
         let mut far = _mm256_set1_ps(t_far);
