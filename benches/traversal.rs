@@ -64,6 +64,23 @@ impl Obvhs {
     }
 }
 
+/// The scene at `relative` under `dir`, converted with the default options into `out`, and its path; `None`
+/// (reported as skipped) when the scene is not there.
+fn converted_scene(
+    dir: &std::path::Path,
+    relative: &str,
+    out: &std::path::Path,
+) -> Option<(std::path::PathBuf, BvhFile)> {
+    let path = dir.join(relative);
+    if !path.is_file() {
+        eprintln!("SKIPPED: {} not found", path.display());
+        return None;
+    }
+    let output = out.join("scene.bvh");
+    convert_with(&path, &output, &ConvertOptions::default(), &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+    Some((path, BvhFile::read(&output).unwrap()))
+}
+
 /// Mrays/s of `f` over `rays`, single-threaded and on all threads (median of 3 each).
 fn speeds(rays: &[Ray], f: impl Fn(&Ray) -> bool + Sync) -> (f64, f64) {
     let mrays = |d: Duration| rays.len() as f64 / d.as_secs_f64() / 1e6;
@@ -95,14 +112,7 @@ fn main() {
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
         ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
     ] {
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
-        let output = out.path().join("scene.bvh");
-        convert_with(&path, &output, &ConvertOptions::default(), &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
-        let file = BvhFile::read(&output).unwrap();
+        let Some((path, file)) = converted_scene(&dir, relative, out.path()) else { continue };
         let view = file.view();
         let tracer: Tracer<'_> = view.tracer();
         let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
@@ -189,14 +199,7 @@ fn against_embree() {
         ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
         ("toy car", "khr-toy-car/ToyCar.gltf"),
     ] {
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
-        let output = out.path().join("scene.bvh");
-        convert_with(&path, &output, &ConvertOptions::default(), &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
-        let file = BvhFile::read(&output).unwrap();
+        let Some((_, file)) = converted_scene(&dir, relative, out.path()) else { continue };
         let view = file.view();
         let tracer = view.tracer();
         let triangles: Vec<[[f32; 3]; 3]> = view.triangles().iter().map(|t| t.vertices).collect();

@@ -30,7 +30,9 @@ pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
     let mut rays = Vec::new();
     rays.try_reserve_exact(bytes.len() / RAY_RECORD_BYTE_LEN).map_err(|_| "out of memory for the rays".to_string())?;
     for (i, record) in bytes.chunks_exact(RAY_RECORD_BYTE_LEN).enumerate() {
-        let f: Vec<f32> = record.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let f: [f32; 8] = std::array::from_fn(|k| {
+            f32::from_le_bytes([record[4 * k], record[4 * k + 1], record[4 * k + 2], record[4 * k + 3]])
+        });
         let ray = Ray { origin: [f[0], f[1], f[2]], direction: [f[3], f[4], f[5]], t_min: f[6], t_max: f[7] };
         let finite = f[..7].iter().all(|v| v.is_finite()) && !ray.t_max.is_nan();
         if !finite {

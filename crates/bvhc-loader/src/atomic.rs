@@ -84,11 +84,14 @@ fn temporary_files(directory: &Path, is_stale: impl Fn(u32) -> bool) -> Vec<Path
 /// where that cannot be told, files older than a day). Errors are ignored: sweeping is a courtesy.
 pub fn sweep_stale(directory: &Path) {
     let own = std::process::id();
-    for path in temporary_files(directory, |pid| pid != own && !process_exists(pid)) {
-        let old = std::fs::metadata(&path)
-            .and_then(|m| m.modified())
-            .is_ok_and(|t| t.elapsed().is_ok_and(|age| age.as_secs() > 24 * 3600));
-        if cfg!(target_os = "linux") || old {
+    for path in temporary_files(directory, |pid| pid != own) {
+        let stale = match owner_alive(&path) {
+            Some(alive) => !alive,
+            None => std::fs::metadata(&path)
+                .and_then(|m| m.modified())
+                .is_ok_and(|t| t.elapsed().is_ok_and(|age| age.as_secs() > 24 * 3600)),
+        };
+        if stale {
             let _ = std::fs::remove_file(path);
         }
     }
@@ -101,7 +104,9 @@ pub fn remove_own_temporary_files(directory: &Path) -> usize {
     temporary_files(directory, |pid| pid == own).into_iter().filter(|p| std::fs::remove_file(p).is_ok()).count()
 }
 
-/// Whether process `pid` is alive (Linux: `/proc/<pid>` exists; elsewhere assumed alive).
-fn process_exists(pid: u32) -> bool {
-    if cfg!(target_os = "linux") { Path::new(&format!("/proc/{pid}")).exists() } else { true }
+/// Whether the process named in a temporary file's name is alive: `Some` on Linux (`/proc/<pid>` exists),
+/// `None` where that cannot be told.
+fn owner_alive(path: &Path) -> Option<bool> {
+    let pid = path.file_name()?.to_str().and_then(temporary_owner)?;
+    cfg!(target_os = "linux").then(|| Path::new(&format!("/proc/{pid}")).exists())
 }

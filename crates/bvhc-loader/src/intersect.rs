@@ -60,11 +60,11 @@ pub struct TriangleHit {
 /// Per-ray constants of both tests, computed once per ray.
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedRay {
-    origin: [f32; 3],
-    inverse_direction: [f32; 3],
+    pub(crate) origin: [f32; 3],
+    pub(crate) inverse_direction: [f32; 3],
     /// Per axis: whether the direction's sign bit is set, so the slab is entered through `max`.
-    negative: [bool; 3],
-    t_min: f32,
+    pub(crate) negative: [bool; 3],
+    pub(crate) t_min: f32,
     kx: usize,
     ky: usize,
     kz: usize,
@@ -101,11 +101,6 @@ impl PreparedRay {
             sy: d[ky] / d[kz],
             sz: 1.0 / d[kz],
         }
-    }
-
-    /// The ray's origin and `t_min`.
-    pub(crate) fn origin_and_t_min(&self) -> ([f32; 3], f32) {
-        (self.origin, self.t_min)
     }
 
     /// The permuted axes `[kx, ky, kz]` and the shear `[sx, sy, sz]` of Woop et al.'s test.

@@ -6,7 +6,7 @@
 //! fails verification it may return wrong hits, never panic or hang.
 
 use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
-use crate::intersect::{PreparedRay, Ray};
+use crate::intersect::{PreparedRay, Ray, TriangleHit};
 
 /// Boxes are culled against the closest hit so far padded by this factor (`1 + 2^-18`). The triangle test's `t`
 /// carries a rounding error of a few ulps (different triangles through the same point, such as the fan around
@@ -27,6 +27,19 @@ pub struct Hit {
     pub u: f32,
     /// Barycentric weight of `v2`.
     pub v: f32,
+}
+
+impl Hit {
+    /// The hit on triangle `triangle_index` (of the file's triangles), its source id looked up in `triangle_ids`.
+    pub(crate) fn new(triangle_index: u32, hit: TriangleHit, triangle_ids: Option<&[u32]>) -> Hit {
+        Hit {
+            t: hit.t,
+            triangle_index,
+            source_triangle_id: triangle_ids.and_then(|ids| ids.get(triangle_index as usize).copied()),
+            u: hit.u,
+            v: hit.v,
+        }
+    }
 }
 
 /// Receives traversal events. The default path uses `()`, whose empty methods compile away.
@@ -84,13 +97,7 @@ impl<'a> Tracer<'a> {
     /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
         let (triangle_index, hit) = self.traverse::<false>(ray, counter)?;
-        Some(Hit {
-            t: hit.t,
-            triangle_index,
-            source_triangle_id: self.triangle_ids.and_then(|ids| ids.get(triangle_index as usize).copied()),
-            u: hit.u,
-            v: hit.v,
-        })
+        Some(Hit::new(triangle_index, hit, self.triangle_ids))
     }
 
     /// Whether anything is hit with `t_min <= t <= t_max` (occlusion); stops at the first hit found.

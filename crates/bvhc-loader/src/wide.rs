@@ -18,7 +18,7 @@
 
 use std::mem::MaybeUninit;
 
-use crate::format::{MAX_DEPTH, PackedTriangle};
+use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
 use crate::intersect::{EXIT_PADDING, PreparedRay, Ray, TriangleHit};
 use crate::traverse::{CULL_PADDING, Hit, TraversalCounter};
 use crate::wide_packets::{LANES, Packet4};
@@ -74,8 +74,8 @@ pub struct WideBvh {
     packets: Vec<Packet4>,
     /// Per padded slot: the triangle's index as given to `new` (`u32::MAX` for padding).
     triangle_index: Vec<u32>,
-    root_min: [f32; 3],
-    root_max: [f32; 3],
+    /// The root's box, as an inner node for the binary kernel's box test.
+    root: PackedNode,
 }
 
 impl WideBvh {
@@ -140,7 +140,8 @@ impl WideBvh {
             }
         }
         let packets = padded.chunks(LANES).map(Packet4::new).collect();
-        Ok(WideBvh { nodes, triangles: padded, packets, triangle_index, root_min: root_box.0, root_max: root_box.1 })
+        let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
+        Ok(WideBvh { nodes, triangles: padded, packets, triangle_index, root })
     }
 
     /// The nodes.
@@ -180,14 +181,6 @@ impl KernelPath {
     }
 }
 
-/// Per-ray constants of the wide box test.
-struct WideRay {
-    origin: [f32; 3],
-    inverse_direction: [f32; 3],
-    negative: [bool; 3],
-    t_min: f32,
-}
-
 /// Closest-hit and any-hit queries over a [`WideBvh`].
 pub struct WideTracer<'a> {
     bvh: &'a WideBvh,
@@ -215,14 +208,7 @@ impl<'a> WideTracer<'a> {
     /// four count as one test each) into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
         let (k, hit) = self.dispatch::<false>(ray, counter)?;
-        let triangle_index = self.bvh.triangle_index[k];
-        Some(Hit {
-            t: hit.t,
-            triangle_index,
-            source_triangle_id: self.triangle_ids.and_then(|ids| ids.get(triangle_index as usize).copied()),
-            u: hit.u,
-            v: hit.v,
-        })
+        Some(Hit::new(self.bvh.triangle_index[k], hit, self.triangle_ids))
     }
 
     /// Whether any triangle is hit.
@@ -268,13 +254,7 @@ impl<'a> WideTracer<'a> {
         counter: &mut impl TraversalCounter,
     ) -> Option<(usize, TriangleHit)> {
         let prepared = PreparedRay::new(ray);
-        let wide_ray = WideRay {
-            origin: ray.origin,
-            inverse_direction: ray.direction.map(|c| 1.0 / c),
-            negative: ray.direction.map(f32::is_sign_negative),
-            t_min: ray.t_min,
-        };
-        if self.bvh.nodes.is_empty() || !enters_root(&wide_ray, self.bvh.root_min, self.bvh.root_max, ray.t_max) {
+        if self.bvh.nodes.is_empty() || prepared.enter_box(&self.bvh.root, ray.t_max).is_none() {
             return None;
         }
         let mut t_max = ray.t_max;
@@ -295,7 +275,7 @@ impl<'a> WideTracer<'a> {
                 }
             } else if let Some(node) = self.bvh.nodes.get(current as usize) {
                 counter.node_visited();
-                let (mask, t_near) = Self::box_test::<SIMD>(node, &wide_ray, t_max * CULL_PADDING);
+                let (mask, t_near) = Self::box_test::<SIMD>(node, &prepared, t_max * CULL_PADDING);
                 // The hit children, nearest first (insertion sort of at most 8).
                 let mut order = [(0u32, 0f32); WIDE];
                 let mut n = 0;
@@ -381,7 +361,7 @@ impl<'a> WideTracer<'a> {
 
     #[inline(always)]
     #[allow(unsafe_code)] // the AVX2 call, only reached from `traverse_avx2`
-    fn box_test<const SIMD: bool>(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
+    fn box_test<const SIMD: bool>(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
         #[cfg(target_arch = "x86_64")]
         if SIMD {
             // SAFETY: SIMD is true only inside `traverse_avx2`, which runs only after the AVX2 check of
@@ -392,17 +372,8 @@ impl<'a> WideTracer<'a> {
     }
 }
 
-fn enters_root(ray: &WideRay, min: [f32; 3], max: [f32; 3], t_max: f32) -> bool {
-    let mut node = WideNode8::EMPTY;
-    for axis in 0..3 {
-        node.min[axis][0] = min[axis];
-        node.max[axis][0] = max[axis];
-    }
-    portable_box_test(&node, ray, t_max).0 & 1 != 0
-}
-
 /// The slab test of all eight lanes, in plain Rust: the binary kernel's `enter_box` per lane.
-fn portable_box_test(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
+fn portable_box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
     let mut near = [ray.t_min; WIDE];
     let mut far = [t_far; WIDE];
     for axis in 0..3 {
@@ -425,8 +396,9 @@ fn portable_box_test(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; 
 mod avx2 {
     use std::arch::x86_64::*;
 
-    use super::{WIDE, WideNode8, WideRay};
+    use super::{WIDE, WideNode8};
     use crate::intersect::EXIT_PADDING;
+    use crate::intersect::PreparedRay;
 
     /// The slab test of all eight lanes in AVX2; the same operations, in the same order, as the portable one.
     ///
@@ -434,7 +406,7 @@ mod avx2 {
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub(super) unsafe fn box_test(node: &WideNode8, ray: &WideRay, t_far: f32) -> (u8, [f32; WIDE]) {
+    pub(super) unsafe fn box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
         let mut near = _mm256_set1_ps(ray.t_min);
         let mut far = _mm256_set1_ps(t_far);
         let pad = _mm256_set1_ps(EXIT_PADDING);

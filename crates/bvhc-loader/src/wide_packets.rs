@@ -46,7 +46,7 @@ pub fn closest_in_packet(
 ) -> Option<(usize, TriangleHit)> {
     use std::arch::x86_64::*;
     let ([kx, ky, kz], [sx, sy, sz]) = ray.shear();
-    let (origin, t_min) = ray.origin_and_t_min();
+    let (origin, t_min) = (ray.origin, ray.t_min);
     // SAFETY: SSE2 is part of every x86-64 CPU; all loads read 16 bytes from `[f32; 4]` arrays of the packet,
     // the stores write `[f32; 4]` locals.
     let (v, w, t, det, zero, valid) = unsafe {
