@@ -235,3 +235,39 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
         }
     }
 }
+
+#[test]
+fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
+    use bvhc::loader::{PackedTriangle, WideBvh};
+    let triangles = random_triangles(300, 200, 1.0);
+    let good = crate::common::wide_bvh(&triangles);
+    let packed: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
+    let root = ([-10.0; 3], [10.0; 3]);
+    let rebuild = |nodes: Vec<_>, packets: Vec<_>, tris: &[PackedTriangle]| WideBvh::new(nodes, packets, root, tris);
+    assert!(rebuild(good.nodes().to_vec(), good.packets().to_vec(), &packed).is_ok());
+    // A lane whose vertices differ from the triangle it names.
+    let mut packets = good.packets().to_vec();
+    packets[0].vertices[0][0][0] += 1.0;
+    assert!(rebuild(good.nodes().to_vec(), packets, &packed).unwrap_err().contains("packet 0 lane 0"));
+    // A triangle that no lane holds.
+    let mut more = packed.clone();
+    more.push(packed[0]);
+    assert!(rebuild(good.nodes().to_vec(), good.packets().to_vec(), &more).unwrap_err().contains("in no packet"));
+    // Two lanes naming one triangle.
+    let mut packets = good.packets().to_vec();
+    let (index, triangle) = (packets[0].triangle_index[0], packets[0].triangle(0));
+    let last = packets.len() - 1;
+    let lane = packets[last].used_lanes() - 1;
+    packets[last].triangle_index[lane] = index;
+    for vertex in 0..3 {
+        for axis in 0..3 {
+            packets[last].vertices[vertex][axis][lane] = triangle.vertices[vertex][axis];
+        }
+    }
+    assert!(rebuild(good.nodes().to_vec(), packets, &packed).is_err());
+    // A leaf pointing past the packets.
+    let mut nodes = good.nodes().to_vec();
+    let slot = nodes[0].child.iter().position(|&c| c != bvhc::loader::EMPTY_SLOT).unwrap();
+    nodes[0].child[slot] = bvhc::loader::WideNode8::leaf(good.packets().len() as u32, 1).unwrap();
+    assert!(rebuild(nodes, good.packets().to_vec(), &packed).is_err());
+}

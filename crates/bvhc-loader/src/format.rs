@@ -237,6 +237,112 @@ pub struct SourceRange {
     pub reserved: u32,
 }
 
+/// Child slots of a wide node.
+pub const WIDE: usize = 8;
+/// Triangles in one packet.
+pub const PACKET_LANES: usize = 4;
+/// `WideNode8::child` bit that marks a leaf reference.
+pub const LEAF_BIT: u32 = 1 << 31;
+/// `WideNode8::child` value of an empty slot (whose box is `+inf..-inf`).
+pub const EMPTY_SLOT: u32 = u32::MAX;
+/// Largest first packet index a leaf reference can hold (28 bits).
+pub const MAX_LEAF_FIRST_PACKET: u32 = (1 << 28) - 1;
+/// Most packets one leaf reference can hold (3 bits of `packet_count - 1`).
+pub const MAX_LEAF_PACKETS: u32 = 8;
+/// `TrianglePacket4::triangle_index` of an unused lane.
+pub const UNUSED_LANE: u32 = u32::MAX;
+/// The bits of every coordinate of an unused lane: the quiet NaN `0x7FC00000`, which no ray hits.
+pub const UNUSED_LANE_COORDINATE_BITS: u32 = 0x7FC0_0000;
+
+/// One node of the wide tree (planned as the `wide_nodes` section of format 1.1, issue 10; not yet stored in
+/// files): the boxes of up to eight children in
+/// structure-of-arrays order (`min[axis][slot]`), so one 256-bit load feeds one slab test of all eight, and one
+/// child reference per slot:
+///
+/// * `EMPTY_SLOT`: no child; the slot's box is `min = +inf`, `max = -inf`, which no ray enters;
+/// * `LEAF_BIT | (packet_count - 1) << 28 | first_packet`: a leaf, packets `first_packet .. + packet_count` of
+///   the `triangle_packets` section (`packet_count` 1 to 8);
+/// * otherwise: the index of an inner wide node, greater than this node's own index.
+///
+/// Occupied slots come first. Node 0 is the root. 256 bytes, so nodes stay 64-byte aligned in the section.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct WideNode8 {
+    /// Children's box minima, per axis then per slot.
+    pub min: [[f32; WIDE]; 3],
+    /// Children's box maxima, per axis then per slot.
+    pub max: [[f32; WIDE]; 3],
+    /// Child references, per slot.
+    pub child: [u32; WIDE],
+    /// Zero.
+    pub reserved: [u32; WIDE],
+}
+
+impl WideNode8 {
+    /// A node with every slot empty.
+    pub const EMPTY: WideNode8 = WideNode8 {
+        min: [[f32::INFINITY; WIDE]; 3],
+        max: [[f32::NEG_INFINITY; WIDE]; 3],
+        child: [EMPTY_SLOT; WIDE],
+        reserved: [0; WIDE],
+    };
+
+    /// The leaf reference for packets `first_packet .. first_packet + packet_count`, if it fits the encoding.
+    pub fn leaf(first_packet: u32, packet_count: u32) -> Option<u32> {
+        ((1..=MAX_LEAF_PACKETS).contains(&packet_count) && first_packet <= MAX_LEAF_FIRST_PACKET)
+            .then_some(LEAF_BIT | ((packet_count - 1) << 28) | first_packet)
+    }
+
+    /// `(first_packet, packet_count)` of a leaf reference (`child & LEAF_BIT != 0`, not `EMPTY_SLOT`).
+    pub const fn leaf_packets(child: u32) -> (u32, u32) {
+        (child & MAX_LEAF_FIRST_PACKET, ((child >> 28) & 7) + 1)
+    }
+}
+
+/// Four leaf triangles (planned as the `triangle_packets` section of format 1.1; not yet stored in files), vertices in structure-of-arrays order
+/// (`vertices[vertex][axis][lane]`) for a watertight test of all four in SIMD lanes, and each lane's index into
+/// the `triangles` section, whose vertices the lane repeats bit for bit. Used lanes come first; an unused lane
+/// has index `UNUSED_LANE` and every coordinate `UNUSED_LANE_COORDINATE_BITS`. 160 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct TrianglePacket4 {
+    /// Coordinates, per vertex, axis, lane.
+    pub vertices: [[[f32; PACKET_LANES]; 3]; 3],
+    /// Index in the triangles section, per lane.
+    pub triangle_index: [u32; PACKET_LANES],
+}
+
+impl TrianglePacket4 {
+    /// The packet of up to four triangles `(index, triangle)`; missing lanes are unused.
+    pub fn new(triangles: &[(u32, PackedTriangle)]) -> TrianglePacket4 {
+        let nan = f32::from_bits(UNUSED_LANE_COORDINATE_BITS);
+        let mut packet =
+            TrianglePacket4 { vertices: [[[nan; PACKET_LANES]; 3]; 3], triangle_index: [UNUSED_LANE; PACKET_LANES] };
+        for (lane, (index, triangle)) in triangles.iter().take(PACKET_LANES).enumerate() {
+            packet.triangle_index[lane] = *index;
+            for vertex in 0..3 {
+                for axis in 0..3 {
+                    packet.vertices[vertex][axis][lane] = triangle.vertices[vertex][axis];
+                }
+            }
+        }
+        packet
+    }
+
+    /// The triangle in `lane`.
+    pub fn triangle(&self, lane: usize) -> PackedTriangle {
+        let v = &self.vertices;
+        PackedTriangle { vertices: [0, 1, 2].map(|vertex| [0, 1, 2].map(|axis| v[vertex][axis][lane])) }
+    }
+
+    /// Number of used lanes (lanes before the first unused one).
+    pub fn used_lanes(&self) -> usize {
+        self.triangle_index.iter().take_while(|&&i| i != UNUSED_LANE).count()
+    }
+}
+
+const _: () = assert!(size_of::<WideNode8>() == 256);
+const _: () = assert!(size_of::<TrianglePacket4>() == 160);
 const _: () = assert!(size_of::<FileHeader>() == 64);
 const _: () = assert!(size_of::<SectionEntry>() == 48);
 const _: () = assert!(size_of::<PackedNode>() == 32);

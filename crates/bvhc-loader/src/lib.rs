@@ -43,10 +43,13 @@ pub use atomic::{
 pub use checksum::{header_checksum, section_checksum};
 pub use error::{Error, Rule, Violation};
 pub use file::{BvhFile, MappedBvh};
-pub use format::{PackedNode, PackedTriangle, SectionKind, SourceRange};
+pub use format::{
+    EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, SectionKind, SourceRange, TrianglePacket4, WIDE,
+    WideNode8,
+};
 pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use traverse::{Hit, Tracer, TraversalCounter, TraversalStats};
 pub use verify::verify_tree;
 pub use view::{BvhView, SectionInfo};
-pub use wide::{EMPTY_SLOT, KernelPath, LEAF_BIT, MAX_LEAF_FIRST, WIDE, WideBvh, WideNode8, WideTracer};
+pub use wide::{KernelPath, WideBvh, WideTracer};
 pub use writer::BvhWriter;

@@ -1,157 +1,116 @@
-//! An 8-wide BVH and its traversal: one ray against the eight child boxes of a node at a time, in SIMD lanes
-//! (AVX2) or in a portable loop that gives bit-identical box results; leaves are tested four triangles at a time
-//! (`wide_packets`, SSE2) on the SIMD path and one at a time with the binary kernel's watertight test on the
-//! portable one, with identical hits. This is the in-memory form of the wide node section planned for format 1.1
-//! (issue 10); it is not yet stored in `.bvh` files.
-//!
-//! Layout (`WideNode8`, 256 bytes, 64-byte aligned): the children's boxes in structure-of-arrays order
-//! (`min[axis][lane]`, `max[axis][lane]`), so one 256-bit load feeds one slab test of all eight; then one child
-//! reference per lane: an inner node's index, a leaf (`LEAF_BIT | (count - 1) << 28 | first`, triangles
-//! `first .. first + count` of the tree's leaf-order triangles, 1 to 8 of them), or `EMPTY_SLOT` (its box is
-//! `+inf..-inf`, which no ray enters).
+//! Traversal of the wide layout planned for format 1.1 (issue 10; in memory only, not yet in files): one ray against the eight child boxes of a `WideNode8` at a time,
+//! in SIMD lanes (AVX2) or in a portable loop that gives bit-identical box results; leaves are `TrianglePacket4`s
+//! tested four triangles at a time (`wide_packets`, SSE2) on the SIMD path and one lane at a time with the binary
+//! kernel's watertight test on the portable one, with identical hits. Layout: `format::WideNode8`.
 //!
 //! The box test is the binary kernel's (Ize 2013: exit distances scaled by `1 + 2 gamma(3)`, compare-selects
 //! that ignore the NaN of an origin on the slab plane of a zero direction component), lane by lane: `max_ps` and
 //! `min_ps` are exactly those compare-selects, and no operation is fused, so both paths visit the same nodes.
 //! Children are visited nearest first; every pushed entry keeps its entry distance and is skipped on pop when a
 //! closer hit was found (with the binary kernel's cull padding).
+//!
+//! Safe on any bytes: every index is bounds-checked, and a ray visits at most `node_count` inner nodes (so a
+//! node referenced from many slots cannot make a traversal run long); on a file that fails verification the hits
+//! are unspecified.
 
 use std::mem::MaybeUninit;
 
-use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
+use crate::format::{
+    EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, PACKET_LANES, PackedNode, PackedTriangle, TrianglePacket4, WIDE, WideNode8,
+};
 use crate::intersect::{EXIT_PADDING, PreparedRay, Ray, TriangleHit};
 use crate::traverse::{CULL_PADDING, Hit, TraversalCounter};
-use crate::wide_packets::{LANES, Packet4};
 
-/// Children per wide node.
-pub const WIDE: usize = 8;
-/// Marks a leaf child reference.
-pub const LEAF_BIT: u32 = 1 << 31;
-/// An unused child slot.
-pub const EMPTY_SLOT: u32 = u32::MAX;
-/// Largest first-triangle index a leaf reference can hold.
-pub const MAX_LEAF_FIRST: u32 = (1 << 28) - 1;
-
-/// One 8-wide node (see the module doc for the encoding).
-#[repr(C, align(64))]
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct WideNode8 {
-    /// Children's box minima, per axis then per lane.
-    pub min: [[f32; WIDE]; 3],
-    /// Children's box maxima, per axis then per lane.
-    pub max: [[f32; WIDE]; 3],
-    /// Child references, per lane.
-    pub child: [u32; WIDE],
-    /// Zero.
-    pub reserved: [u32; WIDE],
-}
-
-const _: () = assert!(std::mem::size_of::<WideNode8>() == 256);
-
-impl WideNode8 {
-    /// A node with every slot empty.
-    pub const EMPTY: WideNode8 = WideNode8 {
-        min: [[f32::INFINITY; WIDE]; 3],
-        max: [[f32::NEG_INFINITY; WIDE]; 3],
-        child: [EMPTY_SLOT; WIDE],
-        reserved: [0; WIDE],
-    };
-
-    /// The leaf reference for triangles `first .. first + count` (`count` in 1..=8, `first <= MAX_LEAF_FIRST`).
-    pub fn leaf(first: u32, count: u32) -> Option<u32> {
-        ((1..=8).contains(&count) && first <= MAX_LEAF_FIRST).then_some(LEAF_BIT | ((count - 1) << 28) | first)
-    }
-}
-
-/// An 8-wide BVH checked at construction: references in range, children after their parents, leaf ranges inside
-/// the triangles, depth at most `MAX_DEPTH`. Traversal relies on these (it still never indexes out of bounds).
+/// The wide sections in memory (owned), checked at construction against the triangles they index.
 #[derive(Clone, Debug)]
 pub struct WideBvh {
     nodes: Vec<WideNode8>,
-    /// Leaf-order triangles, each leaf padded to a multiple of 4 with NaN triangles (never hit).
-    triangles: Vec<PackedTriangle>,
-    /// The same, four to a packet.
-    packets: Vec<Packet4>,
-    /// Per padded slot: the triangle's index as given to `new` (`u32::MAX` for padding).
-    triangle_index: Vec<u32>,
-    /// The root's box, as an inner node for the binary kernel's box test.
+    packets: Vec<TrianglePacket4>,
     root: PackedNode,
 }
 
 impl WideBvh {
-    /// `nodes` (the root first), `order[k]` = the index in `triangles` of leaf-order triangle `k`, and the root's
-    /// box. Fails naming the first node or slot that breaks a rule.
+    /// `nodes` (the root first) and `packets` over `triangles` (whose indices the packets' lanes hold), inside
+    /// `root_box`. Fails naming the first node, slot or packet that breaks a rule: references in range, children
+    /// after their parents, each node but the root with one parent, depth at most `MAX_DEPTH`, used lanes first
+    /// and equal bit for bit to the triangle they index, every triangle in exactly one lane.
     pub fn new(
         nodes: Vec<WideNode8>,
-        order: &[u32],
-        triangles: &[PackedTriangle],
+        packets: Vec<TrianglePacket4>,
         root_box: ([f32; 3], [f32; 3]),
+        triangles: &[PackedTriangle],
     ) -> Result<WideBvh, String> {
-        let mut depth = vec![0usize; nodes.len()];
-        let mut parents = vec![0u8; nodes.len()];
-        for (i, node) in nodes.iter().enumerate() {
-            for (lane, &child) in node.child.iter().enumerate() {
-                if child == EMPTY_SLOT {
-                    continue;
-                }
-                if child & LEAF_BIT != 0 {
-                    let (first, count) = leaf_range(child);
-                    if first as usize + count as usize > order.len() {
-                        return Err(format!(
-                            "node {i} lane {lane}: leaf {first}+{count} outside {} triangles",
-                            order.len()
-                        ));
-                    }
-                    continue;
-                }
-                let c = child as usize;
-                if c <= i || c >= nodes.len() {
-                    return Err(format!("node {i} lane {lane}: child {c} must come after it and exist"));
-                }
-                parents[c] = parents[c].saturating_add(1);
-                depth[c] = depth[i] + 1;
-                if depth[c] > MAX_DEPTH {
-                    return Err(format!("node {c}: deeper than {MAX_DEPTH}"));
-                }
-            }
-        }
-        if let Some(c) = parents.iter().skip(1).position(|&p| p != 1) {
-            return Err(format!("node {}: {} parents", c + 1, parents[c + 1]));
-        }
-        // Lay each leaf out at a multiple of 4 and rewrite its reference.
-        let mut nodes = nodes;
-        let pad = PackedTriangle { vertices: [[f32::NAN; 3]; 3] };
-        let mut padded = Vec::with_capacity(order.len() + order.len() / 2);
-        let mut triangle_index = Vec::with_capacity(padded.capacity());
-        for node in &mut nodes {
-            for child in node.child.iter_mut().filter(|c| **c != EMPTY_SLOT && **c & LEAF_BIT != 0) {
-                let (first, count) = leaf_range(*child);
-                let new_first = padded.len() as u32;
-                for &t in &order[first as usize..(first + count) as usize] {
-                    padded.push(*triangles.get(t as usize).ok_or_else(|| format!("triangle {t} out of range"))?);
-                    triangle_index.push(t);
-                }
-                while !padded.len().is_multiple_of(LANES) {
-                    padded.push(pad);
-                    triangle_index.push(u32::MAX);
-                }
-                *child = WideNode8::leaf(new_first, count)
-                    .ok_or_else(|| "too many triangles for leaf references".to_string())?;
-            }
-        }
-        let packets = padded.chunks(LANES).map(Packet4::new).collect();
+        check_wide(&nodes, &packets, triangles)?;
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
-        Ok(WideBvh { nodes, triangles: padded, packets, triangle_index, root })
+        Ok(WideBvh { nodes, packets, root })
     }
 
-    /// The nodes.
+    /// The nodes (the `wide_nodes` section).
     pub fn nodes(&self) -> &[WideNode8] {
         &self.nodes
     }
+
+    /// The packets (the `triangle_packets` section).
+    pub fn packets(&self) -> &[TrianglePacket4] {
+        &self.packets
+    }
 }
 
-fn leaf_range(child: u32) -> (u32, u32) {
-    (child & MAX_LEAF_FIRST, ((child >> 28) & 7) + 1)
+fn check_wide(nodes: &[WideNode8], packets: &[TrianglePacket4], triangles: &[PackedTriangle]) -> Result<(), String> {
+    let mut depth = vec![0usize; nodes.len()];
+    let mut parents = vec![0u8; nodes.len()];
+    let mut packet_owner = vec![false; packets.len()];
+    for (i, node) in nodes.iter().enumerate() {
+        for (slot, &child) in node.child.iter().enumerate() {
+            if child == EMPTY_SLOT {
+                continue;
+            }
+            if child & LEAF_BIT != 0 {
+                let (first, count) = WideNode8::leaf_packets(child);
+                for p in first..first + count {
+                    match packet_owner.get_mut(p as usize) {
+                        Some(owned) if !*owned => *owned = true,
+                        _ => return Err(format!("node {i} slot {slot}: packet {p} missing or in two leaves")),
+                    }
+                }
+                continue;
+            }
+            let c = child as usize;
+            if c <= i || c >= nodes.len() {
+                return Err(format!("node {i} slot {slot}: child {c} must come after it and exist"));
+            }
+            parents[c] = parents[c].saturating_add(1);
+            depth[c] = depth[i] + 1;
+            if depth[c] > MAX_DEPTH {
+                return Err(format!("node {c}: deeper than {MAX_DEPTH}"));
+            }
+        }
+    }
+    if let Some(c) = parents.iter().skip(1).position(|&p| p != 1) {
+        return Err(format!("node {}: {} parents", c + 1, parents[c + 1]));
+    }
+    let mut seen = vec![false; triangles.len()];
+    for (p, packet) in packets.iter().enumerate() {
+        let used = packet.used_lanes();
+        for lane in 0..PACKET_LANES {
+            let index = packet.triangle_index[lane];
+            let lane_bits = packet.triangle(lane).vertices.map(|v| v.map(f32::to_bits));
+            let ok = if lane < used {
+                let stored = triangles.get(index as usize).map(|t| t.vertices.map(|v| v.map(f32::to_bits)));
+                stored == Some(lane_bits) && !std::mem::replace(&mut seen[index as usize], true)
+            } else {
+                index == crate::format::UNUSED_LANE
+                    && lane_bits.iter().flatten().all(|&b| b == crate::format::UNUSED_LANE_COORDINATE_BITS)
+            };
+            if !ok || used == 0 {
+                return Err(format!("packet {p} lane {lane}: not a well-formed lane (index {index})"));
+            }
+        }
+    }
+    if let Some(t) = seen.iter().position(|&s| !s) {
+        return Err(format!("triangle {t} is in no packet"));
+    }
+    Ok(())
 }
 
 /// Which implementation of the box test runs.
@@ -181,9 +140,13 @@ impl KernelPath {
     }
 }
 
-/// Closest-hit and any-hit queries over a [`WideBvh`].
+/// Closest-hit and any-hit queries over wide sections (a file's, or a [`WideBvh`]).
+#[derive(Clone, Copy, Debug)]
 pub struct WideTracer<'a> {
-    bvh: &'a WideBvh,
+    nodes: &'a [WideNode8],
+    packets: &'a [TrianglePacket4],
+    /// The binary root's box, tested first (as an inner node for the binary kernel's box test).
+    root: PackedNode,
     triangle_ids: Option<&'a [u32]>,
     path: KernelPath,
 }
@@ -192,11 +155,27 @@ pub struct WideTracer<'a> {
 const STACK_LEN: usize = (WIDE - 1) * MAX_DEPTH + 1;
 
 impl<'a> WideTracer<'a> {
-    /// A tracer on `path` (the portable one when `path` is not supported here). `triangle_ids` are indexed by
-    /// the triangles' indices as given to [`WideBvh::new`].
+    /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangle_ids` are
+    /// indexed by the packets' triangle indices.
     pub fn new(bvh: &'a WideBvh, triangle_ids: Option<&'a [u32]>, path: KernelPath) -> WideTracer<'a> {
+        WideTracer::over(&bvh.nodes, &bvh.packets, bvh.root, triangle_ids, path)
+    }
+
+    /// A tracer over borrowed sections; `root` is the binary root node (its box bounds the whole tree).
+    pub(crate) fn over(
+        nodes: &'a [WideNode8],
+        packets: &'a [TrianglePacket4],
+        root: PackedNode,
+        triangle_ids: Option<&'a [u32]>,
+        path: KernelPath,
+    ) -> WideTracer<'a> {
         let path = if path.is_supported() { path } else { KernelPath::Portable };
-        WideTracer { bvh, triangle_ids, path }
+        WideTracer { nodes, packets, root: PackedNode { index: 0, count: 0, ..root }, triangle_ids, path }
+    }
+
+    /// The path this tracer runs.
+    pub fn path(&self) -> KernelPath {
+        self.path
     }
 
     /// The closest hit.
@@ -207,13 +186,18 @@ impl<'a> WideTracer<'a> {
     /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (on the SIMD path, packets of
     /// four count as one test each) into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        let (k, hit) = self.dispatch::<false>(ray, counter)?;
-        Some(Hit::new(self.bvh.triangle_index[k], hit, self.triangle_ids))
+        let (triangle_index, hit) = self.dispatch::<false>(ray, counter)?;
+        Some(Hit::new(triangle_index, hit, self.triangle_ids))
     }
 
     /// Whether any triangle is hit.
     pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.dispatch::<true>(ray, &mut ()).is_some()
+        self.any_hit_counted(ray, &mut ())
+    }
+
+    /// [`WideTracer::any_hit`], counting as [`WideTracer::closest_hit_counted`] does.
+    pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.dispatch::<true>(ray, counter).is_some()
     }
 
     /// The traversal compiled for the tracer's path: for AVX2 the whole loop is one `target_feature` function,
@@ -224,7 +208,7 @@ impl<'a> WideTracer<'a> {
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
-    ) -> Option<(usize, TriangleHit)> {
+    ) -> Option<(u32, TriangleHit)> {
         match self.path {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::new`).
@@ -242,7 +226,7 @@ impl<'a> WideTracer<'a> {
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
-    ) -> Option<(usize, TriangleHit)> {
+    ) -> Option<(u32, TriangleHit)> {
         self.traverse::<ANY_HIT, true>(ray, counter)
     }
 
@@ -252,11 +236,12 @@ impl<'a> WideTracer<'a> {
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
-    ) -> Option<(usize, TriangleHit)> {
+    ) -> Option<(u32, TriangleHit)> {
         let prepared = PreparedRay::new(ray);
-        if self.bvh.nodes.is_empty() || prepared.enter_box(&self.bvh.root, ray.t_max).is_none() {
+        if self.nodes.is_empty() || prepared.enter_box(&self.root, ray.t_max).is_none() {
             return None;
         }
+        let mut visits_left = self.nodes.len();
         let mut t_max = ray.t_max;
         let mut found = None;
         // Not zeroed: 14 KiB of memset per ray cost more than a node visit. Entries below `stack_len` are written.
@@ -265,7 +250,7 @@ impl<'a> WideTracer<'a> {
         let mut current = 0u32;
         loop {
             if current & LEAF_BIT != 0 {
-                let (first, count) = leaf_range(current);
+                let (first, count) = WideNode8::leaf_packets(current);
                 if let Some(hit) = self.leaf_hit::<SIMD>(&prepared, first as usize, count as usize, t_max, counter) {
                     found = Some(hit);
                     if ANY_HIT {
@@ -273,7 +258,8 @@ impl<'a> WideTracer<'a> {
                     }
                     t_max = hit.1.t;
                 }
-            } else if let Some(node) = self.bvh.nodes.get(current as usize) {
+            } else if let Some(node) = self.nodes.get(current as usize).filter(|_| visits_left > 0) {
+                visits_left -= 1;
                 counter.node_visited();
                 let (mask, t_near) = Self::box_test::<SIMD>(node, &prepared, t_max * CULL_PADDING);
                 // The hit children, nearest first (insertion sort of at most 8).
@@ -322,7 +308,7 @@ impl<'a> WideTracer<'a> {
         }
     }
 
-    /// The closest hit among leaf triangles `first .. first + count` (padded slots), within `t_max`.
+    /// The closest hit in packets `first .. first + count`, within `t_max`, as (triangle index, hit).
     #[inline(always)]
     fn leaf_hit<const SIMD: bool>(
         &self,
@@ -331,29 +317,23 @@ impl<'a> WideTracer<'a> {
         count: usize,
         t_max: f32,
         counter: &mut impl TraversalCounter,
-    ) -> Option<(usize, TriangleHit)> {
-        let triangles = self.bvh.triangles.get(first..first + count)?;
-        #[cfg(target_arch = "x86_64")]
-        if SIMD {
-            let mut best = None;
-            let mut limit = t_max;
-            for (p, chunk) in triangles.chunks(LANES).enumerate() {
-                let packet = self.bvh.packets.get(first / LANES + p)?;
-                counter.triangle_tested();
-                if let Some((lane, hit)) = crate::wide_packets::closest_in_packet(packet, chunk, ray, limit) {
-                    limit = hit.t;
-                    best = Some((first + p * LANES + lane, hit));
-                }
-            }
-            return best;
-        }
+    ) -> Option<(u32, TriangleHit)> {
+        let packets = self.packets.get(first..first.saturating_add(count))?;
         let mut best = None;
         let mut limit = t_max;
-        for (k, triangle) in triangles.iter().enumerate() {
+        for packet in packets {
             counter.triangle_tested();
-            if let Some(hit) = ray.intersect_triangle(triangle, limit) {
+            #[cfg(target_arch = "x86_64")]
+            let found = if SIMD {
+                crate::wide_packets::closest_in_packet(packet, ray, limit)
+            } else {
+                lanes(packet, ray, limit)
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let found = lanes(packet, ray, limit);
+            if let Some((lane, hit)) = found {
                 limit = hit.t;
-                best = Some((first + k, hit));
+                best = Some((packet.triangle_index[lane], hit));
             }
         }
         best
@@ -370,6 +350,20 @@ impl<'a> WideTracer<'a> {
         }
         portable_box_test(node, ray, t_far)
     }
+}
+
+/// The closest hit among a packet's lanes, one lane at a time with the scalar watertight test (ties: the last
+/// lane, as the SIMD packet test).
+fn lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Option<(usize, TriangleHit)> {
+    let mut best = None;
+    let mut limit = t_max;
+    for lane in 0..PACKET_LANES {
+        if let Some(hit) = ray.intersect_triangle(&packet.triangle(lane), limit) {
+            limit = hit.t;
+            best = Some((lane, hit));
+        }
+    }
+    best
 }
 
 /// The slab test of all eight lanes, in plain Rust: the binary kernel's `enter_box` per lane.
@@ -396,7 +390,7 @@ fn portable_box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f
 mod avx2 {
     use std::arch::x86_64::*;
 
-    use super::{WIDE, WideNode8};
+    use crate::format::{WIDE, WideNode8};
     use crate::intersect::EXIT_PADDING;
     use crate::intersect::PreparedRay;
 

@@ -4,46 +4,14 @@
 //! same `t`, `u`, `v` bit for bit; a lane where an edge function is exactly 0 is redone by the scalar test (its
 //! f64 recomputation), and padding lanes (NaN vertices) never hit.
 
-use crate::format::PackedTriangle;
+use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::intersect::{PreparedRay, TriangleHit};
 
-/// Lanes per packet.
-pub const LANES: usize = 4;
-
-/// Four triangles' vertices, `v[vertex][axis][lane]`.
-#[repr(C, align(16))]
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Packet4 {
-    /// Coordinates.
-    pub v: [[[f32; LANES]; 3]; 3],
-}
-
-impl Packet4 {
-    /// The packet of up to four triangles; missing lanes get NaN vertices, which no ray hits.
-    pub fn new(triangles: &[PackedTriangle]) -> Packet4 {
-        let mut packet = Packet4 { v: [[[f32::NAN; LANES]; 3]; 3] };
-        for (lane, triangle) in triangles.iter().take(LANES).enumerate() {
-            for vertex in 0..3 {
-                for axis in 0..3 {
-                    packet.v[vertex][axis][lane] = triangle.vertices[vertex][axis];
-                }
-            }
-        }
-        packet
-    }
-}
-
 /// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
-/// `t <= t_max` would end with), as (lane, hit). `triangles` are the same four triangles in lane order, for the
-/// scalar redo of lanes with a zero edge function.
+/// `t <= t_max` would end with), as (lane, hit). A lane with a zero edge function is redone by the scalar test.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)] // SSE2 intrinsics: part of the x86-64 baseline, so always available
-pub fn closest_in_packet(
-    packet: &Packet4,
-    triangles: &[PackedTriangle],
-    ray: &PreparedRay,
-    t_max: f32,
-) -> Option<(usize, TriangleHit)> {
+pub fn closest_in_packet(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Option<(usize, TriangleHit)> {
     use std::arch::x86_64::*;
     let ([kx, ky, kz], [sx, sy, sz]) = ray.shear();
     let (origin, t_min) = (ray.origin, ray.t_min);
@@ -51,7 +19,8 @@ pub fn closest_in_packet(
     // the stores write `[f32; 4]` locals.
     let (v, w, t, det, zero, valid) = unsafe {
         let o = |axis: usize| _mm_set1_ps(origin[axis]);
-        let load = |vertex: usize, axis: usize| _mm_sub_ps(_mm_loadu_ps(packet.v[vertex][axis].as_ptr()), o(axis));
+        let load =
+            |vertex: usize, axis: usize| _mm_sub_ps(_mm_loadu_ps(packet.vertices[vertex][axis].as_ptr()), o(axis));
         let (sx, sy, sz) = (_mm_set1_ps(sx), _mm_set1_ps(sy), _mm_set1_ps(sz));
         let (akz, bkz, ckz) = (load(0, kz), load(1, kz), load(2, kz));
         let ax = _mm_sub_ps(load(0, kx), _mm_mul_ps(sx, akz));
@@ -81,9 +50,9 @@ pub fn closest_in_packet(
     };
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
-    for lane in 0..triangles.len().min(LANES) {
+    for lane in 0..LANES {
         let hit = if zero & (1 << lane) != 0 {
-            ray.intersect_triangle(&triangles[lane], limit)
+            ray.intersect_triangle(&packet.triangle(lane), limit)
         } else if valid & (1 << lane) != 0 && t[lane] <= limit {
             let inverse_det = 1.0 / det[lane];
             Some(TriangleHit { t: t[lane], u: v[lane] * inverse_det, v: w[lane] * inverse_det })
