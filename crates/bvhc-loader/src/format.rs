@@ -255,13 +255,12 @@ pub const UNUSED_LANE: u32 = u32::MAX;
 pub const UNUSED_LANE_COORDINATE_BITS: u32 = 0x7FC0_0000;
 
 /// One node of the wide tree (planned as the `wide_nodes` section of format 1.1, issue 10; not yet stored in
-/// files): the boxes of up to eight children in
-/// structure-of-arrays order (`min[axis][slot]`), so one 256-bit load feeds one slab test of all eight, and one
-/// child reference per slot:
+/// files): the boxes of up to eight children in structure-of-arrays order (`min[axis][slot]`), so one 256-bit
+/// load feeds one slab test of all eight, and one child reference per slot:
 ///
 /// * `EMPTY_SLOT`: no child; the slot's box is `min = +inf`, `max = -inf`, which no ray enters;
 /// * `LEAF_BIT | (packet_count - 1) << 28 | first_packet`: a leaf, packets `first_packet .. + packet_count` of
-///   the `triangle_packets` section (`packet_count` 1 to 8);
+///   the packets (`packet_count` 1 to 8);
 /// * otherwise: the index of an inner wide node, greater than this node's own index.
 ///
 /// Occupied slots come first. Node 0 is the root. 256 bytes, so nodes stay 64-byte aligned in the section.
@@ -299,9 +298,9 @@ impl WideNode8 {
     }
 }
 
-/// Four leaf triangles (planned as the `triangle_packets` section of format 1.1; not yet stored in files), vertices in structure-of-arrays order
-/// (`vertices[vertex][axis][lane]`) for a watertight test of all four in SIMD lanes, and each lane's index into
-/// the `triangles` section, whose vertices the lane repeats bit for bit. Used lanes come first; an unused lane
+/// Four leaf triangles (planned as the `triangle_packets` section of format 1.1; not yet stored in files),
+/// vertices in structure-of-arrays order (`vertices[vertex][axis][lane]`) for a watertight test of all four in
+/// SIMD lanes, and each lane's index into the `triangles` section, whose vertices the lane repeats bit for bit. Used lanes come first; an unused lane
 /// has index `UNUSED_LANE` and every coordinate `UNUSED_LANE_COORDINATE_BITS`. 160 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]

@@ -92,6 +92,9 @@ fn check_wide(nodes: &[WideNode8], packets: &[TrianglePacket4], triangles: &[Pac
     let mut seen = vec![false; triangles.len()];
     for (p, packet) in packets.iter().enumerate() {
         let used = packet.used_lanes();
+        if used == 0 {
+            return Err(format!("packet {p}: no used lane"));
+        }
         for lane in 0..PACKET_LANES {
             let index = packet.triangle_index[lane];
             let lane_bits = packet.triangle(lane).vertices.map(|v| v.map(f32::to_bits));
@@ -102,7 +105,7 @@ fn check_wide(nodes: &[WideNode8], packets: &[TrianglePacket4], triangles: &[Pac
                 index == crate::format::UNUSED_LANE
                     && lane_bits.iter().flatten().all(|&b| b == crate::format::UNUSED_LANE_COORDINATE_BITS)
             };
-            if !ok || used == 0 {
+            if !ok {
                 return Err(format!("packet {p} lane {lane}: not a well-formed lane (index {index})"));
             }
         }
@@ -158,19 +161,8 @@ impl<'a> WideTracer<'a> {
     /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangle_ids` are
     /// indexed by the packets' triangle indices.
     pub fn new(bvh: &'a WideBvh, triangle_ids: Option<&'a [u32]>, path: KernelPath) -> WideTracer<'a> {
-        WideTracer::over(&bvh.nodes, &bvh.packets, bvh.root, triangle_ids, path)
-    }
-
-    /// A tracer over borrowed sections; `root` is the binary root node (its box bounds the whole tree).
-    pub(crate) fn over(
-        nodes: &'a [WideNode8],
-        packets: &'a [TrianglePacket4],
-        root: PackedNode,
-        triangle_ids: Option<&'a [u32]>,
-        path: KernelPath,
-    ) -> WideTracer<'a> {
         let path = if path.is_supported() { path } else { KernelPath::Portable };
-        WideTracer { nodes, packets, root: PackedNode { index: 0, count: 0, ..root }, triangle_ids, path }
+        WideTracer { nodes: &bvh.nodes, packets: &bvh.packets, root: bvh.root, triangle_ids, path }
     }
 
     /// The path this tracer runs.
@@ -323,15 +315,7 @@ impl<'a> WideTracer<'a> {
         let mut limit = t_max;
         for packet in packets {
             counter.triangle_tested();
-            #[cfg(target_arch = "x86_64")]
-            let found = if SIMD {
-                crate::wide_packets::closest_in_packet(packet, ray, limit)
-            } else {
-                lanes(packet, ray, limit)
-            };
-            #[cfg(not(target_arch = "x86_64"))]
-            let found = lanes(packet, ray, limit);
-            if let Some((lane, hit)) = found {
+            if let Some((lane, hit)) = crate::wide_packets::closest_in_packet::<SIMD>(packet, ray, limit) {
                 limit = hit.t;
                 best = Some((packet.triangle_index[lane], hit));
             }
@@ -350,20 +334,6 @@ impl<'a> WideTracer<'a> {
         }
         portable_box_test(node, ray, t_far)
     }
-}
-
-/// The closest hit among a packet's lanes, one lane at a time with the scalar watertight test (ties: the last
-/// lane, as the SIMD packet test).
-fn lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Option<(usize, TriangleHit)> {
-    let mut best = None;
-    let mut limit = t_max;
-    for lane in 0..PACKET_LANES {
-        if let Some(hit) = ray.intersect_triangle(&packet.triangle(lane), limit) {
-            limit = hit.t;
-            best = Some((lane, hit));
-        }
-    }
-    best
 }
 
 /// The slab test of all eight lanes, in plain Rust: the binary kernel's `enter_box` per lane.

@@ -1,23 +1,94 @@
-//! Leaf triangles of the wide BVH in packets of four, structure of arrays (`v[vertex][axis][lane]`), and the
-//! watertight test of Woop, Benthin and Wald (JCGT 2013) on all four lanes at once with SSE2 (part of every
-//! x86-64 CPU). Each lane performs the scalar test's operations in the same order, unfused, so it yields the
-//! same `t`, `u`, `v` bit for bit; a lane where an edge function is exactly 0 is redone by the scalar test (its
-//! f64 recomputation), and padding lanes (NaN vertices) never hit.
+//! Leaf triangles of the wide BVH in packets of four, structure of arrays (`vertices[vertex][axis][lane]`), and
+//! the watertight test of Woop, Benthin and Wald (JCGT 2013) on all four lanes at once: with SSE2 (part of every
+//! x86-64 CPU) or in a portable loop over the same arrays. Each lane performs the scalar test's operations in
+//! the same order, unfused, so both give the scalar test's `t`, `u`, `v` bit for bit; a lane where an edge
+//! function is exactly 0 is redone by the scalar test (its f64 recomputation), and unused lanes (NaN vertices)
+//! never hit.
 
 use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::intersect::{PreparedRay, TriangleHit};
 
+/// Per lane: the edge functions V and W, `t`, the determinant, and bit masks of lanes with a zero edge
+/// function and of lanes that hit within `[t_min, t_max]`.
+struct Lanes {
+    v: [f32; LANES],
+    w: [f32; LANES],
+    t: [f32; LANES],
+    det: [f32; LANES],
+    zero: i32,
+    valid: i32,
+}
+
 /// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
-/// `t <= t_max` would end with), as (lane, hit). A lane with a zero edge function is redone by the scalar test.
+/// `t <= t_max` would end with), as (lane, hit). `SIMD` picks the SSE2 lanes on x86-64; both give the same hits.
+#[inline(always)]
+pub fn closest_in_packet<const SIMD: bool>(
+    packet: &TrianglePacket4,
+    ray: &PreparedRay,
+    t_max: f32,
+) -> Option<(usize, TriangleHit)> {
+    #[cfg(target_arch = "x86_64")]
+    let lanes = if SIMD { sse2_lanes(packet, ray, t_max) } else { portable_lanes(packet, ray, t_max) };
+    #[cfg(not(target_arch = "x86_64"))]
+    let lanes = portable_lanes(packet, ray, t_max);
+    let mut best: Option<(usize, TriangleHit)> = None;
+    let mut limit = t_max;
+    for lane in 0..LANES {
+        let hit = if lanes.zero & (1 << lane) != 0 {
+            ray.intersect_triangle(&packet.triangle(lane), limit)
+        } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
+            let inverse_det = 1.0 / lanes.det[lane];
+            Some(TriangleHit { t: lanes.t[lane], u: lanes.v[lane] * inverse_det, v: lanes.w[lane] * inverse_det })
+        } else {
+            None
+        };
+        if let Some(hit) = hit {
+            limit = hit.t;
+            best = Some((lane, hit));
+        }
+    }
+    best
+}
+
+/// The four lanes in plain Rust: the SSE2 version's operations, lane by lane.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // the lane indexes nine coordinate arrays and four outputs alike
+fn portable_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes {
+    let ([kx, ky, kz], [sx, sy, sz]) = ray.shear();
+    let p = &packet.vertices;
+    let o = ray.origin;
+    let mut out = Lanes { v: [0.0; LANES], w: [0.0; LANES], t: [0.0; LANES], det: [0.0; LANES], zero: 0, valid: 0 };
+    for lane in 0..LANES {
+        let at = |vertex: usize, axis: usize| p[vertex][axis][lane] - o[axis];
+        let (akz, bkz, ckz) = (at(0, kz), at(1, kz), at(2, kz));
+        let (ax, ay) = (at(0, kx) - sx * akz, at(0, ky) - sy * akz);
+        let (bx, by) = (at(1, kx) - sx * bkz, at(1, ky) - sy * bkz);
+        let (cx, cy) = (at(2, kx) - sx * ckz, at(2, ky) - sy * ckz);
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let outside = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
+        let det = u + v + w;
+        let t = (u * (sz * akz) + v * (sz * bkz) + w * (sz * ckz)) / det;
+        let in_range = t >= ray.t_min && t <= t_max;
+        out.zero |= i32::from(u == 0.0 || v == 0.0 || w == 0.0) << lane;
+        out.valid |= i32::from(!(outside || det == 0.0) && in_range) << lane;
+        (out.v[lane], out.w[lane], out.t[lane], out.det[lane]) = (v, w, t, det);
+    }
+    out
+}
+
+/// The four lanes with SSE2.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)] // SSE2 intrinsics: part of the x86-64 baseline, so always available
-pub fn closest_in_packet(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Option<(usize, TriangleHit)> {
+#[inline(always)]
+fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes {
     use std::arch::x86_64::*;
     let ([kx, ky, kz], [sx, sy, sz]) = ray.shear();
     let (origin, t_min) = (ray.origin, ray.t_min);
     // SAFETY: SSE2 is part of every x86-64 CPU; all loads read 16 bytes from `[f32; 4]` arrays of the packet,
     // the stores write `[f32; 4]` locals.
-    let (v, w, t, det, zero, valid) = unsafe {
+    unsafe {
         let o = |axis: usize| _mm_set1_ps(origin[axis]);
         let load =
             |vertex: usize, axis: usize| _mm_sub_ps(_mm_loadu_ps(packet.vertices[vertex][axis].as_ptr()), o(axis));
@@ -46,23 +117,13 @@ pub fn closest_in_packet(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32
         for (slot, value) in out.iter_mut().zip([v, w, t, det]) {
             _mm_storeu_ps(slot.as_mut_ptr(), value);
         }
-        (out[0], out[1], out[2], out[3], _mm_movemask_ps(zero), _mm_movemask_ps(valid))
-    };
-    let mut best: Option<(usize, TriangleHit)> = None;
-    let mut limit = t_max;
-    for lane in 0..LANES {
-        let hit = if zero & (1 << lane) != 0 {
-            ray.intersect_triangle(&packet.triangle(lane), limit)
-        } else if valid & (1 << lane) != 0 && t[lane] <= limit {
-            let inverse_det = 1.0 / det[lane];
-            Some(TriangleHit { t: t[lane], u: v[lane] * inverse_det, v: w[lane] * inverse_det })
-        } else {
-            None
-        };
-        if let Some(hit) = hit {
-            limit = hit.t;
-            best = Some((lane, hit));
+        Lanes {
+            v: out[0],
+            w: out[1],
+            t: out[2],
+            det: out[3],
+            zero: _mm_movemask_ps(zero),
+            valid: _mm_movemask_ps(valid),
         }
     }
-    best
 }
