@@ -106,6 +106,13 @@ impl Conversion {
         self
     }
 
+    /// Whether to write the wide sections of format 1.1 (on by default), collapsed with the default
+    /// [`crate::wide::WideCosts`]; without them the file is version 1.0 and traced by the binary kernel.
+    pub fn write_wide(mut self, write: bool) -> Self {
+        self.options.wide = write.then(crate::wide::WideCosts::default);
+        self
+    }
+
     /// The glTF scene to convert.
     pub fn scene(mut self, scene: SceneSelector) -> Self {
         self.options.import.scene = Some(scene);

@@ -17,6 +17,7 @@ use crate::import::{ImportOptions, ImportReport, import};
 use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
 use crate::pack::pack;
 use crate::up_to_date::input_entries;
+use crate::wide::{WideCosts, collapse, pack_wide};
 
 /// Largest leaf the merger makes by default (the reference table's M = 3 uses 8).
 pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
@@ -40,6 +41,9 @@ pub struct ConvertOptions {
     pub max_leaf_size: usize,
     /// Write the triangle_ids and source_table sections.
     pub write_ids: bool,
+    /// Write the wide sections of format 1.1 (`wide_nodes`, `triangle_packets`), collapsed from the optimized
+    /// tree with these constants; `None` writes a 1.0 file without them.
+    pub wide: Option<WideCosts>,
 }
 
 impl Default for ConvertOptions {
@@ -70,6 +74,7 @@ impl ConvertOptions {
             merge_leaves: true,
             max_leaf_size: DEFAULT_MAX_LEAF_SIZE,
             write_ids: true,
+            wide: Some(WideCosts::default()),
         }
     }
 }
@@ -91,10 +96,23 @@ pub struct ConvertReport {
     pub triangle_count: usize,
     /// Nodes written.
     pub node_count: usize,
+    /// Wide nodes and triangle packets written (absent without wide sections).
+    pub wide: Option<WideSummary>,
     /// Bytes written.
     pub file_byte_len: usize,
     /// Seconds per stage: import, build, optimize, write.
     pub timings: Timings,
+}
+
+/// The wide sections of a conversion: their sizes and the collapsed tree's cost.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct WideSummary {
+    /// Elements of `wide_nodes`.
+    pub node_count: usize,
+    /// Elements of `triangle_packets`.
+    pub packet_count: usize,
+    /// The wide tree's cost under the collapse's constants ([`crate::wide::WideTree::cost`]).
+    pub cost: f64,
 }
 
 /// Seconds spent per stage.
@@ -199,6 +217,8 @@ pub fn convert_with(
     let optimization = (!options.skip_optimization)
         .then(|| optimize(&mut tree, &options.optimize, &mut |p: &Progress| observer(Event::Batch(p))));
     tree.limit_depth(MAX_DEPTH, &triangles);
+    // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
+    let wide_tree = options.wide.map(|costs| (collapse(&tree, &costs), costs));
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
     let final_tree = merge_leaves(&tree, options.optimize.constants, leaf_size);
     timings.optimize = lap(clock);
@@ -209,12 +229,32 @@ pub fn convert_with(
     check_every_triangle_once(&packed.triangle_ids, triangles.len())?;
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
+    let wide = match &wide_tree {
+        Some((wide_tree, costs)) => {
+            let mut file_index_of = vec![0u32; triangles.len()];
+            for (file_index, &t) in packed.triangle_ids.iter().enumerate() {
+                file_index_of[t as usize] = file_index as u32;
+            }
+            let bvh = pack_wide(wide_tree, &packed.triangles, Some(&file_index_of))?;
+            let summary = WideSummary {
+                node_count: bvh.nodes().len(),
+                packet_count: bvh.packets().len(),
+                cost: wide_tree.cost(costs),
+            };
+            Some((bvh, summary))
+        }
+        None => None,
+    };
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
-    let metadata = metadata_json(inputs, options, &cost, &imported.report);
+    let summary = wide.as_ref().map(|(_, summary)| *summary);
+    let metadata = metadata_json(inputs, options, &cost, &imported.report, summary.as_ref());
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles).metadata(&metadata);
     if options.write_ids {
         writer = writer.triangle_ids(&source_ids).source_table(&soup.sources);
+    }
+    if let Some((bvh, _)) = &wide {
+        writer = writer.wide(bvh.nodes(), bvh.packets());
     }
     let file = writer.write_atomic(output)?;
     timings.write = lap(clock);
@@ -226,6 +266,7 @@ pub fn convert_with(
         cost,
         triangle_count: packed.triangles.len(),
         node_count: packed.nodes.len(),
+        wide: summary,
         file_byte_len: file.as_bytes().len(),
         timings,
     })
@@ -273,18 +314,21 @@ fn lap(start: Instant) -> f64 {
 }
 
 /// The metadata object (`format-spec/metadata.schema.json`): generator, format version, inputs (names relative
-/// to the input, content hashes), build options, cost, and what became of the scene's triangles.
+/// to the input, content hashes), build options, cost, what became of the scene's triangles, and the wide
+/// sections' sizes and cost when there are any.
 fn metadata_json(
     inputs: Vec<serde_json::Value>,
     options: &ConvertOptions,
     cost: &SahCost,
     import: &ImportReport,
+    wide: Option<&WideSummary>,
 ) -> String {
     let keep = options.import.keep_degenerate;
     let dropped = |count: u64| if keep { 0 } else { count };
-    serde_json::json!({
+    let minor = bvhc_loader::format::written_minor(wide.is_some());
+    let mut metadata = serde_json::json!({
         "generator": concat!("bvhc ", env!("CARGO_PKG_VERSION")),
-        "format_version": format!("{}.{}", bvhc_loader::format::VERSION_MAJOR, bvhc_loader::format::VERSION_MINOR),
+        "format_version": format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR),
         "inputs": inputs,
         "build": options.recorded(),
         "cost": {
@@ -304,8 +348,11 @@ fn metadata_json(
             },
             "degenerate_kept": if keep { import.degenerate() } else { 0 },
         },
-    })
-    .to_string()
+    });
+    if let Some(wide) = wide {
+        metadata["wide"] = serde_json::to_value(wide).unwrap_or_default();
+    }
+    metadata.to_string()
 }
 
 /// The input files an existing output records, resolved next to `main_input` (empty when unreadable).

@@ -42,7 +42,7 @@ fn relative_name(base: &Path, file: &Path) -> String {
 }
 
 /// Whether `output` is a valid `.bvh` file whose metadata records `build` options equal to `build`, the
-/// current format version, and inputs whose files (resolved next to `main_input`) still have the recorded hashes.
+/// format version this writer gives such a build (1.1 with wide sections, 1.0 without), and inputs whose files (resolved next to `main_input`) still have the recorded hashes.
 pub fn is_up_to_date(output: &Path, main_input: &Path, build: &Value) -> bool {
     let Ok(file) = BvhFile::read(output) else { return false };
     let view = file.view();
@@ -51,7 +51,8 @@ pub fn is_up_to_date(output: &Path, main_input: &Path, build: &Value) -> bool {
     }
     let Some(Ok(text)) = view.metadata_str() else { return false };
     let Ok(metadata) = serde_json::from_str::<Value>(text) else { return false };
-    let version = format!("{}.{}", bvhc_loader::format::VERSION_MAJOR, bvhc_loader::format::VERSION_MINOR);
+    let minor = bvhc_loader::format::written_minor(!build["wide"].is_null());
+    let version = format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR);
     if metadata["format_version"] != Value::String(version) || &metadata["build"] != build {
         return false;
     }

@@ -105,6 +105,9 @@ pub struct ConvertArgs {
     /// Omit the optional triangle_ids and source_table sections.
     #[arg(long)]
     pub no_ids: bool,
+    /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
+    #[arg(long)]
+    pub no_wide: bool,
     /// The glTF scene to convert, by index or name.
     #[arg(long, value_name = "N|NAME")]
     pub scene: Option<String>,

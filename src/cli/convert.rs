@@ -43,6 +43,7 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
         .merge_leaves(!args.no_merge)
         .keep_degenerate(args.keep_degenerate)
         .write_ids(!args.no_ids)
+        .write_wide(!args.no_wide)
         .force(args.force);
     if let Some(budget) = args.time_budget {
         conversion = conversion.time_budget(budget);

@@ -105,6 +105,9 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "sections": sections,
             "triangle_count": view.triangles().len(),
             "node_count": view.nodes().len(),
+            "wide_node_count": view.wide_sections().map(|w| w.nodes.len()),
+            "packet_count": view.wide_sections().map(|w| w.packets.len()),
+            "kernel": format!("{:?}", view.tracer().kernel()),
             "leaf_count": stats.leaf_count,
             "max_depth": stats.max_depth,
             "leaf_size_histogram": stats.leaf_sizes,
@@ -123,7 +126,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
     for s in &sections {
         outln!(
             out,
-            "  {:<13} offset {:>10}  bytes {:>11}  elements {:>9}  flags {}",
+            "  {:<16} offset {:>10}  bytes {:>11}  elements {:>9}  flags {}",
             s["name"].as_str().unwrap_or(""),
             s["byte_offset"],
             s["byte_len"],
@@ -139,6 +142,17 @@ pub fn info(path: &Path, json: bool) -> Exit {
         stats.leaf_count,
         stats.max_depth
     );
+    match view.wide_sections() {
+        Some(wide) => outln!(
+            out,
+            "wide tree: {} 8-wide nodes, {} packets of 4 ({:.2} triangles a packet); traced by {:?}",
+            wide.nodes.len(),
+            wide.packets.len(),
+            view.triangles().len() as f64 / wide.packets.len().max(1) as f64,
+            view.tracer().kernel()
+        ),
+        None => outln!(out, "wide tree: none (traced by the binary kernel)"),
+    }
     let histogram: Vec<String> = stats.leaf_sizes.iter().map(|(size, n)| format!("{size}: {n}")).collect();
     outln!(out, "leaf sizes (triangles: leaves): {}", histogram.join(", "));
     outln!(

@@ -21,7 +21,7 @@ use crate::optimize::{NONE, OptTree};
 use super::{WideChild, WideNode, WideTree};
 
 /// The collapse's parameters: the width, the leaf limit, and the two costs of the kernel.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct WideCosts {
     /// Children per wide node (2 to 16; 4 and 8 are what SIMD kernels use).
     pub width: usize,

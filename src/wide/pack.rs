@@ -1,19 +1,30 @@
-//! A [`WideTree`] of width 8 in the loader's 8-wide layout ([`WideNode8`] and [`TrianglePacket4`]), for
-//! [`bvhc_loader::WideBvh`]: each leaf's triangles are laid out in packets of four, the last one padded with
-//! unused lanes, and each lane holds the triangle's index in `triangles`.
+//! A [`WideTree`] of width 8 in the loader's 8-wide layout ([`WideNode8`] and [`TrianglePacket4`]), as the
+//! `wide_nodes` and `triangle_packets` sections store it: each leaf's triangles are laid out in packets of
+//! four, the last one padded with unused lanes, and each lane holds the triangle's index in the file's
+//! triangles section.
 
-use bvhc_loader::{PACKET_LANES, PackedTriangle, TrianglePacket4, WIDE, WideBvh, WideNode8};
+use bvhc_loader::{Error, PACKET_LANES, PackedTriangle, TrianglePacket4, WIDE, WideBvh, WideNode8};
 
 use super::{WideChild, WideTree};
 
-/// Packs `tree` (width at most 8, leaves of at most 32 triangles) over `triangles` (indexed by the tree's
-/// `triangle_order`) into a checked [`WideBvh`].
-pub fn pack_wide(tree: &WideTree, triangles: &[PackedTriangle]) -> Result<WideBvh, String> {
+/// Packs `tree` (width at most 8, leaves of at most 32 triangles) into a checked [`WideBvh`] over
+/// `file_triangles`, the triangles section. The tree numbers triangles by their index in the soup it was built
+/// over; `file_index_of[soup index]` is that triangle's index in `file_triangles` (`None`: the same index).
+///
+/// Fails with [`Error::Unwritable`] when the tree does not fit the layout (too wide, a leaf of more than 32
+/// triangles, more than 2^28 packets) and with [`Error::Invalid`] when the result breaks a rule of V29-V35.
+pub fn pack_wide(
+    tree: &WideTree,
+    file_triangles: &[PackedTriangle],
+    file_index_of: Option<&[u32]>,
+) -> Result<WideBvh, Error> {
+    let unwritable = |why: String| Error::Unwritable(format!("wide sections: {why}"));
     if tree.width > WIDE {
-        return Err(format!("width {} is more than the layout's {WIDE}", tree.width));
+        return Err(unwritable(format!("width {} is more than the layout's {WIDE}", tree.width)));
     }
     let mut nodes = Vec::with_capacity(tree.nodes.len());
     let mut packets = Vec::with_capacity(tree.triangle_order.len().div_ceil(PACKET_LANES));
+    let mut lanes = Vec::with_capacity(PACKET_LANES);
     for (i, node) in tree.nodes.iter().enumerate() {
         let mut packed = WideNode8::EMPTY;
         for (slot, (aabb, child)) in node.children.iter().enumerate() {
@@ -25,26 +36,31 @@ pub fn pack_wide(tree: &WideTree, triangles: &[PackedTriangle]) -> Result<WideBv
                 WideChild::Node(c) => c,
                 WideChild::Leaf { first, count } => {
                     let first_packet = packets.len() as u32;
-                    let order = tree
-                        .triangle_order
-                        .get(first as usize..(first + count) as usize)
-                        .ok_or_else(|| format!("node {i} slot {slot}: leaf {first}+{count} out of range"))?;
+                    let order = tree.triangle_order.get(first as usize..(first + count) as usize).ok_or_else(|| {
+                        unwritable(format!("node {i} slot {slot}: leaf {first}+{count} out of range"))
+                    })?;
                     for chunk in order.chunks(PACKET_LANES) {
-                        let lanes = chunk
-                            .iter()
-                            .map(|&t| triangles.get(t as usize).map(|triangle| (t, *triangle)))
-                            .collect::<Option<Vec<_>>>()
-                            .ok_or_else(|| format!("node {i} slot {slot}: a triangle index is out of range"))?;
+                        lanes.clear();
+                        for &t in chunk {
+                            let index = file_index_of.map_or(Some(t), |map| map.get(t as usize).copied());
+                            let lane = index.and_then(|index| Some((index, *file_triangles.get(index as usize)?)));
+                            lanes.push(lane.ok_or_else(|| {
+                                unwritable(format!("node {i} slot {slot}: triangle {t} is not in the file"))
+                            })?);
+                        }
                         packets.push(TrianglePacket4::new(&lanes));
                     }
                     let packet_count = packets.len() as u32 - first_packet;
                     WideNode8::leaf(first_packet, packet_count).ok_or_else(|| {
-                        format!("node {i} slot {slot}: leaf of {count} triangles does not fit a reference")
+                        unwritable(format!(
+                            "node {i} slot {slot}: a leaf of {count} triangles from packet {first_packet} does not \
+                             fit a leaf reference (at most 8 packets, first below 2^28); convert with --no-wide"
+                        ))
                     })?
                 }
             };
         }
         nodes.push(packed);
     }
-    WideBvh::new(nodes, packets, (tree.root_box.min, tree.root_box.max), triangles)
+    Ok(WideBvh::new(nodes, packets, (tree.root_box.min, tree.root_box.max), file_triangles)?)
 }

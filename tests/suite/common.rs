@@ -86,6 +86,35 @@ pub fn write_file(tree: &PackedTree) -> BvhFile {
     writer.build().expect("a packed tree always writes")
 }
 
+/// Metadata for test files of version 1.1 (V28).
+pub const METADATA_1_1: &str = r#"{"generator":"bvhc tests","format_version":"1.1"}"#;
+
+/// A version 1.1 file over `triangles`: the binary tree of [`packed_tree`] (at most `max_leaf_size` triangles a
+/// leaf) with ids, source table and metadata, and the wide sections collapsed (default costs) from the binned
+/// SAH tree with one triangle per leaf, as the conversion does.
+pub fn write_wide_file(triangles: &[Triangle], max_leaf_size: usize) -> BvhFile {
+    let tree = packed_tree(triangles, max_leaf_size);
+    let wide = wide_sections_for(&tree, triangles);
+    let ranges = single_source_range(tree.triangles.len());
+    let writer = BvhWriter::new(&tree.nodes, &tree.triangles)
+        .triangle_ids(&tree.triangle_ids)
+        .metadata(METADATA_1_1)
+        .wide(wide.nodes(), wide.packets());
+    let writer = if tree.triangles.is_empty() { writer } else { writer.source_table(&ranges) };
+    writer.build().expect("a packed tree with its wide sections always writes")
+}
+
+/// The wide sections over a packed tree's triangles section (`tree.triangle_ids` are indices into `triangles`).
+pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
+    let opt = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
+    let collapsed = bvhc::wide::collapse(&opt, &bvhc::wide::WideCosts::default());
+    let mut file_index_of = vec![0u32; triangles.len()];
+    for (file_index, &t) in tree.triangle_ids.iter().enumerate() {
+        file_index_of[t as usize] = file_index as u32;
+    }
+    bvhc::wide::pack_wide(&collapsed, &tree.triangles, Some(&file_index_of)).expect("a collapsed tree packs")
+}
+
 /// The closest hit by testing every triangle with the kernel's own watertight test.
 pub fn brute_force_closest(triangles: &[Triangle], ray: &Ray) -> Option<(f32, usize)> {
     let prepared = PreparedRay::new(ray);
@@ -238,7 +267,15 @@ pub fn wide_bvh_of(tree: &bvhc::optimize::OptTree, triangles: &[Triangle]) -> bv
     let wide = bvhc::wide::collapse(tree, &bvhc::wide::WideCosts::default());
     let packed: Vec<bvhc::loader::PackedTriangle> =
         triangles.iter().map(|&vertices| bvhc::loader::PackedTriangle { vertices }).collect();
-    bvhc::wide::pack_wide(&wide, &packed).expect("a collapsed tree packs")
+    bvhc::wide::pack_wide(&wide, &packed, None).expect("a collapsed tree packs")
+}
+
+/// Every kernel a view can trace with: the binary one, then the wide one on each path this machine runs
+/// (files with wide sections only).
+pub fn every_kernel<'a>(view: &bvhc::loader::BvhView<'a>) -> Vec<Tracer<'a>> {
+    let binary = view.binary_tracer();
+    let wide = kernel_paths().into_iter().filter_map(|path| view.wide_tracer(path)).map(|w| binary.with_wide(w));
+    std::iter::once(binary).chain(wide).collect()
 }
 
 /// The wide kernel paths this machine runs (the others are reported as skipped).

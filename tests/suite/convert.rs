@@ -8,7 +8,7 @@ use bvhc::import::{ImportOptions, import};
 use bvhc::loader::BvhFile;
 use bvhc::optimize::Preset;
 
-use crate::common::{assert_matches_brute_force, random_rays, scene};
+use crate::common::{assert_matches_brute_force, every_kernel, random_rays, scene};
 
 fn teapot() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj")
@@ -59,8 +59,11 @@ fn check_scene_against_brute_force(path: &Path, preset: Preset) {
             r
         })
         .collect();
-    let hits = assert_matches_brute_force(&file.view().tracer(), &triangles, &rays, &ids);
-    assert!(hits > 30, "{hits}");
+    assert!(file.view().wide_sections().is_some(), "the default conversion writes the wide sections");
+    for tracer in every_kernel(&file.view()) {
+        let hits = assert_matches_brute_force(&tracer, &triangles, &rays, &ids);
+        assert!(hits > 30, "{:?}: {hits}", tracer.kernel());
+    }
     let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
     let recorded = metadata["cost"]["sah_cost"].as_f64().unwrap();
     assert_eq!(recorded, report.cost.cost);
@@ -81,4 +84,34 @@ fn optimized_real_scenes_trace_like_brute_force() {
             check_scene_against_brute_force(&path, Preset::Balanced);
         }
     }
+}
+
+#[test]
+fn the_default_conversion_writes_1_1_with_wide_sections_and_no_wide_writes_1_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let (wide_path, plain_path) = (dir.path().join("wide.bvh"), dir.path().join("plain.bvh"));
+    let wide_options = ConvertOptions::default();
+    let plain_options = ConvertOptions { wide: None, ..ConvertOptions::default() };
+    let wide_bytes = convert_in_pool(1, &teapot(), &wide_path, &wide_options);
+    let plain_bytes = convert_in_pool(1, &teapot(), &plain_path, &plain_options);
+    let (wide, plain) = (BvhFile::from_bytes(&wide_bytes).unwrap(), BvhFile::from_bytes(&plain_bytes).unwrap());
+    assert_eq!((wide.view().version(), plain.view().version()), ((1, 1), (1, 0)));
+    assert!(wide.view().wide_sections().is_some() && plain.view().wide_sections().is_none());
+    // The binary sections are the same tree either way.
+    assert_eq!(wide.view().nodes(), plain.view().nodes());
+    assert_eq!(wide.view().triangles(), plain.view().triangles());
+    let metadata = crate::common::assert_metadata_matches_schema(&wide);
+    assert_eq!(metadata["format_version"], "1.1");
+    assert_eq!(metadata["build"]["wide"]["width"], 8);
+    let sections = wide.view().wide_sections().unwrap();
+    assert_eq!(metadata["wide"]["packet_count"], sections.packets.len());
+    assert_eq!(crate::common::assert_metadata_matches_schema(&plain)["format_version"], "1.0");
+    // Wide sections within 1.3x the bytes of the binary nodes and triangles they accompany.
+    let binary_bytes = 32 * wide.view().nodes().len() + 36 * wide.view().triangles().len();
+    let wide_bytes = 256 * sections.nodes.len() + 160 * sections.packets.len();
+    assert!(wide_bytes as f64 <= 1.3 * binary_bytes as f64, "{wide_bytes} wide bytes for {binary_bytes}");
+    // A file written without wide sections is not up to date for options that want them.
+    let report = convert_with(&teapot(), &plain_path, &wide_options, &mut |_| std::ops::ControlFlow::Continue(()));
+    assert!(report.is_ok());
+    assert_eq!(BvhFile::read(&plain_path).unwrap().view().version(), (1, 1));
 }

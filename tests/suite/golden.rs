@@ -1,8 +1,8 @@
-//! The golden v1.0 file: every later version of the loader must keep reading it, with the same contents.
+//! The golden files: every later version of the loader must keep reading them, with the same contents.
 //!
-//! `fixtures/golden/quad-v1.0.bvh` was written by this writer from the scene below. Regenerate it only for a
-//! deliberate format change that keeps major version 1 (`BVHC_BLESS=1 cargo test golden`), and never
-//! change what the assertions below expect of it.
+//! `fixtures/golden/quad-v1.0.bvh` and `quad-v1.1.bvh` (the same quad with the wide sections of 1.1) were
+//! written by this writer from the scene below. Regenerate them only for a deliberate format change that keeps
+//! major version 1 (`BVHC_BLESS=1 cargo test golden`), and never change what the assertions below expect.
 
 use std::path::PathBuf;
 
@@ -12,8 +12,14 @@ use crate::common::*;
 
 const GOLDEN_METADATA: &str = r#"{"generator":"bvhc golden fixture","format_version":"1.0"}"#;
 
+const GOLDEN_METADATA_1_1: &str = r#"{"generator":"bvhc golden fixture","format_version":"1.1"}"#;
+
 fn golden_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/quad-v1.0.bvh")
+}
+
+fn golden_1_1_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/quad-v1.1.bvh")
 }
 
 /// The unit square in the z = 0 plane as two triangles.
@@ -31,6 +37,84 @@ fn write_golden_scene() -> BvhFile {
         .metadata(GOLDEN_METADATA)
         .build()
         .unwrap()
+}
+
+/// The 1.1 golden scene: the 1.0 one plus its wide sections.
+fn write_golden_1_1_scene() -> BvhFile {
+    let tree = packed_tree(&quad(), 1);
+    let wide = wide_sections_for(&tree, &quad());
+    let ranges = single_source_range(2);
+    BvhWriter::new(&tree.nodes, &tree.triangles)
+        .triangle_ids(&tree.triangle_ids)
+        .source_table(&ranges)
+        .metadata(GOLDEN_METADATA_1_1)
+        .wide(wide.nodes(), wide.packets())
+        .build()
+        .unwrap()
+}
+
+/// The quad's hits through `tracer`: t = 1 everywhere on it, the triangle whose source id names it, no hit off it.
+fn assert_traces_the_quad(view: &bvhc::loader::BvhView<'_>, tracer: &bvhc::loader::Tracer<'_>) {
+    let quad = quad();
+    for (x, y) in [(0.75, 0.25), (0.25, 0.75), (0.5, 0.5), (0.0, 0.0), (1.0, 1.0)] {
+        let hit = tracer.closest_hit(&Ray::new([x, y, 1.0], [0.0, 0.0, -1.0])).expect("the quad is hit");
+        assert_eq!(hit.t, 1.0);
+        let source = hit.source_triangle_id.unwrap() as usize;
+        assert_eq!(view.triangles()[hit.triangle_index as usize].vertices, quad[source]);
+    }
+    assert!(!tracer.any_hit(&Ray::new([1.5, 0.5, 1.0], [0.0, 0.0, -1.0])));
+}
+
+#[test]
+fn golden_v1_1_file_reads_verifies_and_traces_on_every_kernel() {
+    if std::env::var_os("BVHC_BLESS").is_some() {
+        std::fs::write(golden_1_1_path(), write_golden_1_1_scene().as_bytes()).unwrap();
+    }
+    let file = BvhFile::read(&golden_1_1_path()).expect("fixtures/golden/quad-v1.1.bvh");
+    let view = file.view();
+    view.verify().unwrap();
+    assert_eq!(view.version(), (1, 1));
+    let kinds: Vec<_> = view.sections().map(|s| s.kind).collect();
+    let expected = [
+        SectionKind::Nodes,
+        SectionKind::Triangles,
+        SectionKind::TriangleIds,
+        SectionKind::SourceTable,
+        SectionKind::Metadata,
+        SectionKind::WideNodes,
+        SectionKind::TrianglePackets,
+    ];
+    assert_eq!(kinds, expected.map(Some));
+    let wide = view.wide_sections().expect("wide sections");
+    assert_eq!((wide.nodes.len(), wide.packets.len()), (1, 1));
+    assert_eq!(view.metadata_str().unwrap().unwrap(), GOLDEN_METADATA_1_1);
+    assert_eq!(view.tracer().kernel(), bvhc::loader::Kernel::Wide(bvhc::loader::KernelPath::best()));
+    assert_traces_the_quad(&view, &view.binary_tracer());
+    for path in kernel_paths() {
+        let wide_tracer = view.wide_tracer(path).unwrap();
+        assert_traces_the_quad(&view, &view.binary_tracer().with_wide(wide_tracer));
+    }
+    assert_eq!(write_golden_1_1_scene().as_bytes(), file.as_bytes(), "the writer still writes the 1.1 bytes");
+}
+
+#[test]
+fn a_reader_of_1_0_reads_the_1_1_golden_file_through_its_1_0_sections() {
+    // A 1.0 reader does not know kinds 6 and 7: they are optional, so it skips them (V7), and it does not judge
+    // reserved fields of a higher minor (V13). Renaming them to unknown kinds gives this reader the same view.
+    let mut bytes = std::fs::read(golden_1_1_path()).unwrap();
+    for table_index in [5usize, 6] {
+        let at = 64 + table_index * 48;
+        let kind = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+        bytes[at..at + 4].copy_from_slice(&(0x8000_0000 | kind).to_le_bytes());
+    }
+    crate::rules::refresh_checksums(&mut bytes);
+    let file = BvhFile::from_bytes(&bytes).unwrap();
+    let view = file.view();
+    view.verify().unwrap();
+    assert!(view.wide_sections().is_none());
+    assert_eq!(view.tracer().kernel(), bvhc::loader::Kernel::Binary);
+    assert_eq!(view.sections().filter(|s| s.kind.is_none()).count(), 2);
+    assert_traces_the_quad(&view, &view.tracer());
 }
 
 #[test]
@@ -69,7 +153,7 @@ fn golden_v1_0_file_reads_verifies_and_traces() {
 
 #[test]
 fn the_writer_still_writes_the_golden_bytes() {
-    // Holds while the writer writes version 1.0; a later minor version changes the header and may drop this.
+    // A file without wide sections is still written as 1.0, byte for byte.
     let golden = std::fs::read(golden_path()).unwrap();
     assert_eq!(write_golden_scene().as_bytes(), &golden[..]);
 }

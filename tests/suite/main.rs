@@ -18,6 +18,7 @@ mod optimize;
 mod optimize_property;
 mod roundtrip;
 mod rules;
+mod rules_wide;
 mod scenes;
 mod spec;
 mod stress;

@@ -5,6 +5,7 @@ use bvhc::loader::{BvhFile, Ray};
 use proptest::prelude::*;
 
 use crate::rules::{good_bytes, try_refresh_checksums};
+use crate::rules_wide::good_wide_bytes;
 
 /// Opens, verifies and traces a few rays; must return normally whatever `bytes` hold.
 fn exercise(bytes: &[u8]) {
@@ -15,11 +16,18 @@ fn exercise(bytes: &[u8]) {
     for info in view.sections() {
         let _ = info.kind;
     }
-    let tracer = view.tracer();
-    for direction in [[1.0, 0.5, 0.25], [-0.0, 0.0, 1.0], [0.3, -1.0, 0.0]] {
-        let ray = Ray::new([-0.1, 0.2, -3.0], direction);
-        let _ = tracer.closest_hit(&ray);
-        let _ = tracer.any_hit(&ray);
+    let wide = bvhc::loader::KernelPath::Portable;
+    let tracers = [
+        Some(view.tracer()),
+        Some(view.binary_tracer()),
+        view.wide_tracer(wide).map(|w| view.binary_tracer().with_wide(w)),
+    ];
+    for tracer in tracers.iter().flatten() {
+        for direction in [[1.0, 0.5, 0.25], [-0.0, 0.0, 1.0], [0.3, -1.0, 0.0]] {
+            let ray = Ray::new([-0.1, 0.2, -3.0], direction);
+            let _ = tracer.closest_hit(&ray);
+            let _ = tracer.any_hit(&ray);
+        }
     }
     if let Some(ids) = view.triangle_ids() {
         for &id in ids.iter().take(8) {
@@ -49,9 +57,10 @@ proptest! {
     fn mutated_good_files_never_panic(
         edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..12),
         repair in any::<bool>(),
+        wide in any::<bool>(),
         truncate in proptest::option::of(any::<prop::sample::Index>()),
     ) {
-        let mut bytes = good_bytes();
+        let mut bytes = if wide { good_wide_bytes() } else { good_bytes() };
         for (index, value) in edits {
             let at = index.index(bytes.len());
             bytes[at] = value;

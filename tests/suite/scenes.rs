@@ -1,4 +1,5 @@
-//! Real scenes from the shared folder: traversal equals brute force, and the file verifies.
+//! Real scenes from the shared folder: traversal equals brute force on every kernel (binary, and wide on each
+//! path), and the file verifies.
 
 use bvhc::import::{ImportOptions, import};
 
@@ -9,7 +10,7 @@ fn check_scene(relative: &str, ray_count: usize) {
     let soup = import(&path, &ImportOptions::default()).unwrap().soup;
     let triangles = soup.triangle_vertices();
     let tree = packed_tree(&triangles, 4);
-    let file = write_file(&tree);
+    let file = write_wide_file(&triangles, 4);
     file.view().verify().unwrap();
     let (min, max) = (file.view().nodes()[0].min, file.view().nodes()[0].max);
     let center: [f32; 3] = std::array::from_fn(|a| 0.5 * (min[a] + max[a]));
@@ -21,9 +22,11 @@ fn check_scene(relative: &str, ray_count: usize) {
             ray
         })
         .collect();
-    let hits = assert_matches_brute_force(&file.view().tracer(), &triangles, &rays, &tree.triangle_ids);
-    eprintln!("{relative}: {} triangles, {hits} of {ray_count} rays hit", triangles.len());
-    assert!(hits > ray_count / 10, "{relative}: only {hits} hits");
+    for tracer in every_kernel(&file.view()) {
+        let hits = assert_matches_brute_force(&tracer, &triangles, &rays, &tree.triangle_ids);
+        eprintln!("{relative} {:?}: {} triangles, {hits} of {ray_count} rays hit", tracer.kernel(), triangles.len());
+        assert!(hits > ray_count / 10, "{relative}: only {hits} hits");
+    }
 }
 
 #[test]

@@ -44,6 +44,8 @@ fn every_field_name_is_in_the_spec() {
         "primitive_index",
         "instance_index",
         "reserved",
+        "child",
+        "triangle_index",
     ];
     for field in fields {
         assert!(SPEC.contains(&format!("`{field}`")), "{field}");
@@ -56,6 +58,13 @@ fn the_spec_constants_match_the_code() {
     assert_eq!(MAGIC, [0x89, 0x42, 0x56, 0x48, 0x43, 0x0D, 0x0A, 0x1A]);
     assert!(SPEC.contains("`89 42 56 48 43 0D 0A 1A`"));
     assert!(SPEC.contains(&format!("`MAX_DEPTH = {MAX_DEPTH}`")));
+    assert!(SPEC.contains(&format!("`EMPTY_SLOT = {EMPTY_SLOT:#010X}`").replace("0X", "0x")));
+    assert!(SPEC.contains(&format!("`LEAF_BIT = {LEAF_BIT:#010X}`").replace("0X", "0x")));
+    assert!(SPEC.contains(&format!("`UNUSED_LANE = {UNUSED_LANE:#010X}`").replace("0X", "0x")));
+    assert!(SPEC.contains(&format!("the quiet NaN `{UNUSED_LANE_COORDINATE_BITS:#010X}`").replace("0X", "0x")));
+    assert!(SPEC.contains(&format!("`packet_count <= 2^{}`", MAX_PACKET_COUNT.trailing_zeros())));
+    assert_eq!(size_of::<WideNode8>(), 256);
+    assert_eq!(size_of::<TrianglePacket4>(), 160);
     for kind in SectionKind::ALL {
         let row = format!("| {} | `{}` |", kind.code(), kind.name());
         assert!(SPEC.contains(&row), "{row}");

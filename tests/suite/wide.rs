@@ -210,7 +210,7 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
         let rays = crate::common::random_rays(seed + 50, 4000, extent * 1.5);
         for (width, max_leaf_size) in [(8, 8), (4, 4), (8, 1)] {
             let wide = collapse(&tree, &WideCosts { width, max_leaf_size, ..WideCosts::default() });
-            let bvh = bvhc::wide::pack_wide(&wide, &packed).unwrap();
+            let bvh = bvhc::wide::pack_wide(&wide, &packed, None).unwrap();
             for path in [KernelPath::Portable, KernelPath::Avx2] {
                 if !path.is_supported() {
                     eprintln!("SKIPPED (part): {path:?} is not supported on this machine");
@@ -238,7 +238,7 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
 
 #[test]
 fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
-    use bvhc::loader::{PackedTriangle, WideBvh};
+    use bvhc::loader::{PackedTriangle, Rule, WideBvh};
     let triangles = random_triangles(300, 200, 1.0);
     let good = crate::common::wide_bvh(&triangles);
     let packed: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
@@ -248,11 +248,15 @@ fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
     // A lane whose vertices differ from the triangle it names.
     let mut packets = good.packets().to_vec();
     packets[0].vertices[0][0][0] += 1.0;
-    assert!(rebuild(good.nodes().to_vec(), packets, &packed).unwrap_err().contains("packet 0 lane 0"));
+    let error = rebuild(good.nodes().to_vec(), packets, &packed).unwrap_err();
+    assert_eq!(error.rule, Rule::PacketLanes);
+    assert!(error.detail.contains("packet 0 lane 0"), "{error}");
     // A triangle that no lane holds.
     let mut more = packed.clone();
     more.push(packed[0]);
-    assert!(rebuild(good.nodes().to_vec(), good.packets().to_vec(), &more).unwrap_err().contains("in no packet"));
+    let error = rebuild(good.nodes().to_vec(), good.packets().to_vec(), &more).unwrap_err();
+    assert_eq!(error.rule, Rule::LaneCoverage);
+    assert!(error.detail.contains("in no packet lane"), "{error}");
     // Two lanes naming one triangle.
     let mut packets = good.packets().to_vec();
     let (index, triangle) = (packets[0].triangle_index[0], packets[0].triangle(0));
@@ -264,10 +268,10 @@ fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
             packets[last].vertices[vertex][axis][lane] = triangle.vertices[vertex][axis];
         }
     }
-    assert!(rebuild(good.nodes().to_vec(), packets, &packed).is_err());
+    assert_eq!(rebuild(good.nodes().to_vec(), packets, &packed).unwrap_err().rule, Rule::LaneCoverage);
     // A leaf pointing past the packets.
     let mut nodes = good.nodes().to_vec();
     let slot = nodes[0].child.iter().position(|&c| c != bvhc::loader::EMPTY_SLOT).unwrap();
     nodes[0].child[slot] = bvhc::loader::WideNode8::leaf(good.packets().len() as u32, 1).unwrap();
-    assert!(rebuild(nodes, good.packets().to_vec(), &packed).is_err());
+    assert_eq!(rebuild(nodes, good.packets().to_vec(), &packed).unwrap_err().rule, Rule::WideSlots);
 }

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 /// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
 ///
-/// V1-V10 are structural and checked by every open; V11-V28 are checked by [`crate::BvhView::verify`].
+/// V1-V10 are structural and checked by every open; V11-V35 are checked by [`crate::BvhView::verify`]
+/// (V29-V35, the wide sections of 1.1, only when a file has them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum Rule {
@@ -65,11 +66,27 @@ pub enum Rule {
     AbsoluteFileName,
     /// V28: the metadata's `format_version` equals the header's version.
     FormatVersion,
+    /// V29: wide node slots are well formed (references encoded and in range, children after their parent,
+    /// occupied slots first, empty slots with the empty box, enough children).
+    WideSlots,
+    /// V30: every wide node but the root has exactly one parent slot, and none is deeper than `MAX_DEPTH`.
+    WideTreeShape,
+    /// V31: every triangle packet is in exactly one leaf reference.
+    PacketPartition,
+    /// V32: occupied slot boxes are finite with min <= max and lie inside their parent's box.
+    WideBox,
+    /// V33: packet lanes are well formed: used lanes first, each equal bit for bit to the triangle it indexes.
+    PacketLanes,
+    /// V34: every triangle is in exactly one packet lane.
+    LaneCoverage,
+    /// V35: a lane's triangle lies inside its leaf slot's box (with `SPLIT_REFERENCES`: overlaps it, and the
+    /// wide leaves of a triangle's references cover it).
+    LaneInLeaf,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 28] = [
+    pub const ALL: [Rule; 35] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -98,6 +115,13 @@ impl Rule {
         Rule::FileIndex,
         Rule::AbsoluteFileName,
         Rule::FormatVersion,
+        Rule::WideSlots,
+        Rule::WideTreeShape,
+        Rule::PacketPartition,
+        Rule::WideBox,
+        Rule::PacketLanes,
+        Rule::LaneCoverage,
+        Rule::LaneInLeaf,
     ];
 
     /// The rule's number in the spec (1 for V1).

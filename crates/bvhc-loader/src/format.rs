@@ -17,12 +17,18 @@ pub const MAGIC: [u8; 8] = *b"\x89BVHC\r\n\x1a";
 
 /// Major version written and read by this crate. Readers reject any other major version.
 pub const VERSION_MAJOR: u16 = 1;
-/// Minor version written by this crate. Readers accept any minor version of their major version.
-pub const VERSION_MINOR: u16 = 0;
+/// Highest minor version this crate reads knowingly and writes. Readers accept any minor version of their
+/// major version.
+pub const VERSION_MINOR: u16 = 1;
+
+/// The minor version a writer stores: the lowest whose features the file uses (1.1 for the wide sections,
+/// otherwise 1.0, so files without them stay readable as 1.0 byte for byte).
+pub const fn written_minor(has_wide_sections: bool) -> u16 {
+    if has_wide_sections { 1 } else { 0 }
+}
 
 /// Whether this reader knows every field of a file with minor version `minor` (so reserved fields and undefined
 /// flag bits must be zero); files of higher minors may give them a meaning, and readers then ignore them.
-#[allow(clippy::absurd_extreme_comparisons)] // VERSION_MINOR is 0 today; the comparison is for later minors.
 pub const fn is_known_minor(minor: u16) -> bool {
     minor <= VERSION_MINOR
 }
@@ -58,16 +64,22 @@ pub enum SectionKind {
     SourceTable,
     /// UTF-8 JSON object with build metadata, optional.
     Metadata,
+    /// 8-wide BVH nodes ([`WideNode8`]) for SIMD traversal, optional, since 1.1; comes with `TrianglePackets`.
+    WideNodes,
+    /// Leaf triangles of the wide BVH in packets of four ([`TrianglePacket4`]), optional, since 1.1.
+    TrianglePackets,
 }
 
 impl SectionKind {
     /// Every kind defined by this version, in the order the writer stores them.
-    pub const ALL: [SectionKind; 5] = [
+    pub const ALL: [SectionKind; 7] = [
         SectionKind::Nodes,
         SectionKind::Triangles,
         SectionKind::TriangleIds,
         SectionKind::SourceTable,
         SectionKind::Metadata,
+        SectionKind::WideNodes,
+        SectionKind::TrianglePackets,
     ];
 
     /// The `kind` value stored in the section table.
@@ -78,6 +90,8 @@ impl SectionKind {
             SectionKind::TriangleIds => 3,
             SectionKind::SourceTable => 4,
             SectionKind::Metadata => 5,
+            SectionKind::WideNodes => 6,
+            SectionKind::TrianglePackets => 7,
         }
     }
 
@@ -89,6 +103,8 @@ impl SectionKind {
             3 => Some(SectionKind::TriangleIds),
             4 => Some(SectionKind::SourceTable),
             5 => Some(SectionKind::Metadata),
+            6 => Some(SectionKind::WideNodes),
+            7 => Some(SectionKind::TrianglePackets),
             _ => None,
         }
     }
@@ -101,6 +117,8 @@ impl SectionKind {
             SectionKind::TriangleIds => size_of::<u32>() as u32,
             SectionKind::SourceTable => size_of::<SourceRange>() as u32,
             SectionKind::Metadata => 1,
+            SectionKind::WideNodes => size_of::<WideNode8>() as u32,
+            SectionKind::TrianglePackets => size_of::<TrianglePacket4>() as u32,
         }
     }
 
@@ -125,6 +143,8 @@ impl SectionKind {
             SectionKind::TriangleIds => "triangle_ids",
             SectionKind::SourceTable => "source_table",
             SectionKind::Metadata => "metadata",
+            SectionKind::WideNodes => "wide_nodes",
+            SectionKind::TrianglePackets => "triangle_packets",
         }
     }
 }
@@ -247,6 +267,11 @@ pub const LEAF_BIT: u32 = 1 << 31;
 pub const EMPTY_SLOT: u32 = u32::MAX;
 /// Largest first packet index a leaf reference can hold (28 bits).
 pub const MAX_LEAF_FIRST_PACKET: u32 = (1 << 28) - 1;
+/// Most elements of the `triangle_packets` section (rule V10): every packet index fits a leaf reference's
+/// 28-bit `first_packet`.
+pub const MAX_PACKET_COUNT: u64 = 1 << 28;
+/// Most elements of the `wide_nodes` section (rule V10): an inner reference has no `LEAF_BIT`.
+pub const MAX_WIDE_NODE_COUNT: u64 = 1 << 31;
 /// Most packets one leaf reference can hold (3 bits of `packet_count - 1`).
 pub const MAX_LEAF_PACKETS: u32 = 8;
 /// `TrianglePacket4::triangle_index` of an unused lane.
@@ -254,8 +279,7 @@ pub const UNUSED_LANE: u32 = u32::MAX;
 /// The bits of every coordinate of an unused lane: the quiet NaN `0x7FC00000`, which no ray hits.
 pub const UNUSED_LANE_COORDINATE_BITS: u32 = 0x7FC0_0000;
 
-/// One node of the wide tree (planned as the `wide_nodes` section of format 1.1, issue 10; not yet stored in
-/// files): the boxes of up to eight children in structure-of-arrays order (`min[axis][slot]`), so one 256-bit
+/// One node of the wide tree (the `wide_nodes` section, since 1.1): the boxes of up to eight children in structure-of-arrays order (`min[axis][slot]`), so one 256-bit
 /// load feeds one slab test of all eight, and one child reference per slot:
 ///
 /// * `EMPTY_SLOT`: no child; the slot's box is `min = +inf`, `max = -inf`, which no ray enters;
@@ -263,7 +287,8 @@ pub const UNUSED_LANE_COORDINATE_BITS: u32 = 0x7FC0_0000;
 ///   the packets (`packet_count` 1 to 8);
 /// * otherwise: the index of an inner wide node, greater than this node's own index.
 ///
-/// Occupied slots come first. Node 0 is the root. 256 bytes, so nodes stay 64-byte aligned in the section.
+/// Occupied slots come first; the root has at least one, every other node at least two. Node 0 is the root;
+/// its own box is the binary root's (`nodes[0]`). 256 bytes, so nodes stay 64-byte aligned in the section.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct WideNode8 {
@@ -298,7 +323,7 @@ impl WideNode8 {
     }
 }
 
-/// Four leaf triangles (planned as the `triangle_packets` section of format 1.1; not yet stored in files),
+/// Four leaf triangles (the `triangle_packets` section, since 1.1),
 /// vertices in structure-of-arrays order (`vertices[vertex][axis][lane]`) for a watertight test of all four in
 /// SIMD lanes, and each lane's index into the `triangles` section, whose vertices the lane repeats bit for bit. Used lanes come first; an unused lane
 /// has index `UNUSED_LANE` and every coordinate `UNUSED_LANE_COORDINATE_BITS`. 160 bytes.

@@ -31,6 +31,7 @@ mod traverse;
 mod verify;
 mod verify_metadata;
 mod verify_references;
+mod verify_wide;
 mod view;
 mod wide;
 mod wide_packets;
@@ -48,8 +49,8 @@ pub use format::{
     WideNode8,
 };
 pub use intersect::{PreparedRay, Ray, TriangleHit};
-pub use traverse::{Hit, Tracer, TraversalCounter, TraversalStats};
+pub use traverse::{Hit, Kernel, Tracer, TraversalCounter, TraversalStats};
 pub use verify::verify_tree;
-pub use view::{BvhView, SectionInfo};
+pub use view::{BvhView, SectionInfo, WideSections};
 pub use wide::{KernelPath, WideBvh, WideTracer};
 pub use writer::BvhWriter;

@@ -7,6 +7,7 @@
 
 use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
+use crate::wide::{KernelPath, WideTracer};
 
 /// Boxes are culled against the closest hit so far padded by this factor (`1 + 2^-18`). The triangle test's `t`
 /// carries a rounding error of a few ulps (different triangles through the same point, such as the fan around
@@ -72,12 +73,24 @@ impl TraversalCounter for TraversalStats {
     }
 }
 
-/// The traversal kernel over borrowed node and triangle arrays (a [`crate::BvhView`]'s, or in-memory ones).
+/// The traversal kernel over borrowed node and triangle arrays (a [`crate::BvhView`]'s, or in-memory ones),
+/// and, when it was given one ([`Tracer::with_wide`]), the wide kernel over the same triangles, which it then
+/// runs instead: both give the same closest `t` and any-hit answers.
 #[derive(Clone, Copy, Debug)]
 pub struct Tracer<'a> {
     nodes: &'a [PackedNode],
     triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
+    wide: Option<WideTracer<'a>>,
+}
+
+/// Which kernel a [`Tracer`] runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// The binary kernel over the nodes section (the reference).
+    Binary,
+    /// The 8-wide kernel over the wide sections, on this path.
+    Wide(KernelPath),
 }
 
 /// What the traversal loop found: triangle index and hit.
@@ -86,7 +99,22 @@ type Found = Option<(u32, crate::intersect::TriangleHit)>;
 impl<'a> Tracer<'a> {
     /// A tracer over a tree in the layout of the nodes section (node 0 is the root).
     pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle], triangle_ids: Option<&'a [u32]>) -> Self {
-        Tracer { nodes, triangles, triangle_ids }
+        Tracer { nodes, triangles, triangle_ids, wide: None }
+    }
+
+    /// This tracer running `wide` (built over the same triangles) instead of the binary kernel.
+    pub fn with_wide(self, wide: WideTracer<'a>) -> Self {
+        Tracer { wide: Some(wide), ..self }
+    }
+
+    /// The binary kernel alone: the reference traversal.
+    pub fn binary(&self) -> Tracer<'a> {
+        Tracer { wide: None, ..*self }
+    }
+
+    /// The kernel that [`Tracer::closest_hit`] and [`Tracer::any_hit`] run.
+    pub fn kernel(&self) -> Kernel {
+        self.wide.map_or(Kernel::Binary, |wide| Kernel::Wide(wide.path()))
     }
 
     /// The closest hit with `t_min <= t <= t_max`.
@@ -94,8 +122,12 @@ impl<'a> Tracer<'a> {
         self.closest_hit_counted(ray, &mut ())
     }
 
-    /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter`.
+    /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter` (with the wide kernel:
+    /// wide node visits and packet tests).
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        if let Some(wide) = &self.wide {
+            return wide.closest_hit_counted(ray, counter);
+        }
         let (triangle_index, hit) = self.traverse::<false>(ray, counter)?;
         Some(Hit::new(triangle_index, hit, self.triangle_ids))
     }
@@ -105,8 +137,11 @@ impl<'a> Tracer<'a> {
         self.any_hit_counted(ray, &mut ())
     }
 
-    /// [`Tracer::any_hit`], counting node visits and triangle tests into `counter`.
+    /// [`Tracer::any_hit`], counting as [`Tracer::closest_hit_counted`] does.
     pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        if let Some(wide) = &self.wide {
+            return wide.any_hit_counted(ray, counter);
+        }
         self.traverse::<true>(ray, counter).is_some()
     }
 

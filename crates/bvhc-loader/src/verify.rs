@@ -1,5 +1,6 @@
-//! The full verifier: rules V11-V28 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
-//! V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`.
+//! The full verifier: rules V11-V35 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
+//! (the wide sections of 1.1) in `verify_wide`.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
@@ -12,7 +13,7 @@ use crate::format::{
 use crate::view::{BvhView, section_bytes};
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V28; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V35; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke.
     pub fn verify(&self) -> Result<(), Violation> {
@@ -21,7 +22,21 @@ impl BvhView<'_> {
         verify_tree(self.nodes(), self.triangles(), self.has_split_references())?;
         verify_sources(self)?;
         crate::verify_metadata::verify_metadata(self)?;
-        crate::verify_references::verify_references(self)
+        crate::verify_references::verify_references(self)?;
+        match self.wide_sections() {
+            Some(wide) => crate::verify_wide::verify_wide(wide.nodes, wide.packets, &self.wide_context()),
+            None => Ok(()),
+        }
+    }
+
+    /// What the wide sections are checked against.
+    pub(crate) fn wide_context(&self) -> crate::verify_wide::WideContext<'_> {
+        crate::verify_wide::WideContext {
+            triangles: self.triangles(),
+            triangle_ids: self.triangle_ids(),
+            root_box: self.nodes().first().map(|root| (root.min, root.max)),
+            split_references: self.has_split_references(),
+        }
     }
 }
 
@@ -80,6 +95,10 @@ fn verify_reserved_and_padding(view: &BvhView<'_>) -> Result<(), Violation> {
     let table = view.source_table().filter(|_| known_minor).unwrap_or(&[]);
     if let Some(i) = table.iter().position(|r| r.reserved != 0) {
         return fail(format!("source_table range {i}: reserved must be zero"));
+    }
+    let wide_nodes = view.wide_sections().filter(|_| known_minor).map_or(&[][..], |wide| wide.nodes);
+    if let Some(i) = wide_nodes.iter().position(|n| n.reserved != [0; 8]) {
+        return fail(format!("wide node {i}: reserved must be zero"));
     }
     Ok(())
 }

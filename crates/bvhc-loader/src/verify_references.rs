@@ -64,25 +64,55 @@ fn verify_split_coverage(
     triangles: &[PackedTriangle],
     ids: Option<&[u32]>,
 ) -> Result<(), Violation> {
-    // (id or 0, vertex bits, triangle index, leaf) for every record, grouped by the first two.
-    let mut references: Vec<(u32, [u32; 9], u32, u32)> = Vec::with_capacity(triangles.len());
-    for (leaf, node) in nodes.iter().enumerate().filter(|(_, n)| n.is_leaf()) {
-        for t in node.index..node.index + node.count {
-            let v = &triangles[t as usize].vertices;
+    let placements = nodes.iter().enumerate().filter(|(_, n)| n.is_leaf()).flat_map(|(leaf, node)| {
+        (node.index..node.index + node.count).map(move |t| Placement {
+            triangle: t,
+            container: leaf as u32,
+            min: node.min,
+            max: node.max,
+        })
+    });
+    verify_coverage(placements, triangles, ids, Rule::SplitCoverage, "leaves")
+}
+
+/// A triangle record placed in a box: a binary leaf (V25) or a wide leaf slot (V35).
+pub(crate) struct Placement {
+    /// The record's index in the triangles section (in bounds).
+    pub triangle: u32,
+    /// The leaf node, or the wide node's slot as `node * 8 + slot`, for the message.
+    pub container: u32,
+    /// The box's minimum corner.
+    pub min: [f32; 3],
+    /// The box's maximum corner.
+    pub max: [f32; 3],
+}
+
+/// Whether the boxes that hold the references of each triangle (the records with the same id, with ids, and
+/// the same vertices) cover it; `rule` names the failure.
+pub(crate) fn verify_coverage(
+    placements: impl Iterator<Item = Placement>,
+    triangles: &[PackedTriangle],
+    ids: Option<&[u32]>,
+    rule: Rule,
+    containers: &str,
+) -> Result<(), Violation> {
+    // (id or 0, vertex bits, placement) for every placement, grouped by the first two.
+    let mut references: Vec<(u32, [u32; 9], Placement)> = placements
+        .map(|p| {
+            let v = &triangles[p.triangle as usize].vertices;
             let bits = std::array::from_fn(|k| v[k / 3][k % 3].to_bits());
-            let id = ids.map_or(0, |ids| ids[t as usize]);
-            references.push((id, bits, t, leaf as u32));
-        }
-    }
-    references.sort_unstable();
+            (ids.map_or(0, |ids| ids[p.triangle as usize]), bits, p)
+        })
+        .collect();
+    references.sort_unstable_by_key(|r| (r.0, r.1, r.2.triangle, r.2.container));
     for group in references.chunk_by(|a, b| a.0 == b.0 && a.1 == b.1) {
-        let t = group[0].2 as usize;
-        let boxes: Vec<&PackedNode> = group.iter().map(|r| &nodes[r.3 as usize]).collect();
+        let t = group[0].2.triangle as usize;
+        let boxes: Vec<([f32; 3], [f32; 3])> = group.iter().map(|r| (r.2.min, r.2.max)).collect();
         if !is_covered(&triangles[t].vertices, &boxes) {
-            let leaves: Vec<u32> = group.iter().map(|r| r.3).collect();
+            let held_by: Vec<u32> = group.iter().map(|r| r.2.container).collect();
             return Err(violation(
-                Rule::SplitCoverage,
-                format!("triangle {t}: the boxes of its leaves {leaves:?} do not cover all of it"),
+                rule,
+                format!("triangle {t}: the boxes of its {containers} {held_by:?} do not cover all of it"),
             ));
         }
     }
@@ -92,11 +122,13 @@ fn verify_split_coverage(
 type Point = [f64; 3];
 
 /// Whether the boxes cover the triangle (see the module doc for the tolerance).
-fn is_covered(vertices: &[[f32; 3]; 3], boxes: &[&PackedNode]) -> bool {
+fn is_covered(vertices: &[[f32; 3]; 3], boxes: &[([f32; 3], [f32; 3])]) -> bool {
     let triangle: Vec<Point> = vertices.iter().map(|v| v.map(f64::from)).collect();
     let area = polygon_area(&triangle);
     if area == 0.0 {
-        return vertices.iter().all(|v| boxes.iter().any(|b| (0..3).all(|a| b.min[a] <= v[a] && v[a] <= b.max[a])));
+        return vertices
+            .iter()
+            .all(|v| boxes.iter().any(|(min, max)| (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a])));
     }
     let mut pieces = vec![triangle];
     for b in boxes {
@@ -111,9 +143,9 @@ fn is_covered(vertices: &[[f32; 3]; 3], boxes: &[&PackedNode]) -> bool {
 }
 
 /// Appends the parts of convex `piece` outside box `b` (at most six convex polygons).
-fn subtract_box(mut piece: Vec<Point>, b: &PackedNode, outside: &mut Vec<Vec<Point>>) {
+fn subtract_box(mut piece: Vec<Point>, (min, max): &([f32; 3], [f32; 3]), outside: &mut Vec<Vec<Point>>) {
     for a in 0..3 {
-        for (plane, keep_below) in [(f64::from(b.min[a]), false), (f64::from(b.max[a]), true)] {
+        for (plane, keep_below) in [(f64::from(min[a]), false), (f64::from(max[a]), true)] {
             let (inside, out) = split(&piece, a, plane, keep_below);
             if out.len() >= 3 {
                 outside.push(out);

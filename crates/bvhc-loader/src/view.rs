@@ -5,11 +5,12 @@
 
 use crate::error::{Error, Rule, Violation, violation};
 use crate::format::{
-    FileHeader, HEADER_BYTE_LEN, MAGIC, PackedNode, PackedTriangle, SECTION_ALIGNMENT, SECTION_ENTRY_BYTE_LEN,
-    SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, VERSION_MAJOR,
-    is_known_minor,
+    FileHeader, HEADER_BYTE_LEN, MAGIC, MAX_PACKET_COUNT, MAX_WIDE_NODE_COUNT, PACKET_LANES, PackedNode,
+    PackedTriangle, SECTION_ALIGNMENT, SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES,
+    SectionEntry, SectionKind, SourceRange, TrianglePacket4, VERSION_MAJOR, WideNode8, is_known_minor,
 };
 use crate::traverse::Tracer;
+use crate::wide::{KernelPath, WideTracer};
 
 /// A structurally checked `.bvh` file borrowed from bytes: typed zero-copy slices of its sections.
 ///
@@ -24,7 +25,17 @@ pub struct BvhView<'a> {
     triangle_ids: Option<&'a [u32]>,
     source_table: Option<&'a [SourceRange]>,
     metadata: Option<&'a [u8]>,
+    wide: Option<WideSections<'a>>,
     split_references: bool,
+}
+
+/// The two sections of the wide BVH (since 1.1), which a file has together or not at all (rule V8).
+#[derive(Clone, Copy, Debug)]
+pub struct WideSections<'a> {
+    /// The `wide_nodes` section; node 0 is the root.
+    pub nodes: &'a [WideNode8],
+    /// The `triangle_packets` section.
+    pub packets: &'a [TrianglePacket4],
 }
 
 /// One entry of the section table, with its kind decoded when this version defines it.
@@ -73,6 +84,13 @@ impl<'a> BvhView<'a> {
         let sections = KnownSections(known);
         let nodes_entry = sections.get(SectionKind::Nodes).ok_or_else(|| missing(SectionKind::Nodes))?;
         let triangles_entry = sections.get(SectionKind::Triangles).ok_or_else(|| missing(SectionKind::Triangles))?;
+        if sections.get(SectionKind::WideNodes).is_some() != sections.get(SectionKind::TrianglePackets).is_some() {
+            return Err(violation(
+                Rule::SectionMultiplicity,
+                "a file has both wide_nodes and triangle_packets sections or neither".to_string(),
+            )
+            .into());
+        }
         check_counts(&sections)?;
         Ok(BvhView {
             bytes,
@@ -82,6 +100,12 @@ impl<'a> BvhView<'a> {
             triangle_ids: sections.get(SectionKind::TriangleIds).map(|e| cast_section(bytes, &e)).transpose()?,
             source_table: sections.get(SectionKind::SourceTable).map(|e| cast_section(bytes, &e)).transpose()?,
             metadata: sections.get(SectionKind::Metadata).map(|e| section_bytes(bytes, &e)),
+            wide: match (sections.get(SectionKind::WideNodes), sections.get(SectionKind::TrianglePackets)) {
+                (Some(nodes), Some(packets)) => {
+                    Some(WideSections { nodes: cast_section(bytes, &nodes)?, packets: cast_section(bytes, &packets)? })
+                }
+                _ => None,
+            },
             split_references: triangles_entry.section_flags & SECTION_FLAG_SPLIT_REFERENCES != 0,
         })
     }
@@ -153,12 +177,35 @@ impl<'a> BvhView<'a> {
         self.split_references
     }
 
-    /// The traversal kernel over this file's nodes and triangles.
+    /// The wide BVH's sections, when the file has them (1.1).
+    pub fn wide_sections(&self) -> Option<WideSections<'a>> {
+        self.wide
+    }
+
+    /// The fastest traversal kernel for this file on this machine: the wide kernel on the best SIMD path when
+    /// the file has wide sections, the binary kernel otherwise. Both report the same closest `t` and any-hit
+    /// answers (the tests check it); triangle indices refer to the triangles section either way.
     ///
     /// Tracing never panics or loops forever, whatever the bytes; on a file that fails [`BvhView::verify`] the
     /// hits it returns are unspecified.
     pub fn tracer(&self) -> Tracer<'a> {
+        match self.wide_tracer(KernelPath::best()) {
+            Some(wide) => self.binary_tracer().with_wide(wide),
+            None => self.binary_tracer(),
+        }
+    }
+
+    /// The binary kernel over the nodes and triangles sections: the reference traversal.
+    pub fn binary_tracer(&self) -> Tracer<'a> {
         Tracer::new(self.nodes, self.triangles, self.triangle_ids)
+    }
+
+    /// The wide kernel on `path` (the portable one where `path` is not supported), when the file has wide
+    /// sections.
+    pub fn wide_tracer(&self, path: KernelPath) -> Option<WideTracer<'a>> {
+        let wide = self.wide?;
+        let root = self.nodes.first()?;
+        Some(WideTracer::over(wide.nodes, wide.packets, (root.min, root.max), self.triangle_ids, path))
     }
 
     /// Builds a view without checking any rule.
@@ -179,8 +226,11 @@ impl<'a> BvhView<'a> {
             triangle_ids: None,
             source_table: None,
             metadata: None,
+            wide: None,
             split_references: false,
         };
+        let mut wide_nodes: Option<&[WideNode8]> = None;
+        let mut packets: Option<&[TrianglePacket4]> = None;
         for info in section_infos(bytes, &header) {
             let entry = &info.entry;
             let start = entry.section_byte_offset as usize;
@@ -203,9 +253,14 @@ impl<'a> BvhView<'a> {
                         view.source_table = Some(std::slice::from_raw_parts(base.cast(), len))
                     }
                     Some(SectionKind::Metadata) => view.metadata = Some(std::slice::from_raw_parts(base, len)),
+                    Some(SectionKind::WideNodes) => wide_nodes = Some(std::slice::from_raw_parts(base.cast(), len)),
+                    Some(SectionKind::TrianglePackets) => packets = Some(std::slice::from_raw_parts(base.cast(), len)),
                     None => {}
                 }
             }
+        }
+        if let (Some(nodes), Some(packets)) = (wide_nodes, packets) {
+            view.wide = Some(WideSections { nodes, packets });
         }
         view
     }
@@ -383,7 +438,38 @@ fn check_counts(sections: &KnownSections) -> Result<(), Violation> {
     if sections.get(SectionKind::SourceTable).is_some() && sections.get(SectionKind::TriangleIds).is_none() {
         return fail("a source_table section needs a triangle_ids section".to_string());
     }
+    if sections.get(SectionKind::WideNodes).is_some() {
+        check_wide_counts(
+            sections.count(SectionKind::WideNodes),
+            sections.count(SectionKind::TrianglePackets),
+            triangle_count,
+        )?;
+    }
     Ok(())
+}
+
+/// V10 for the wide sections: a root exactly when there are triangles; between `ceil(triangle_count / 4)` and
+/// `triangle_count` packets (each lane holds one triangle, each triangle one lane, a packet at least one lane),
+/// at most one wide node per packet (every node but the root has two children or more), and both counts
+/// within what the references encode.
+fn check_wide_counts(wide_node_count: u64, packet_count: u64, triangle_count: u64) -> Result<(), Violation> {
+    let min_packets = triangle_count.div_ceil(PACKET_LANES as u64);
+    let fits = wide_node_count <= MAX_WIDE_NODE_COUNT && packet_count <= MAX_PACKET_COUNT;
+    let ok = fits
+        && (wide_node_count == 0) == (triangle_count == 0)
+        && (min_packets..=triangle_count).contains(&packet_count)
+        && wide_node_count <= packet_count.max(1);
+    if ok {
+        return Ok(());
+    }
+    Err(violation(
+        Rule::Counts,
+        format!(
+            "wide_nodes count {wide_node_count} and triangle_packets count {packet_count} for {triangle_count} \
+             triangles: packets must number {min_packets}..={triangle_count} (at most 2^28), wide nodes 1..=packets \
+             (none without triangles)"
+        ),
+    ))
 }
 
 /// The bytes of a section. Requires V5 (the section lies inside `bytes`).

@@ -1,4 +1,5 @@
-//! Traversal of the wide layout planned for format 1.1 (issue 10; in memory only, not yet in files): one ray against the eight child boxes of a `WideNode8` at a time,
+//! Traversal of the wide sections of format 1.1 (`wide_nodes`, `triangle_packets`): one ray against the eight
+//! child boxes of a `WideNode8` at a time,
 //! in SIMD lanes (AVX2) or in a portable loop that gives bit-identical box results; leaves are `TrianglePacket4`s
 //! tested four triangles at a time (`wide_packets`, SSE2) on the SIMD path and one lane at a time with the binary
 //! kernel's watertight test on the portable one, with identical hits. Layout: `format::WideNode8`.
@@ -15,11 +16,11 @@
 
 use std::mem::MaybeUninit;
 
-use crate::format::{
-    EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, PACKET_LANES, PackedNode, PackedTriangle, TrianglePacket4, WIDE, WideNode8,
-};
+use crate::error::Violation;
+use crate::format::{EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, PackedNode, PackedTriangle, TrianglePacket4, WIDE, WideNode8};
 use crate::intersect::{EXIT_PADDING, PreparedRay, Ray, TriangleHit};
 use crate::traverse::{CULL_PADDING, Hit, TraversalCounter};
+use crate::verify_wide::{WideContext, verify_wide};
 
 /// The wide sections in memory (owned), checked at construction against the triangles they index.
 #[derive(Clone, Debug)]
@@ -31,16 +32,16 @@ pub struct WideBvh {
 
 impl WideBvh {
     /// `nodes` (the root first) and `packets` over `triangles` (whose indices the packets' lanes hold), inside
-    /// `root_box`. Fails naming the first node, slot or packet that breaks a rule: references in range, children
-    /// after their parents, each node but the root with one parent, depth at most `MAX_DEPTH`, used lanes first
-    /// and equal bit for bit to the triangle they index, every triangle in exactly one lane.
+    /// `root_box` (the binary root's box). Fails with the first broken rule of V29-V35, naming the node, slot,
+    /// packet or lane.
     pub fn new(
         nodes: Vec<WideNode8>,
         packets: Vec<TrianglePacket4>,
         root_box: ([f32; 3], [f32; 3]),
         triangles: &[PackedTriangle],
-    ) -> Result<WideBvh, String> {
-        check_wide(&nodes, &packets, triangles)?;
+    ) -> Result<WideBvh, Violation> {
+        let context = WideContext { triangles, triangle_ids: None, root_box: Some(root_box), split_references: false };
+        verify_wide(&nodes, &packets, &context)?;
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
         Ok(WideBvh { nodes, packets, root })
     }
@@ -54,66 +55,6 @@ impl WideBvh {
     pub fn packets(&self) -> &[TrianglePacket4] {
         &self.packets
     }
-}
-
-fn check_wide(nodes: &[WideNode8], packets: &[TrianglePacket4], triangles: &[PackedTriangle]) -> Result<(), String> {
-    let mut depth = vec![0usize; nodes.len()];
-    let mut parents = vec![0u8; nodes.len()];
-    let mut packet_owner = vec![false; packets.len()];
-    for (i, node) in nodes.iter().enumerate() {
-        for (slot, &child) in node.child.iter().enumerate() {
-            if child == EMPTY_SLOT {
-                continue;
-            }
-            if child & LEAF_BIT != 0 {
-                let (first, count) = WideNode8::leaf_packets(child);
-                for p in first..first + count {
-                    match packet_owner.get_mut(p as usize) {
-                        Some(owned) if !*owned => *owned = true,
-                        _ => return Err(format!("node {i} slot {slot}: packet {p} missing or in two leaves")),
-                    }
-                }
-                continue;
-            }
-            let c = child as usize;
-            if c <= i || c >= nodes.len() {
-                return Err(format!("node {i} slot {slot}: child {c} must come after it and exist"));
-            }
-            parents[c] = parents[c].saturating_add(1);
-            depth[c] = depth[i] + 1;
-            if depth[c] > MAX_DEPTH {
-                return Err(format!("node {c}: deeper than {MAX_DEPTH}"));
-            }
-        }
-    }
-    if let Some(c) = parents.iter().skip(1).position(|&p| p != 1) {
-        return Err(format!("node {}: {} parents", c + 1, parents[c + 1]));
-    }
-    let mut seen = vec![false; triangles.len()];
-    for (p, packet) in packets.iter().enumerate() {
-        let used = packet.used_lanes();
-        if used == 0 {
-            return Err(format!("packet {p}: no used lane"));
-        }
-        for lane in 0..PACKET_LANES {
-            let index = packet.triangle_index[lane];
-            let lane_bits = packet.triangle(lane).vertices.map(|v| v.map(f32::to_bits));
-            let ok = if lane < used {
-                let stored = triangles.get(index as usize).map(|t| t.vertices.map(|v| v.map(f32::to_bits)));
-                stored == Some(lane_bits) && !std::mem::replace(&mut seen[index as usize], true)
-            } else {
-                index == crate::format::UNUSED_LANE
-                    && lane_bits.iter().flatten().all(|&b| b == crate::format::UNUSED_LANE_COORDINATE_BITS)
-            };
-            if !ok {
-                return Err(format!("packet {p} lane {lane}: not a well-formed lane (index {index})"));
-            }
-        }
-    }
-    if let Some(t) = seen.iter().position(|&s| !s) {
-        return Err(format!("triangle {t} is in no packet"));
-    }
-    Ok(())
 }
 
 /// Which implementation of the box test runs.
@@ -161,8 +102,21 @@ impl<'a> WideTracer<'a> {
     /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangle_ids` are
     /// indexed by the packets' triangle indices.
     pub fn new(bvh: &'a WideBvh, triangle_ids: Option<&'a [u32]>, path: KernelPath) -> WideTracer<'a> {
+        WideTracer::over(&bvh.nodes, &bvh.packets, (bvh.root.min, bvh.root.max), triangle_ids, path)
+    }
+
+    /// A tracer over borrowed wide sections (a [`crate::BvhView`]'s) inside `root_box`, the binary root's box.
+    /// Safe on any contents; the hits are those of the binary kernel when the sections pass V29-V35.
+    pub fn over(
+        nodes: &'a [WideNode8],
+        packets: &'a [TrianglePacket4],
+        root_box: ([f32; 3], [f32; 3]),
+        triangle_ids: Option<&'a [u32]>,
+        path: KernelPath,
+    ) -> WideTracer<'a> {
         let path = if path.is_supported() { path } else { KernelPath::Portable };
-        WideTracer { nodes: &bvh.nodes, packets: &bvh.packets, root: bvh.root, triangle_ids, path }
+        let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
+        WideTracer { nodes, packets, root, triangle_ids, path }
     }
 
     /// The path this tracer runs.

@@ -12,7 +12,8 @@ use crate::error::Error;
 use crate::file::{AlignedBuffer, BvhFile};
 use crate::format::{
     FileHeader, HEADER_BYTE_LEN, MAGIC, PackedNode, PackedTriangle, SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED,
-    SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, VERSION_MAJOR, VERSION_MINOR, align_up,
+    SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, TrianglePacket4, VERSION_MAJOR, WideNode8,
+    align_up, written_minor,
 };
 
 /// Collects the parts of a `.bvh` file; [`BvhWriter::build`] lays them out.
@@ -24,6 +25,7 @@ pub struct BvhWriter<'a> {
     source_table: Option<&'a [SourceRange]>,
     metadata: Option<&'a str>,
     split_references: bool,
+    wide: Option<(&'a [WideNode8], &'a [TrianglePacket4])>,
     extra_sections: Vec<ExtraSection<'a>>,
 }
 
@@ -52,6 +54,7 @@ impl<'a> BvhWriter<'a> {
             source_table: None,
             metadata: None,
             split_references: false,
+            wide: None,
             extra_sections: Vec::new(),
         }
     }
@@ -78,6 +81,18 @@ impl<'a> BvhWriter<'a> {
     pub fn split_references(mut self, split: bool) -> Self {
         self.split_references = split;
         self
+    }
+
+    /// Adds the wide BVH (format 1.1): the `wide_nodes` and `triangle_packets` sections, whose lanes index the
+    /// triangles given to [`BvhWriter::new`]. The file is then written as version 1.1.
+    pub fn wide(mut self, nodes: &'a [WideNode8], packets: &'a [TrianglePacket4]) -> Self {
+        self.wide = Some((nodes, packets));
+        self
+    }
+
+    /// The minor version the file will have: 1 with wide sections, else 0.
+    pub fn version_minor(&self) -> u16 {
+        written_minor(self.wide.is_some())
     }
 
     /// Appends a section of a kind that this version does not define. `required` sets its REQUIRED flag, which
@@ -121,6 +136,10 @@ impl<'a> BvhWriter<'a> {
         if let Some(json) = self.metadata {
             known(SectionKind::Metadata, json.as_bytes(), json.len(), 0);
         }
+        if let Some((nodes, packets)) = self.wide {
+            known(SectionKind::WideNodes, bytemuck::cast_slice(nodes), nodes.len(), 0);
+            known(SectionKind::TrianglePackets, bytemuck::cast_slice(packets), packets.len(), 0);
+        }
         for extra in &self.extra_sections {
             if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {
                 return Err(Error::Unwritable(format!(
@@ -153,7 +172,7 @@ impl<'a> BvhWriter<'a> {
         let header = FileHeader {
             magic: MAGIC,
             version_major: VERSION_MAJOR,
-            version_minor: VERSION_MINOR,
+            version_minor: self.version_minor(),
             header_flags: 0,
             file_byte_len: end,
             section_count: u32::try_from(sections.len()).map_err(|_| Error::Unwritable("too many sections".into()))?,
