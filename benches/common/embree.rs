@@ -144,13 +144,15 @@ pub struct Embree {
 unsafe impl Sync for Embree {}
 
 impl Embree {
-    /// Builds the scene: HIGH quality, robust traversal when asked.
+    /// Builds the scene: HIGH quality, robust traversal when asked, kernels of at most the instruction set
+    /// [`max_isa`] names.
     pub fn new(triangles: &[[[f32; 3]; 3]], robust: bool) -> Embree {
+        let config = std::ffi::CString::new(format!("threads=1,max_isa={}", max_isa())).expect("no NUL");
         // SAFETY: every pointer handed to Embree is valid for the call: the config string is NUL-terminated, the
         // buffers Embree returns are sized by the counts we pass (plus Embree's own padding) and written within
         // them; handles are checked for null before use and released once in `drop`.
         unsafe {
-            let device = rtcNewDevice(c"threads=1".as_ptr());
+            let device = rtcNewDevice(config.as_ptr());
             assert!(!device.is_null(), "rtcNewDevice failed");
             let scene = rtcNewScene(device);
             rtcSetSceneBuildQuality(scene, BUILD_QUALITY_HIGH);
@@ -299,4 +301,11 @@ pub fn set_flush_to_zero() {
             std::arch::asm!("ldmxcsr [{}]", in(reg) &csr, options(nostack));
         }
     }
+}
+
+/// The most capable instruction set Embree may use: `BVHC_EMBREE_ISA` (`sse2`, `sse4.2`, `avx`, `avx2` or
+/// `avx512`), `avx2` by default, the instruction set of bvhc's SIMD kernel (on a machine with AVX-512, Embree
+/// would otherwise pick its AVX-512 kernels; `avx512` lets it).
+pub fn max_isa() -> String {
+    std::env::var("BVHC_EMBREE_ISA").unwrap_or_else(|_| "avx2".to_string())
 }

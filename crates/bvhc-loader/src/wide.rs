@@ -208,33 +208,48 @@ impl<'a> WideTracer<'a> {
                 visits_left -= 1;
                 counter.node_visited();
                 let (mask, t_near) = Self::box_test::<SIMD>(node, &prepared, t_max * CULL_PADDING);
-                // The hit children, nearest first (insertion sort of at most 8).
-                let mut order = [(0u32, 0f32); WIDE];
-                let mut n = 0;
-                let mut lanes = mask;
-                while lanes != 0 {
-                    let lane = lanes.trailing_zeros() as usize;
-                    lanes &= lanes - 1;
-                    let entry = (node.child[lane], t_near[lane]);
-                    if entry.0 == EMPTY_SLOT {
-                        continue; // never hit (its box is +inf..-inf); kept out for safety on odd input
+                // The hit children, nearest first (ties in slot order): one or two without a sort, which is most
+                // visits; more by insertion sort. Pushed children are prefetched, so the misses of their nodes or
+                // packets overlap with the work on the nearer ones instead of stalling when they are popped.
+                let first = mask.trailing_zeros() as usize;
+                let rest = mask & mask.wrapping_sub(1);
+                if rest == 0 {
+                    if let Some(&child) = node.child.get(first) {
+                        current = child;
+                        continue;
                     }
-                    let mut at = n;
-                    while at > 0 && order[at - 1].1 > entry.1 {
-                        order[at] = order[at - 1];
-                        at -= 1;
+                } else if rest & (rest - 1) == 0 {
+                    let second = rest.trailing_zeros() as usize & (WIDE - 1);
+                    let (near, far) = if t_near[second] < t_near[first] { (second, first) } else { (first, second) };
+                    self.push::<SIMD>(&mut stack, &mut stack_len, (node.child[far], t_near[far]));
+                    current = node.child[near];
+                    if SIMD {
+                        self.prefetch(current);
                     }
-                    order[at] = entry;
-                    n += 1;
-                }
-                if n > 0 {
-                    for &entry in order[1..n].iter().rev() {
-                        if let Some(slot) = stack.get_mut(stack_len) {
-                            slot.write(entry);
-                            stack_len += 1;
+                    continue;
+                } else {
+                    let mut order = [(0u32, 0f32); WIDE];
+                    let mut n = 0;
+                    let mut lanes = mask;
+                    while lanes != 0 {
+                        let lane = lanes.trailing_zeros() as usize & (WIDE - 1);
+                        lanes &= lanes - 1;
+                        let entry = (node.child[lane], t_near[lane]);
+                        let mut at = n;
+                        while at > 0 && order[at - 1].1 > entry.1 {
+                            order[at] = order[at - 1];
+                            at -= 1;
                         }
+                        order[at] = entry;
+                        n += 1;
+                    }
+                    for &entry in order[1..n].iter().rev() {
+                        self.push::<SIMD>(&mut stack, &mut stack_len, entry);
                     }
                     current = order[0].0;
+                    if SIMD {
+                        self.prefetch(current);
+                    }
                     continue;
                 }
             }
@@ -250,6 +265,44 @@ impl<'a> WideTracer<'a> {
                     current = next;
                     break;
                 }
+            }
+        }
+    }
+
+    /// Pushes `entry` (dropped when the stack is full, which only a file that breaks V30 can cause) and, on
+    /// the SIMD path, prefetches what it references.
+    #[inline(always)]
+    fn push<const SIMD: bool>(
+        &self,
+        stack: &mut [MaybeUninit<(u32, f32)>; STACK_LEN],
+        stack_len: &mut usize,
+        entry: (u32, f32),
+    ) {
+        if SIMD {
+            self.prefetch(entry.0);
+        }
+        if let Some(slot) = stack.get_mut(*stack_len) {
+            slot.write(entry);
+            *stack_len += 1;
+        }
+    }
+
+    /// Asks the cache for the wide node or the packets `child` references (a hint: no effect on results; a
+    /// reference out of range fetches nothing).
+    #[inline(always)]
+    fn prefetch(&self, child: u32) {
+        if child & LEAF_BIT == 0 {
+            if let Some(node) = self.nodes.get(child as usize..child as usize + 1) {
+                prefetch_lines::<4>(node);
+            }
+        } else {
+            // A packet spans 3 cache lines (160 bytes from a multiple of 32); the first two packets of a leaf.
+            let (first, count) = WideNode8::leaf_packets(child);
+            if let Some(packets) = self.packets.get(first as usize..first as usize + 1) {
+                prefetch_lines::<3>(packets);
+            }
+            if let Some(packets) = self.packets.get(first as usize + 1..first as usize + 2).filter(|_| count > 1) {
+                prefetch_lines::<3>(packets);
             }
         }
     }
@@ -290,6 +343,26 @@ impl<'a> WideTracer<'a> {
     }
 }
 
+/// Prefetches the cache lines of the first `LINES * 64` bytes of `value` (at most its size) into all cache
+/// levels (x86-64; elsewhere nothing).
+#[inline(always)]
+#[allow(unsafe_code)] // the prefetch hint, see the SAFETY note
+fn prefetch_lines<const LINES: usize>(value: &[impl Sized]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let start = value.as_ptr().cast::<i8>();
+        let last = size_of_val(value).saturating_sub(1);
+        for line in 0..LINES {
+            // SAFETY: a prefetch is a hint that never faults nor changes memory; the offset is clamped to the
+            // last byte of `value`, so the address lies inside it.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add((line * 64).min(last))) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
+}
+
 /// The slab test of all eight lanes, in plain Rust: the binary kernel's `enter_box` per lane.
 fn portable_box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
     let mut near = [ray.t_min; WIDE];
@@ -305,7 +378,12 @@ fn portable_box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f
             far[lane] = if t_exit < far[lane] { t_exit } else { far[lane] };
         }
     }
-    let mask = near.iter().zip(&far).enumerate().fold(0u8, |m, (lane, (n, f))| if n <= f { m | 1 << lane } else { m });
+    let mask = near
+        .iter()
+        .zip(&far)
+        .zip(&node.child)
+        .enumerate()
+        .fold(0u8, |m, (lane, ((n, f), &child))| if n <= f && child != EMPTY_SLOT { m | 1 << lane } else { m });
     (mask, near)
 }
 
@@ -319,6 +397,8 @@ mod avx2 {
     use crate::intersect::PreparedRay;
 
     /// The slab test of all eight lanes in AVX2; the same operations, in the same order, as the portable one.
+    /// Empty slots are left out of the mask (they never hit a finite ray, but a NaN origin makes every
+    /// comparison fail and so every slot look hit).
     ///
     /// # Safety
     /// The CPU must support AVX2.
@@ -344,7 +424,11 @@ mod avx2 {
             near = _mm256_max_ps(t_entry, near);
             far = _mm256_min_ps(t_exit, far);
         }
-        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u8;
+        let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u8;
+        // SAFETY: `node.child` is `[u32; 8]`, 32 readable bytes.
+        let children = unsafe { _mm256_loadu_si256(node.child.as_ptr().cast()) };
+        let empty = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(children, _mm256_set1_epi32(-1))));
+        let mask = hit & !(empty as u8);
         let mut out = [0f32; WIDE];
         // SAFETY: `out` has room for 8 f32.
         unsafe { _mm256_storeu_ps(out.as_mut_ptr(), near) };

@@ -9,7 +9,7 @@ use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::intersect::{PreparedRay, TriangleHit};
 
 /// Per lane: the edge functions V and W, `t`, the determinant, and bit masks of lanes with a zero edge
-/// function and of lanes that hit within `[t_min, t_max]`.
+/// function, of lanes that hit within `[t_min, t_max]`, and of the hit lanes at the smallest `t` among them.
 struct Lanes {
     v: [f32; LANES],
     w: [f32; LANES],
@@ -17,6 +17,7 @@ struct Lanes {
     det: [f32; LANES],
     zero: i32,
     valid: i32,
+    nearest: i32,
 }
 
 /// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
@@ -31,14 +32,22 @@ pub fn closest_in_packet<const SIMD: bool>(
     let lanes = if SIMD { sse2_lanes(packet, ray, t_max) } else { portable_lanes(packet, ray, t_max) };
     #[cfg(not(target_arch = "x86_64"))]
     let lanes = portable_lanes(packet, ray, t_max);
+    let hit_in = |lane: usize| {
+        let inverse_det = 1.0 / lanes.det[lane];
+        TriangleHit { t: lanes.t[lane], u: lanes.v[lane] * inverse_det, v: lanes.w[lane] * inverse_det }
+    };
+    if lanes.zero == 0 {
+        // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t.
+        let last = 31usize.checked_sub(lanes.nearest.leading_zeros() as usize)?;
+        return Some((last, hit_in(last)));
+    }
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
     for lane in 0..LANES {
         let hit = if lanes.zero & (1 << lane) != 0 {
             ray.intersect_triangle(&packet.triangle(lane), limit)
         } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
-            let inverse_det = 1.0 / lanes.det[lane];
-            Some(TriangleHit { t: lanes.t[lane], u: lanes.v[lane] * inverse_det, v: lanes.w[lane] * inverse_det })
+            Some(hit_in(lane))
         } else {
             None
         };
@@ -57,7 +66,8 @@ fn portable_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> La
     let ([kx, ky, kz], [sx, sy, sz]) = ray.shear();
     let p = &packet.vertices;
     let o = ray.origin;
-    let mut out = Lanes { v: [0.0; LANES], w: [0.0; LANES], t: [0.0; LANES], det: [0.0; LANES], zero: 0, valid: 0 };
+    let mut out =
+        Lanes { v: [0.0; LANES], w: [0.0; LANES], t: [0.0; LANES], det: [0.0; LANES], zero: 0, valid: 0, nearest: 0 };
     for lane in 0..LANES {
         let at = |vertex: usize, axis: usize| p[vertex][axis][lane] - o[axis];
         let (akz, bkz, ckz) = (at(0, kz), at(1, kz), at(2, kz));
@@ -75,6 +85,10 @@ fn portable_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> La
         out.valid |= i32::from(!(outside || det == 0.0) && in_range) << lane;
         (out.v[lane], out.w[lane], out.t[lane], out.det[lane]) = (v, w, t, det);
     }
+    let masked = |lane: usize| if out.valid & (1 << lane) != 0 { out.t[lane] } else { f32::INFINITY };
+    let smallest = (0..LANES).map(masked).fold(f32::INFINITY, f32::min);
+    out.nearest =
+        (0..LANES).fold(0, |m, lane| m | (i32::from(out.valid & (1 << lane) != 0 && out.t[lane] == smallest) << lane));
     out
 }
 
@@ -113,6 +127,11 @@ fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes 
         let t = _mm_div_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(u, az), _mm_mul_ps(v, bz)), _mm_mul_ps(w, cz)), det);
         let in_range = _mm_and_ps(_mm_cmpge_ps(t, _mm_set1_ps(t_min)), _mm_cmple_ps(t, _mm_set1_ps(t_max)));
         let valid = _mm_andnot_ps(_mm_or_ps(outside, _mm_cmpeq_ps(det, z)), in_range);
+        // The smallest t of the valid lanes (others +inf) in every lane, then the valid lanes at it.
+        let masked = _mm_or_ps(_mm_and_ps(valid, t), _mm_andnot_ps(valid, _mm_set1_ps(f32::INFINITY)));
+        let smallest = _mm_min_ps(masked, _mm_shuffle_ps::<0b10_11_00_01>(masked, masked));
+        let smallest = _mm_min_ps(smallest, _mm_shuffle_ps::<0b01_00_11_10>(smallest, smallest));
+        let nearest = _mm_and_ps(valid, _mm_cmpeq_ps(masked, smallest));
         let mut out = [[0f32; LANES]; 4];
         for (slot, value) in out.iter_mut().zip([v, w, t, det]) {
             _mm_storeu_ps(slot.as_mut_ptr(), value);
@@ -124,6 +143,7 @@ fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes 
             det: out[3],
             zero: _mm_movemask_ps(zero),
             valid: _mm_movemask_ps(valid),
+            nearest: _mm_movemask_ps(nearest),
         }
     }
 }
