@@ -88,13 +88,14 @@ pub fn trace(args: &TraceArgs) -> Exit {
     let tracer = view.tracer();
     let start = Instant::now();
     let (records, hits): (Vec<u8>, usize) = if args.any_hit {
-        let occluded: Vec<u8> =
-            rays.par_chunks(CHUNK).flat_map_iter(|c| c.iter().map(|r| u8::from(tracer.any_hit(r)))).collect();
+        let mut flags = vec![false; rays.len()];
+        rays.par_chunks(CHUNK).zip(flags.par_chunks_mut(CHUNK)).for_each(|(c, out)| tracer.any_hits(c, out));
+        let occluded: Vec<u8> = flags.into_iter().map(u8::from).collect();
         let hits = occluded.iter().filter(|&&o| o == 1).count();
         (occluded, hits)
     } else {
-        let found: Vec<Option<Hit>> =
-            rays.par_chunks(CHUNK).flat_map_iter(|c| c.iter().map(|r| tracer.closest_hit(r))).collect();
+        let mut found: Vec<Option<Hit>> = vec![None; rays.len()];
+        rays.par_chunks(CHUNK).zip(found.par_chunks_mut(CHUNK)).for_each(|(c, out)| tracer.closest_hits(c, out));
         let hits = found.iter().filter(|h| h.is_some()).count();
         (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
     };

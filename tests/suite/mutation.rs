@@ -22,12 +22,18 @@ fn exercise(bytes: &[u8]) {
         Some(view.binary_tracer()),
         view.wide_tracer(wide).map(|w| view.binary_tracer().with_wide(w)),
     ];
+    let rays: Vec<Ray> =
+        [[1.0, 0.5, 0.25], [-0.0, 0.0, 1.0], [0.3, -1.0, 0.0]].map(|d| Ray::new([-0.1, 0.2, -3.0], d)).to_vec();
     for tracer in tracers.iter().flatten() {
-        for direction in [[1.0, 0.5, 0.25], [-0.0, 0.0, 1.0], [0.3, -1.0, 0.0]] {
-            let ray = Ray::new([-0.1, 0.2, -3.0], direction);
-            let _ = tracer.closest_hit(&ray);
-            let _ = tracer.any_hit(&ray);
+        for ray in &rays {
+            let _ = tracer.closest_hit(ray);
+            let _ = tracer.any_hit(ray);
         }
+    }
+    if let Some(wide) = view.wide_tracer(bvhc::loader::KernelPath::best()) {
+        let (mut hits, mut occluded) = (vec![None; rays.len()], vec![false; rays.len()]);
+        wide.interleaving_streams(true).closest_hits(&rays, &mut hits);
+        wide.interleaving_streams(true).any_hits(&rays, &mut occluded);
     }
     if let Some(ids) = view.triangle_ids() {
         for &id in ids.iter().take(8) {

@@ -275,3 +275,40 @@ fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
     nodes[0].child[slot] = bvhc::loader::WideNode8::leaf(good.packets().len() as u32, 1).unwrap();
     assert_eq!(rebuild(nodes, good.packets().to_vec(), &packed).unwrap_err().rule, Rule::WideSlots);
 }
+
+/// The stream entry points (rays interleaved, and one by one) give each ray's single-ray answer, on every path,
+/// for more rays than a stream keeps in flight, rays that miss the root among them.
+#[test]
+fn streams_of_rays_equal_single_rays_on_every_path() {
+    for (seed, count) in [(21u64, 1usize), (22, 500), (23, 3000)] {
+        let triangles = random_triangles(seed, count, 10.0);
+        let file = crate::common::write_wide_file(&triangles, 4);
+        let view = file.view();
+        let mut rays = crate::common::random_rays(seed + 7, 1500, 15.0);
+        rays.push(bvhc::loader::Ray::new([100.0, 100.0, 100.0], [1.0, 0.0, 0.0])); // misses the root's box
+        for path in crate::common::kernel_paths() {
+            for interleave in [true, false] {
+                let wide = view.wide_tracer(path).unwrap().interleaving_streams(interleave);
+                let mut hits = vec![None; rays.len()];
+                let mut occluded = vec![false; rays.len()];
+                wide.closest_hits(&rays, &mut hits);
+                wide.any_hits(&rays, &mut occluded);
+                for (i, ray) in rays.iter().enumerate() {
+                    assert_eq!(hits[i], wide.closest_hit(ray), "{path:?} interleave {interleave}: ray {i}");
+                    assert_eq!(occluded[i], wide.any_hit(ray), "{path:?} interleave {interleave}: ray {i}");
+                }
+                // Through Tracer, and with more output slots than rays: the extra ones are left alone.
+                let tracer = view.binary_tracer().with_wide(wide);
+                let mut more = vec![None; rays.len() + 3];
+                tracer.closest_hits(&rays, &mut more);
+                assert_eq!(&more[..rays.len()], &hits[..]);
+                assert!(more[rays.len()..].iter().all(Option::is_none));
+            }
+        }
+        // The binary kernel's streams, too.
+        let binary = view.binary_tracer();
+        let mut hits = vec![None; rays.len()];
+        binary.closest_hits(&rays, &mut hits);
+        assert!(rays.iter().zip(&hits).all(|(ray, hit)| binary.closest_hit(ray) == *hit));
+    }
+}

@@ -35,6 +35,7 @@ mod verify_wide;
 mod view;
 mod wide;
 mod wide_packets;
+mod wide_walk;
 mod writer;
 
 pub use atomic::{

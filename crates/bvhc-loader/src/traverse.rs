@@ -132,6 +132,25 @@ impl<'a> Tracer<'a> {
         Some(Hit::new(triangle_index, hit, self.triangle_ids))
     }
 
+    /// The closest hit of each ray into the `hits` slot of the same index (pairs up to the shorter of the two):
+    /// [`Tracer::closest_hit`] of each ray, with the wide kernel's stream when the tracer runs it
+    /// ([`WideTracer::closest_hits`]: rays interleaved over large files).
+    pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        match &self.wide {
+            Some(wide) => wide.closest_hits(rays, hits),
+            None => rays.iter().zip(hits).for_each(|(ray, hit)| *hit = self.closest_hit(ray)),
+        }
+    }
+
+    /// Whether each ray hits anything, into the `occluded` slot of the same index (pairs up to the shorter of
+    /// the two), as [`Tracer::closest_hits`] does for closest hits.
+    pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
+        match &self.wide {
+            Some(wide) => wide.any_hits(rays, occluded),
+            None => rays.iter().zip(occluded).for_each(|(ray, hit)| *hit = self.any_hit(ray)),
+        }
+    }
+
     /// Whether anything is hit with `t_min <= t <= t_max` (occlusion); stops at the first hit found.
     pub fn any_hit(&self, ray: &Ray) -> bool {
         self.any_hit_counted(ray, &mut ())
