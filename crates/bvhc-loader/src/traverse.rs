@@ -125,10 +125,10 @@ impl<'a> Tracer<'a> {
     /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter` (with the wide kernel:
     /// wide node visits and packet tests).
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        if let Some(wide) = &self.wide {
-            return wide.closest_hit_counted(ray, counter);
-        }
-        let (triangle_index, hit) = self.traverse::<false>(ray, counter)?;
+        let (triangle_index, hit) = match &self.wide {
+            None => self.traverse::<false>(ray, counter)?,
+            Some(wide) => return wide.closest_hit_counted(ray, counter),
+        };
         Some(Hit::new(triangle_index, hit, self.triangle_ids))
     }
 
@@ -158,10 +158,10 @@ impl<'a> Tracer<'a> {
 
     /// [`Tracer::any_hit`], counting as [`Tracer::closest_hit_counted`] does.
     pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
-        if let Some(wide) = &self.wide {
-            return wide.any_hit_counted(ray, counter);
+        match &self.wide {
+            None => self.traverse::<true>(ray, counter).is_some(),
+            Some(wide) => wide.any_hit_counted(ray, counter),
         }
-        self.traverse::<true>(ray, counter).is_some()
     }
 
     #[inline(always)]

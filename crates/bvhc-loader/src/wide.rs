@@ -178,8 +178,19 @@ impl<'a> WideTracer<'a> {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::over`).
             KernelPath::Avx2 => unsafe { self.walk_avx2::<ANY_HIT>(ray, counter) },
-            _ => self.walk::<ANY_HIT, false>(ray, counter),
+            _ => self.walk_portable::<ANY_HIT>(ray, counter),
         }
+    }
+
+    /// The portable walk, kept out of line like the AVX2 one, so that callers that inline `dispatch` (such as
+    /// `Tracer`, next to the binary kernel) stay small.
+    #[inline(never)]
+    fn walk_portable<const ANY_HIT: bool>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+    ) -> Option<(u32, TriangleHit)> {
+        self.walk::<ANY_HIT, false>(ray, counter)
     }
 
     /// # Safety
