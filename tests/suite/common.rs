@@ -115,6 +115,20 @@ pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loa
     bvhc::wide::pack_wide(&collapsed, &tree.triangles, Some(&file_index_of)).expect("a collapsed tree packs")
 }
 
+/// Overwrites the last used lane of the last packet with packet 0's lane 0 (index and vertices): a triangle
+/// then sits in two lanes and the one it replaced in none.
+pub fn repeat_first_lane_in_last(packets: &mut [bvhc::loader::TrianglePacket4]) {
+    let (index, triangle) = (packets[0].triangle_index[0], packets[0].triangle(0));
+    let last = packets.len() - 1;
+    let lane = packets[last].used_lanes() - 1;
+    packets[last].triangle_index[lane] = index;
+    for vertex in 0..3 {
+        for axis in 0..3 {
+            packets[last].vertices[vertex][axis][lane] = triangle.vertices[vertex][axis];
+        }
+    }
+}
+
 /// The closest hit by testing every triangle with the kernel's own watertight test.
 pub fn brute_force_closest(triangles: &[Triangle], ray: &Ray) -> Option<(f32, usize)> {
     let prepared = PreparedRay::new(ray);

@@ -221,15 +221,7 @@ fn v33_packet_lanes() {
 fn v34_lane_coverage() {
     // The last used lane of the last packet repeats packet 0's lane 0: one triangle twice, another never.
     expect_wide(Rule::LaneCoverage, |_, packets| {
-        let (index, triangle) = (packets[0].triangle_index[0], packets[0].triangle(0));
-        let last = packets.len() - 1;
-        let lane = packets[last].used_lanes() - 1;
-        packets[last].triangle_index[lane] = index;
-        for vertex in 0..3 {
-            for axis in 0..3 {
-                packets[last].vertices[vertex][axis][lane] = triangle.vertices[vertex][axis];
-            }
-        }
+        repeat_first_lane_in_last(packets);
     });
 }
 

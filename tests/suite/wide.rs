@@ -259,15 +259,7 @@ fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
     assert!(error.detail.contains("in no packet lane"), "{error}");
     // Two lanes naming one triangle.
     let mut packets = good.packets().to_vec();
-    let (index, triangle) = (packets[0].triangle_index[0], packets[0].triangle(0));
-    let last = packets.len() - 1;
-    let lane = packets[last].used_lanes() - 1;
-    packets[last].triangle_index[lane] = index;
-    for vertex in 0..3 {
-        for axis in 0..3 {
-            packets[last].vertices[vertex][axis][lane] = triangle.vertices[vertex][axis];
-        }
-    }
+    crate::common::repeat_first_lane_in_last(&mut packets);
     assert_eq!(rebuild(good.nodes().to_vec(), packets, &packed).unwrap_err().rule, Rule::LaneCoverage);
     // A leaf pointing past the packets.
     let mut nodes = good.nodes().to_vec();
