@@ -34,6 +34,8 @@ fn exercise(bytes: &[u8]) {
         let (mut hits, mut occluded) = (vec![None; rays.len()], vec![false; rays.len()]);
         wide.interleaving_streams(true).closest_hits(&rays, &mut hits);
         wide.interleaving_streams(true).any_hits(&rays, &mut occluded);
+        wide.closest_hits_coherent(&rays, &mut hits);
+        wide.any_hits_coherent(&rays, &mut occluded);
     }
     if let Some(ids) = view.triangle_ids() {
         for &id in ids.iter().take(8) {

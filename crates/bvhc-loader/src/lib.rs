@@ -34,6 +34,7 @@ mod verify_references;
 mod verify_wide;
 mod view;
 mod wide;
+mod wide_coherent;
 mod wide_packets;
 mod wide_walk;
 mod writer;

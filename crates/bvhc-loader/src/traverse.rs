@@ -151,6 +151,24 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    /// [`Tracer::closest_hits`] for coherent rays (camera rays of neighbouring pixels): with the wide kernel,
+    /// 8 consecutive rays share a traversal ([`WideTracer::closest_hits_coherent`]: the same `t` for each ray,
+    /// on a tie possibly another triangle at it); with the binary kernel, one ray after the other.
+    pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        match &self.wide {
+            Some(wide) => wide.closest_hits_coherent(rays, hits),
+            None => self.closest_hits(rays, hits),
+        }
+    }
+
+    /// [`Tracer::any_hits`] for coherent rays, as [`Tracer::closest_hits_coherent`].
+    pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
+        match &self.wide {
+            Some(wide) => wide.any_hits_coherent(rays, occluded),
+            None => self.any_hits(rays, occluded),
+        }
+    }
+
     /// Whether anything is hit with `t_min <= t <= t_max` (occlusion); stops at the first hit found.
     pub fn any_hit(&self, ray: &Ray) -> bool {
         self.any_hit_counted(ray, &mut ())

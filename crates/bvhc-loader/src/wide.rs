@@ -11,6 +11,7 @@ use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
 use crate::intersect::{Ray, TriangleHit};
 use crate::traverse::{Hit, TraversalCounter};
 use crate::verify_wide::{WideContext, verify_wide};
+use crate::wide_coherent::{PACKET_RAYS, trace_packet};
 use crate::wide_walk::{Sections, Walk, new_stack};
 
 /// The wide sections in memory (owned), checked at construction against the triangles they index.
@@ -163,6 +164,65 @@ impl<'a> WideTracer<'a> {
                 *slot = found.is_some();
             }
         });
+    }
+
+    /// The closest hit of each ray into the `hits` slot of the same index (pairs up to the shorter of the two),
+    /// for coherent rays such as camera rays of neighbouring pixels: each 8 consecutive rays share one
+    /// traversal. Each ray's `t` is the one [`WideTracer::closest_hit`] returns; on a tie at that `t` the
+    /// triangle may be another one hit at the same `t`. Slower than [`WideTracer::closest_hits`] for rays that
+    /// go different ways.
+    pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.packets::<false>(rays, &mut |i, found| {
+            if let Some(slot) = hits.get_mut(i) {
+                *slot = found.map(|(triangle_index, hit)| Hit::new(triangle_index, hit, self.triangle_ids));
+            }
+        });
+    }
+
+    /// Whether each ray hits anything, into the `occluded` slot of the same index (pairs up to the shorter of
+    /// the two), 8 consecutive rays a traversal as in [`WideTracer::closest_hits_coherent`]; the same answers
+    /// as [`WideTracer::any_hit`].
+    pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
+        self.packets::<true>(rays, &mut |i, found| {
+            if let Some(slot) = occluded.get_mut(i) {
+                *slot = found.is_some();
+            }
+        });
+    }
+
+    /// Packets of consecutive rays on the tracer's path; `done(i, found)` receives ray `i`'s result.
+    #[allow(unsafe_code)] // the AVX2 entry, under the runtime check of `WideTracer::over`
+    fn packets<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
+        match self.path {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::over`).
+            KernelPath::Avx2 => unsafe { self.packets_avx2::<ANY_HIT>(rays, done) },
+            _ => self.packets_on::<ANY_HIT, false>(rays, done),
+        }
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(unsafe_code)]
+    unsafe fn packets_avx2<const ANY_HIT: bool>(
+        &self,
+        rays: &[Ray],
+        done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
+    ) {
+        self.packets_on::<ANY_HIT, true>(rays, done)
+    }
+
+    #[inline(always)]
+    fn packets_on<const ANY_HIT: bool, const SIMD: bool>(
+        &self,
+        rays: &[Ray],
+        done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
+    ) {
+        for (p, chunk) in rays.chunks(PACKET_RAYS).enumerate() {
+            trace_packet::<ANY_HIT, SIMD>(&self.sections, chunk, &mut |l, found| done(p * PACKET_RAYS + l, found));
+        }
     }
 
     /// One ray's walk to its end on the tracer's path: for AVX2 the whole loop is one `target_feature`
