@@ -38,11 +38,15 @@ struct Lanes {
     /// Per axis, bit `l`: ray `l`'s direction has its sign bit set (enters through `max`).
     negative: [u8; 3],
     t_min: [f32; PACKET_RAYS],
+    /// Woop et al.'s shear per lane, and whether every ray of the packet has the same axes `[kx, ky, kz]`
+    /// (those of the first ray), so that a triangle can be tested against all of them in lanes.
+    shear: [[f32; PACKET_RAYS]; 3],
+    shared_axes: Option<[usize; 3]>,
 }
 
 /// Traces `rays` (at most [`PACKET_RAYS`]) as one packet; `done(l, found)` receives ray `l`'s result.
 #[inline(always)]
-#[allow(unsafe_code)] // reading the stack, see the SAFETY note
+#[allow(unsafe_code)] // the AVX2 leaf test, see the SAFETY note
 pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
     sections: &Sections<'_>,
     rays: &[Ray],
@@ -58,6 +62,8 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
         inverse_direction: [[0.0; PACKET_RAYS]; 3],
         negative: [0; 3],
         t_min: [0.0; PACKET_RAYS],
+        shear: [[0.0; PACKET_RAYS]; 3],
+        shared_axes: prepared[0].map(|p| p.shear().0),
     };
     for (l, ray) in rays.iter().enumerate() {
         let Some(p) = &prepared[l] else { continue };
@@ -68,6 +74,13 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
             lanes.negative[axis] |= u8::from(p.negative[axis]) << l;
         }
         lanes.t_min[l] = p.t_min;
+        let (axes, shear) = p.shear();
+        for (k, &value) in shear.iter().enumerate() {
+            lanes.shear[k][l] = value;
+        }
+        if lanes.shared_axes != Some(axes) {
+            lanes.shared_axes = None;
+        }
         if !sections.nodes.is_empty()
             && let Some(t) = p.enter_box(&sections.root, ray.t_max)
         {
@@ -87,6 +100,19 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
             if entry.child & LEAF_BIT != 0 {
                 let (first, count) = WideNode8::leaf_packets(entry.child);
                 let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
+                #[cfg(target_arch = "x86_64")]
+                if SIMD && let Some(axes) = lanes.shared_axes {
+                    // SAFETY: SIMD is true only inside the tracer's `target_feature(enable = "avx2")` entries,
+                    // which run only after the AVX2 check of `WideTracer::over`.
+                    let hit = unsafe {
+                        avx2::leaf_test::<ANY_HIT>(packets, &lanes, axes, active, &prepared, &mut t_max, &mut found)
+                    };
+                    if ANY_HIT {
+                        pending &= !hit;
+                    }
+                    next = pop(&mut stack, &mut stack_len, &t_max, pending);
+                    continue;
+                }
                 for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
                     let Some(ray) = &prepared[l] else { continue };
                     for packet in packets {
@@ -140,26 +166,37 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
                 }
             }
         }
-        // Pop the next entry that still has rays whose closest hit is not nearer than its box.
-        while stack_len > 0 {
-            stack_len -= 1;
-            // SAFETY: entries below `stack_len` were written by the push above before `stack_len` passed them,
-            // and `stack_len` only moves down by one here, so this entry is initialized.
-            let mut entry = unsafe { stack[stack_len].assume_init() };
-            for (l, (&t_near, &t_best)) in entry.t_near.iter().zip(&t_max).enumerate() {
-                if t_near > t_best * CULL_PADDING {
-                    entry.rays &= !(1 << l);
-                }
-            }
-            if entry.rays & pending != 0 {
-                next = Some(entry);
-                break;
-            }
-        }
+        next = pop(&mut stack, &mut stack_len, &t_max, pending);
     }
     for (l, hit) in found.iter().enumerate().take(rays.len()) {
         done(l, *hit);
     }
+}
+
+/// The next entry that still has rays in `pending` whose closest hit is not nearer than its box.
+#[inline(always)]
+#[allow(unsafe_code)] // reading the stack, see the SAFETY note
+fn pop(
+    stack: &mut [MaybeUninit<Entry>; STACK_LEN],
+    stack_len: &mut usize,
+    t_max: &[f32; PACKET_RAYS],
+    pending: u8,
+) -> Option<Entry> {
+    while *stack_len > 0 {
+        *stack_len -= 1;
+        // SAFETY: entries below `stack_len` were written by the push in `trace_packet` before `stack_len` passed
+        // them, and `stack_len` only moves down by one here, so this entry is initialized.
+        let mut entry = unsafe { stack[*stack_len].assume_init() };
+        for (l, (&t_near, &t_best)) in entry.t_near.iter().zip(t_max).enumerate() {
+            if t_near > t_best * CULL_PADDING {
+                entry.rays &= !(1 << l);
+            }
+        }
+        if entry.rays & pending != 0 {
+            return Some(entry);
+        }
+    }
+    None
 }
 
 /// Slot `slot` of `node` against every lane: (bit mask of the lanes whose ray enters the box within
@@ -202,8 +239,107 @@ mod avx2 {
     use std::arch::x86_64::*;
 
     use super::{Lanes, PACKET_RAYS};
-    use crate::format::WideNode8;
-    use crate::intersect::EXIT_PADDING;
+    use crate::format::{TrianglePacket4, WideNode8};
+    use crate::intersect::{EXIT_PADDING, PreparedRay, TriangleHit};
+
+    /// The triangles of `packets`, one after the other, against the `active` rays in lanes, when every ray has
+    /// the shear axes `axes`: per (ray, triangle) the scalar watertight test's operations in its order, a lane
+    /// with an edge function exactly 0 redone by the scalar test, and hits accepted in triangle order at
+    /// `t <= t_max` of the ray, so each ray ends with what the single-ray packet test gives. Returns the rays
+    /// that were hit.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) unsafe fn leaf_test<const ANY_HIT: bool>(
+        packets: &[TrianglePacket4],
+        lanes: &Lanes,
+        [kx, ky, kz]: [usize; 3],
+        mut active: u8,
+        prepared: &[Option<PreparedRay>; PACKET_RAYS],
+        t_max: &mut [f32; PACKET_RAYS],
+        found: &mut [Option<(u32, TriangleHit)>; PACKET_RAYS],
+    ) -> u8 {
+        let mut hit_rays = 0u8;
+        // SAFETY: every load and store touches an `[f32; 8]`, 32 bytes; unaligned accesses need no more.
+        unsafe {
+            let load = |values: &[f32; PACKET_RAYS]| _mm256_loadu_ps(values.as_ptr());
+            let origin = [load(&lanes.origin[0]), load(&lanes.origin[1]), load(&lanes.origin[2])];
+            let (sx, sy, sz) = (load(&lanes.shear[0]), load(&lanes.shear[1]), load(&lanes.shear[2]));
+            let t_min = load(&lanes.t_min);
+            let z = _mm256_setzero_ps();
+            for packet in packets {
+                for tri in 0..packet.used_lanes() {
+                    let at = |vertex: usize, axis: usize| {
+                        _mm256_sub_ps(_mm256_set1_ps(packet.vertices[vertex][axis][tri]), origin[axis])
+                    };
+                    let (akz, bkz, ckz) = (at(0, kz), at(1, kz), at(2, kz));
+                    let ax = _mm256_sub_ps(at(0, kx), _mm256_mul_ps(sx, akz));
+                    let ay = _mm256_sub_ps(at(0, ky), _mm256_mul_ps(sy, akz));
+                    let bx = _mm256_sub_ps(at(1, kx), _mm256_mul_ps(sx, bkz));
+                    let by = _mm256_sub_ps(at(1, ky), _mm256_mul_ps(sy, bkz));
+                    let cx = _mm256_sub_ps(at(2, kx), _mm256_mul_ps(sx, ckz));
+                    let cy = _mm256_sub_ps(at(2, ky), _mm256_mul_ps(sy, ckz));
+                    let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+                    let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+                    let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+                    let eq = |a| _mm256_cmp_ps::<_CMP_EQ_OQ>(a, z);
+                    let lt = |a| _mm256_cmp_ps::<_CMP_LT_OQ>(a, z);
+                    let gt = |a| _mm256_cmp_ps::<_CMP_GT_OQ>(a, z);
+                    let zero = _mm256_or_ps(_mm256_or_ps(eq(u), eq(v)), eq(w));
+                    let negative = _mm256_or_ps(_mm256_or_ps(lt(u), lt(v)), lt(w));
+                    let positive = _mm256_or_ps(_mm256_or_ps(gt(u), gt(v)), gt(w));
+                    let outside = _mm256_and_ps(negative, positive);
+                    let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
+                    let (az, bz, cz) = (_mm256_mul_ps(sz, akz), _mm256_mul_ps(sz, bkz), _mm256_mul_ps(sz, ckz));
+                    let sum =
+                        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(u, az), _mm256_mul_ps(v, bz)), _mm256_mul_ps(w, cz));
+                    let t = _mm256_div_ps(sum, det);
+                    let limit = load(t_max);
+                    let in_range =
+                        _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(t, t_min), _mm256_cmp_ps::<_CMP_LE_OQ>(t, limit));
+                    let valid = _mm256_andnot_ps(_mm256_or_ps(outside, eq(det)), in_range);
+                    let zero_rays = _mm256_movemask_ps(zero) as u8 & active;
+                    let valid_rays = _mm256_movemask_ps(valid) as u8 & active & !zero_rays;
+                    if valid_rays != 0 {
+                        let inverse_det = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+                        let mut out = [[0f32; PACKET_RAYS]; 3];
+                        _mm256_storeu_ps(out[0].as_mut_ptr(), t);
+                        _mm256_storeu_ps(out[1].as_mut_ptr(), _mm256_mul_ps(v, inverse_det));
+                        _mm256_storeu_ps(out[2].as_mut_ptr(), _mm256_mul_ps(w, inverse_det));
+                        let mut rays = valid_rays;
+                        while rays != 0 {
+                            let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                            rays &= rays - 1;
+                            t_max[l] = out[0][l];
+                            let hit = TriangleHit { t: out[0][l], u: out[1][l], v: out[2][l] };
+                            found[l] = Some((packet.triangle_index[tri], hit));
+                        }
+                        hit_rays |= valid_rays;
+                    }
+                    let mut rays = zero_rays;
+                    while rays != 0 {
+                        let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                        rays &= rays - 1;
+                        let Some(ray) = &prepared[l] else { continue };
+                        if let Some(hit) = ray.intersect_triangle(&packet.triangle(tri), t_max[l]) {
+                            t_max[l] = hit.t;
+                            found[l] = Some((packet.triangle_index[tri], hit));
+                            hit_rays |= 1 << l;
+                        }
+                    }
+                }
+                if ANY_HIT {
+                    active &= !hit_rays;
+                    if active == 0 {
+                        break;
+                    }
+                }
+            }
+        }
+        hit_rays
+    }
 
     /// The portable `slot_test`'s operations in AVX2 lanes, one ray a lane.
     ///
