@@ -64,6 +64,10 @@ pub struct TraceArgs {
     /// Only ask whether each ray hits anything (occlusion).
     #[arg(long)]
     pub any_hit: bool,
+    /// The rays come in coherent groups (camera rays of neighbouring pixels): trace each 8 consecutive rays
+    /// together (the same t for each ray; on a tie at it, possibly another triangle).
+    #[arg(long)]
+    pub coherent: bool,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,

@@ -89,13 +89,19 @@ pub fn trace(args: &TraceArgs) -> Exit {
     let start = Instant::now();
     let (records, hits): (Vec<u8>, usize) = if args.any_hit {
         let mut flags = vec![false; rays.len()];
-        rays.par_chunks(CHUNK).zip(flags.par_chunks_mut(CHUNK)).for_each(|(c, out)| tracer.any_hits(c, out));
+        rays.par_chunks(CHUNK).zip(flags.par_chunks_mut(CHUNK)).for_each(|(c, out)| match args.coherent {
+            true => tracer.any_hits_coherent(c, out),
+            false => tracer.any_hits(c, out),
+        });
         let occluded: Vec<u8> = flags.into_iter().map(u8::from).collect();
         let hits = occluded.iter().filter(|&&o| o == 1).count();
         (occluded, hits)
     } else {
         let mut found: Vec<Option<Hit>> = vec![None; rays.len()];
-        rays.par_chunks(CHUNK).zip(found.par_chunks_mut(CHUNK)).for_each(|(c, out)| tracer.closest_hits(c, out));
+        rays.par_chunks(CHUNK).zip(found.par_chunks_mut(CHUNK)).for_each(|(c, out)| match args.coherent {
+            true => tracer.closest_hits_coherent(c, out),
+            false => tracer.closest_hits(c, out),
+        });
         let hits = found.iter().filter(|h| h.is_some()).count();
         (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
     };
@@ -112,6 +118,7 @@ pub fn trace(args: &TraceArgs) -> Exit {
             "rays": rays.len(),
             "hits": hits,
             "any_hit": args.any_hit,
+            "coherent": args.coherent,
             "threads": rayon::current_num_threads(),
             "seconds": seconds,
             "rays_per_second": rays_per_second,

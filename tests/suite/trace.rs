@@ -73,6 +73,17 @@ fn trace_writes_what_the_tracer_finds() {
     let flags = std::fs::read(&occluded).unwrap();
     let expected: Vec<u8> = rays.iter().map(|r| u8::from(tracer.any_hit(r))).collect();
     assert_eq!(flags, expected);
+    // --coherent: the same t for every ray, and the same any-hit bytes.
+    let coherent = dir.path().join("coherent.bin");
+    let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &coherent, &"--coherent"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let t_of = |record: &[u8]| f32::from_le_bytes(word(record, 0));
+    let plain: Vec<f32> = outputs[0].chunks_exact(24).map(t_of).collect();
+    let grouped: Vec<f32> = std::fs::read(&coherent).unwrap().chunks_exact(24).map(t_of).collect();
+    assert_eq!(plain, grouped);
+    let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &coherent, &"--coherent", &"--any-hit"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert_eq!(std::fs::read(&coherent).unwrap(), expected);
 }
 
 #[test]
