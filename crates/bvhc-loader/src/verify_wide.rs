@@ -139,9 +139,9 @@ fn check_lanes(packets: &[TrianglePacket4], triangles: &[PackedTriangle]) -> Res
         }
         for lane in 0..PACKET_LANES {
             let index = packet.triangle_index[lane];
-            let lane_bits = packet.triangle(lane).vertices.map(|v| v.map(f32::to_bits));
+            let coordinates = || packet.vertices.iter().flatten().map(move |axis| axis[lane].to_bits());
             if lane >= used {
-                if index != UNUSED_LANE || lane_bits.iter().flatten().any(|&b| b != UNUSED_LANE_COORDINATE_BITS) {
+                if index != UNUSED_LANE || coordinates().any(|b| b != UNUSED_LANE_COORDINATE_BITS) {
                     return fail(
                         lane,
                         format!(
@@ -154,7 +154,7 @@ fn check_lanes(packets: &[TrianglePacket4], triangles: &[PackedTriangle]) -> Res
             let Some(triangle) = triangles.get(index as usize) else {
                 return fail(lane, format!("triangle {index} out of range (triangle_count {})", triangles.len()));
             };
-            if triangle.vertices.map(|v| v.map(f32::to_bits)) != lane_bits {
+            if !triangle.vertices.iter().flatten().map(|c| c.to_bits()).eq(coordinates()) {
                 return fail(lane, format!("vertices differ from those of triangle {index}"));
             }
             let (word, bit) = (index as usize / 64, 1u64 << (index % 64));
