@@ -23,6 +23,17 @@ const EPSILON: f32 = f32::EPSILON * 0.5;
 /// Ize's padding of the slab exit distance, `1 + 2 gamma(3)`.
 pub(crate) const EXIT_PADDING: f32 = 1.0 + 2.0 * (3.0 * EPSILON) / (1.0 - 3.0 * EPSILON);
 
+/// One slab of the robust box test: the distances to the entry and exit planes of one axis (the exit padded by
+/// `EXIT_PADDING`) narrow the interval `near..far`. Compare-selects keep the accumulator when the new value is
+/// NaN (an origin on a slab plane of a zero direction component), as `f32::max`/`min` would, in one instruction
+/// each. The SIMD box tests perform exactly these operations in lanes.
+#[inline(always)]
+pub(crate) fn slab(entry_plane: f32, exit_plane: f32, origin: f32, inverse: f32, near: f32, far: f32) -> (f32, f32) {
+    let t_entry = (entry_plane - origin) * inverse;
+    let t_exit = (exit_plane - origin) * inverse * EXIT_PADDING;
+    (if t_entry > near { t_entry } else { near }, if t_exit < far { t_exit } else { far })
+}
+
 /// A ray: points `origin + t * direction` for `t` in `[t_min, t_max]`.
 ///
 /// `direction` need not be normalized; `t` is measured in its units. `t_min` should be `>= 0`: boxes are tested
@@ -116,12 +127,8 @@ impl PreparedRay {
         for axis in 0..3 {
             let (entry_plane, exit_plane) =
                 if self.negative[axis] { (node.max[axis], node.min[axis]) } else { (node.min[axis], node.max[axis]) };
-            let t_entry = (entry_plane - self.origin[axis]) * self.inverse_direction[axis];
-            let t_exit = (exit_plane - self.origin[axis]) * self.inverse_direction[axis] * EXIT_PADDING;
-            // Compare-selects that keep the accumulator when the new value is NaN (origin on a slab plane of a
-            // zero direction component), as f32::max/min would, in one instruction each.
-            t_near = if t_entry > t_near { t_entry } else { t_near };
-            t_far = if t_exit < t_far { t_exit } else { t_far };
+            (t_near, t_far) =
+                slab(entry_plane, exit_plane, self.origin[axis], self.inverse_direction[axis], t_near, t_far);
         }
         (t_near <= t_far).then_some(t_near)
     }

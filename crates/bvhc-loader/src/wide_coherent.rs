@@ -16,7 +16,7 @@
 use std::mem::MaybeUninit;
 
 use crate::format::{EMPTY_SLOT, LEAF_BIT, WIDE, WideNode8};
-use crate::intersect::{EXIT_PADDING, PreparedRay, Ray, TriangleHit};
+use crate::intersect::{PreparedRay, Ray, TriangleHit, slab};
 use crate::traverse::CULL_PADDING;
 use crate::wide_walk::{STACK_LEN, Sections};
 
@@ -223,10 +223,7 @@ fn slot_test<const SIMD: bool>(
             let negative = lanes.negative[axis] & (1 << l) != 0;
             let (entry, exit) = if negative { (hi, lo) } else { (lo, hi) };
             let (o, inv) = (lanes.origin[axis][l], lanes.inverse_direction[axis][l]);
-            let t_entry = (entry - o) * inv;
-            let t_exit = (exit - o) * inv * EXIT_PADDING;
-            near[l] = if t_entry > near[l] { t_entry } else { near[l] };
-            far[l] = if t_exit < far[l] { t_exit } else { far[l] };
+            (near[l], far[l]) = slab(entry, exit, o, inv, near[l], far[l]);
         }
     }
     let mask = (0..PACKET_RAYS).fold(0u8, |m, l| if near[l] <= far[l] { m | 1 << l } else { m });

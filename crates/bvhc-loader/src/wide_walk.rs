@@ -18,7 +18,7 @@
 use std::mem::MaybeUninit;
 
 use crate::format::{EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
-use crate::intersect::{EXIT_PADDING, PreparedRay, Ray, TriangleHit};
+use crate::intersect::{PreparedRay, Ray, TriangleHit, slab};
 use crate::traverse::{CULL_PADDING, TraversalCounter};
 
 /// Stack entries: each visited node pushes at most 7, and a verified file is at most `MAX_DEPTH` deep.
@@ -264,10 +264,7 @@ fn portable_box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f
             if ray.negative[axis] { (&node.max[axis], &node.min[axis]) } else { (&node.min[axis], &node.max[axis]) };
         let (o, inv) = (ray.origin[axis], ray.inverse_direction[axis]);
         for lane in 0..WIDE {
-            let t_entry = (entry[lane] - o) * inv;
-            let t_exit = (exit[lane] - o) * inv * EXIT_PADDING;
-            near[lane] = if t_entry > near[lane] { t_entry } else { near[lane] };
-            far[lane] = if t_exit < far[lane] { t_exit } else { far[lane] };
+            (near[lane], far[lane]) = slab(entry[lane], exit[lane], o, inv, near[lane], far[lane]);
         }
     }
     let mask = near
