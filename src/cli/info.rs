@@ -27,10 +27,16 @@ pub fn verify(path: &Path) -> Exit {
             let mut out = String::new();
             outln!(
                 out,
-                "{}: valid .bvh {major}.{minor} ({} nodes, {} triangles, every rule V1-V28 holds)",
+                "{}: valid .bvh {major}.{minor} ({} nodes, {} triangles{}, every rule V1-V{} holds)",
                 path.display(),
                 view.nodes().len(),
-                view.triangles().len()
+                view.triangles().len(),
+                view.wide_sections().map_or(String::new(), |wide| format!(
+                    ", {} wide nodes, {} triangle packets",
+                    wide.nodes.len(),
+                    wide.packets.len()
+                )),
+                bvhc::loader::Rule::ALL.len()
             );
             print(&out, Exit::Success)
         }
