@@ -231,11 +231,7 @@ pub fn convert_with(
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
     let wide = match &wide_tree {
         Some((wide_tree, costs)) => {
-            let mut file_index_of = vec![0u32; triangles.len()];
-            for (file_index, &t) in packed.triangle_ids.iter().enumerate() {
-                file_index_of[t as usize] = file_index as u32;
-            }
-            let bvh = pack_wide(wide_tree, &packed.triangles, Some(&file_index_of))?;
+            let bvh = pack_wide(wide_tree, &packed.triangles, Some(&packed.file_index_of(triangles.len())))?;
             let summary = WideSummary {
                 node_count: bvh.nodes().len(),
                 packet_count: bvh.packets().len(),

@@ -20,6 +20,20 @@ pub struct PackedTree {
     pub triangle_ids: Vec<u32>,
 }
 
+impl PackedTree {
+    /// For each input triangle, its index in the packed triangles (the inverse of `triangle_ids`; 0 for an
+    /// input triangle the tree does not hold).
+    pub fn file_index_of(&self, input_triangle_count: usize) -> Vec<u32> {
+        let mut file_index_of = vec![0u32; input_triangle_count];
+        for (file_index, &t) in self.triangle_ids.iter().enumerate() {
+            if let Some(slot) = file_index_of.get_mut(t as usize) {
+                *slot = file_index as u32;
+            }
+        }
+        file_index_of
+    }
+}
+
 /// Packs `tree`, built over `triangles`.
 pub fn pack(tree: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> PackedTree {
     let mut packed = PackedTree {

@@ -108,10 +108,7 @@ pub fn write_wide_file(triangles: &[Triangle], max_leaf_size: usize) -> BvhFile 
 pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
     let opt = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
     let collapsed = bvhc::wide::collapse(&opt, &bvhc::wide::WideCosts::default());
-    let mut file_index_of = vec![0u32; triangles.len()];
-    for (file_index, &t) in tree.triangle_ids.iter().enumerate() {
-        file_index_of[t as usize] = file_index as u32;
-    }
+    let file_index_of = tree.file_index_of(triangles.len());
     bvhc::wide::pack_wide(&collapsed, &tree.triangles, Some(&file_index_of)).expect("a collapsed tree packs")
 }
 

@@ -270,8 +270,6 @@ pub const MAX_LEAF_FIRST_PACKET: u32 = (1 << 28) - 1;
 /// Most elements of the `triangle_packets` section (rule V10): every packet index fits a leaf reference's
 /// 28-bit `first_packet`.
 pub const MAX_PACKET_COUNT: u64 = 1 << 28;
-/// Most elements of the `wide_nodes` section (rule V10): an inner reference has no `LEAF_BIT`.
-pub const MAX_WIDE_NODE_COUNT: u64 = 1 << 31;
 /// Most packets one leaf reference can hold (3 bits of `packet_count - 1`).
 pub const MAX_LEAF_PACKETS: u32 = 8;
 /// `TrianglePacket4::triangle_index` of an unused lane.

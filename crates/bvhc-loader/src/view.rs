@@ -5,9 +5,9 @@
 
 use crate::error::{Error, Rule, Violation, violation};
 use crate::format::{
-    FileHeader, HEADER_BYTE_LEN, MAGIC, MAX_PACKET_COUNT, MAX_WIDE_NODE_COUNT, PACKET_LANES, PackedNode,
-    PackedTriangle, SECTION_ALIGNMENT, SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES,
-    SectionEntry, SectionKind, SourceRange, TrianglePacket4, VERSION_MAJOR, WideNode8, is_known_minor,
+    FileHeader, HEADER_BYTE_LEN, MAGIC, MAX_PACKET_COUNT, PACKET_LANES, PackedNode, PackedTriangle, SECTION_ALIGNMENT,
+    SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind,
+    SourceRange, TrianglePacket4, VERSION_MAJOR, WideNode8, is_known_minor,
 };
 use crate::traverse::Tracer;
 use crate::wide::{KernelPath, WideTracer};
@@ -450,12 +450,12 @@ fn check_counts(sections: &KnownSections) -> Result<(), Violation> {
 
 /// V10 for the wide sections: a root exactly when there are triangles; between `ceil(triangle_count / 4)` and
 /// `triangle_count` packets (each lane holds one triangle, each triangle one lane, a packet at least one lane),
-/// at most one wide node per packet (every node but the root has two children or more), and both counts
-/// within what the references encode.
+/// at most one wide node per packet (every node but the root has two children or more), and packets within
+/// what a leaf reference encodes.
 fn check_wide_counts(wide_node_count: u64, packet_count: u64, triangle_count: u64) -> Result<(), Violation> {
     let min_packets = triangle_count.div_ceil(PACKET_LANES as u64);
-    let fits = wide_node_count <= MAX_WIDE_NODE_COUNT && packet_count <= MAX_PACKET_COUNT;
-    let ok = fits
+    // `wide_node_count <= packet_count <= 2^28` also keeps every inner reference below `LEAF_BIT`.
+    let ok = packet_count <= MAX_PACKET_COUNT
         && (wide_node_count == 0) == (triangle_count == 0)
         && (min_packets..=triangle_count).contains(&packet_count)
         && wide_node_count <= packet_count.max(1);

@@ -149,21 +149,13 @@ impl<'a> WideTracer<'a> {
     /// misses overlap with the others' work ([`WideTracer::interleaves_streams`]); each ray's hit is the one
     /// [`WideTracer::closest_hit`] returns, whichever way.
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.stream::<false>(rays, &mut |i, found| {
-            if let Some(slot) = hits.get_mut(i) {
-                *slot = found.map(|(triangle_index, hit)| Hit::new(triangle_index, hit, self.triangle_ids));
-            }
-        });
+        self.stream::<false>(rays, &mut hit_writer(hits, self.triangle_ids));
     }
 
     /// Whether each ray hits anything, into the `occluded` slot of the same index (pairs up to the shorter of
     /// the two), with rays interleaved as in [`WideTracer::closest_hits`].
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
-        self.stream::<true>(rays, &mut |i, found| {
-            if let Some(slot) = occluded.get_mut(i) {
-                *slot = found.is_some();
-            }
-        });
+        self.stream::<true>(rays, &mut occlusion_writer(occluded));
     }
 
     /// The closest hit of each ray into the `hits` slot of the same index (pairs up to the shorter of the two),
@@ -172,22 +164,14 @@ impl<'a> WideTracer<'a> {
     /// triangle may be another one hit at the same `t`. Slower than [`WideTracer::closest_hits`] for rays that
     /// go different ways.
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.packets::<false>(rays, &mut |i, found| {
-            if let Some(slot) = hits.get_mut(i) {
-                *slot = found.map(|(triangle_index, hit)| Hit::new(triangle_index, hit, self.triangle_ids));
-            }
-        });
+        self.packets::<false>(rays, &mut hit_writer(hits, self.triangle_ids));
     }
 
     /// Whether each ray hits anything, into the `occluded` slot of the same index (pairs up to the shorter of
     /// the two), 8 consecutive rays a traversal as in [`WideTracer::closest_hits_coherent`]; the same answers
     /// as [`WideTracer::any_hit`].
     pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
-        self.packets::<true>(rays, &mut |i, found| {
-            if let Some(slot) = occluded.get_mut(i) {
-                *slot = found.is_some();
-            }
-        });
+        self.packets::<true>(rays, &mut occlusion_writer(occluded));
     }
 
     /// Packets of consecutive rays on the tracer's path; `done(i, found)` receives ray `i`'s result.
@@ -358,6 +342,28 @@ impl<'a> WideTracer<'a> {
             if in_flight == 0 && next >= rays.len() {
                 return;
             }
+        }
+    }
+}
+
+/// The `done` callback of the batch entry points for closest hits: ray `i`'s hit into `hits[i]`, its source id
+/// from `triangle_ids`.
+fn hit_writer<'h>(
+    hits: &'h mut [Option<Hit>],
+    triangle_ids: Option<&'h [u32]>,
+) -> impl FnMut(usize, Option<(u32, TriangleHit)>) + 'h {
+    move |i, found| {
+        if let Some(slot) = hits.get_mut(i) {
+            *slot = found.map(|(triangle_index, hit)| Hit::new(triangle_index, hit, triangle_ids));
+        }
+    }
+}
+
+/// The `done` callback of the batch entry points for any hits: whether ray `i` hit, into `occluded[i]`.
+fn occlusion_writer(occluded: &mut [bool]) -> impl FnMut(usize, Option<(u32, TriangleHit)>) + '_ {
+    move |i, found| {
+        if let Some(slot) = occluded.get_mut(i) {
+            *slot = found.is_some();
         }
     }
 }
