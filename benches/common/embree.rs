@@ -21,6 +21,7 @@ const BUFFER_TYPE_INDEX: c_uint = 0;
 const BUFFER_TYPE_VERTEX: c_uint = 1;
 const FORMAT_UINT3: c_uint = 0x5003;
 const FORMAT_FLOAT3: c_uint = 0x9003;
+const BUILD_QUALITY_MEDIUM: c_uint = 1;
 const BUILD_QUALITY_HIGH: c_uint = 2;
 const SCENE_FLAG_ROBUST: c_uint = 1 << 2;
 const INVALID_ID: c_uint = u32::MAX;
@@ -155,12 +156,12 @@ impl Embree {
             let device = rtcNewDevice(config.as_ptr());
             assert!(!device.is_null(), "rtcNewDevice failed");
             let scene = rtcNewScene(device);
-            rtcSetSceneBuildQuality(scene, BUILD_QUALITY_HIGH);
+            rtcSetSceneBuildQuality(scene, quality());
             if robust {
                 rtcSetSceneFlags(scene, SCENE_FLAG_ROBUST);
             }
             let geometry = rtcNewGeometry(device, GEOMETRY_TYPE_TRIANGLE);
-            rtcSetGeometryBuildQuality(geometry, BUILD_QUALITY_HIGH);
+            rtcSetGeometryBuildQuality(geometry, quality());
             let n = triangles.len();
             let vertices =
                 rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, 12, 3 * n) as *mut f32;
@@ -300,6 +301,15 @@ pub fn set_flush_to_zero() {
             csr |= (1 << 15) | (1 << 6);
             std::arch::asm!("ldmxcsr [{}]", in(reg) &csr, options(nostack));
         }
+    }
+}
+
+/// The build quality: `BVHC_EMBREE_QUALITY=medium` (binned SAH, no spatial splits), else HIGH (spatial
+/// splits), the quality the targets name.
+pub fn quality() -> c_uint {
+    match std::env::var("BVHC_EMBREE_QUALITY").as_deref() {
+        Ok("medium") => BUILD_QUALITY_MEDIUM,
+        _ => BUILD_QUALITY_HIGH,
     }
 }
 
