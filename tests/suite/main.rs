@@ -1,5 +1,6 @@
 //! The integration test suite: one binary, one module per subject.
 
+mod box_test;
 mod cli;
 mod cli_hardening;
 mod common;

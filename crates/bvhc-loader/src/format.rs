@@ -364,6 +364,8 @@ impl TrianglePacket4 {
 }
 
 const _: () = assert!(size_of::<WideNode8>() == 256);
+// The wide kernel finds a node's `min` and `max` rows by offset (`PreparedRay::wide_plane_offsets`).
+const _: () = assert!(std::mem::offset_of!(WideNode8, min) == 0 && std::mem::offset_of!(WideNode8, max) == 96);
 const _: () = assert!(size_of::<TrianglePacket4>() == 160);
 const _: () = assert!(size_of::<FileHeader>() == 64);
 const _: () = assert!(size_of::<SectionEntry>() == 48);

@@ -1,8 +1,12 @@
 //! Robust ray-box and watertight ray-triangle tests.
 //!
 //! * Box: the slab test of T. Ize, "Robust BVH Ray Traversal", JCGT 2(2), 2013. Every slab's exit distance is
-//!   multiplied by `1 + 2 gamma(3)` (gamma(n) = n eps / (1 - n eps), eps = 2^-24), which bounds the rounding of
-//!   `(plane - origin) * (1 / direction)`, so a box that the exact ray touches is never missed.
+//!   padded by `1 + 2 gamma(3)` (gamma(n) = n eps / (1 - n eps), eps = 2^-24), which bounds the rounding of
+//!   `(plane - origin) * (1 / direction)`, so a box that the exact ray touches is never missed. The padding is
+//!   folded into the exit reciprocal once per ray (`exit_inverse = (1 / direction) * (1 + 2 gamma(3))`): the exit
+//!   distance `(plane - origin) * exit_inverse` then carries four roundings, as Ize's `((plane - origin) *
+//!   (1 / direction)) * (1 + 2 gamma(3))` does, each at most a factor `1 - eps` away, and `(1 - eps)^4 (1 + 6
+//!   eps) > 1`, so it is still never below the exact distance; one multiplication a slab fewer.
 //! * Triangle: S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013. The ray
 //!   is sheared so that it runs along +z of a ray space whose z axis is the direction's largest component
 //!   (`kz`); the 2D edge functions U, V, W are recomputed in f64 when any is exactly 0, so a ray through a
@@ -23,14 +27,21 @@ const EPSILON: f32 = f32::EPSILON * 0.5;
 /// Ize's padding of the slab exit distance, `1 + 2 gamma(3)`.
 pub(crate) const EXIT_PADDING: f32 = 1.0 + 2.0 * (3.0 * EPSILON) / (1.0 - 3.0 * EPSILON);
 
-/// One slab of the robust box test: the distances to the entry and exit planes of one axis (the exit padded by
-/// `EXIT_PADDING`) narrow the interval `near..far`. Compare-selects keep the accumulator when the new value is
-/// NaN (an origin on a slab plane of a zero direction component), as `f32::max`/`min` would, in one instruction
-/// each. The SIMD box tests perform exactly these operations in lanes.
+/// One slab of the robust box test: the distances to the entry and exit planes of one axis (the exit through the
+/// padded reciprocal `exit_inverse`) narrow the interval `near..far`. Compare-selects keep the accumulator when
+/// the new value is NaN (an origin on a slab plane of a zero direction component), as `f32::max`/`min` would, in
+/// one instruction each. The SIMD box tests perform exactly these operations in lanes.
 #[inline(always)]
-pub(crate) fn slab(entry_plane: f32, exit_plane: f32, origin: f32, inverse: f32, near: f32, far: f32) -> (f32, f32) {
+pub(crate) fn slab(
+    entry_plane: f32,
+    exit_plane: f32,
+    origin: f32,
+    (inverse, exit_inverse): (f32, f32),
+    near: f32,
+    far: f32,
+) -> (f32, f32) {
     let t_entry = (entry_plane - origin) * inverse;
-    let t_exit = (exit_plane - origin) * inverse * EXIT_PADDING;
+    let t_exit = (exit_plane - origin) * exit_inverse;
     (if t_entry > near { t_entry } else { near }, if t_exit < far { t_exit } else { far })
 }
 
@@ -73,8 +84,13 @@ pub struct TriangleHit {
 pub struct PreparedRay {
     pub(crate) origin: [f32; 3],
     pub(crate) inverse_direction: [f32; 3],
+    /// `inverse_direction * EXIT_PADDING`: exit distances through it are Ize's padded ones.
+    pub(crate) exit_inverse: [f32; 3],
     /// Per axis: whether the direction's sign bit is set, so the slab is entered through `max`.
     pub(crate) negative: [bool; 3],
+    /// Per axis: where a wide node's entry and exit planes of the axis start, in `f32`s from the start of the
+    /// node (its `min` rows, then its `max` rows, 8 lanes a row): `axis * 8`, plus 24 for the `max` row.
+    pub(crate) wide_plane_offsets: ([usize; 3], [usize; 3]),
     pub(crate) t_min: f32,
     kx: usize,
     ky: usize,
@@ -100,10 +116,16 @@ impl PreparedRay {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
+        let inverse_direction = d.map(|c| 1.0 / c);
         PreparedRay {
             origin: ray.origin,
-            inverse_direction: d.map(|c| 1.0 / c),
+            inverse_direction,
+            exit_inverse: inverse_direction.map(|i| i * EXIT_PADDING),
             negative: d.map(f32::is_sign_negative),
+            wide_plane_offsets: (
+                std::array::from_fn(|axis| axis * 8 + if d[axis].is_sign_negative() { 24 } else { 0 }),
+                std::array::from_fn(|axis| axis * 8 + if d[axis].is_sign_negative() { 0 } else { 24 }),
+            ),
             t_min: ray.t_min,
             kx,
             ky,
@@ -127,8 +149,8 @@ impl PreparedRay {
         for axis in 0..3 {
             let (entry_plane, exit_plane) =
                 if self.negative[axis] { (node.max[axis], node.min[axis]) } else { (node.min[axis], node.max[axis]) };
-            (t_near, t_far) =
-                slab(entry_plane, exit_plane, self.origin[axis], self.inverse_direction[axis], t_near, t_far);
+            let inverses = (self.inverse_direction[axis], self.exit_inverse[axis]);
+            (t_near, t_far) = slab(entry_plane, exit_plane, self.origin[axis], inverses, t_near, t_far);
         }
         (t_near <= t_far).then_some(t_near)
     }

@@ -35,6 +35,7 @@ struct Entry {
 struct Lanes {
     origin: [[f32; PACKET_RAYS]; 3],
     inverse_direction: [[f32; PACKET_RAYS]; 3],
+    exit_inverse: [[f32; PACKET_RAYS]; 3],
     /// Per axis, bit `l`: ray `l`'s direction has its sign bit set (enters through `max`).
     negative: [u8; 3],
     t_min: [f32; PACKET_RAYS],
@@ -60,6 +61,7 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
     let mut lanes = Lanes {
         origin: [[0.0; PACKET_RAYS]; 3],
         inverse_direction: [[0.0; PACKET_RAYS]; 3],
+        exit_inverse: [[0.0; PACKET_RAYS]; 3],
         negative: [0; 3],
         t_min: [0.0; PACKET_RAYS],
         shear: [[0.0; PACKET_RAYS]; 3],
@@ -71,6 +73,7 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
         for axis in 0..3 {
             lanes.origin[axis][l] = p.origin[axis];
             lanes.inverse_direction[axis][l] = p.inverse_direction[axis];
+            lanes.exit_inverse[axis][l] = p.exit_inverse[axis];
             lanes.negative[axis] |= u8::from(p.negative[axis]) << l;
         }
         lanes.t_min[l] = p.t_min;
@@ -116,7 +119,8 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
                 for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
                     let Some(ray) = &prepared[l] else { continue };
                     for packet in packets {
-                        if let Some((lane, hit)) = crate::wide_packets::closest_in_packet::<SIMD>(packet, ray, t_max[l])
+                        if let Some((lane, hit)) =
+                            crate::wide_packets::closest_in_packet::<ANY_HIT, SIMD>(packet, ray, t_max[l])
                         {
                             t_max[l] = hit.t;
                             found[l] = Some((packet.triangle_index[lane], hit));
@@ -222,8 +226,8 @@ fn slot_test<const SIMD: bool>(
         for l in 0..PACKET_RAYS {
             let negative = lanes.negative[axis] & (1 << l) != 0;
             let (entry, exit) = if negative { (hi, lo) } else { (lo, hi) };
-            let (o, inv) = (lanes.origin[axis][l], lanes.inverse_direction[axis][l]);
-            (near[l], far[l]) = slab(entry, exit, o, inv, near[l], far[l]);
+            let inverses = (lanes.inverse_direction[axis][l], lanes.exit_inverse[axis][l]);
+            (near[l], far[l]) = slab(entry, exit, lanes.origin[axis][l], inverses, near[l], far[l]);
         }
     }
     let mask = (0..PACKET_RAYS).fold(0u8, |m, l| if near[l] <= far[l] { m | 1 << l } else { m });
@@ -237,7 +241,7 @@ mod avx2 {
 
     use super::{Lanes, PACKET_RAYS};
     use crate::format::{TrianglePacket4, WideNode8};
-    use crate::intersect::{EXIT_PADDING, PreparedRay, TriangleHit};
+    use crate::intersect::{PreparedRay, TriangleHit};
 
     /// The triangles of `packets`, one after the other, against the `active` rays in lanes, when every ray has
     /// the shear axes `axes`: per (ray, triangle) the scalar watertight test's operations in its order, a lane
@@ -354,7 +358,6 @@ mod avx2 {
         unsafe {
             let mut near = _mm256_loadu_ps(lanes.t_min.as_ptr());
             let mut far = _mm256_loadu_ps(t_far.as_ptr());
-            let pad = _mm256_set1_ps(EXIT_PADDING);
             let bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
             for axis in 0..3 {
                 let lo = _mm256_set1_ps(node.min[axis][slot]);
@@ -365,8 +368,9 @@ mod avx2 {
                 let exit = _mm256_blendv_ps(hi, lo, negative);
                 let o = _mm256_loadu_ps(lanes.origin[axis].as_ptr());
                 let inv = _mm256_loadu_ps(lanes.inverse_direction[axis].as_ptr());
+                let exit_inv = _mm256_loadu_ps(lanes.exit_inverse[axis].as_ptr());
                 let t_entry = _mm256_mul_ps(_mm256_sub_ps(entry, o), inv);
-                let t_exit = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(exit, o), inv), pad);
+                let t_exit = _mm256_mul_ps(_mm256_sub_ps(exit, o), exit_inv);
                 // max_ps(a, b) = a > b ? a : b and min_ps(a, b) = a < b ? a : b: the portable compare-selects.
                 near = _mm256_max_ps(t_entry, near);
                 far = _mm256_min_ps(t_exit, far);

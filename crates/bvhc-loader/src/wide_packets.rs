@@ -21,15 +21,16 @@ struct Lanes {
 }
 
 /// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
-/// `t <= t_max` would end with), as (lane, hit). `SIMD` picks the SSE2 lanes on x86-64; both give the same hits.
+/// `t <= t_max` would end with), as (lane, hit); for `ANY_HIT`, the last lane that hits when no lane needs the
+/// scalar redo, without looking for the nearest. `SIMD` picks the SSE2 lanes on x86-64; both give the same hits.
 #[inline(always)]
-pub fn closest_in_packet<const SIMD: bool>(
+pub fn closest_in_packet<const ANY_HIT: bool, const SIMD: bool>(
     packet: &TrianglePacket4,
     ray: &PreparedRay,
     t_max: f32,
 ) -> Option<(usize, TriangleHit)> {
     #[cfg(target_arch = "x86_64")]
-    let lanes = if SIMD { sse2_lanes(packet, ray, t_max) } else { portable_lanes(packet, ray, t_max) };
+    let lanes = if SIMD { sse2_lanes(packet, ray, t_max)? } else { portable_lanes(packet, ray, t_max) };
     #[cfg(not(target_arch = "x86_64"))]
     let lanes = portable_lanes(packet, ray, t_max);
     let hit_in = |lane: usize| {
@@ -38,7 +39,8 @@ pub fn closest_in_packet<const SIMD: bool>(
     };
     if lanes.zero == 0 {
         // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t.
-        let last = 31usize.checked_sub(lanes.nearest.leading_zeros() as usize)?;
+        let candidates = if ANY_HIT { lanes.valid } else { lanes.nearest };
+        let last = 31usize.checked_sub(candidates.leading_zeros() as usize)?;
         return Some((last, hit_in(last)));
     }
     let mut best: Option<(usize, TriangleHit)> = None;
@@ -92,11 +94,13 @@ fn portable_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> La
     out
 }
 
-/// The four lanes with SSE2.
+/// The four lanes with SSE2; `None` as soon as the edge functions show that no lane can hit (every lane
+/// outside or unused, none with a zero edge function), before `t` is computed: most packet tests end there,
+/// and the portable lanes would then find no hit either.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)] // SSE2 intrinsics: part of the x86-64 baseline, so always available
 #[inline(always)]
-fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes {
+fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Option<Lanes> {
     use std::arch::x86_64::*;
     let ([kx, ky, kz], [sx, sy, sz]) = ray.shear();
     let (origin, t_min) = (ray.origin, ray.t_min);
@@ -123,6 +127,11 @@ fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes 
         let positive = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, z), _mm_cmpgt_ps(v, z)), _mm_cmpgt_ps(w, z));
         let outside = _mm_and_ps(negative, positive);
         let det = _mm_add_ps(_mm_add_ps(u, v), w);
+        // A lane can hit only when it is not outside and its det is a number (unused lanes are NaN), or when
+        // an edge function is zero (the scalar redo decides).
+        if _mm_movemask_ps(_mm_or_ps(_mm_andnot_ps(outside, _mm_cmpord_ps(det, det)), zero)) == 0 {
+            return None;
+        }
         let (az, bz, cz) = (_mm_mul_ps(sz, akz), _mm_mul_ps(sz, bkz), _mm_mul_ps(sz, ckz));
         let t = _mm_div_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(u, az), _mm_mul_ps(v, bz)), _mm_mul_ps(w, cz)), det);
         let in_range = _mm_and_ps(_mm_cmpge_ps(t, _mm_set1_ps(t_min)), _mm_cmple_ps(t, _mm_set1_ps(t_max)));
@@ -136,7 +145,7 @@ fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes 
         for (slot, value) in out.iter_mut().zip([v, w, t, det]) {
             _mm_storeu_ps(slot.as_mut_ptr(), value);
         }
-        Lanes {
+        Some(Lanes {
             v: out[0],
             w: out[1],
             t: out[2],
@@ -144,6 +153,6 @@ fn sse2_lanes(packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Lanes 
             zero: _mm_movemask_ps(zero),
             valid: _mm_movemask_ps(valid),
             nearest: _mm_movemask_ps(nearest),
-        }
+        })
     }
 }

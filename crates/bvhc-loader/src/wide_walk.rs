@@ -4,12 +4,15 @@
 //!
 //! A step at a wide node tests the ray against the eight child boxes at once (AVX2, or a portable loop with the
 //! same operations in the same order, so both give the same lanes bit for bit) with the binary kernel's robust
-//! slab test (Ize 2013: exit distances scaled by `1 + 2 gamma(3)`, compare-selects that ignore the NaN of an
-//! origin on the slab plane of a zero direction component; nothing fused). The hit children go nearest first:
-//! one or two without a sort, more by insertion sort; the others are pushed with their entry distance and
-//! skipped on pop when a closer hit was found (with the binary kernel's cull padding). On the SIMD path pushed
-//! children are prefetched, so their misses overlap with the work on the nearer ones. A step at a leaf tests its
-//! packets four triangles at a time (`wide_packets`).
+//! slab test (Ize 2013: exit distances padded by `1 + 2 gamma(3)` through the ray's padded reciprocal,
+//! compare-selects that ignore the NaN of an origin on the slab plane of a zero direction component; nothing
+//! fused). For a closest hit the hit children go nearest first: one or two without a sort, more by insertion
+//! sort; the others are pushed with their entry distance and skipped on pop when a closer hit was found (with
+//! the binary kernel's cull padding). For any hit the order does not matter: the hit children are pushed in
+//! slot order and the walk goes on with the last, with no distance compared (Embree's occlusion traversal does
+//! the same), and a leaf ends the walk at its first hit. On the SIMD path pushed children are prefetched, so
+//! their misses overlap with the work on the nearer ones. A step at a leaf tests its packets four triangles at
+//! a time (`wide_packets`).
 //!
 //! Safe on any bytes: every index is bounds-checked, and a walk visits at most `node_count` wide nodes (so a
 //! node referenced from many slots cannot make it run long); on a file that fails verification the hits are
@@ -89,7 +92,7 @@ impl Walk {
         if current & LEAF_BIT != 0 {
             let (first, count) = WideNode8::leaf_packets(current);
             if let Some(hit) =
-                leaf_hit::<SIMD>(sections, &self.ray, first as usize, count as usize, self.t_max, counter)
+                leaf_hit::<ANY_HIT, SIMD>(sections, &self.ray, first as usize, count as usize, self.t_max, counter)
             {
                 self.found = Some(hit);
                 if ANY_HIT {
@@ -107,6 +110,19 @@ impl Walk {
                 if let Some(&child) = node.child.get(first) {
                     self.current = child;
                     return true;
+                }
+            } else if ANY_HIT {
+                // Any hit needs no order: the hit children go on the stack in slot order and the walk goes on
+                // with the last (as Embree's occlusion traversal does), without comparing distances.
+                let mut lanes = mask;
+                loop {
+                    let lane = lanes.trailing_zeros() as usize & (WIDE - 1);
+                    lanes &= lanes - 1;
+                    if lanes == 0 {
+                        self.descend::<SIMD>(sections, node.child[lane]);
+                        return true;
+                    }
+                    self.push::<SIMD>(sections, stack, (node.child[lane], t_near[lane]));
                 }
             } else if rest & (rest - 1) == 0 {
                 let second = rest.trailing_zeros() as usize & (WIDE - 1);
@@ -180,9 +196,10 @@ impl Walk {
     }
 }
 
-/// The closest hit in packets `first .. first + count`, within `t_max`, as (triangle index, hit).
+/// The closest hit in packets `first .. first + count`, within `t_max`, as (triangle index, hit); for
+/// `ANY_HIT`, the first packet's hit.
 #[inline(always)]
-fn leaf_hit<const SIMD: bool>(
+fn leaf_hit<const ANY_HIT: bool, const SIMD: bool>(
     sections: &Sections<'_>,
     ray: &PreparedRay,
     first: usize,
@@ -195,9 +212,12 @@ fn leaf_hit<const SIMD: bool>(
     let mut limit = t_max;
     for packet in packets {
         counter.triangle_tested();
-        if let Some((lane, hit)) = crate::wide_packets::closest_in_packet::<SIMD>(packet, ray, limit) {
+        if let Some((lane, hit)) = crate::wide_packets::closest_in_packet::<ANY_HIT, SIMD>(packet, ray, limit) {
             limit = hit.t;
             best = Some((packet.triangle_index[lane], hit));
+            if ANY_HIT {
+                break;
+            }
         }
     }
     best
@@ -262,9 +282,9 @@ fn portable_box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f
     for axis in 0..3 {
         let (entry, exit) =
             if ray.negative[axis] { (&node.max[axis], &node.min[axis]) } else { (&node.min[axis], &node.max[axis]) };
-        let (o, inv) = (ray.origin[axis], ray.inverse_direction[axis]);
+        let inverses = (ray.inverse_direction[axis], ray.exit_inverse[axis]);
         for lane in 0..WIDE {
-            (near[lane], far[lane]) = slab(entry[lane], exit[lane], o, inv, near[lane], far[lane]);
+            (near[lane], far[lane]) = slab(entry[lane], exit[lane], ray.origin[axis], inverses, near[lane], far[lane]);
         }
     }
     let mask = near
@@ -282,10 +302,10 @@ mod avx2 {
     use std::arch::x86_64::*;
 
     use crate::format::{WIDE, WideNode8};
-    use crate::intersect::EXIT_PADDING;
     use crate::intersect::PreparedRay;
 
     /// The slab test of all eight lanes in AVX2; the same operations, in the same order, as the portable one.
+    /// The entry and exit rows are found through the ray's precomputed plane offsets, without a branch.
     /// Empty slots are left out of the mask (they never hit a finite ray, but a NaN origin makes every
     /// comparison fail and so every slot look hit).
     ///
@@ -296,19 +316,20 @@ mod avx2 {
     pub(super) unsafe fn box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
         let mut near = _mm256_set1_ps(ray.t_min);
         let mut far = _mm256_set1_ps(t_far);
-        let pad = _mm256_set1_ps(EXIT_PADDING);
+        let rows = (node as *const WideNode8).cast::<f32>();
+        let (entry_offsets, exit_offsets) = ray.wide_plane_offsets;
         for axis in 0..3 {
-            let (entry, exit) = if ray.negative[axis] {
-                (&node.max[axis], &node.min[axis])
-            } else {
-                (&node.min[axis], &node.max[axis])
-            };
             let o = _mm256_set1_ps(ray.origin[axis]);
             let inv = _mm256_set1_ps(ray.inverse_direction[axis]);
-            // SAFETY: `entry` and `exit` are `[f32; 8]`, 32 readable bytes each; unaligned loads need no more.
-            let (entry, exit) = unsafe { (_mm256_loadu_ps(entry.as_ptr()), _mm256_loadu_ps(exit.as_ptr())) };
+            let exit_inv = _mm256_set1_ps(ray.exit_inverse[axis]);
+            // SAFETY: the offsets are `axis * 8` or `axis * 8 + 24` with axis < 3 (`PreparedRay::new`), so each
+            // row `offset .. offset + 8` lies in the node's `min` and `max` arrays (its first 48 f32s, which
+            // `repr(C)` places first); unaligned loads need no more.
+            let (entry, exit) = unsafe {
+                (_mm256_loadu_ps(rows.add(entry_offsets[axis])), _mm256_loadu_ps(rows.add(exit_offsets[axis])))
+            };
             let t_entry = _mm256_mul_ps(_mm256_sub_ps(entry, o), inv);
-            let t_exit = _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(exit, o), inv), pad);
+            let t_exit = _mm256_mul_ps(_mm256_sub_ps(exit, o), exit_inv);
             // max_ps(a, b) = a > b ? a : b and min_ps(a, b) = a < b ? a : b: the portable compare-selects.
             near = _mm256_max_ps(t_entry, near);
             far = _mm256_min_ps(t_exit, far);
