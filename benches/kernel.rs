@@ -102,34 +102,10 @@ fn main() {
                 });
                 mrays(rays, time)
             };
-            let interleaved = view.wide_tracer(KernelPath::best()).expect("wide").interleaving_streams(true);
-            let interleaved_speed = {
-                let mut hits = vec![None; rays.len()];
-                let mut occluded = vec![false; rays.len()];
-                let time = harness::median_time(runs, || {
-                    if *closest {
-                        interleaved.closest_hits(rays, &mut hits)
-                    } else {
-                        interleaved.any_hits(rays, &mut occluded)
-                    }
-                    std::hint::black_box((&hits, &occluded));
-                });
-                mrays(rays, time)
-            };
-            let batch = |coherent: bool| {
-                let mut hits = vec![None; rays.len()];
-                let mut occluded = vec![false; rays.len()];
-                let time = harness::median_time(runs, || {
-                    match (closest, coherent) {
-                        (true, false) => best.closest_hits(rays, &mut hits),
-                        (false, false) => best.any_hits(rays, &mut occluded),
-                        (true, true) => best.closest_hits_coherent(rays, &mut hits),
-                        (false, true) => best.any_hits_coherent(rays, &mut occluded),
-                    }
-                    std::hint::black_box((&hits, &occluded));
-                });
-                mrays(rays, time)
-            };
+            let interleaved =
+                binary.with_wide(view.wide_tracer(KernelPath::best()).expect("wide").interleaving_streams(true));
+            let interleaved_speed = harness::batch_speed(rays, &interleaved, *closest, false, runs);
+            let batch = |coherent: bool| harness::batch_speed(rays, &best, *closest, coherent, runs);
             let mut stats = TraversalStats::default();
             for ray in rays {
                 if *closest {

@@ -42,8 +42,7 @@ fn peak_resident_bytes() -> u64 {
 /// The child: converts `input` into `output` on `threads` threads and prints one line of JSON.
 fn child(input: &Path, output: &Path, threads: usize) {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
-    let report =
-        convert_with(input, output, &ConvertOptions::default(), &mut |_| ControlFlow::Continue(())).unwrap();
+    let report = convert_with(input, output, &ConvertOptions::default(), &mut |_| ControlFlow::Continue(())).unwrap();
     let optimization = report.optimization.as_ref();
     let line = serde_json::json!({
         "triangles": report.triangle_count,

@@ -170,24 +170,6 @@ fn single_thread_speed(rays: &[Ray], f: impl Fn(&Ray) -> bool) -> (f64, usize) {
     (rays.len() as f64 / time.as_secs_f64() / 1e6, hits)
 }
 
-/// Mrays/s of `tracer`'s stream entry point (or, `coherent`, its 8-ray packets) over all `rays` at once on
-/// this thread (median of 5).
-#[cfg(feature = "embree")]
-fn stream_speed(rays: &[Ray], tracer: &Tracer<'_>, closest: bool, coherent: bool) -> f64 {
-    let mut hits = vec![None; rays.len()];
-    let mut occluded = vec![false; rays.len()];
-    let time = harness::median_time(5, || {
-        match (closest, coherent) {
-            (true, false) => tracer.closest_hits(rays, &mut hits),
-            (false, false) => tracer.any_hits(rays, &mut occluded),
-            (true, true) => tracer.closest_hits_coherent(rays, &mut hits),
-            (false, true) => tracer.any_hits_coherent(rays, &mut occluded),
-        }
-        std::hint::black_box((&hits, &occluded));
-    });
-    rays.len() as f64 / time.as_secs_f64() / 1e6
-}
-
 /// Mrays/s of 8-ray packets over `rays` on this thread (median of 5); `f` returns the hits in a packet.
 #[cfg(feature = "embree")]
 fn packet_speed(rays: &[Ray], f: impl Fn(&[Ray]) -> usize) -> (f64, usize) {
@@ -251,8 +233,8 @@ fn against_embree() {
                 }
             };
             let (ours_binary, ours_portable, (ours_best, our_hits)) = (ours(&binary).0, ours(&portable).0, ours(&best));
-            let ours_stream = stream_speed(rays, &best, closest, false);
-            let ours_packets = stream_speed(rays, &best, closest, true);
+            let ours_stream = harness::batch_speed(rays, &best, closest, false, 5);
+            let ours_packets = harness::batch_speed(rays, &best, closest, true, 5);
             let embree_runs = std::thread::scope(|scope| {
                 scope
                     .spawn(|| {

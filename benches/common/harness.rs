@@ -51,3 +51,27 @@ pub fn obvhs_triangles(triangles: &[[[f32; 3]; 3]]) -> Vec<obvhs::triangle::Tria
         })
         .collect()
 }
+
+/// Mrays/s (median of `runs`) of `tracer`'s batch entry points over all `rays` at once on this thread: the
+/// stream (`closest_hits` / `any_hits`), or with `coherent` the 8-ray packets (`closest_hits_coherent` /
+/// `any_hits_coherent`).
+pub fn batch_speed(
+    rays: &[bvhc::loader::Ray],
+    tracer: &bvhc::loader::Tracer<'_>,
+    closest: bool,
+    coherent: bool,
+    runs: usize,
+) -> f64 {
+    let mut hits = vec![None; rays.len()];
+    let mut occluded = vec![false; rays.len()];
+    let time = median_time(runs, || {
+        match (closest, coherent) {
+            (true, false) => tracer.closest_hits(rays, &mut hits),
+            (false, false) => tracer.any_hits(rays, &mut occluded),
+            (true, true) => tracer.closest_hits_coherent(rays, &mut hits),
+            (false, true) => tracer.any_hits_coherent(rays, &mut occluded),
+        }
+        std::hint::black_box((&hits, &occluded));
+    });
+    rays.len() as f64 / time.as_secs_f64() / 1e6
+}
