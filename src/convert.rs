@@ -100,7 +100,7 @@ pub struct ConvertReport {
     pub wide: Option<WideSummary>,
     /// Bytes written.
     pub file_byte_len: usize,
-    /// Seconds per stage: import, build, optimize, write.
+    /// Seconds per stage: import, build, optimize, merge, pack, write.
     pub timings: Timings,
 }
 
@@ -122,10 +122,21 @@ pub struct Timings {
     pub import: f64,
     /// Initial build.
     pub build: f64,
-    /// Optimization and leaf merging.
+    /// Optimization by reinsertion.
     pub optimize: f64,
-    /// Packing, writing and verifying.
+    /// Depth limiting, the wide collapse and leaf merging.
+    pub merge: f64,
+    /// Packing the binary and the wide trees into the file's arrays.
+    pub pack: f64,
+    /// Writing the file (metadata, checksums, atomic rename).
     pub write: f64,
+}
+
+impl Timings {
+    /// All stages together.
+    pub fn total(&self) -> f64 {
+        self.import + self.build + self.optimize + self.merge + self.pack + self.write
+    }
 }
 
 /// Why a conversion failed.
@@ -216,12 +227,14 @@ pub fn convert_with(
     let clock = Instant::now();
     let optimization = (!options.skip_optimization)
         .then(|| optimize(&mut tree, &options.optimize, &mut |p: &Progress| observer(Event::Batch(p))));
+    timings.optimize = lap(clock);
+    let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH, &triangles);
     // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
     let wide_tree = options.wide.map(|costs| (collapse(&tree, &costs), costs));
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
     let final_tree = merge_leaves(&tree, options.optimize.constants, leaf_size);
-    timings.optimize = lap(clock);
+    timings.merge = lap(clock);
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
     let cost = sah_of_build_tree(&final_tree, options.optimize.constants);
@@ -241,6 +254,8 @@ pub fn convert_with(
         }
         None => None,
     };
+    timings.pack = lap(clock);
+    let clock = Instant::now();
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);

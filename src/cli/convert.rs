@@ -145,7 +145,7 @@ pub fn convert(args: &ConvertArgs) -> Exit {
                     r.node_count,
                     r.cost.cost,
                     r.file_byte_len,
-                    r.timings.import + r.timings.build + r.timings.optimize + r.timings.write
+                    r.timings.total()
                 );
             }
         }
