@@ -4,8 +4,7 @@
 //! from origins and directions of many magnitudes, with zero, negative-zero and tiny direction components.
 
 use bvhc::loader::{
-    KernelPath, PackedNode, PackedTriangle, PreparedRay, Ray, TraversalStats, TrianglePacket4, WideBvh, WideNode8,
-    WideTracer,
+    PackedNode, PackedTriangle, PreparedRay, Ray, TraversalStats, TrianglePacket4, WideBvh, WideNode8, WideTracer,
 };
 use rand::RngExt;
 
@@ -74,5 +73,4 @@ fn a_box_the_exact_ray_meets_is_never_missed() {
             );
         }
     }
-    assert!(paths.contains(&KernelPath::Portable));
 }

@@ -20,7 +20,7 @@
 //! Symbols (Woop et al.): `kx, ky, kz` the permuted axes; `sx, sy, sz` the shear; `U, V, W` the edge functions,
 //! which are the barycentric weights of v0, v1, v2 times the determinant `det = U + V + W`.
 
-use crate::format::{PackedNode, PackedTriangle};
+use crate::format::{PackedNode, PackedTriangle, WIDE};
 
 /// Machine epsilon for f32 rounding, 2^-24.
 const EPSILON: f32 = f32::EPSILON * 0.5;
@@ -89,7 +89,8 @@ pub struct PreparedRay {
     /// Per axis: whether the direction's sign bit is set, so the slab is entered through `max`.
     pub(crate) negative: [bool; 3],
     /// Per axis: where a wide node's entry and exit planes of the axis start, in `f32`s from the start of the
-    /// node (its `min` rows, then its `max` rows, 8 lanes a row): `axis * 8`, plus 24 for the `max` row.
+    /// node (its three `min` rows, then its three `max` rows, `WIDE` lanes a row): `axis * WIDE`, plus
+    /// `3 * WIDE` for the `max` row.
     pub(crate) wide_plane_offsets: ([usize; 3], [usize; 3]),
     pub(crate) t_min: f32,
     kx: usize,
@@ -117,14 +118,15 @@ impl PreparedRay {
             std::mem::swap(&mut kx, &mut ky);
         }
         let inverse_direction = d.map(|c| 1.0 / c);
+        let row = |axis: usize, max: bool| axis * WIDE + if max { 3 * WIDE } else { 0 };
         PreparedRay {
             origin: ray.origin,
             inverse_direction,
             exit_inverse: inverse_direction.map(|i| i * EXIT_PADDING),
             negative: d.map(f32::is_sign_negative),
             wide_plane_offsets: (
-                std::array::from_fn(|axis| axis * 8 + if d[axis].is_sign_negative() { 24 } else { 0 }),
-                std::array::from_fn(|axis| axis * 8 + if d[axis].is_sign_negative() { 0 } else { 24 }),
+                std::array::from_fn(|axis| row(axis, d[axis].is_sign_negative())),
+                std::array::from_fn(|axis| row(axis, !d[axis].is_sign_negative())),
             ),
             t_min: ray.t_min,
             kx,

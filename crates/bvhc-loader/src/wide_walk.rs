@@ -322,9 +322,9 @@ mod avx2 {
             let o = _mm256_set1_ps(ray.origin[axis]);
             let inv = _mm256_set1_ps(ray.inverse_direction[axis]);
             let exit_inv = _mm256_set1_ps(ray.exit_inverse[axis]);
-            // SAFETY: the offsets are `axis * 8` or `axis * 8 + 24` with axis < 3 (`PreparedRay::new`), so each
-            // row `offset .. offset + 8` lies in the node's `min` and `max` arrays (its first 48 f32s, which
-            // `repr(C)` places first); unaligned loads need no more.
+            // SAFETY: the offsets are `axis * WIDE` or `(axis + 3) * WIDE` with axis < 3 (`PreparedRay::new`), so
+            // each row `offset .. offset + WIDE` lies in the node's `min` and `max` arrays (its first `6 * WIDE`
+            // f32s, at offsets 0 and 96 bytes as `format.rs` asserts); unaligned loads need no more.
             let (entry, exit) = unsafe {
                 (_mm256_loadu_ps(rows.add(entry_offsets[axis])), _mm256_loadu_ps(rows.add(exit_offsets[axis])))
             };
