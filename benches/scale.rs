@@ -9,7 +9,8 @@
 //! resident memory (`VmHWM`) is its own and the thread count is set for the whole process.
 //!
 //! `cargo bench --bench scale`; `BVHC_SCALE_SCENES=dragon,kitchen`, `BVHC_SCALE_COPIES=1,4,9,16` and
-//! `BVHC_SCALE_THREADS=1,2` narrow the runs; `BVHC_SCENES` overrides the scenes folder.
+//! `BVHC_SCALE_THREADS=1,2` narrow the runs; `BVHC_SCENES` overrides the scenes folder; `BVHC_SCALE_KEEP=DIR`
+//! writes the generated scenes into `DIR` and keeps them (for `perf` or `bvhc` runs on one size).
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -26,7 +27,8 @@ use bvhc::convert::{ConvertOptions, convert_with};
 const CHILD_FLAG: &str = "--scale-child";
 
 fn list(variable: &str, default: &str) -> Vec<String> {
-    std::env::var(variable).unwrap_or_else(|_| default.to_string()).split(',').map(String::from).collect()
+    let value = std::env::var(variable).unwrap_or_else(|_| default.to_string());
+    value.split(',').filter(|item| !item.is_empty()).map(String::from).collect()
 }
 
 /// The peak resident memory of this process in bytes (`VmHWM` of `/proc/self/status`; 0 where absent).
@@ -69,6 +71,7 @@ fn main() {
     }
     let dir = harness::scenes_dir();
     let work = tempfile::tempdir().unwrap();
+    let keep = std::env::var_os("BVHC_SCALE_KEEP").map(std::path::PathBuf::from);
     let threads = list("BVHC_SCALE_THREADS", "1,2");
     println!(
         "| scene | copies | triangles | threads | import s | build s | optimize s | merge s | pack s | write s | total s | batches | merged cost | peak MB | bytes / triangle | build ns / triangle | optimize ns / triangle | same bytes |"
@@ -89,7 +92,7 @@ fn main() {
         let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
         for copies in list("BVHC_SCALE_COPIES", "1,4,9,16") {
             let copies: usize = copies.parse().unwrap();
-            let glb = work.path().join(format!("{name}-x{copies}.glb"));
+            let glb = keep.as_deref().unwrap_or(work.path()).join(format!("{name}-x{copies}.glb"));
             grid_scene::write_grid_glb(&soup.positions, &soup.triangles, copies, &glb).unwrap();
             let mut first_file: Option<Vec<u8>> = None;
             for t in &threads {
@@ -115,7 +118,9 @@ fn main() {
                 std::fs::remove_file(&output).unwrap();
                 print_row(name, copies, t, &line, &same);
             }
-            std::fs::remove_file(&glb).unwrap();
+            if keep.is_none() {
+                std::fs::remove_file(&glb).unwrap();
+            }
         }
     }
 }

@@ -27,10 +27,16 @@ impl Aabb {
     }
 
     /// The smallest box containing both.
+    ///
+    /// Boxes hold no NaN (the importers reject non-finite coordinates, and the empty box uses infinities), so
+    /// the minimum and maximum are plain comparisons: one `minps`/`maxps` instruction each, where `f32::min`
+    /// adds a NaN check. This is the innermost operation of the builder's binning and of the optimizer's
+    /// searches. (With a NaN operand the result is one of the operands; nothing panics.)
+    #[inline(always)]
     pub fn union(&self, other: &Aabb) -> Aabb {
         Aabb {
-            min: std::array::from_fn(|a| self.min[a].min(other.min[a])),
-            max: std::array::from_fn(|a| self.max[a].max(other.max[a])),
+            min: std::array::from_fn(|a| if other.min[a] < self.min[a] { other.min[a] } else { self.min[a] }),
+            max: std::array::from_fn(|a| if other.max[a] > self.max[a] { other.max[a] } else { self.max[a] }),
         }
     }
 

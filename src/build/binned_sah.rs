@@ -1,220 +1,407 @@
 //! Initial BVH construction: a binned SAH builder (I. Wald, "On fast Construction of SAH-based Bounding Volume
 //! Hierarchies", IEEE RT 2007).
 //!
-//! Centroids are binned into [`BIN_COUNT`] bins along each axis; the split plane with the lowest SAH cost
-//! `c_T + c_I (A_left n_left + A_right n_right) / A_node` wins, and a node becomes a leaf when that is not
-//! cheaper than `c_I n` and it holds at most `max_leaf_size` triangles. Where the centroids coincide, or below
-//! [`MEDIAN_FALLBACK_DEPTH`], the node is split at the median triangle instead, which bounds the depth by
-//! `MEDIAN_FALLBACK_DEPTH + log2(n)` and keeps every tree within the format's depth rule.
+//! Centroids are binned into up to [`BIN_COUNT`] bins along each axis (2, 4 or 8 for nodes of at most that many
+//! triangles); the split plane with the lowest SAH cost `c_T + c_I (A_left n_left + A_right n_right) /
+//! A_node` wins, and a node becomes a leaf when that is not cheaper than `c_I n` and it holds at most
+//! `max_leaf_size` triangles. Where the centroids coincide, or below [`MEDIAN_FALLBACK_DEPTH`], the node is
+//! split at the median triangle instead, which bounds the depth by `MEDIAN_FALLBACK_DEPTH + log2(n)` and keeps
+//! every tree within the format's depth rule.
 //!
-//! Nodes are laid out in preorder. Subtrees of more than [`PARALLEL_THRESHOLD`] triangles are built in parallel
-//! (rayon) into their own arrays and concatenated left then right, so the result is the same for any number
-//! of threads.
+//! Layout for speed (O(n log n) with small constants): each triangle's box travels with its index in one
+//! array of [`Reference`]s that is partitioned in place, so a node reads a contiguous range; one pass bins all
+//! three axes; the children's boxes come from the bins and their centroid bounds from the partition pass, so a
+//! node touches its references twice. Nodes are written in preorder straight into their final slots: a
+//! subtree over `m` triangles owns `2m - 1` slots (exactly what it needs with one triangle per leaf; the unused
+//! slots of larger leaves are squeezed out at the end, which keeps preorder). Subtrees of more than
+//! [`PARALLEL_THRESHOLD`] triangles are built in parallel (rayon) and large nodes are binned in parallel chunks;
+//! unions and counts are exact in any order, so the tree is the same for any number of threads.
 
 use rayon::prelude::*;
 
 use super::{BuildNode, BuildTree};
 use crate::aabb::Aabb;
 
-/// Bins per axis.
+/// Most bins per axis.
 pub const BIN_COUNT: usize = 16;
 /// Depth from which nodes are split at the median triangle, whatever the SAH says.
 pub const MEDIAN_FALLBACK_DEPTH: usize = 160;
 /// Subtrees with more triangles than this are built in parallel.
 const PARALLEL_THRESHOLD: usize = 4096;
+/// Nodes with more triangles than this are binned in parallel chunks of this size.
+const BINNING_CHUNK: usize = 64 * 1024;
 /// Cost of a traversal step in the split decisions (the reference convention's c_T).
 const TRAVERSAL_COST: f64 = 3.0;
 /// Cost of a triangle test in the split decisions (the reference convention's c_I).
 const INTERSECTION_COST: f64 = 2.0;
 
-/// Builds a binned SAH tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
-pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {
-    let boxes: Vec<Aabb> = triangles.par_iter().map(Aabb::of_triangle).collect();
-    let centroids: Vec<[f32; 3]> = boxes.par_iter().map(Aabb::center).collect();
-    let builder = Builder { boxes: &boxes, centroids: &centroids, max_leaf_size: max_leaf_size.max(1) };
-    let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
-    let mut nodes = Vec::with_capacity(2 * triangles.len());
-    if !order.is_empty() {
-        builder.build(&mut nodes, &mut order, 0, 0);
-    }
-    BuildTree { nodes, triangle_order: order }
+/// A box in four lanes (the fourth lane unused by the geometry), so that a union is one `minps` and one `maxps`.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+struct Box4 {
+    min: [f32; 4],
+    max: [f32; 4],
 }
 
-struct Builder<'a> {
-    boxes: &'a [Aabb],
-    centroids: &'a [[f32; 3]],
+impl Box4 {
+    const EMPTY: Box4 = Box4 { min: [f32::INFINITY; 4], max: [f32::NEG_INFINITY; 4] };
+
+    #[inline(always)]
+    fn union(&self, other: &Box4) -> Box4 {
+        Box4 {
+            min: std::array::from_fn(|a| if other.min[a] < self.min[a] { other.min[a] } else { self.min[a] }),
+            max: std::array::from_fn(|a| if other.max[a] > self.max[a] { other.max[a] } else { self.max[a] }),
+        }
+    }
+
+    /// The box as a point: `min == max == p` (lane 3 of `p` is copied as well).
+    fn point(p: [f32; 4]) -> Box4 {
+        Box4 { min: p, max: p }
+    }
+
+    fn to_aabb(self) -> Aabb {
+        Aabb { min: [self.min[0], self.min[1], self.min[2]], max: [self.max[0], self.max[1], self.max[2]] }
+    }
+}
+
+/// A triangle's box and its index: 32 bytes that the builder moves around. The index is kept in lane 3 as two
+/// small whole numbers, its low 16 bits in `min` and its high 16 bits in `max`: exact in f32 and never
+/// subnormal (the index's bits as a float would be, and arithmetic on subnormals is many times slower).
+#[derive(Clone, Copy, Debug)]
+struct Reference {
+    bounds: Box4,
+}
+
+impl Reference {
+    fn new(vertices: &[[f32; 3]; 3], triangle: u32) -> Reference {
+        let aabb = Aabb::of_triangle(vertices);
+        let [x, y, z] = aabb.min;
+        let [u, v, w] = aabb.max;
+        let (low, high) = ((triangle & 0xFFFF) as f32, (triangle >> 16) as f32);
+        Reference { bounds: Box4 { min: [x, y, z, low], max: [u, v, w, high] } }
+    }
+
+    fn triangle(&self) -> u32 {
+        self.bounds.min[3] as u32 | (self.bounds.max[3] as u32) << 16
+    }
+
+    /// Twice the box center (`min + max`): the builder bins and splits on these, so halving would only cost.
+    #[inline(always)]
+    fn centroid2(&self) -> [f32; 4] {
+        std::array::from_fn(|a| self.bounds.min[a] + self.bounds.max[a])
+    }
+
+    fn centroid_box(&self) -> Box4 {
+        Box4::point(self.centroid2())
+    }
+}
+
+/// Builds a binned SAH tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
+pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {
+    let mut references: Vec<Reference> =
+        triangles.par_iter().enumerate().map(|(t, vertices)| Reference::new(vertices, t as u32)).collect();
+    if references.is_empty() {
+        return BuildTree::default();
+    }
+    let node = NodeRange {
+        first: 0,
+        at: 0,
+        depth: 0,
+        bounds: union_of(&references, |r| r.bounds),
+        centroids: union_of(&references, Reference::centroid_box),
+    };
+    let mut nodes = vec![UNUSED; 2 * references.len() - 1];
+    let builder = Builder { max_leaf_size: max_leaf_size.max(1) };
+    builder.build(&mut references, &mut nodes, node);
+    let triangle_order = references.par_iter().map(Reference::triangle).collect();
+    BuildTree { nodes: squeeze_unused(nodes), triangle_order }
+}
+
+/// A slot no node was written to (leaves of several triangles leave some).
+const UNUSED: BuildNode = BuildNode::Leaf { aabb: Aabb::EMPTY, first: 0, count: 0 };
+
+/// What a node knows before it is split: where its references and its slot are, its box and the box of its
+/// references' doubled centroids.
+#[derive(Clone, Copy, Debug)]
+struct NodeRange {
+    /// Position of the node's first reference in the whole array.
+    first: usize,
+    /// The node's slot in the whole node array.
+    at: u32,
+    depth: usize,
+    bounds: Box4,
+    centroids: Box4,
+}
+
+struct Builder {
     max_leaf_size: usize,
 }
 
-impl Builder<'_> {
-    /// Appends the subtree over `order` (positions `first..` of the whole order) to `nodes`, in preorder.
-    fn build(&self, nodes: &mut Vec<BuildNode>, order: &mut [u32], first: usize, depth: usize) {
-        let aabb = self.bounds(order, |t| self.boxes[t as usize]);
-        let leaf = BuildNode::Leaf { aabb, first: first as u32, count: order.len() as u32 };
-        if order.len() == 1 {
-            nodes.push(leaf);
+impl Builder {
+    /// Writes the subtree over `references` (positions `range.first..`) into `nodes` (`2 * len - 1` slots, the
+    /// first at `range.at`) in preorder.
+    fn build(&self, references: &mut [Reference], nodes: &mut [BuildNode], range: NodeRange) {
+        let count = references.len();
+        let aabb = range.bounds.to_aabb();
+        let leaf = BuildNode::Leaf { aabb, first: range.first as u32, count: count as u32 };
+        if count == 1 {
+            nodes[0] = leaf;
             return;
         }
-        let mid = match self.best_sah_split(order, &aabb, depth) {
-            SplitChoice::Leaf if order.len() <= self.max_leaf_size => {
-                nodes.push(leaf);
+        let (mid, sides) = match self.choose_split(references, &range) {
+            SplitChoice::Leaf if count <= self.max_leaf_size => {
+                nodes[0] = leaf;
                 return;
             }
-            SplitChoice::Plane { axis, position } => partition(order, |t| self.centroids[t as usize][axis] < position),
-            SplitChoice::Leaf | SplitChoice::Median => self.median_split(order, &aabb),
+            SplitChoice::Plane { axis, bin, binning, left_bounds, right_bounds } => {
+                let (mid, left, right) = partition(references, |r| binning.bin_of(r.centroid2()[axis], axis) < bin);
+                (mid, Sides { bounds: [left_bounds, right_bounds], centroids: [left, right] })
+            }
+            SplitChoice::Leaf | SplitChoice::Median => median_split(references, &range.centroids),
         };
-        let at = nodes.len();
-        nodes.push(leaf); // replaced below
-        let (left_order, right_order) = order.split_at_mut(mid);
-        if order_len_is_large(left_order.len() + right_order.len()) {
-            let (left, right) = rayon::join(
-                || self.build_detached(left_order, first, depth + 1),
-                || self.build_detached(right_order, first + mid, depth + 1),
+        let Sides { bounds: [left_bounds, right_bounds], centroids: [left, right] } = sides;
+        let (left_references, right_references) = references.split_at_mut(mid);
+        let right_at = range.at + 2 * mid as u32;
+        nodes[0] = BuildNode::Inner { aabb, left: range.at + 1, right: right_at };
+        let (left_nodes, right_nodes) = nodes[1..].split_at_mut(2 * mid - 1);
+        let depth = range.depth + 1;
+        let left_range =
+            NodeRange { first: range.first, at: range.at + 1, depth, bounds: left_bounds, centroids: left };
+        let right_range =
+            NodeRange { first: range.first + mid, at: right_at, depth, bounds: right_bounds, centroids: right };
+        if count > PARALLEL_THRESHOLD {
+            rayon::join(
+                || self.build(left_references, left_nodes, left_range),
+                || self.build(right_references, right_nodes, right_range),
             );
-            append_shifted(nodes, &left);
-            let right_at = append_shifted(nodes, &right);
-            nodes[at] = BuildNode::Inner { aabb, left: at as u32 + 1, right: right_at as u32 };
         } else {
-            self.build(nodes, left_order, first, depth + 1);
-            let right_at = nodes.len();
-            self.build(nodes, right_order, first + mid, depth + 1);
-            nodes[at] = BuildNode::Inner { aabb, left: at as u32 + 1, right: right_at as u32 };
+            self.build(left_references, left_nodes, left_range);
+            self.build(right_references, right_nodes, right_range);
         }
     }
 
-    /// A subtree in its own array (indices from 0).
-    fn build_detached(&self, order: &mut [u32], first: usize, depth: usize) -> Vec<BuildNode> {
-        let mut nodes = Vec::with_capacity(2 * order.len());
-        self.build(&mut nodes, order, first, depth);
-        nodes
-    }
-
-    fn median_split(&self, order: &mut [u32], aabb: &Aabb) -> usize {
-        let axis = aabb.longest_axis();
-        let mid = order.len() / 2;
-        order.select_nth_unstable_by(mid, |&a, &b| {
-            self.centroids[a as usize][axis].total_cmp(&self.centroids[b as usize][axis]).then(a.cmp(&b))
-        });
-        mid
-    }
-
-    fn best_sah_split(&self, order: &[u32], aabb: &Aabb, depth: usize) -> SplitChoice {
-        if depth >= MEDIAN_FALLBACK_DEPTH {
+    /// The split the SAH prefers, a leaf where splitting does not pay, or the median where binning cannot
+    /// separate the centroids (or the node is too deep). Bins are sized to the node: 2, 4, 8 or
+    /// [`BIN_COUNT`], the smallest at least the triangle count.
+    fn choose_split(&self, references: &[Reference], range: &NodeRange) -> SplitChoice {
+        if range.depth >= MEDIAN_FALLBACK_DEPTH {
             return SplitChoice::Median;
         }
-        let centroid_box = self.bounds(order, |t| {
-            let c = self.centroids[t as usize];
-            Aabb { min: c, max: c }
-        });
-        let leaf_cost = INTERSECTION_COST * order.len() as f64;
-        let mut best = (f64::INFINITY, SplitChoice::Median);
-        for axis in 0..3 {
-            let (lo, hi) = (centroid_box.min[axis], centroid_box.max[axis]);
-            if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
-                continue;
-            }
-            let scale = BIN_COUNT as f32 / (hi - lo);
-            let bin_of = |c: f32| (((c - lo) * scale) as usize).min(BIN_COUNT - 1);
-            let fill = |chunk: &[u32]| {
-                let mut bins = EMPTY_BINS;
-                for &t in chunk {
-                    let bin = &mut bins[bin_of(self.centroids[t as usize][axis])];
-                    bin.0 = bin.0.union(&self.boxes[t as usize]);
-                    bin.1 += 1;
-                }
-                bins
-            };
-            // Unions and counts do not depend on the order of reduction, so the parallel form is exact.
-            let bins = if order_len_is_large(order.len()) {
-                order.par_chunks(PARALLEL_THRESHOLD).map(fill).reduce(|| EMPTY_BINS, merge_bins)
+        let (best_cost, best) = match references.len() {
+            0..=2 => best_plane::<2>(references, &range.centroids),
+            3..=4 => best_plane::<4>(references, &range.centroids),
+            5..=8 => best_plane::<8>(references, &range.centroids),
+            _ => best_plane::<BIN_COUNT>(references, &range.centroids),
+        };
+        if let SplitChoice::Plane { .. } = best {
+            let area = f64::from(half_area(&range.bounds));
+            let split_cost = if area > 0.0 {
+                TRAVERSAL_COST + INTERSECTION_COST * f64::from(best_cost) / area
             } else {
-                fill(order)
+                f64::INFINITY
             };
-            // Sweep from the right to get the right-side areas, then from the left.
-            let mut right_area = [0.0f64; BIN_COUNT];
-            let mut acc = (Aabb::EMPTY, 0usize);
-            for b in (1..BIN_COUNT).rev() {
-                acc = (acc.0.union(&bins[b].0), acc.1 + bins[b].1);
-                right_area[b] = acc.0.surface_area() * acc.1 as f64;
-            }
-            let mut left = (Aabb::EMPTY, 0usize);
-            for b in 1..BIN_COUNT {
-                left = (left.0.union(&bins[b - 1].0), left.1 + bins[b - 1].1);
-                if left.1 == 0 || left.1 == order.len() {
-                    continue;
-                }
-                let cost = left.0.surface_area() * left.1 as f64 + right_area[b];
-                if cost < best.0 {
-                    best = (cost, SplitChoice::Plane { axis, position: lo + b as f32 / scale });
-                }
-            }
-        }
-        let area = aabb.surface_area();
-        if let SplitChoice::Plane { .. } = best.1 {
-            let split_cost =
-                if area > 0.0 { TRAVERSAL_COST + INTERSECTION_COST * best.0 / area } else { f64::INFINITY };
-            if split_cost >= leaf_cost {
+            if split_cost >= INTERSECTION_COST * references.len() as f64 {
                 return SplitChoice::Leaf;
             }
         }
-        best.1
+        best
     }
 }
 
-/// Per bin: the box and the count of the triangles whose centroid falls into it.
-type Bins = [(Aabb, usize); BIN_COUNT];
-const EMPTY_BINS: Bins = [(Aabb::EMPTY, 0); BIN_COUNT];
-
-fn merge_bins(mut a: Bins, b: Bins) -> Bins {
-    for (x, y) in a.iter_mut().zip(b) {
-        *x = (x.0.union(&y.0), x.1 + y.1);
-    }
-    a
+/// Per axis and bin: the box of the references whose centroid falls into the bin, and their count.
+struct Bins<const N: usize> {
+    bounds: [[Box4; N]; 3],
+    counts: [[u32; N]; 3],
 }
 
-impl Builder<'_> {
-    /// The union of `item(t)` over `order` (in parallel chunks for large nodes; exact either way).
-    fn bounds(&self, order: &[u32], item: impl Fn(u32) -> Aabb + Sync) -> Aabb {
-        let fold = |chunk: &[u32]| chunk.iter().fold(Aabb::EMPTY, |b, &t| b.union(&item(t)));
-        if order_len_is_large(order.len()) {
-            order.par_chunks(PARALLEL_THRESHOLD).map(fold).reduce(|| Aabb::EMPTY, |a, b| a.union(&b))
-        } else {
-            fold(order)
+impl<const N: usize> Bins<N> {
+    const EMPTY: Bins<N> = Bins { bounds: [[Box4::EMPTY; N]; 3], counts: [[0; N]; 3] };
+
+    fn merge(mut self, other: Bins<N>) -> Bins<N> {
+        for axis in 0..3 {
+            for b in 0..N {
+                self.bounds[axis][b] = self.bounds[axis][b].union(&other.bounds[axis][b]);
+                self.counts[axis][b] += other.counts[axis][b];
+            }
+        }
+        self
+    }
+}
+
+/// The binned plane of lowest `A_left n_left + A_right n_right` over `N` bins an axis (`Median` when no axis
+/// has spread centroids), with that sum in half areas.
+fn best_plane<const N: usize>(references: &[Reference], centroids: &Box4) -> (f32, SplitChoice) {
+    let count = references.len();
+    let binning = Binning::new(centroids, N);
+    let fill = |chunk: &[Reference]| {
+        let mut bins = Bins::<N>::EMPTY;
+        for reference in chunk {
+            for (axis, &c) in reference.centroid2()[..3].iter().enumerate() {
+                let b = binning.bin_of(c, axis);
+                bins.bounds[axis][b] = bins.bounds[axis][b].union(&reference.bounds);
+                bins.counts[axis][b] += 1;
+            }
+        }
+        bins
+    };
+    // Unions and counts do not depend on the order of reduction, so the parallel form is exact.
+    let bins = if count > BINNING_CHUNK {
+        references.par_chunks(BINNING_CHUNK).map(fill).reduce(|| Bins::EMPTY, Bins::merge)
+    } else {
+        fill(references)
+    };
+    let mut best = (f32::INFINITY, SplitChoice::Median);
+    for axis in (0..3).filter(|&axis| binning.spreads(axis)) {
+        let (bounds, counts) = (&bins.bounds[axis], &bins.counts[axis]);
+        // Sweep from the right to get the right sides, then from the left.
+        let mut right_sides = [(Box4::EMPTY, 0u32); N];
+        let mut acc = (Box4::EMPTY, 0u32);
+        for b in (1..N).rev() {
+            acc = (acc.0.union(&bounds[b]), acc.1 + counts[b]);
+            right_sides[b] = acc;
+        }
+        let mut left = (Box4::EMPTY, 0u32);
+        for b in 1..N {
+            left = (left.0.union(&bounds[b - 1]), left.1 + counts[b - 1]);
+            if left.1 == 0 || left.1 as usize == count {
+                continue;
+            }
+            let right = &right_sides[b];
+            let cost = half_area(&left.0) * left.1 as f32 + half_area(&right.0) * right.1 as f32;
+            if cost < best.0 {
+                let (left_bounds, right_bounds) = (left.0, right.0);
+                best = (cost, SplitChoice::Plane { axis, bin: b, binning, left_bounds, right_bounds });
+            }
         }
     }
+    best
 }
 
-fn order_len_is_large(len: usize) -> bool {
-    len > PARALLEL_THRESHOLD
+/// Half the surface area, in f32 (the split decisions compare ratios, so the factor 2 does not matter), saturated
+/// at `f32::MAX` so that huge boxes compare as large instead of infinite or NaN.
+#[inline(always)]
+fn half_area(bounds: &Box4) -> f32 {
+    let e: [f32; 3] = std::array::from_fn(|a| bounds.max[a] - bounds.min[a]);
+    (e[0] * e[1] + e[1] * e[2] + e[2] * e[0]).min(f32::MAX)
 }
 
-/// Appends `src` (indices from 0) to `dst`, shifting its child indices; returns where it starts.
-fn append_shifted(dst: &mut Vec<BuildNode>, src: &[BuildNode]) -> usize {
-    let offset = dst.len();
-    dst.extend(src.iter().map(|node| match *node {
-        BuildNode::Inner { aabb, left, right } => {
-            BuildNode::Inner { aabb, left: left + offset as u32, right: right + offset as u32 }
-        }
-        leaf => leaf,
-    }));
-    offset
+/// The mapping of (doubled) centroids to bins along the three axes of a node.
+#[derive(Clone, Copy, Debug)]
+struct Binning {
+    low: [f32; 3],
+    /// 0 along an axis where the centroids do not spread (everything falls into bin 0 there).
+    scale: [f32; 3],
+    last: usize,
+}
+
+impl Binning {
+    fn new(centroids: &Box4, bin_count: usize) -> Binning {
+        let scale = std::array::from_fn(|a| {
+            let (low, high) = (centroids.min[a], centroids.max[a]);
+            if high > low { bin_count as f32 / (high - low) } else { 0.0 }
+        });
+        let scale = scale.map(|s: f32| if s.is_finite() { s } else { 0.0 });
+        Binning { low: [centroids.min[0], centroids.min[1], centroids.min[2]], scale, last: bin_count - 1 }
+    }
+
+    /// Whether the centroids spread along `axis`, so that its bins are worth a sweep.
+    fn spreads(&self, axis: usize) -> bool {
+        self.scale[axis] > 0.0
+    }
+
+    /// The bin of doubled centroid coordinate `c` along `axis` (the partition uses the same function, so both
+    /// agree exactly).
+    #[inline(always)]
+    fn bin_of(&self, c: f32, axis: usize) -> usize {
+        (((c - self.low[axis]) * self.scale[axis]) as usize).min(self.last)
+    }
 }
 
 enum SplitChoice {
     Leaf,
     Median,
-    Plane { axis: usize, position: f32 },
+    /// Centroids in bins `< bin` along `axis` go left; the sides' boxes come from the bins.
+    Plane {
+        axis: usize,
+        bin: usize,
+        binning: Binning,
+        left_bounds: Box4,
+        right_bounds: Box4,
+    },
 }
 
-/// Moves the items satisfying `goes_left` to the front (in place, deterministic); returns their count. Falls
-/// back to the middle when one side would be empty (possible through rounding at a bin boundary).
-fn partition(order: &mut [u32], goes_left: impl Fn(u32) -> bool) -> usize {
-    let mut mid = 0;
-    for i in 0..order.len() {
-        if goes_left(order[i]) {
-            order.swap(i, mid);
-            mid += 1;
+/// The two children's boxes and centroid boxes, left then right.
+struct Sides {
+    bounds: [Box4; 2],
+    centroids: [Box4; 2],
+}
+
+/// The union of `item(r)` over `references` (in parallel chunks for large ranges; exact either way).
+fn union_of(references: &[Reference], item: impl Fn(&Reference) -> Box4 + Sync) -> Box4 {
+    let fold = |chunk: &[Reference]| chunk.iter().fold(Box4::EMPTY, |b, r| b.union(&item(r)));
+    if references.len() > BINNING_CHUNK {
+        references.par_chunks(BINNING_CHUNK).map(fold).reduce(|| Box4::EMPTY, |a, b| a.union(&b))
+    } else {
+        fold(references)
+    }
+}
+
+/// Splits at the median reference by centroid along the longest axis of the centroid box (ties by triangle
+/// index, so the result is deterministic); returns the split position and the two sides.
+fn median_split(references: &mut [Reference], centroids: &Box4) -> (usize, Sides) {
+    let axis = centroids.to_aabb().longest_axis();
+    let mid = references.len() / 2;
+    references.select_nth_unstable_by(mid, |a, b| {
+        a.centroid2()[axis].total_cmp(&b.centroid2()[axis]).then(a.triangle().cmp(&b.triangle()))
+    });
+    let (left, right) = references.split_at(mid);
+    let sides = Sides {
+        bounds: [union_of(left, |r| r.bounds), union_of(right, |r| r.bounds)],
+        centroids: [union_of(left, Reference::centroid_box), union_of(right, Reference::centroid_box)],
+    };
+    (mid, sides)
+}
+
+/// Moves the references satisfying `goes_left` to the front (in place, deterministic); returns their count and
+/// the centroid boxes of both sides, gathered on the way. The split choice guarantees both sides are non-empty.
+fn partition(references: &mut [Reference], goes_left: impl Fn(&Reference) -> bool) -> (usize, Box4, Box4) {
+    let (mut i, mut j) = (0, references.len());
+    let (mut left, mut right) = (Box4::EMPTY, Box4::EMPTY);
+    while i < j {
+        let centroid = references[i].centroid_box();
+        if goes_left(&references[i]) {
+            left = left.union(&centroid);
+            i += 1;
+        } else {
+            right = right.union(&centroid);
+            j -= 1;
+            references.swap(i, j);
         }
     }
-    if mid == 0 || mid == order.len() { order.len() / 2 } else { mid }
+    (i, left, right)
+}
+
+/// `nodes` without the unused slots, child indices renumbered. Slots are in preorder with gaps, so dropping the
+/// gaps keeps preorder.
+fn squeeze_unused(nodes: Vec<BuildNode>) -> Vec<BuildNode> {
+    let is_used = |node: &BuildNode| !matches!(node, BuildNode::Leaf { count: 0, .. });
+    if nodes.iter().all(is_used) {
+        return nodes;
+    }
+    let mut new_index = Vec::with_capacity(nodes.len());
+    let mut used = 0u32;
+    for node in &nodes {
+        new_index.push(used);
+        used += u32::from(is_used(node));
+    }
+    nodes
+        .into_iter()
+        .filter(is_used)
+        .map(|node| match node {
+            BuildNode::Inner { aabb, left, right } => {
+                BuildNode::Inner { aabb, left: new_index[left as usize], right: new_index[right as usize] }
+            }
+            leaf => leaf,
+        })
+        .collect()
 }

@@ -51,12 +51,38 @@ pub fn area(aabb: &Aabb) -> f32 {
 impl OptTree {
     /// The tree of `build`, with leaves of several triangles split (binned SAH) into one-triangle leaves.
     pub fn from_build_tree(build: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> OptTree {
+        if !build.nodes.is_empty() && build.nodes.len() + 1 == 2 * build.triangle_order.len() {
+            return OptTree::from_single_triangle_leaves(build);
+        }
         let mut tree = OptTree { nodes: Vec::with_capacity(2 * triangles.len()), root: NONE };
         if build.nodes.is_empty() {
             return tree;
         }
         tree.root = tree.add_build_subtree(build, 0, triangles, NONE);
         tree
+    }
+
+    /// The tree of `build` node for node (same indices, root 0), when every leaf holds one triangle (a binary
+    /// tree over `n` triangles with `2n - 1` nodes has no other kind of leaf).
+    fn from_single_triangle_leaves(build: &BuildTree) -> OptTree {
+        let mut nodes: Vec<OptNode> = build
+            .nodes
+            .par_iter()
+            .map(|node| match *node {
+                BuildNode::Inner { aabb, left, right } => OptNode { aabb, parent: NONE, left, right },
+                BuildNode::Leaf { aabb, first, .. } => {
+                    OptNode { aabb, parent: NONE, left: NONE, right: build.triangle_order[first as usize] }
+                }
+            })
+            .collect();
+        for i in 0..nodes.len() {
+            let OptNode { left, right, .. } = nodes[i];
+            if left != NONE {
+                nodes[left as usize].parent = i as u32;
+                nodes[right as usize].parent = i as u32;
+            }
+        }
+        OptTree { nodes, root: 0 }
     }
 
     fn add_build_subtree(&mut self, build: &BuildTree, index: usize, triangles: &[[[f32; 3]; 3]], parent: u32) -> u32 {
