@@ -12,6 +12,7 @@
 //! Both loops keep the best tree seen (batch costs are not monotone) and return it; both are deterministic, and
 //! the parallel one gives the same tree for any number of threads.
 
+mod edit_log;
 mod invariants;
 mod merge;
 mod parallel;
@@ -28,6 +29,7 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 
+pub use edit_log::EditLog;
 pub use merge::merge_leaves;
 pub use params::{Algorithm, OptimizeParams, Preset};
 pub use search::{Move, SearchQueue, best_in_subtree, best_insertion, best_move};
@@ -141,15 +143,18 @@ pub fn optimize_inspected(
             }
         },
     };
-    run.finish(tree, stop)
+    run.finish(tree, stop, params.constants)
 }
 
-/// The state shared by the phases of one optimization: the best tree, counts, the clock.
+/// The state shared by the phases of one optimization: the edits since the best tree, counts, the clock.
 struct Run<'i> {
     start: Instant,
     report: OptimizeReport,
-    best_nodes: Vec<OptNode>,
-    best_root: u32,
+    /// The current tree is the best one plus the edits in this log.
+    edits: EditLog,
+    /// Leaf areas and the root's area, which no move changes.
+    leaf_area: f64,
+    root_area: f64,
     rng: Pcg64Mcg,
     queue: SearchQueue,
     inspect: &'i mut dyn FnMut(&OptTree),
@@ -157,7 +162,9 @@ struct Run<'i> {
 
 impl<'i> Run<'i> {
     fn new(tree: &OptTree, params: &OptimizeParams, inspect: &'i mut dyn FnMut(&OptTree)) -> Run<'i> {
-        let initial = cost_of(tree, params.constants);
+        let (inner_area, leaf_area) = tree.area_sums();
+        let root_area = tree.root_area();
+        let initial = sah_of_sums(inner_area, leaf_area, root_area, params.constants);
         Run {
             start: Instant::now(),
             report: OptimizeReport {
@@ -168,12 +175,18 @@ impl<'i> Run<'i> {
                 elapsed: Duration::ZERO,
                 stop: StopReason::NothingToDo,
             },
-            best_nodes: tree.nodes.clone(),
-            best_root: tree.root,
+            edits: EditLog::new(tree, inner_area),
+            leaf_area,
+            root_area,
             rng: Pcg64Mcg::seed_from_u64(params.seed),
             queue: SearchQueue::default(),
             inspect,
         }
+    }
+
+    /// The cost of the current tree, from the running area sum.
+    fn current_cost(&self, constants: SahConstants) -> SahCost {
+        sah_of_sums(self.edits.inner_area(), self.leaf_area, self.root_area, constants)
     }
 
     /// Batches of one loop (`params.algorithm` is Parallel or Sequential) until one of the stop rules holds.
@@ -183,7 +196,7 @@ impl<'i> Run<'i> {
         params: &OptimizeParams,
         progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
     ) -> StopReason {
-        let mut progress_cost = cost_of(tree, params.constants).cost;
+        let mut progress_cost = self.current_cost(params.constants).cost;
         let mut stagnant = 0u32;
         let scheduled = params.decreasing_fractions && params.algorithm != Algorithm::Sequential;
         let mut round = 0u32;
@@ -195,21 +208,21 @@ impl<'i> Run<'i> {
             let step = if scheduled { round % 16 } else { 0 };
             let fraction = params.batch_fraction / f64::from(2 * step + 1);
             round += 1;
-            let batch = select_batch(tree, selection, fraction, &mut self.rng);
+            let ordered = params.algorithm == Algorithm::Sequential;
+            let batch = select_batch(tree, selection, fraction, ordered, &mut self.rng);
             if batch.is_empty() {
                 return StopReason::NothingToDo;
             }
             self.report.moves += match params.algorithm {
-                Algorithm::Sequential => sequential::run_batch(tree, &batch, &mut self.queue),
-                Algorithm::Parallel | Algorithm::Alternating => parallel::run_round(tree, &batch),
+                Algorithm::Sequential => sequential::run_batch(tree, &batch, &mut self.queue, &mut self.edits),
+                Algorithm::Parallel | Algorithm::Alternating => parallel::run_round(tree, &batch, &mut self.edits),
             };
             self.report.batches += 1;
             (self.inspect)(tree);
-            let cost = cost_of(tree, params.constants);
+            let cost = self.current_cost(params.constants);
             if cost.cost < self.report.best.cost {
                 self.report.best = cost;
-                self.best_nodes.copy_from_slice(&tree.nodes);
-                self.best_root = tree.root;
+                self.edits.mark(tree);
             }
             let judged = !scheduled || step == 15;
             if judged && self.report.best.cost < progress_cost * (1.0 - params.min_relative_improvement) {
@@ -226,7 +239,7 @@ impl<'i> Run<'i> {
             }
             if stagnant >= params.stop_after {
                 // Continue the next phase from the best tree, not from a worse last batch.
-                self.restore_best(tree);
+                self.edits.restore(tree);
                 return StopReason::Converged;
             }
             if params.time_budget.is_some_and(|budget| elapsed >= budget) {
@@ -235,13 +248,10 @@ impl<'i> Run<'i> {
         }
     }
 
-    fn restore_best(&self, tree: &mut OptTree) {
-        tree.nodes.copy_from_slice(&self.best_nodes);
-        tree.root = self.best_root;
-    }
-
-    fn finish(mut self, tree: &mut OptTree, stop: StopReason) -> OptimizeReport {
-        self.restore_best(tree);
+    fn finish(mut self, tree: &mut OptTree, stop: StopReason, constants: SahConstants) -> OptimizeReport {
+        self.edits.restore(tree);
+        // A fresh sum for the report (the running one differs by rounding only).
+        self.report.best = cost_of(tree, constants);
         self.report.stop = stop;
         self.report.elapsed = self.start.elapsed();
         self.report

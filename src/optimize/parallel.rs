@@ -12,11 +12,12 @@
 
 use rayon::prelude::*;
 
+use super::edit_log::EditLog;
 use super::search::{Move, SearchQueue, best_move};
-use super::tree::{NONE, OptTree};
+use super::tree::{NONE, OptNode, OptTree};
 
 /// Runs one round over the batch `batch`; returns the moves applied.
-pub fn run_round(tree: &mut OptTree, batch: &[u32]) -> u64 {
+pub fn run_round(tree: &mut OptTree, batch: &[u32], log: &mut EditLog) -> u64 {
     let frozen: &OptTree = tree;
     let proposals: Vec<Option<Move>> = batch
         .par_iter()
@@ -31,14 +32,14 @@ pub fn run_round(tree: &mut OptTree, batch: &[u32]) -> u64 {
         })
         .collect();
     let mut moves: Vec<Move> = proposals.into_iter().flatten().collect();
-    moves.sort_unstable_by(|a, b| a.delta.total_cmp(&b.delta).then(a.node.cmp(&b.node)));
+    moves.par_sort_unstable_by(|a, b| a.delta.total_cmp(&b.delta).then(a.node.cmp(&b.node)));
     let mut locked = vec![0u64; tree.nodes.len().div_ceil(64)];
     let mut applied = 0;
     for m in moves {
         let Some(touched) = touched_if_free(tree, &locked, m) else {
             continue;
         };
-        apply(tree, m.node, m.target);
+        apply(tree, m.node, m.target, log);
         for i in touched.into_iter().filter(|&i| i != NONE) {
             locked[i as usize / 64] |= 1 << (i % 64);
         }
@@ -92,19 +93,16 @@ fn is_in_subtree(tree: &OptTree, mut x: u32, c: u32) -> bool {
 }
 
 /// Moves `c` (with its subtree) to be the sibling of `x`, reusing `c`'s parent as their new parent.
-fn apply(tree: &mut OptTree, c: u32, x: u32) {
+fn apply(tree: &mut OptTree, c: u32, x: u32, log: &mut EditLog) {
     let p = tree.nodes[c as usize].parent;
     let s = tree.sibling(c);
     let g = tree.nodes[p as usize].parent;
-    tree.replace_child(g, p, s);
-    tree.refit_from(g);
+    tree.replace_child_logged(g, p, s, log);
+    tree.refit_from_logged(g, log);
     let y = tree.nodes[x as usize].parent;
     let aabb = tree.nodes[x as usize].aabb.union(&tree.nodes[c as usize].aabb);
-    let node = &mut tree.nodes[p as usize];
-    node.aabb = aabb;
-    node.left = x;
-    node.right = c;
-    tree.replace_child(y, x, p);
-    tree.nodes[x as usize].parent = p;
-    tree.refit_from(y);
+    tree.set_inner_logged(p, OptNode { aabb, parent: tree.nodes[p as usize].parent, left: x, right: c }, log);
+    tree.replace_child_logged(y, x, p, log);
+    tree.set_parent_logged(x, p, log);
+    tree.refit_from_logged(y, log);
 }

@@ -63,34 +63,67 @@ fn measure(tree: &OptTree, i: u32, selection: Selection) -> f64 {
     }
 }
 
-/// Whether `i` may be chosen: an inner node with a grandparent.
+/// Whether `i` may be chosen: an inner node with a grandparent, that is neither the root nor a child of the
+/// root (only the root has no parent), which reads node `i` alone.
 pub fn is_eligible(tree: &OptTree, i: u32) -> bool {
     let node = &tree.nodes[i as usize];
-    node.left != NONE && node.parent != NONE && tree.nodes[node.parent as usize].parent != NONE
+    node.left != NONE && i != tree.root && node.parent != tree.root
 }
 
-/// The batch: `fraction` of the eligible nodes (at least one), most inefficient first.
-pub fn select_batch(tree: &OptTree, selection: Selection, fraction: f64, rng: &mut Pcg64Mcg) -> Vec<u32> {
-    let eligible: Vec<u32> = (0..tree.nodes.len() as u32).into_par_iter().filter(|&i| is_eligible(tree, i)).collect();
-    if eligible.is_empty() {
-        return eligible;
+/// How many nodes [`is_eligible`] accepts, in O(1): a tree of one-triangle leaves has `nodes / 2` inner nodes
+/// (`2t - 1` nodes, `t - 1` inner), less the root and its inner children.
+fn eligible_count(tree: &OptTree) -> usize {
+    if tree.root == NONE || tree.is_leaf(tree.root) {
+        return 0;
     }
-    let k = ((eligible.len() as f64 * fraction).ceil() as usize).clamp(1, eligible.len());
-    if selection == Selection::Random {
-        let mut pool = eligible;
-        for i in 0..k {
-            let j = rng.random_range(i..pool.len());
-            pool.swap(i, j);
-        }
-        pool.truncate(k);
-        return pool;
+    let root = &tree.nodes[tree.root as usize];
+    let inner_children = usize::from(!tree.is_leaf(root.left)) + usize::from(!tree.is_leaf(root.right));
+    tree.nodes.len() / 2 - 1 - inner_children
+}
+
+/// The batch: `fraction` of the eligible nodes (at least one), the most inefficient ones. With `ordered` they
+/// come most inefficient first (the sequential loop reinserts in this order); without, in an unspecified but
+/// deterministic order (the parallel loop orders its moves by gain, so it needs only the set), which spares
+/// the sort, and a batch of every eligible node spares the measures too.
+pub fn select_batch(
+    tree: &OptTree,
+    selection: Selection,
+    fraction: f64,
+    ordered: bool,
+    rng: &mut Pcg64Mcg,
+) -> Vec<u32> {
+    let eligible_count = eligible_count(tree);
+    if eligible_count == 0 {
+        return Vec::new();
     }
-    let mut ranked: Vec<(f64, u32)> = eligible.par_iter().map(|&i| (measure(tree, i, selection), i)).collect();
+    let k = ((eligible_count as f64 * fraction).ceil() as usize).clamp(1, eligible_count);
+    if selection == Selection::Random || (k == eligible_count && !ordered) {
+        let eligible: Vec<u32> =
+            (0..tree.nodes.len() as u32).into_par_iter().filter(|&i| is_eligible(tree, i)).collect();
+        return if selection == Selection::Random { random_subset(eligible, k, rng) } else { eligible };
+    }
+    let mut ranked: Vec<(f64, u32)> = (0..tree.nodes.len() as u32)
+        .into_par_iter()
+        .filter(|&i| is_eligible(tree, i))
+        .map(|i| (measure(tree, i, selection), i))
+        .collect();
     let by_measure = |a: &(f64, u32), b: &(f64, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
     if k < ranked.len() {
         ranked.select_nth_unstable_by(k, by_measure);
         ranked.truncate(k);
     }
-    ranked.sort_unstable_by(by_measure);
+    if ordered {
+        ranked.par_sort_unstable_by(by_measure);
+    }
     ranked.into_iter().map(|(_, i)| i).collect()
+}
+
+/// `k` of `pool`, uniformly at random (a partial Fisher-Yates shuffle).
+fn random_subset(mut pool: Vec<u32>, k: usize, rng: &mut Pcg64Mcg) -> Vec<u32> {
+    for i in 0..k {
+        let j = rng.random_range(i..pool.len());
+        pool.swap(i, j);
+    }
+    pool.truncate(k);
+    pool
 }

@@ -6,12 +6,13 @@
 //!
 //! Deviation from the paper: none in the loop; the search breaks ties deterministically (see `search`).
 
+use super::edit_log::EditLog;
 use super::search::{SearchQueue, best_insertion};
 use super::select::is_eligible;
 use super::tree::{OptNode, OptTree};
 
 /// Runs one batch over `batch` (nodes skipped when they became ineligible); returns the reinsertions made.
-pub fn run_batch(tree: &mut OptTree, batch: &[u32], queue: &mut SearchQueue) -> u64 {
+pub fn run_batch(tree: &mut OptTree, batch: &[u32], queue: &mut SearchQueue, log: &mut EditLog) -> u64 {
     let mut reinsertions = 0;
     for &n in batch {
         if !is_eligible(tree, n) {
@@ -20,8 +21,8 @@ pub fn run_batch(tree: &mut OptTree, batch: &[u32], queue: &mut SearchQueue) -> 
         let p = tree.nodes[n as usize].parent;
         let s = tree.sibling(n);
         let g = tree.nodes[p as usize].parent;
-        tree.replace_child(g, p, s);
-        tree.refit_from(g);
+        tree.replace_child_logged(g, p, s, log);
+        tree.refit_from_logged(g, log);
         let node = tree.nodes[n as usize];
         let (first, second) = if tree.area(node.right) > tree.area(node.left) {
             (node.right, node.left)
@@ -33,11 +34,11 @@ pub fn run_batch(tree: &mut OptTree, batch: &[u32], queue: &mut SearchQueue) -> 
             let x = best_insertion(tree, queue, &child_box);
             let y = tree.nodes[x as usize].parent;
             let aabb = tree.nodes[x as usize].aabb.union(&child_box);
-            tree.nodes[free as usize] = OptNode { aabb, parent: y, left: x, right: child };
-            tree.replace_child(y, x, free);
-            tree.nodes[x as usize].parent = free;
-            tree.nodes[child as usize].parent = free;
-            tree.refit_from(y);
+            tree.set_inner_logged(free, OptNode { aabb, parent: y, left: x, right: child }, log);
+            tree.replace_child_logged(y, x, free, log);
+            tree.set_parent_logged(x, free, log);
+            tree.set_parent_logged(child, free, log);
+            tree.refit_from_logged(y, log);
         }
         reinsertions += 1;
     }

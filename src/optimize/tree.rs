@@ -5,6 +5,7 @@
 
 use rayon::prelude::*;
 
+use super::edit_log::EditLog;
 use crate::aabb::Aabb;
 use crate::build::{BuildNode, BuildTree, build_binned_sah};
 
@@ -151,6 +152,13 @@ impl OptTree {
 
     /// Replaces `old` by `new` among the children of `parent` (or as the root when `parent` is `NONE`).
     pub fn replace_child(&mut self, parent: u32, old: u32, new: u32) {
+        self.replace_child_logged(parent, old, new, &mut EditLog::unrecorded());
+    }
+
+    /// [`OptTree::replace_child`], saving what it changes in `log`.
+    pub fn replace_child_logged(&mut self, parent: u32, old: u32, new: u32, log: &mut EditLog) {
+        log.save(self, parent);
+        log.save(self, new);
         if parent == NONE {
             self.root = new;
         } else {
@@ -165,16 +173,36 @@ impl OptTree {
     }
 
     /// Recomputes boxes from `i` up to the root, stopping where a box does not change.
-    pub fn refit_from(&mut self, mut i: u32) {
+    pub fn refit_from(&mut self, i: u32) {
+        self.refit_from_logged(i, &mut EditLog::unrecorded());
+    }
+
+    /// [`OptTree::refit_from`], saving what it changes in `log` and adding the area change.
+    pub fn refit_from_logged(&mut self, mut i: u32, log: &mut EditLog) {
         while i != NONE {
             let node = self.nodes[i as usize];
             let aabb = self.nodes[node.left as usize].aabb.union(&self.nodes[node.right as usize].aabb);
             if aabb == node.aabb {
                 return;
             }
+            log.save(self, i);
+            log.box_changed(&node.aabb, &aabb);
             self.nodes[i as usize].aabb = aabb;
             i = node.parent;
         }
+    }
+
+    /// Writes `node` into inner node `i` (inner before and after), saving it in `log` and adding the area change.
+    pub fn set_inner_logged(&mut self, i: u32, node: OptNode, log: &mut EditLog) {
+        log.save(self, i);
+        log.box_changed(&self.nodes[i as usize].aabb, &node.aabb);
+        self.nodes[i as usize] = node;
+    }
+
+    /// Sets the parent link of node `i`, saving it in `log`.
+    pub fn set_parent_logged(&mut self, i: u32, parent: u32, log: &mut EditLog) {
+        log.save(self, i);
+        self.nodes[i as usize].parent = parent;
     }
 
     /// Sum of the inner nodes' areas and of the leaves' areas, each area in f64 as the cost module computes
