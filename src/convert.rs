@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use crate::build::Builder;
 use crate::cost::{SahCost, sah_of_build_tree};
-use crate::import::{ImportOptions, ImportReport, import};
+use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
 use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
 use crate::pack::pack;
 use crate::up_to_date::input_entries;
@@ -216,6 +216,9 @@ pub fn convert_with(
     refuse_output_among(output, &imported.files_read)?;
     let soup = imported.soup;
     let triangles = soup.triangle_vertices();
+    // Each large intermediate is dropped once its stage is done, so the peak is one stage's working set: here
+    // the soup's vertices and indices (the triangles hold the positions now).
+    let TriangleSoup { source_ids: soup_source_ids, sources: soup_sources, .. } = soup;
     if u32::try_from(triangles.len()).is_err() {
         return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
     }
@@ -234,21 +237,26 @@ pub fn convert_with(
     let wide_tree = options.wide.map(|costs| (collapse(&tree, &costs), costs));
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
     let final_tree = merge_leaves(&tree, options.optimize.constants, leaf_size);
+    drop(tree);
     timings.merge = lap(clock);
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
     let cost = sah_of_build_tree(&final_tree, options.optimize.constants);
     let packed = pack(&final_tree, &triangles);
-    check_every_triangle_once(&packed.triangle_ids, triangles.len())?;
+    drop(final_tree);
+    let triangle_count = triangles.len();
+    drop(triangles);
+    check_every_triangle_once(&packed.triangle_ids, triangle_count)?;
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
-    let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup.source_ids[t as usize]).collect();
-    let wide = match &wide_tree {
+    let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup_source_ids[t as usize]).collect();
+    drop(soup_source_ids);
+    let wide = match wide_tree {
         Some((wide_tree, costs)) => {
-            let bvh = pack_wide(wide_tree, &packed.triangles, Some(&packed.file_index_of(triangles.len())))?;
+            let bvh = pack_wide(&wide_tree, &packed.triangles, Some(&packed.file_index_of(triangle_count)))?;
             let summary = WideSummary {
                 node_count: bvh.nodes().len(),
                 packet_count: bvh.packets().len(),
-                cost: wide_tree.cost(costs),
+                cost: wide_tree.cost(&costs),
             };
             Some((bvh, summary))
         }
@@ -262,7 +270,7 @@ pub fn convert_with(
     let metadata = metadata_json(inputs, options, &cost, &imported.report, summary.as_ref());
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles).metadata(&metadata);
     if options.write_ids {
-        writer = writer.triangle_ids(&source_ids).source_table(&soup.sources);
+        writer = writer.triangle_ids(&source_ids).source_table(&soup_sources);
     }
     if let Some((bvh, _)) = &wide {
         writer = writer.wide(bvh.nodes(), bvh.packets());

@@ -38,6 +38,9 @@ pub use tree::{NONE, OptNode, OptTree, area};
 
 use crate::cost::{SahConstants, SahCost, sah_of_sums};
 
+/// Relative change below which the running cost of a batch (see [`EditLog`]) does not count as a new best.
+const RUNNING_COST_TOLERANCE: f64 = 1e-12;
+
 /// What the optimizer reports after each batch.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Progress {
@@ -220,11 +223,22 @@ impl<'i> Run<'i> {
             self.report.batches += 1;
             (self.inspect)(tree);
             let cost = self.current_cost(params.constants);
-            if cost.cost < self.report.best.cost {
+            // The running cost drifts from a fresh sum by rounding, so an "improvement" at that level is not
+            // one: counting it could return a tree that a fresh sum prices above the initial one.
+            let improved = cost.cost < self.report.best.cost * (1.0 - RUNNING_COST_TOLERANCE);
+            if improved {
                 self.report.best = cost;
                 self.edits.mark(tree);
             }
-            let judged = !scheduled || step == 15;
+            // A sequence ends after its 16th round, or early at its first round that does not lower the best
+            // cost: the later, smaller rounds then only move the same few nodes back and forth. The next
+            // sequence starts from the best tree.
+            let sequence_ends = step == 15 || !improved;
+            if scheduled && sequence_ends {
+                round = round.next_multiple_of(16);
+                self.edits.restore(tree);
+            }
+            let judged = !scheduled || sequence_ends;
             if judged && self.report.best.cost < progress_cost * (1.0 - params.min_relative_improvement) {
                 progress_cost = self.report.best.cost;
                 stagnant = 0;

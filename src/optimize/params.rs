@@ -35,8 +35,9 @@ pub struct OptimizeParams {
     /// Fraction of the eligible inner nodes per batch (`k`; the paper's 1% = 0.01).
     pub batch_fraction: f64,
     /// Parallel loop only: round `r` takes `batch_fraction / (2 (r mod 16) + 1)` of the ranked nodes (the
-    /// sequence obvhs uses: full rounds alternate with rounds on the most inefficient nodes only), and progress
-    /// is judged once per sequence of 16 rounds; `random_after` and `stop_after` then count sequences.
+    /// sequence obvhs uses: full rounds alternate with rounds on the most inefficient nodes only); a sequence
+    /// ends early at a round that does not lower the best cost, and the next starts from the best tree.
+    /// Progress is judged once per sequence; `random_after` and `stop_after` then count sequences.
     pub decreasing_fractions: bool,
     /// `p_R`: batches without progress before selection turns random (until the next progress).
     pub random_after: u32,

@@ -23,7 +23,17 @@ pub fn pack_wide(
         return Err(unwritable(format!("width {} is more than the layout's {WIDE}", tree.width)));
     }
     let mut nodes = Vec::with_capacity(tree.nodes.len());
-    let mut packets = Vec::with_capacity(tree.triangle_order.len().div_ceil(PACKET_LANES));
+    // Exactly the packets the leaves need (a guess would let the vector double, up to twice the memory).
+    let packet_count: usize = tree
+        .nodes
+        .iter()
+        .flat_map(|node| &node.children)
+        .map(|(_, child)| match *child {
+            WideChild::Leaf { count, .. } => (count as usize).div_ceil(PACKET_LANES),
+            WideChild::Node(_) => 0,
+        })
+        .sum();
+    let mut packets = Vec::with_capacity(packet_count);
     let mut lanes = Vec::with_capacity(PACKET_LANES);
     for (i, node) in tree.nodes.iter().enumerate() {
         let mut packed = WideNode8::EMPTY;
