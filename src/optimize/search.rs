@@ -53,13 +53,30 @@ pub fn best_in_subtree(
     l: &Aabb,
     start: u32,
     base: f32,
+    best: f32,
+) -> Option<(f32, u32)> {
+    search(tree, queue, l, area(l), start, base, best)
+}
+
+/// [`best_in_subtree`] with `SA(L)` given, inlined into the move search's loop over levels (a call per level
+/// was a tenth of its instructions).
+#[inline(always)]
+fn search(
+    tree: &OptTree,
+    queue: &mut SearchQueue,
+    l: &Aabb,
+    area_l: f32,
+    start: u32,
+    base: f32,
     mut best: f32,
 ) -> Option<(f32, u32)> {
-    let area_l = area(l);
     let mut found = None;
     queue.heap.clear();
-    queue.heap.push(Candidate { induced: 0.0, node: start });
-    while let Some(Candidate { induced, node }) = queue.heap.pop() {
+    // The start is taken without the heap: in the upper levels of a move's search it is often the only
+    // candidate (its children pruned), and then the heap is never touched.
+    let mut candidate = Candidate { induced: 0.0, node: start };
+    loop {
+        let Candidate { induced, node } = candidate;
         if base + induced + area_l >= best {
             break;
         }
@@ -76,6 +93,10 @@ pub fn best_in_subtree(
                 queue.heap.push(Candidate { induced: below, node: x.left });
                 queue.heap.push(Candidate { induced: below, node: x.right });
             }
+        }
+        match queue.heap.pop() {
+            Some(next) => candidate = next,
+            None => break,
         }
     }
     found
@@ -126,7 +147,8 @@ pub fn best_move(tree: &OptTree, queue: &mut SearchQueue, n: u32) -> Option<Move
     let mut found: Option<(f32, u32)> = None;
     let sibling = tree.sibling(n);
     let mut removal_box = tree.nodes[sibling as usize].aabb;
-    if let Some(hit) = best_in_subtree(tree, queue, &l, sibling, base, best) {
+    let area_l = area(&l);
+    if let Some(hit) = search(tree, queue, &l, area_l, sibling, base, best) {
         (best, found) = (hit.0, Some(hit));
     }
     let mut ancestor = p;
@@ -138,7 +160,7 @@ pub fn best_move(tree: &OptTree, queue: &mut SearchQueue, n: u32) -> Option<Move
         // Level k: A_k = `above`, C_k = its child off the path, searched with base_k.
         let above_node = &tree.nodes[above as usize];
         let off_path = if above_node.left == ancestor { above_node.right } else { above_node.left };
-        if let Some(hit) = best_in_subtree(tree, queue, &l, off_path, base, best) {
+        if let Some(hit) = search(tree, queue, &l, area_l, off_path, base, best) {
             (best, found) = (hit.0, Some(hit));
         }
         removal_box = removal_box.union(&tree.nodes[off_path as usize].aabb);
@@ -152,7 +174,7 @@ pub fn best_move(tree: &OptTree, queue: &mut SearchQueue, n: u32) -> Option<Move
         // Once the removal box holds `n`'s box, `A_k = B_k u L = B_k` here and at every level above, so the
         // base no longer changes, and every candidate above costs at least `base + SA(L)` (areas are monotone
         // under inclusion, also after rounding): nothing there can beat `best`.
-        if contains(&removal_box, &l) && base + area(&l) >= best {
+        if contains(&removal_box, &l) && base + area_l >= best {
             break;
         }
     }
