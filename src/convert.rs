@@ -7,8 +7,8 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use bvhc_loader::BvhWriter;
 use bvhc_loader::format::MAX_DEPTH;
+use bvhc_loader::{AtomicOutput, BvhFile, BvhWriter};
 use serde::Serialize;
 
 use crate::build::Builder;
@@ -275,7 +275,18 @@ pub fn convert_with(
     if let Some((bvh, _)) = &wide {
         writer = writer.wide(bvh.nodes(), bvh.packets());
     }
-    let file = writer.write_atomic(output)?;
+    // Streamed to a temporary file, then read back and verified in full once the packed arrays are freed, so
+    // the file is in memory once (laying it out in memory beside the arrays took twice its size); the output
+    // is replaced only by a verified file.
+    let mut atomic = AtomicOutput::create(output)?;
+    let file_byte_len = writer.write_unverified(atomic.file())?;
+    let (triangle_count, node_count) = (packed.triangles.len(), packed.nodes.len());
+    drop(writer);
+    drop((packed, wide, source_ids));
+    let file = BvhFile::read(atomic.temporary_path())?;
+    file.view().verify().map_err(bvhc_loader::Error::from)?;
+    drop(file);
+    atomic.commit()?;
     timings.write = lap(clock);
     Ok(ConvertReport {
         output: output.to_path_buf(),
@@ -283,10 +294,10 @@ pub fn convert_with(
         import: imported.report,
         optimization,
         cost,
-        triangle_count: packed.triangles.len(),
-        node_count: packed.nodes.len(),
+        triangle_count,
+        node_count,
         wide: summary,
-        file_byte_len: file.as_bytes().len(),
+        file_byte_len: file_byte_len as usize,
         timings,
     })
 }

@@ -13,7 +13,7 @@
 //! The root is always a wide node (unless the scene has one leaf's worth of triangles and a leaf is cheaper).
 //! Deviations from the paper: leaves are priced per packet of `W` triangles tested together (the SIMD
 //! kernel's unit of work) rather than per triangle; no quantization (the CPU layout stores f32 boxes). O(n N^2)
-//! time, O(n N) memory.
+//! time; O(n N) bytes of decisions, the costs only along the current path.
 
 use crate::aabb::Aabb;
 use crate::optimize::{NONE, OptTree};
@@ -56,19 +56,26 @@ impl WideCosts {
     }
 }
 
-/// Per binary node: the costs `C(n, 1..=N)` and how each was reached.
+/// Per binary node: how each `C(n, i)` was reached and what the reconstruction needs. The costs themselves are
+/// kept only while they are needed (see [`fill_table`]).
 struct Table {
     width: usize,
-    /// `cost[n * width + (i - 1)] = C(n, i)`.
-    cost: Vec<f64>,
     /// `split[n * width + (i - 1)]`: 0 when `C(n, i) = C(n, 1)` (one child), else `k`: `k` slots to the left
     /// child and `i - k` to the right one.
     split: Vec<u8>,
+    /// For an inner node: the left child's share `k` of `C_distribute(n, N)` (how a wide node made from `n`
+    /// spreads its `N` slots).
+    distribution_split: Vec<u8>,
     /// Whether `C(n, 1)` is a leaf (else a wide node).
     is_leaf: Vec<bool>,
     /// Triangles under each node.
     triangles: Vec<u32>,
+    /// `C_distribute(root, N)`.
+    root_distribution: f64,
 }
+
+/// The costs `C(n, 1..=N)` of one node (`N` <= 16).
+type CostRow = [f64; 16];
 
 /// Collapses `tree` (the optimizer's binary tree, one triangle per leaf) into a `costs.width`-wide tree.
 pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
@@ -92,7 +99,7 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
     let root_as_leaf = root_node.left == NONE
         || (table.triangles[root as usize] as usize <= costs.max_leaf_size
             && costs.leaf(table.triangles[root as usize] as usize) * root_node.aabb.surface_area()
-                <= best_distribution(&table, root_node.left as usize, root_node.right as usize, width).0);
+                <= table.root_distribution);
     if root_as_leaf {
         // The whole scene is cheapest as one leaf: a root node with that single leaf child.
         let mut children = Vec::new();
@@ -105,8 +112,7 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
     let mut stack = vec![(0u32, root)];
     while let Some((wide_index, binary)) = stack.pop() {
         let mut slots = Vec::new();
-        let node = tree.nodes[binary as usize];
-        distribute(&table, tree, node.left, node.right, width, &mut slots);
+        distribute(&table, tree, binary, &mut slots);
         let mut children = Vec::with_capacity(slots.len());
         let mut expand = Vec::new();
         for n in slots {
@@ -132,27 +138,38 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
     wide
 }
 
+/// Fills the table bottom-up. Nodes are taken in reverse depth-first order, so a node comes right after its
+/// left subtree, which comes right after its right subtree: the cost rows wait on a stack (the left child's
+/// on top), and only the rows of subtrees whose parent is not done yet are held, at most the tree's depth
+/// plus one (a full table of costs took 64 bytes a node, about the size of the optimizer's tree).
 fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
     let width = costs.width;
     let n = tree.nodes.len();
     let mut table = Table {
         width,
-        cost: vec![f64::INFINITY; n * width],
         split: vec![0; n * width],
+        distribution_split: vec![0; n],
         is_leaf: vec![false; n],
         triangles: vec![0; n],
+        root_distribution: f64::INFINITY,
     };
+    let mut rows: Vec<CostRow> = Vec::new();
     for &node_index in tree.depth_first().iter().rev() {
         let i = node_index as usize;
         let node = tree.nodes[i];
         let area = node.aabb.surface_area();
+        let mut row = [f64::INFINITY; 16];
         if node.left == NONE {
             table.triangles[i] = 1;
             table.is_leaf[i] = true;
-            let leaf = costs.leaf(1) * area;
-            table.cost[i * width..(i + 1) * width].fill(leaf);
+            row[..width].fill(costs.leaf(1) * area);
+            rows.push(row);
             continue;
         }
+        let (left_row, right_row) = match (rows.pop(), rows.pop()) {
+            (Some(left), Some(right)) => (left, right),
+            _ => unreachable!("reverse depth-first order finishes both children before their parent"),
+        };
         let (l, r) = (node.left as usize, node.right as usize);
         table.triangles[i] = table.triangles[l] + table.triangles[r];
         let leaf = if table.triangles[i] as usize <= costs.max_leaf_size {
@@ -160,39 +177,44 @@ fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
         } else {
             f64::INFINITY
         };
-        let (distribute_all, _) = best_distribution(&table, l, r, width);
+        let (distribute_all, k_all) = best_distribution(&left_row, &right_row, width);
+        table.distribution_split[i] = k_all as u8;
+        if node_index == tree.root {
+            table.root_distribution = distribute_all;
+        }
         let internal = costs.node_visit * area + distribute_all;
         table.is_leaf[i] = leaf <= internal;
-        table.cost[i * width] = leaf.min(internal);
+        row[0] = leaf.min(internal);
         for slots in 2..=width {
-            let (distributed, k) = best_distribution(&table, l, r, slots);
-            let previous = table.cost[i * width + slots - 2];
+            let (distributed, k) = best_distribution(&left_row, &right_row, slots);
             let at = i * width + slots - 1;
-            if distributed < previous {
-                table.cost[at] = distributed;
+            if distributed < row[slots - 2] {
+                row[slots - 1] = distributed;
                 table.split[at] = k as u8;
             } else {
-                table.cost[at] = previous;
+                row[slots - 1] = row[slots - 2];
                 table.split[at] = table.split[at - 1];
             }
         }
+        rows.push(row);
     }
     table
 }
 
-/// `C_distribute` over `slots` slots for children `l`, `r`: the best cost and the left child's share.
-fn best_distribution(table: &Table, l: usize, r: usize, slots: usize) -> (f64, usize) {
-    let w = table.width;
+/// `C_distribute` over `slots` slots for children with cost rows `left`, `right`: the best cost and the left
+/// child's share.
+fn best_distribution(left: &CostRow, right: &CostRow, slots: usize) -> (f64, usize) {
     (1..slots)
-        .map(|k| (table.cost[l * w + k - 1] + table.cost[r * w + slots - k - 1], k))
+        .map(|k| (left[k - 1] + right[slots - k - 1], k))
         .fold((f64::INFINITY, 1), |best, candidate| if candidate.0 < best.0 { candidate } else { best })
 }
 
-/// The binary nodes that become the children of a wide node over binary children `l` and `r`, `slots` at most.
-fn distribute(table: &Table, tree: &OptTree, l: u32, r: u32, slots: usize, out: &mut Vec<u32>) {
-    let (_, k) = best_distribution(table, l as usize, r as usize, slots);
-    gather(table, tree, l, k, out);
-    gather(table, tree, r, slots - k, out);
+/// The binary nodes that become the children of the wide node made from inner binary node `n`.
+fn distribute(table: &Table, tree: &OptTree, n: u32, out: &mut Vec<u32>) {
+    let node = tree.nodes[n as usize];
+    let k = table.distribution_split[n as usize] as usize;
+    gather(table, tree, node.left, k, out);
+    gather(table, tree, node.right, table.width - k, out);
 }
 
 /// The children that binary node `n` contributes with at most `slots` slots.

@@ -22,24 +22,63 @@ pub const TEMPORARY_SUFFIX: &str = ".tmp";
 /// Writes `bytes` to `path` atomically (see the module doc). A failure leaves any previous file at `path`
 /// untouched and no partial file behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), Error> {
-    let io = |source| Error::Io { path: path.to_path_buf(), source };
-    check_replaceable(path)?;
-    let directory = directory_of(path);
-    sweep_stale(directory);
-    let prefix = format!("{TEMPORARY_PREFIX}{}-", std::process::id());
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(TEMPORARY_SUFFIX);
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        // The kernel applies the umask to the mode given at creation.
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    let mut output = AtomicOutput::create(path)?;
+    output.file().write_all(bytes).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    output.commit()
+}
+
+/// An output being written: a temporary file in the output's directory (named as the module doc says) that
+/// replaces the output on [`AtomicOutput::commit`], and is removed when dropped before (an error, a failed
+/// check), so nothing half-written is ever left at the output path.
+#[derive(Debug)]
+pub struct AtomicOutput {
+    path: PathBuf,
+    temporary: tempfile::NamedTempFile,
+}
+
+impl AtomicOutput {
+    /// Creates the temporary file for `path` (refusing a `path` that exists and is not a regular file, and
+    /// sweeping stale temporary files of killed runs first).
+    pub fn create(path: &Path) -> Result<AtomicOutput, Error> {
+        let io = |source| Error::Io { path: path.to_path_buf(), source };
+        check_replaceable(path)?;
+        let directory = directory_of(path);
+        sweep_stale(directory);
+        let prefix = format!("{TEMPORARY_PREFIX}{}-", std::process::id());
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(TEMPORARY_SUFFIX);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            // The kernel applies the umask to the mode given at creation.
+            builder.permissions(std::fs::Permissions::from_mode(0o666));
+        }
+        let temporary = builder.tempfile_in(directory).map_err(io)?;
+        Ok(AtomicOutput { path: path.to_path_buf(), temporary })
     }
-    let mut temporary = builder.tempfile_in(directory).map_err(io)?;
-    temporary.write_all(bytes).map_err(io)?;
-    temporary.as_file().sync_all().map_err(io)?;
-    temporary.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
+
+    /// The temporary file, to write to (and to read back from its path).
+    pub fn file(&mut self) -> &mut std::fs::File {
+        self.temporary.as_file_mut()
+    }
+
+    /// The temporary file's path.
+    pub fn temporary_path(&self) -> &Path {
+        self.temporary.path()
+    }
+
+    /// The output path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Flushes the temporary file to disk and renames it over the output.
+    pub fn commit(self) -> Result<(), Error> {
+        let io = |source| Error::Io { path: self.path.clone(), source };
+        self.temporary.as_file().sync_all().map_err(io)?;
+        self.temporary.persist(&self.path).map_err(|e| io(e.error))?;
+        Ok(())
+    }
 }
 
 /// Refuses an existing `path` that is not a regular file (FIFO, socket, device, directory).

@@ -40,8 +40,8 @@ mod wide_walk;
 mod writer;
 
 pub use atomic::{
-    TEMPORARY_PREFIX, TEMPORARY_SUFFIX, check_replaceable, directory_of, remove_own_temporary_files, sweep_stale,
-    write_atomic,
+    AtomicOutput, TEMPORARY_PREFIX, TEMPORARY_SUFFIX, check_replaceable, directory_of, remove_own_temporary_files,
+    sweep_stale, write_atomic,
 };
 pub use checksum::{header_checksum, section_checksum};
 pub use error::{Error, Rule, Violation};

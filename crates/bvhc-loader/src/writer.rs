@@ -155,7 +155,44 @@ impl<'a> BvhWriter<'a> {
         Ok(planned)
     }
 
+    /// Writes the file's bytes to `out` section by section, from the borrowed slices (the file is never laid
+    /// out in memory), and returns its byte length. Unlike [`BvhWriter::build`] this does not verify: the
+    /// caller reads the written file back and verifies it (`BvhFile::read`, then `verify`) before using it,
+    /// after freeing what the sections were borrowed from, so that the file is in memory once at most.
+    pub fn write_unverified(&self, out: &mut impl std::io::Write) -> Result<u64, Error> {
+        let (head, sections) = self.plan_layout()?;
+        let io = |source| Error::Unwritable(format!("writing the file: {source}"));
+        out.write_all(&head).map_err(io)?;
+        let mut at = head.len() as u64;
+        let zeros = [0u8; 64];
+        for section in &sections {
+            let padding = (section.entry.section_byte_offset - at) as usize;
+            out.write_all(&zeros[..padding]).map_err(io)?;
+            out.write_all(section.bytes).map_err(io)?;
+            at = section.entry.section_byte_offset + section.entry.section_byte_len;
+        }
+        Ok(at)
+    }
+
     fn layout(&self) -> Result<AlignedBuffer, Error> {
+        let (head, sections) = self.plan_layout()?;
+        let file_byte_len =
+            sections.last().map_or(head.len() as u64, |s| s.entry.section_byte_offset + s.entry.section_byte_len);
+        let file_byte_len = usize::try_from(file_byte_len)
+            .map_err(|_| Error::Unwritable("the file would not fit in memory".to_string()))?;
+        let mut buffer = AlignedBuffer::zeroed(file_byte_len);
+        let bytes = buffer.as_bytes_mut();
+        bytes[..head.len()].copy_from_slice(&head);
+        for section in &sections {
+            let offset = section.entry.section_byte_offset as usize;
+            bytes[offset..offset + section.bytes.len()].copy_from_slice(section.bytes);
+        }
+        Ok(buffer)
+    }
+
+    /// The header and section table as bytes (checksums filled in) and the sections with their offsets: every
+    /// section starts at the next 64-byte boundary after the previous one (or after the table), the gaps zero.
+    fn plan_layout(&self) -> Result<(Vec<u8>, Vec<Planned<'a>>), Error> {
         let mut sections = self.planned_sections()?;
         let too_large = || Error::Unwritable("the file would exceed 2^64 bytes".to_string());
         let table_end = HEADER_BYTE_LEN + sections.len() * SECTION_ENTRY_BYTE_LEN;
@@ -166,9 +203,6 @@ impl<'a> BvhWriter<'a> {
             section.entry.section_checksum = section_checksum(section.bytes);
             end = offset.checked_add(section.entry.section_byte_len).ok_or_else(too_large)?;
         }
-        let file_byte_len = usize::try_from(end).map_err(|_| too_large())?;
-        let mut buffer = AlignedBuffer::zeroed(file_byte_len);
-        let bytes = buffer.as_bytes_mut();
         let header = FileHeader {
             magic: MAGIC,
             version_major: VERSION_MAJOR,
@@ -180,17 +214,14 @@ impl<'a> BvhWriter<'a> {
             header_checksum: 0,
             reserved: [0; 3],
         };
-        bytes[..HEADER_BYTE_LEN].copy_from_slice(bytemuck::bytes_of(&header));
-        for (i, section) in sections.iter().enumerate() {
-            let at = HEADER_BYTE_LEN + i * SECTION_ENTRY_BYTE_LEN;
-            bytes[at..at + SECTION_ENTRY_BYTE_LEN].copy_from_slice(bytemuck::bytes_of(&section.entry));
-            let offset = section.entry.section_byte_offset as usize;
-            bytes[offset..offset + section.bytes.len()].copy_from_slice(section.bytes);
+        let mut head = Vec::with_capacity(table_end);
+        head.extend_from_slice(bytemuck::bytes_of(&header));
+        for section in &sections {
+            head.extend_from_slice(bytemuck::bytes_of(&section.entry));
         }
-        let checksum = header_checksum(&bytes[..table_end]);
-        let header = FileHeader { header_checksum: checksum, ..header };
-        bytes[..HEADER_BYTE_LEN].copy_from_slice(bytemuck::bytes_of(&header));
-        Ok(buffer)
+        let header = FileHeader { header_checksum: header_checksum(&head), ..header };
+        head[..HEADER_BYTE_LEN].copy_from_slice(bytemuck::bytes_of(&header));
+        Ok((head, sections))
     }
 }
 
