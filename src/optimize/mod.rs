@@ -231,12 +231,12 @@ impl<'i> Run<'i> {
                 self.edits.mark(tree);
             }
             // A sequence ends after its 16th round, or early at its first round that does not lower the best
-            // cost: the later, smaller rounds then only move the same few nodes back and forth. The next
-            // sequence starts from the best tree.
+            // cost: the later, smaller rounds then mostly move the same few nodes back and forth. (Restoring
+            // the best tree before the next sequence was tried: the slightly worse tree is a better start for
+            // the next full round on toy car, 79.95 against 81.15 with max-quality.)
             let sequence_ends = step == 15 || !improved;
             if scheduled && sequence_ends {
                 round = round.next_multiple_of(16);
-                self.edits.restore(tree);
             }
             let judged = !scheduled || sequence_ends;
             if judged && self.report.best.cost < progress_cost * (1.0 - params.min_relative_improvement) {
