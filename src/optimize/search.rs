@@ -102,11 +102,6 @@ fn search(
     found
 }
 
-/// Whether `outer` contains `inner`.
-fn contains(outer: &Aabb, inner: &Aabb) -> bool {
-    (0..3).all(|a| outer.min[a] <= inner.min[a] && inner.max[a] <= outer.max[a])
-}
-
 /// Bittner's search: the best sibling for a detached subtree with box `l` in the whole tree (root included).
 pub fn best_insertion(tree: &OptTree, queue: &mut SearchQueue, l: &Aabb) -> u32 {
     best_in_subtree(tree, queue, l, tree.root, 0.0, f32::INFINITY).map_or(tree.root, |(_, x)| x)
@@ -171,12 +166,6 @@ pub fn best_move(tree: &OptTree, queue: &mut SearchQueue, n: u32) -> Option<Move
         }
         base += removal_area - area(&above_node.aabb);
         ancestor = above;
-        // Once the removal box holds `n`'s box, `A_k = B_k u L = B_k` here and at every level above, so the
-        // base no longer changes, and every candidate above costs at least `base + SA(L)` (areas are monotone
-        // under inclusion, also after rounding): nothing there can beat `best`.
-        if contains(&removal_box, &l) && base + area_l >= best {
-            break;
-        }
     }
     found.map(|(delta, target)| Move { node: n, target, delta })
 }
