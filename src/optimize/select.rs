@@ -10,7 +10,7 @@ use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::tree::{NONE, OptTree};
+use super::tree::{NONE, OptTree, area};
 
 /// How a batch's nodes are chosen.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -48,11 +48,9 @@ impl Selection {
 
 const EPSILON: f64 = 1e-30;
 
-/// The measure of inner node `i` (larger: more in need of a fix).
-fn measure(tree: &OptTree, i: u32, selection: Selection) -> f64 {
-    let node = &tree.nodes[i as usize];
-    let a = f64::from(tree.area(i));
-    let (l, r) = (f64::from(tree.area(node.left)), f64::from(tree.area(node.right)));
+/// The measure of an inner node with area `a` and children of areas `l`, `r` (larger: more in need of a fix).
+fn measure(a: f32, l: f32, r: f32, selection: Selection) -> f64 {
+    let (a, l, r) = (f64::from(a), f64::from(l), f64::from(r));
     let sum = a / (0.5 * (l + r)).max(EPSILON);
     let min = a / l.min(r).max(EPSILON);
     match selection {
@@ -102,10 +100,18 @@ pub fn select_batch(
             (0..tree.nodes.len() as u32).into_par_iter().filter(|&i| is_eligible(tree, i)).collect();
         return if selection == Selection::Random { random_subset(eligible, k, rng) } else { eligible };
     }
+    // The areas first, in one pass in node order: the measures then read children's areas from this array
+    // (4 bytes a node) instead of their nodes (36 bytes), which at 10M triangles is the difference between
+    // cache misses and hits.
+    let areas: Vec<f32> = tree.nodes.par_iter().map(|node| area(&node.aabb)).collect();
     let mut ranked: Vec<(f64, u32)> = (0..tree.nodes.len() as u32)
         .into_par_iter()
         .filter(|&i| is_eligible(tree, i))
-        .map(|i| (measure(tree, i, selection), i))
+        .map(|i| {
+            let node = &tree.nodes[i as usize];
+            let area_of = |j: u32| areas[j as usize];
+            (measure(area_of(i), area_of(node.left), area_of(node.right), selection), i)
+        })
         .collect();
     let by_measure = |a: &(f64, u32), b: &(f64, u32)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
     if k < ranked.len() {
