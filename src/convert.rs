@@ -218,13 +218,15 @@ pub fn convert_with(
     let triangles = soup.triangle_vertices();
     // Each large intermediate is dropped once its stage is done, so the peak is one stage's working set: here
     // the soup's vertices and indices (the triangles hold the positions now).
-    let TriangleSoup { source_ids: soup_source_ids, sources: soup_sources, .. } = soup;
+    let TriangleSoup { positions, triangles: vertex_indices, source_ids: soup_source_ids, sources: soup_sources } =
+        soup;
+    drop((positions, vertex_indices));
     if u32::try_from(triangles.len()).is_err() {
         return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
     }
     let _ = observer(Event::Stage(Stage::Build));
     let clock = Instant::now();
-    let mut tree = OptTree::from_build_tree(&options.builder.build(&triangles, 1), &triangles);
+    let mut tree = OptTree::from_build(options.builder.build(&triangles, 1), &triangles);
     timings.build = lap(clock);
     let _ = observer(Event::Stage(Stage::Optimize));
     let clock = Instant::now();

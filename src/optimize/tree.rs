@@ -28,6 +28,21 @@ pub struct OptNode {
     pub right: u32,
 }
 
+impl OptNode {
+    /// Build node `node` as an optimizer node (parent link unset), when every leaf holds one triangle of
+    /// `triangle_order`.
+    fn of_single_triangle_leaf(node: BuildNode, triangle_order: &[u32]) -> OptNode {
+        match node {
+            BuildNode::Inner { aabb, left, right } => OptNode { aabb, parent: NONE, left, right },
+            BuildNode::Leaf { aabb, first, .. } => {
+                OptNode { aabb, parent: NONE, left: NONE, right: triangle_order[first as usize] }
+            }
+        }
+    }
+}
+
+const _: () = assert!(size_of::<OptNode>() == size_of::<BuildNode>(), "the in-place conversion needs equal sizes");
+
 /// A binary BVH with one triangle per leaf, as the optimizer needs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OptTree {
@@ -50,6 +65,18 @@ pub fn area(aabb: &Aabb) -> f32 {
 }
 
 impl OptTree {
+    /// [`OptTree::from_build_tree`], taking the build tree: where every leaf holds one triangle, its node array
+    /// becomes the optimizer's in place (the two node types have the same size, and `Vec`'s `collect` reuses
+    /// the allocation), so the two trees never coexist.
+    pub fn from_build(build: BuildTree, triangles: &[[[f32; 3]; 3]]) -> OptTree {
+        if build.nodes.is_empty() || build.nodes.len() + 1 != 2 * build.triangle_order.len() {
+            return OptTree::from_build_tree(&build, triangles);
+        }
+        let BuildTree { nodes, triangle_order } = build;
+        let nodes = nodes.into_iter().map(|node| OptNode::of_single_triangle_leaf(node, &triangle_order)).collect();
+        OptTree::with_parent_links(nodes)
+    }
+
     /// The tree of `build`, with leaves of several triangles split (binned SAH) into one-triangle leaves.
     pub fn from_build_tree(build: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> OptTree {
         if !build.nodes.is_empty() && build.nodes.len() + 1 == 2 * build.triangle_order.len() {
@@ -66,16 +93,14 @@ impl OptTree {
     /// The tree of `build` node for node (same indices, root 0), when every leaf holds one triangle (a binary
     /// tree over `n` triangles with `2n - 1` nodes has no other kind of leaf).
     fn from_single_triangle_leaves(build: &BuildTree) -> OptTree {
-        let mut nodes: Vec<OptNode> = build
-            .nodes
-            .par_iter()
-            .map(|node| match *node {
-                BuildNode::Inner { aabb, left, right } => OptNode { aabb, parent: NONE, left, right },
-                BuildNode::Leaf { aabb, first, .. } => {
-                    OptNode { aabb, parent: NONE, left: NONE, right: build.triangle_order[first as usize] }
-                }
-            })
-            .collect();
+        let triangle_order = &build.triangle_order;
+        let nodes =
+            build.nodes.par_iter().map(|&node| OptNode::of_single_triangle_leaf(node, triangle_order)).collect();
+        OptTree::with_parent_links(nodes)
+    }
+
+    /// The tree over `nodes` (root 0, parent links still `NONE`), with the parent links set.
+    fn with_parent_links(mut nodes: Vec<OptNode>) -> OptTree {
         for i in 0..nodes.len() {
             let OptNode { left, right, .. } = nodes[i];
             if left != NONE {
