@@ -321,3 +321,67 @@ fn degenerate_inputs_run_through_every_preset() {
         }
     }
 }
+
+/// Whether `a` is `n` or lies below it.
+fn is_in_subtree(tree: &OptTree, mut a: u32, n: u32) -> bool {
+    while a != NONE {
+        if a == n {
+            return true;
+        }
+        a = tree.nodes[a as usize].parent;
+    }
+    false
+}
+
+#[test]
+fn the_edit_log_restores_the_marked_tree_exactly_and_tracks_the_inner_area() {
+    // Moves made through the logged edits (as the loops make them: splice a node's parent out, reinsert it
+    // above a target) must leave a running inner-area sum equal to a fresh one (up to rounding), and restoring
+    // must give back the tree as it was at the mark, node for node.
+    use bvhc::optimize::{EditLog, OptNode};
+    use rand::RngExt;
+    let mut moves = 0;
+    for seed in 0..40u64 {
+        let triangles = random_triangles(seed, 40 + seed as usize * 7, 10.0);
+        let mut tree = tree_for(&triangles, Builder::BinnedSah);
+        let mut log = EditLog::new(&tree, inner_area(&tree));
+        let mut rng = crate::common::rng(seed);
+        for round in 0..3 {
+            let marked = tree.clone();
+            for _ in 0..10 {
+                let n = rng.random_range(0..tree.nodes.len() as u32);
+                let x = rng.random_range(0..tree.nodes.len() as u32);
+                let p = tree.nodes[n as usize].parent;
+                if p == NONE || x == p || is_in_subtree(&tree, x, n) {
+                    continue;
+                }
+                let (s, g) = (tree.sibling(n), tree.nodes[p as usize].parent);
+                tree.replace_child_logged(g, p, s, &mut log);
+                tree.refit_from_logged(g, &mut log);
+                let y = tree.nodes[x as usize].parent;
+                let aabb = tree.nodes[x as usize].aabb.union(&tree.nodes[n as usize].aabb);
+                tree.set_inner_logged(p, OptNode { aabb, parent: y, left: x, right: n }, &mut log);
+                tree.replace_child_logged(y, x, p, &mut log);
+                tree.set_parent_logged(x, p, &mut log);
+                tree.refit_from_logged(y, &mut log);
+                moves += 1;
+                check_invariants(&tree, &triangles);
+                let fresh = inner_area(&tree);
+                assert!(
+                    (log.inner_area() - fresh).abs() <= 1e-9 * fresh,
+                    "seed {seed}: {} vs {fresh}",
+                    log.inner_area()
+                );
+            }
+            if round == 1 {
+                log.mark(&tree);
+            } else {
+                log.restore(&mut tree);
+                assert_eq!(tree, marked, "seed {seed}, round {round}: the restored tree");
+                let fresh = inner_area(&marked);
+                assert!((log.inner_area() - fresh).abs() <= 1e-9 * fresh, "seed {seed}: the restored area");
+            }
+        }
+    }
+    assert!(moves > 500, "only {moves} moves were made");
+}

@@ -95,3 +95,29 @@ fn the_writer_refuses_a_tree_that_breaks_a_rule() {
     let error = BvhWriter::new(&nodes, &tree.triangles).build().unwrap_err();
     assert_eq!(error.rule(), Some(Rule::ChildInParent), "{error}");
 }
+
+#[test]
+fn the_streamed_file_has_the_bytes_of_the_laid_out_one() {
+    // The conversion streams sections from their slices (`write_unverified`) instead of laying the file out in
+    // memory (`build`); both must give the same bytes, with and without wide sections and for an empty scene.
+    for (seed, count) in [(1u64, 0usize), (2, 1), (3, 57), (4, 600)] {
+        let triangles = random_triangles(seed, count, 10.0);
+        let tree = packed_tree(&triangles, 4);
+        let ranges = single_source_range(tree.triangles.len());
+        let wide = wide_sections_for(&tree, &triangles);
+        for with_wide in [false, true] {
+            let mut writer = BvhWriter::new(&tree.nodes, &tree.triangles).triangle_ids(&tree.triangle_ids);
+            if count > 0 {
+                writer = writer.source_table(&ranges);
+            }
+            if with_wide && count > 0 {
+                writer = writer.metadata(METADATA_1_1).wide(wide.nodes(), wide.packets());
+            }
+            let laid_out = writer.build().unwrap();
+            let mut streamed = Vec::new();
+            let byte_len = writer.write_unverified(&mut streamed).unwrap();
+            assert_eq!(byte_len as usize, streamed.len());
+            assert!(streamed == laid_out.as_bytes(), "seed {seed}, wide {with_wide}");
+        }
+    }
+}
