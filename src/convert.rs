@@ -282,7 +282,7 @@ pub fn convert_with(
     // is replaced only by a verified file.
     let mut atomic = AtomicOutput::create(output)?;
     let file_byte_len = writer.write_unverified(atomic.file())?;
-    let (triangle_count, node_count) = (packed.triangles.len(), packed.nodes.len());
+    let node_count = packed.nodes.len();
     drop(writer);
     drop((packed, wide, source_ids));
     let file = BvhFile::read(atomic.temporary_path())?;

@@ -239,11 +239,11 @@ impl<'i> Run<'i> {
                 self.edits.mark(tree);
             }
             // A sequence ends after its 16th round, or early at its first round that lowers the best cost by
-            // less than `sequence_round_gain` (nothing, where that is 0): the later, smaller rounds then mostly move the same few nodes
-            // back and forth, and gain less than they cost (on the 7.8M-triangle grid, rounds 9-16 of the first
-            // sequence gained 0.017% in 5.5 s of its 20). (Restoring
-            // the best tree before the next sequence was tried: the slightly worse tree is a better start for
-            // the next full round on toy car, 79.95 against 81.15 with max-quality.)
+            // less than `sequence_round_gain` (by nothing, where that is 0): the later, smaller rounds then mostly
+            // move the same few nodes back and forth and gain less than they cost (on the 7.8M-triangle grid,
+            // rounds 9-16 of the first sequence gained 0.017% in 5.5 s of its 20). The next sequence goes on
+            // from the tree as it is: restoring the best tree first was tried and gave worse trees (toy car,
+            // max-quality: 81.15 against 79.95).
             let sequence_ends = step == 15 || !improved || round_gain < sequence_round_gain;
             if scheduled && sequence_ends {
                 round = round.next_multiple_of(16);

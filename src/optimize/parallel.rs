@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 use super::edit_log::EditLog;
 use super::search::{Move, SearchQueue, best_move};
-use super::tree::{NONE, OptNode, OptTree};
+use super::tree::{NONE, OptTree};
 
 /// Runs one round over the batch `batch`; returns the moves applied.
 pub fn run_round(tree: &mut OptTree, batch: &[u32], log: &mut EditLog) -> u64 {
@@ -39,7 +39,7 @@ pub fn run_round(tree: &mut OptTree, batch: &[u32], log: &mut EditLog) -> u64 {
         let Some(touched) = touched_if_free(tree, &locked, m) else {
             continue;
         };
-        apply(tree, m.node, m.target, log);
+        tree.move_beside_logged(m.node, m.target, log);
         for i in touched.into_iter().filter(|&i| i != NONE) {
             locked[i as usize / 64] |= 1 << (i % 64);
         }
@@ -75,34 +75,8 @@ fn touched_if_free(tree: &OptTree, locked: &[u64], m: Move) -> Option<[u32; 6]> 
     let g = tree.nodes[p as usize].parent;
     let y = tree.nodes[x as usize].parent;
     let touched = [c, p, s, g, x, y];
-    if touched.iter().any(|&i| is_locked(locked, i)) || x == p || is_in_subtree(tree, x, c) {
+    if touched.iter().any(|&i| is_locked(locked, i)) || x == p || tree.is_in_subtree(x, c) {
         return None;
     }
     Some(touched)
-}
-
-/// Whether `x` lies in the subtree of `c` (or is `c`).
-fn is_in_subtree(tree: &OptTree, mut x: u32, c: u32) -> bool {
-    while x != NONE {
-        if x == c {
-            return true;
-        }
-        x = tree.nodes[x as usize].parent;
-    }
-    false
-}
-
-/// Moves `c` (with its subtree) to be the sibling of `x`, reusing `c`'s parent as their new parent.
-fn apply(tree: &mut OptTree, c: u32, x: u32, log: &mut EditLog) {
-    let p = tree.nodes[c as usize].parent;
-    let s = tree.sibling(c);
-    let g = tree.nodes[p as usize].parent;
-    tree.replace_child_logged(g, p, s, log);
-    tree.refit_from_logged(g, log);
-    let y = tree.nodes[x as usize].parent;
-    let aabb = tree.nodes[x as usize].aabb.union(&tree.nodes[c as usize].aabb);
-    tree.set_inner_logged(p, OptNode { aabb, parent: tree.nodes[p as usize].parent, left: x, right: c }, log);
-    tree.replace_child_logged(y, x, p, log);
-    tree.set_parent_logged(x, p, log);
-    tree.refit_from_logged(y, log);
 }

@@ -36,9 +36,9 @@ pub struct OptimizeParams {
     pub batch_fraction: f64,
     /// Parallel loop only: round `r` takes `batch_fraction / (2 (r mod 16) + 1)` of the ranked nodes (the
     /// sequence obvhs uses: full rounds alternate with rounds on the most inefficient nodes only); a sequence
-    /// ends early at a round that does not lower the best cost (the next goes on from the tree as it is, as
-    /// after a full sequence).
-    /// Progress is judged once per sequence; `random_after` and `stop_after` then count sequences.
+    /// ends early at a round that gains little (the parallel loop: less than 5e-5 of the cost; within
+    /// `Alternating`: nothing), and the next goes on from the tree as it is. Progress is judged once per
+    /// sequence; `random_after` and `stop_after` then count sequences.
     pub decreasing_fractions: bool,
     /// `p_R`: batches without progress before selection turns random (until the next progress).
     pub random_after: u32,

@@ -101,8 +101,7 @@ pub fn select_batch(
         return if selection == Selection::Random { random_subset(eligible, k, rng) } else { eligible };
     }
     // The areas first, in one pass in node order: the measures then read children's areas from this array
-    // (4 bytes a node) instead of their nodes (36 bytes), which at 10M triangles is the difference between
-    // cache misses and hits.
+    // (4 bytes a node) instead of from their nodes (36 bytes), a ninth of the memory to reach at random.
     let areas: Vec<f32> = tree.nodes.par_iter().map(|node| area(&node.aabb)).collect();
     let mut ranked: Vec<(f64, u32)> = (0..tree.nodes.len() as u32)
         .into_par_iter()

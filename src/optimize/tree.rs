@@ -41,6 +41,12 @@ impl OptNode {
     }
 }
 
+/// Whether every leaf of `build` holds one triangle: a binary tree over `n` triangles with `2n - 1` nodes has
+/// no other kind of leaf.
+fn has_single_triangle_leaves(build: &BuildTree) -> bool {
+    !build.nodes.is_empty() && build.nodes.len() + 1 == 2 * build.triangle_order.len()
+}
+
 const _: () = assert!(size_of::<OptNode>() == size_of::<BuildNode>(), "the in-place conversion needs equal sizes");
 
 /// A binary BVH with one triangle per leaf, as the optimizer needs.
@@ -69,7 +75,7 @@ impl OptTree {
     /// becomes the optimizer's in place (the two node types have the same size, and `Vec`'s `collect` reuses
     /// the allocation), so the two trees never coexist.
     pub fn from_build(build: BuildTree, triangles: &[[[f32; 3]; 3]]) -> OptTree {
-        if build.nodes.is_empty() || build.nodes.len() + 1 != 2 * build.triangle_order.len() {
+        if !has_single_triangle_leaves(&build) {
             return OptTree::from_build_tree(&build, triangles);
         }
         let BuildTree { nodes, triangle_order } = build;
@@ -79,7 +85,7 @@ impl OptTree {
 
     /// The tree of `build`, with leaves of several triangles split (binned SAH) into one-triangle leaves.
     pub fn from_build_tree(build: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> OptTree {
-        if !build.nodes.is_empty() && build.nodes.len() + 1 == 2 * build.triangle_order.len() {
+        if has_single_triangle_leaves(build) {
             return OptTree::from_single_triangle_leaves(build);
         }
         let mut tree = OptTree { nodes: Vec::with_capacity(2 * triangles.len()), root: NONE };
@@ -90,8 +96,7 @@ impl OptTree {
         tree
     }
 
-    /// The tree of `build` node for node (same indices, root 0), when every leaf holds one triangle (a binary
-    /// tree over `n` triangles with `2n - 1` nodes has no other kind of leaf).
+    /// The tree of `build` node for node (same indices, root 0), when every leaf holds one triangle.
     fn from_single_triangle_leaves(build: &BuildTree) -> OptTree {
         let triangle_order = &build.triangle_order;
         let nodes =
@@ -228,6 +233,34 @@ impl OptTree {
     pub fn set_parent_logged(&mut self, i: u32, parent: u32, log: &mut EditLog) {
         log.save(self, i);
         self.nodes[i as usize].parent = parent;
+    }
+
+    /// Whether `x` lies in the subtree of `c` (or is `c`).
+    pub fn is_in_subtree(&self, mut x: u32, c: u32) -> bool {
+        while x != NONE {
+            if x == c {
+                return true;
+            }
+            x = self.nodes[x as usize].parent;
+        }
+        false
+    }
+
+    /// Moves `c` (not the root, with its subtree) to be the sibling of `x` (not `c`'s parent, not in `c`'s
+    /// subtree), reusing `c`'s parent as their new parent; every change saved in `log`. The parallel loop's
+    /// move.
+    pub fn move_beside_logged(&mut self, c: u32, x: u32, log: &mut EditLog) {
+        let p = self.nodes[c as usize].parent;
+        let s = self.sibling(c);
+        let g = self.nodes[p as usize].parent;
+        self.replace_child_logged(g, p, s, log);
+        self.refit_from_logged(g, log);
+        let y = self.nodes[x as usize].parent;
+        let aabb = self.nodes[x as usize].aabb.union(&self.nodes[c as usize].aabb);
+        self.set_inner_logged(p, OptNode { aabb, parent: self.nodes[p as usize].parent, left: x, right: c }, log);
+        self.replace_child_logged(y, x, p, log);
+        self.set_parent_logged(x, p, log);
+        self.refit_from_logged(y, log);
     }
 
     /// Sum of the inner nodes' areas and of the leaves' areas, each area in f64 as the cost module computes

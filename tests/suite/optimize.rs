@@ -322,23 +322,12 @@ fn degenerate_inputs_run_through_every_preset() {
     }
 }
 
-/// Whether `a` is `n` or lies below it.
-fn is_in_subtree(tree: &OptTree, mut a: u32, n: u32) -> bool {
-    while a != NONE {
-        if a == n {
-            return true;
-        }
-        a = tree.nodes[a as usize].parent;
-    }
-    false
-}
-
 #[test]
 fn the_edit_log_restores_the_marked_tree_exactly_and_tracks_the_inner_area() {
-    // Moves made through the logged edits (as the loops make them: splice a node's parent out, reinsert it
+    // Moves made through the logged edits (the parallel loop's move: splice a node's parent out, reinsert it
     // above a target) must leave a running inner-area sum equal to a fresh one (up to rounding), and restoring
     // must give back the tree as it was at the mark, node for node.
-    use bvhc::optimize::{EditLog, OptNode};
+    use bvhc::optimize::EditLog;
     use rand::RngExt;
     let mut moves = 0;
     for seed in 0..40u64 {
@@ -352,18 +341,10 @@ fn the_edit_log_restores_the_marked_tree_exactly_and_tracks_the_inner_area() {
                 let n = rng.random_range(0..tree.nodes.len() as u32);
                 let x = rng.random_range(0..tree.nodes.len() as u32);
                 let p = tree.nodes[n as usize].parent;
-                if p == NONE || x == p || is_in_subtree(&tree, x, n) {
+                if p == NONE || x == p || tree.is_in_subtree(x, n) {
                     continue;
                 }
-                let (s, g) = (tree.sibling(n), tree.nodes[p as usize].parent);
-                tree.replace_child_logged(g, p, s, &mut log);
-                tree.refit_from_logged(g, &mut log);
-                let y = tree.nodes[x as usize].parent;
-                let aabb = tree.nodes[x as usize].aabb.union(&tree.nodes[n as usize].aabb);
-                tree.set_inner_logged(p, OptNode { aabb, parent: y, left: x, right: n }, &mut log);
-                tree.replace_child_logged(y, x, p, &mut log);
-                tree.set_parent_logged(x, p, &mut log);
-                tree.refit_from_logged(y, &mut log);
+                tree.move_beside_logged(n, x, &mut log);
                 moves += 1;
                 check_invariants(&tree, &triangles);
                 let fresh = inner_area(&tree);

@@ -67,11 +67,6 @@ impl AtomicOutput {
         self.temporary.path()
     }
 
-    /// The output path.
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
     /// Flushes the temporary file to disk and renames it over the output.
     pub fn commit(self) -> Result<(), Error> {
         let io = |source| Error::Io { path: self.path.clone(), source };
