@@ -279,13 +279,18 @@ pub fn convert_with(
     }
     // Streamed to a temporary file, then read back and verified in full once the packed arrays are freed, so
     // the file is in memory once (laying it out in memory beside the arrays took twice its size); the output
-    // is replaced only by a verified file.
+    // is replaced only by a verified file. Both transfers bypass the page cache where the system allows it
+    // (see `UncachedWriter`): 1 GB through the cache took 4.7 s of a 7.3 s write stage on this project's VMs.
     let mut atomic = AtomicOutput::create(output)?;
-    let file_byte_len = writer.write_unverified(atomic.file())?;
+    let mut sink = atomic.uncached_writer();
+    writer.write_unverified(&mut sink)?;
+    let file_byte_len = sink
+        .finish()
+        .map_err(|source| bvhc_loader::Error::Io { path: atomic.temporary_path().to_path_buf(), source })?;
     let node_count = packed.nodes.len();
     drop(writer);
     drop((packed, wide, source_ids));
-    let file = BvhFile::read(atomic.temporary_path())?;
+    let file = BvhFile::read_uncached(atomic.temporary_path())?;
     file.view().verify().map_err(bvhc_loader::Error::from)?;
     drop(file);
     atomic.commit()?;

@@ -12,7 +12,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::Error;
+use crate::{Error, UncachedWriter};
 
 /// The prefix of every temporary file name.
 pub const TEMPORARY_PREFIX: &str = ".bvhc-";
@@ -60,6 +60,13 @@ impl AtomicOutput {
     /// The temporary file, to write to (and to read back from its path).
     pub fn file(&mut self) -> &mut std::fs::File {
         self.temporary.as_file_mut()
+    }
+
+    /// A sink for the temporary file's bytes that bypasses the page cache where it can (see
+    /// [`UncachedWriter`]); call its `finish` before reading the file back or committing.
+    pub fn uncached_writer(&mut self) -> UncachedWriter<'_> {
+        let path = self.temporary.path().to_path_buf();
+        UncachedWriter::new(self.temporary.as_file_mut(), &path)
     }
 
     /// The temporary file's path.

@@ -63,6 +63,18 @@ impl BvhFile {
         BvhFile::from_buffer(buffer)
     }
 
+    /// [`BvhFile::read`] past the page cache where the system allows it (Linux `O_DIRECT`; buffered reads
+    /// elsewhere): for reading back a large file just written, whose pages nothing else will want.
+    pub fn read_uncached(path: &Path) -> Result<BvhFile, Error> {
+        let io = |source| Error::Io { path: path.to_path_buf(), source };
+        let byte_len = std::fs::metadata(path).map_err(io)?.len();
+        let byte_len = usize::try_from(byte_len)
+            .map_err(|_| io(std::io::Error::new(std::io::ErrorKind::OutOfMemory, "file too large for memory")))?;
+        let mut buffer = AlignedBuffer::zeroed(byte_len);
+        crate::uncached::read_uncached(path, buffer.as_bytes_mut()).map_err(io)?;
+        BvhFile::from_buffer(buffer)
+    }
+
     pub(crate) fn from_buffer(buffer: AlignedBuffer) -> Result<BvhFile, Error> {
         BvhView::open(buffer.as_bytes())?;
         Ok(BvhFile { buffer })

@@ -28,6 +28,7 @@ mod file;
 pub mod format;
 mod intersect;
 mod traverse;
+mod uncached;
 mod verify;
 mod verify_metadata;
 mod verify_references;
@@ -52,6 +53,7 @@ pub use format::{
 };
 pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use traverse::{Hit, Kernel, Tracer, TraversalCounter, TraversalStats};
+pub use uncached::UncachedWriter;
 pub use verify::verify_tree;
 pub use view::{BvhView, SectionInfo, WideSections};
 pub use wide::{KernelPath, WideBvh, WideTracer};
