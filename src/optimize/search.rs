@@ -94,6 +94,10 @@ fn search(
                 queue.heap.push(Candidate { induced: below, node: x.right });
             }
         }
+        // Most levels' searches end here with an empty heap; the check spares them a call to `pop`.
+        if queue.heap.is_empty() {
+            break;
+        }
         match queue.heap.pop() {
             Some(next) => candidate = next,
             None => break,
