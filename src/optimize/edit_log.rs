@@ -7,6 +7,9 @@
 //! is saved once). Marking forgets the saved values, clearing only their bits. Both cost what was edited, not
 //! the size of the tree.
 //!
+//! The log also lists the nodes written since the list was last taken ([`EditLog::take_touched`]), restores
+//! included, which keeps the parallel loop's selection measures up to date (`measure_index`).
+//!
 //! The log also sums the change of the inner nodes' total surface area (in f64, as [`Aabb::surface_area`]),
 //! so a batch's cost is known without summing the whole tree. The sum is taken in the order the edits are
 //! made, which the loops fix, so it is the same for any number of threads; it drifts from a fresh sum by
@@ -21,6 +24,10 @@ pub struct EditLog {
     /// Bit `i` is set when node `i`'s value at the mark is in `saved`. Empty for a log that records nothing.
     is_saved: Vec<u64>,
     saved: Vec<(u32, OptNode)>,
+    /// Bit `i` is set when node `i` is in `touched`.
+    is_touched: Vec<u64>,
+    /// Nodes written since the list was last taken, each once.
+    touched: Vec<u32>,
     root_at_mark: u32,
     inner_area_at_mark: f64,
     inner_area: f64,
@@ -32,6 +39,8 @@ impl EditLog {
         EditLog {
             is_saved: vec![0; tree.nodes.len().div_ceil(64)],
             saved: Vec::new(),
+            is_touched: vec![0; tree.nodes.len().div_ceil(64)],
+            touched: Vec::new(),
             root_at_mark: tree.root,
             inner_area_at_mark: inner_area,
             inner_area,
@@ -43,6 +52,8 @@ impl EditLog {
         EditLog {
             is_saved: Vec::new(),
             saved: Vec::new(),
+            is_touched: Vec::new(),
+            touched: Vec::new(),
             root_at_mark: NONE,
             inner_area_at_mark: 0.0,
             inner_area: 0.0,
@@ -61,10 +72,27 @@ impl EditLog {
             return;
         }
         let (word, bit) = (i as usize / 64, 1u64 << (i % 64));
+        self.touch(word, bit, i);
         if self.is_saved[word] & bit == 0 {
             self.is_saved[word] |= bit;
             self.saved.push((i, tree.nodes[i as usize]));
         }
+    }
+
+    #[inline]
+    fn touch(&mut self, word: usize, bit: u64, i: u32) {
+        if self.is_touched[word] & bit == 0 {
+            self.is_touched[word] |= bit;
+            self.touched.push(i);
+        }
+    }
+
+    /// The nodes written (restores included) since the last call, each once, in the order first written.
+    pub fn take_touched(&mut self) -> Vec<u32> {
+        for &i in &self.touched {
+            self.is_touched[i as usize / 64] = 0;
+        }
+        std::mem::take(&mut self.touched)
     }
 
     /// Records that an inner node's box changed from `old` to `new`.
@@ -85,9 +113,12 @@ impl EditLog {
 
     /// Undoes every edit since the mark (the log stays marked there).
     pub fn restore(&mut self, tree: &mut OptTree) {
-        for &(i, node) in &self.saved {
+        for k in 0..self.saved.len() {
+            let (i, node) = self.saved[k];
             tree.nodes[i as usize] = node;
-            self.is_saved[i as usize / 64] = 0;
+            let (word, bit) = (i as usize / 64, 1u64 << (i % 64));
+            self.is_saved[word] = 0;
+            self.touch(word, bit, i);
         }
         self.saved.clear();
         tree.root = self.root_at_mark;

@@ -14,6 +14,7 @@
 
 mod edit_log;
 mod invariants;
+mod measure_index;
 mod merge;
 mod parallel;
 mod params;
@@ -30,10 +31,11 @@ use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 
 pub use edit_log::EditLog;
+pub use measure_index::MeasureIndex;
 pub use merge::merge_leaves;
 pub use params::{Algorithm, OptimizeParams, Preset};
 pub use search::{Move, SearchQueue, best_in_subtree, best_insertion, best_move};
-pub use select::{Selection, is_eligible, select_batch};
+pub use select::{Selection, is_eligible, select_batch, select_batch_with};
 pub use tree::{NONE, OptNode, OptTree, area};
 
 use crate::cost::{SahConstants, SahCost, sah_of_sums};
@@ -165,6 +167,8 @@ struct Run<'i> {
     leaf_area: f64,
     root_area: f64,
     rng: Pcg64Mcg,
+    /// The measures of the parallel loop's partial rounds, once one ran; kept up to date from the edit log.
+    measures: Option<MeasureIndex>,
     queue: SearchQueue,
     inspect: &'i mut dyn FnMut(&OptTree),
 }
@@ -188,6 +192,7 @@ impl<'i> Run<'i> {
             leaf_area,
             root_area,
             rng: Pcg64Mcg::seed_from_u64(params.seed),
+            measures: None,
             queue: SearchQueue::default(),
             inspect,
         }
@@ -196,6 +201,21 @@ impl<'i> Run<'i> {
     /// The cost of the current tree, from the running area sum.
     fn current_cost(&self, constants: SahConstants) -> SahCost {
         sah_of_sums(self.edits.inner_area(), self.leaf_area, self.root_area, constants)
+    }
+
+    /// Brings the measure index up to date with the edits since the last round (taking the edit log's touched
+    /// list), and creates it under `selection` where the parallel loop's selection will use it: unordered,
+    /// not `Random`. Returns whether the selection uses it.
+    fn sync_measures(&mut self, tree: &OptTree, selection: Selection, ordered: bool) -> bool {
+        let touched = self.edits.take_touched();
+        if let Some(index) = &mut self.measures {
+            index.update(tree, &touched);
+        }
+        let wanted = !ordered && selection != Selection::Random;
+        if wanted && self.measures.as_ref().is_none_or(|index| index.selection() != selection) {
+            self.measures = Some(MeasureIndex::new(tree, selection));
+        }
+        wanted
     }
 
     /// Batches of one loop (`params.algorithm` is Parallel or Sequential) until one of the stop rules holds.
@@ -219,7 +239,9 @@ impl<'i> Run<'i> {
             let fraction = params.batch_fraction / f64::from(2 * step + 1);
             round += 1;
             let ordered = params.algorithm == Algorithm::Sequential;
-            let batch = select_batch(tree, selection, fraction, ordered, &mut self.rng);
+            let uses_index = self.sync_measures(tree, selection, ordered);
+            let index = if uses_index { self.measures.as_ref() } else { None };
+            let batch = select_batch_with(tree, selection, fraction, ordered, &mut self.rng, index);
             if batch.is_empty() {
                 return StopReason::NothingToDo;
             }

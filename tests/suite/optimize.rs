@@ -366,3 +366,74 @@ fn the_edit_log_restores_the_marked_tree_exactly_and_tracks_the_inner_area() {
     }
     assert!(moves > 500, "only {moves} moves were made");
 }
+
+#[test]
+fn the_measure_index_kept_up_to_date_from_the_edit_log_equals_a_fresh_one() {
+    // The parallel loop ranks its partial rounds' nodes from an index updated only where the edit log says
+    // nodes were written (moves, restores, root changes). After every batch of edits the updated index must
+    // equal one built from scratch, and its batches must be the set a full ranking takes (the ordered
+    // selection sorts every eligible node by measure, an independent path).
+    use bvhc::optimize::{EditLog, MeasureIndex, Selection};
+    use rand::RngExt;
+    let selections = [Selection::Comb, Selection::Sum, Selection::Min, Selection::Area];
+    let mut root_changes = 0;
+    for seed in 0..30u64 {
+        let triangles = random_triangles(100 + seed, 30 + seed as usize * 11, 10.0);
+        let mut tree = tree_for(&triangles, Builder::BinnedSah);
+        let mut log = EditLog::new(&tree, inner_area(&tree));
+        let mut indexes: Vec<MeasureIndex> = selections.iter().map(|&s| MeasureIndex::new(&tree, s)).collect();
+        let mut rng = crate::common::rng(seed);
+        for round in 0..8 {
+            let root = tree.root;
+            for step in 0..6 {
+                // Every third move starts at a child of the root, which makes a new root.
+                let root_node = tree.nodes[tree.root as usize];
+                let n = if step % 3 == 0 && root_node.left != NONE {
+                    root_node.left
+                } else {
+                    rng.random_range(0..tree.nodes.len() as u32)
+                };
+                let x = rng.random_range(0..tree.nodes.len() as u32);
+                let p = tree.nodes[n as usize].parent;
+                if p == NONE || x == p || tree.is_in_subtree(x, n) {
+                    continue;
+                }
+                tree.move_beside_logged(n, x, &mut log);
+            }
+            root_changes += usize::from(tree.root != root);
+            check_index_after_edits(&tree, &mut log, &mut indexes, &selections, &mut rng, (seed, round));
+            // Restoring writes nodes too, in a round of its own (their moves' writes were taken already).
+            match round % 3 {
+                0 => log.mark(&tree),
+                1 => log.restore(&mut tree),
+                _ => {}
+            }
+            check_index_after_edits(&tree, &mut log, &mut indexes, &selections, &mut rng, (seed, round));
+        }
+    }
+    assert!(root_changes > 5, "only {root_changes} rounds changed the root");
+}
+
+/// Updates each index from the log's touched list and checks it against a fresh index and a full ranking.
+fn check_index_after_edits(
+    tree: &OptTree,
+    log: &mut bvhc::optimize::EditLog,
+    indexes: &mut [bvhc::optimize::MeasureIndex],
+    selections: &[bvhc::optimize::Selection],
+    rng: &mut rand_pcg::Pcg64Mcg,
+    case: (u64, u32),
+) {
+    use bvhc::optimize::{MeasureIndex, select_batch, select_batch_with};
+    let touched = log.take_touched();
+    for (index, &selection) in indexes.iter_mut().zip(selections) {
+        index.update(tree, &touched);
+        assert!(*index == MeasureIndex::new(tree, selection), "{case:?}, {selection:?}");
+        for fraction in [1.0, 0.5, 0.2, 0.05] {
+            let mut by_index = select_batch_with(tree, selection, fraction, false, rng, Some(index));
+            let mut ranked = select_batch(tree, selection, fraction, true, rng);
+            by_index.sort_unstable();
+            ranked.sort_unstable();
+            assert_eq!(by_index, ranked, "{case:?}, {selection:?}, fraction {fraction}");
+        }
+    }
+}
