@@ -24,6 +24,9 @@ const BUCKET_SHIFT: u32 = 48;
 /// Buckets of the histogram.
 const BUCKETS: usize = 1 << (64 - BUCKET_SHIFT);
 
+/// An update that touched more than `1 / REBUILD_FRACTION` of the nodes builds the index afresh instead.
+const REBUILD_FRACTION: usize = 32;
+
 /// Nodes per parallel task of the full passes (each task of the counting pass fills a histogram).
 const NODES_PER_TASK: usize = 1 << 16;
 
@@ -83,32 +86,34 @@ impl MeasureIndex {
     /// their keys, their parents' (a child's area changed) and their children's (a parent, hence eligibility,
     /// may have changed) are recomputed, and the old and new roots' children's when the root changed.
     pub fn update(&mut self, tree: &OptTree, touched: &[u32]) {
-        let refresh = |index: &mut MeasureIndex, i: u32| {
-            if i == NONE {
-                return;
-            }
-            let new = key(tree, index.selection, i);
-            let old = std::mem::replace(&mut index.keys[i as usize], new);
-            if old != new {
-                index.histogram[bucket(old)] -= 1;
-                index.histogram[bucket(new)] += 1;
-            }
-        };
+        if touched.len() > tree.nodes.len() / REBUILD_FRACTION {
+            // After a round that wrote much of the tree, the parallel passes of a fresh index beat updating
+            // each node (on the 7.8M grid, after a full round: 0.4 s against 1.4 s).
+            *self = MeasureIndex::new(tree, self.selection);
+            return;
+        }
         let with_neighbours = |i: u32| {
             let node = &tree.nodes[i as usize];
             let (left, right) = if node.left == NONE { (NONE, NONE) } else { (node.left, node.right) };
             [i, node.parent, left, right]
         };
-        for &t in touched {
-            with_neighbours(t).into_iter().for_each(|i| refresh(self, i));
-        }
+        let mut stale: Vec<u32> = touched.par_iter().flat_map_iter(|&t| with_neighbours(t)).collect();
         if self.root != tree.root {
-            for r in [self.root, tree.root] {
-                if r != NONE {
-                    with_neighbours(r).into_iter().for_each(|i| refresh(self, i));
-                }
+            for r in [self.root, tree.root].into_iter().filter(|&r| r != NONE) {
+                stale.extend(with_neighbours(r));
             }
             self.root = tree.root;
+        }
+        // New keys in parallel (the reads are the cost), written in order; a node listed twice gets the same key.
+        let selection = self.selection;
+        let fresh: Vec<(u32, u64)> =
+            stale.into_par_iter().filter(|&i| i != NONE).map(|i| (i, key(tree, selection, i))).collect();
+        for (i, new) in fresh {
+            let old = std::mem::replace(&mut self.keys[i as usize], new);
+            if old != new {
+                self.histogram[bucket(old)] -= 1;
+                self.histogram[bucket(new)] += 1;
+            }
         }
     }
 

@@ -205,13 +205,14 @@ impl<'i> Run<'i> {
 
     /// Brings the measure index up to date with the edits since the last round (taking the edit log's touched
     /// list), and creates it under `selection` where the parallel loop's selection will use it: unordered,
-    /// not `Random`. Returns whether the selection uses it.
-    fn sync_measures(&mut self, tree: &OptTree, selection: Selection, ordered: bool) -> bool {
+    /// not `Random`, less than every eligible node. Returns whether the selection uses it.
+    fn sync_measures(&mut self, tree: &OptTree, selection: Selection, fraction: f64, ordered: bool) -> bool {
         let touched = self.edits.take_touched();
         if let Some(index) = &mut self.measures {
             index.update(tree, &touched);
         }
-        let wanted = !ordered && selection != Selection::Random;
+        // A full round needs no measures.
+        let wanted = !ordered && selection != Selection::Random && fraction < 1.0;
         if wanted && self.measures.as_ref().is_none_or(|index| index.selection() != selection) {
             self.measures = Some(MeasureIndex::new(tree, selection));
         }
@@ -239,7 +240,7 @@ impl<'i> Run<'i> {
             let fraction = params.batch_fraction / f64::from(2 * step + 1);
             round += 1;
             let ordered = params.algorithm == Algorithm::Sequential;
-            let uses_index = self.sync_measures(tree, selection, ordered);
+            let uses_index = self.sync_measures(tree, selection, fraction, ordered);
             let index = if uses_index { self.measures.as_ref() } else { None };
             let batch = select_batch_with(tree, selection, fraction, ordered, &mut self.rng, index);
             if batch.is_empty() {
