@@ -40,6 +40,11 @@ impl Aabb {
         }
     }
 
+    /// Whether `other` lies inside this box (boundaries included).
+    pub fn contains(&self, other: &Aabb) -> bool {
+        (0..3).all(|a| self.min[a] <= other.min[a] && other.max[a] <= self.max[a])
+    }
+
     /// Surface area `2 (x y + y z + z x)` of the extents `x, y, z`, everything in f64: each extent is
     /// `f64(max) - f64(min)` (so boxes near `f32::MAX` give finite areas), clamped below at 0 (the empty box and
     /// points have area 0). This is the area the format spec's cost definition uses.

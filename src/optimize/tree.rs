@@ -235,8 +235,13 @@ impl OptTree {
         self.nodes[i as usize].parent = parent;
     }
 
-    /// Whether `x` lies in the subtree of `c` (or is `c`).
+    /// Whether `x` lies in the subtree of `c` (or is `c`). Boxes are exact, so a node of `c`'s subtree has a box
+    /// inside `c`'s: most nodes are ruled out by that test, without the walk up from `x` (the parallel loop's
+    /// check of every move: a third of its sequential apply time on the 7.8M grid).
     pub fn is_in_subtree(&self, mut x: u32, c: u32) -> bool {
+        if !self.nodes[c as usize].aabb.contains(&self.nodes[x as usize].aabb) {
+            return false;
+        }
         while x != NONE {
             if x == c {
                 return true;
