@@ -236,9 +236,12 @@ pub fn convert_with(
     let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH, &triangles);
     // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
-    let wide_tree = options.wide.map(|costs| (collapse(&tree, &costs), costs));
+    // The wide collapse and the leaf merging read the same tree and are independent: run side by side.
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
-    let final_tree = merge_leaves(&tree, options.optimize.constants, leaf_size);
+    let (wide_tree, final_tree) = rayon::join(
+        || options.wide.map(|costs| (collapse(&tree, &costs), costs)),
+        || merge_leaves(&tree, options.optimize.constants, leaf_size),
+    );
     drop(tree);
     timings.merge = lap(clock);
     let _ = observer(Event::Stage(Stage::Write));

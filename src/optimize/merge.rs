@@ -12,7 +12,7 @@ use crate::cost::SahConstants;
 /// The tree with leaves merged; `max_leaf_size` >= 1.
 pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
     let mut cost = vec![0.0f64; tree.nodes.len()];
-    let mut count = vec![0usize; tree.nodes.len()];
+    let mut count = vec![0u32; tree.nodes.len()];
     let mut collapse = vec![false; tree.nodes.len()];
     for &i in tree.depth_first().iter().rev() {
         let node = &tree.nodes[i as usize];
@@ -27,7 +27,7 @@ pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usiz
         count[i] = count[l] + count[r];
         let split = constants.traversal * a + cost[l] + cost[r];
         let leaf = constants.intersection * count[i] as f64 * a;
-        if count[i] <= max_leaf_size && leaf <= split {
+        if count[i] as usize <= max_leaf_size && leaf <= split {
             cost[i] = leaf;
             collapse[i] = true;
         } else {
