@@ -11,10 +11,21 @@ use crate::cost::SahConstants;
 
 /// The tree with leaves merged; `max_leaf_size` >= 1.
 pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
+    merge_leaves_in_order(tree, constants, max_leaf_size, &tree.depth_first())
+}
+
+/// [`merge_leaves`], given the tree's [`OptTree::depth_first`] order (the conversion computes it once for this
+/// and the wide collapse, which run side by side).
+pub fn merge_leaves_in_order(
+    tree: &OptTree,
+    constants: SahConstants,
+    max_leaf_size: usize,
+    order: &[u32],
+) -> BuildTree {
     let mut cost = vec![0.0f64; tree.nodes.len()];
     let mut count = vec![0u32; tree.nodes.len()];
     let mut collapse = vec![false; tree.nodes.len()];
-    for &i in tree.depth_first().iter().rev() {
+    for &i in order.iter().rev() {
         let node = &tree.nodes[i as usize];
         let a = node.aabb.surface_area();
         let i = i as usize;

@@ -79,6 +79,11 @@ type CostRow = [f64; 16];
 
 /// Collapses `tree` (the optimizer's binary tree, one triangle per leaf) into a `costs.width`-wide tree.
 pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
+    collapse_in_order(tree, costs, &tree.depth_first())
+}
+
+/// [`collapse`], given the tree's [`OptTree::depth_first`] order.
+pub fn collapse_in_order(tree: &OptTree, costs: &WideCosts, order: &[u32]) -> WideTree {
     let width = costs.width.clamp(2, 16);
     let costs = WideCosts {
         width,
@@ -90,7 +95,7 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
     if tree.root == NONE {
         return wide;
     }
-    let table = fill_table(tree, &costs);
+    let table = fill_table(tree, &costs, order);
     wide.root_box = tree.nodes[tree.root as usize].aabb;
     let root = tree.root;
     // The root is stored as a wide node either way: with one leaf child (cost node + leaf) or with the DP's
@@ -142,7 +147,7 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
 /// left subtree, which comes right after its right subtree: the cost rows wait on a stack (the left child's
 /// on top), and only the rows of subtrees whose parent is not done yet are held, at most the tree's depth
 /// plus one (a full table of costs took 64 bytes a node, about the size of the optimizer's tree).
-fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
+fn fill_table(tree: &OptTree, costs: &WideCosts, order: &[u32]) -> Table {
     let width = costs.width;
     let n = tree.nodes.len();
     let mut table = Table {
@@ -154,7 +159,7 @@ fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
         root_distribution: f64::INFINITY,
     };
     let mut rows: Vec<CostRow> = Vec::new();
-    for &node_index in tree.depth_first().iter().rev() {
+    for &node_index in order.iter().rev() {
         let i = node_index as usize;
         let node = tree.nodes[i];
         let area = node.aabb.surface_area();
