@@ -110,7 +110,9 @@ pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> Bu
         bounds: union_of(&references, |r| r.bounds),
         centroids: union_of(&references, Reference::centroid_box),
     };
-    let mut nodes = vec![UNUSED; 2 * references.len() - 1];
+    // Filled in parallel: 565 MB of new pages at 7.8M triangles (0.22-0.25 s on one thread, 0.15-0.17 s on two).
+    let mut nodes = Vec::with_capacity(2 * references.len() - 1);
+    nodes.par_extend(rayon::iter::repeat_n(UNUSED, 2 * references.len() - 1));
     let builder = Builder { max_leaf_size: max_leaf_size.max(1) };
     builder.build(&mut references, &mut nodes, node);
     let triangle_order = references.par_iter().map(Reference::triangle).collect();
