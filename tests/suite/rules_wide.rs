@@ -69,6 +69,7 @@ fn expect_wide(rule: Rule, corrupt: impl FnOnce(&mut Vec<WideNode8>, &mut Vec<Tr
     let file = BvhFile::from_bytes(&bytes).expect("wide rules are not structural");
     let error = file.view().verify().expect_err("the corruption is caught");
     assert_eq!(error.rule, rule, "expected {rule}, got {error}");
+    assert_eq!(file.view().verify_in_parallel(), Err(error), "the wide checks on their own thread");
 }
 
 fn occupied(node: &WideNode8) -> usize {

@@ -54,7 +54,7 @@ pub use format::{
 pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use traverse::{Hit, Kernel, Tracer, TraversalCounter, TraversalStats};
 pub use uncached::UncachedWriter;
-pub use verify::verify_tree;
+pub use verify::{PARALLEL_VERIFY_BYTES, verify_tree};
 pub use view::{BvhView, SectionInfo, WideSections};
 pub use wide::{KernelPath, WideBvh, WideTracer};
 pub use writer::BvhWriter;
