@@ -308,17 +308,19 @@ impl OptTree {
         order
     }
 
-    /// Largest depth of a node (root 0).
+    /// Largest depth of a node (root 0), by a walk with an explicit stack (memory: the tree's depth).
     pub fn max_depth(&self) -> usize {
-        let mut depth = vec![0usize; self.nodes.len()];
+        if self.root == NONE {
+            return 0;
+        }
         let mut deepest = 0;
-        for i in self.depth_first() {
+        let mut stack = vec![(self.root, 0usize)];
+        while let Some((i, depth)) = stack.pop() {
+            deepest = deepest.max(depth);
             let node = &self.nodes[i as usize];
             if node.left != NONE {
-                let d = depth[i as usize] + 1;
-                depth[node.left as usize] = d;
-                depth[node.right as usize] = d;
-                deepest = deepest.max(d);
+                stack.push((node.right, depth + 1));
+                stack.push((node.left, depth + 1));
             }
         }
         deepest
