@@ -3,7 +3,7 @@
 //!
 //! A round of the decreasing-fraction schedule takes the `k` most inefficient eligible nodes (see `select`).
 //! Ranking every eligible node for it was an `O(n)` pass with random reads per round, whatever `k`: on the
-//! 7.8M-triangle grid 0.3-0.9 s of rounds that took 0.7-1.2 s. Here a node's key changes only when the node,
+//! 7.8M-triangle grid 0.32-0.56 s of the first sequence's late rounds, which took 0.71-1.17 s. Here a node's key changes only when the node,
 //! its parent, a child, or the root was written, and the edit log lists the nodes written ([`EditLog`]'s
 //! touched list), so a round recomputes the keys of those nodes and their neighbours; choosing the batch is
 //! then a scan of a 65,536-bucket histogram and one sequential pass over the keys.

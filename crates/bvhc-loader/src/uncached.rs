@@ -99,11 +99,6 @@ impl<'f> UncachedWriter<'f> {
         UncachedWriter { buffered, direct, stage, staged: 0, written: 0 }
     }
 
-    /// Whether bytes still go past the page cache.
-    pub fn is_direct(&self) -> bool {
-        self.direct.is_some()
-    }
-
     /// Writes the staged bytes padded to whole pages through the direct handle. On a refusal before anything
     /// was written there, falls back to buffered writes (the staged bytes go to the buffered handle).
     fn write_stage(&mut self) -> std::io::Result<()> {

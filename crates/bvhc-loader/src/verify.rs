@@ -24,12 +24,8 @@ impl BvhView<'_> {
     /// second, scoped thread beside the other rules, and the first broken rule in the same order is returned;
     /// where no thread can be started, everything runs on the caller's.
     pub fn verify(&self) -> Result<(), Violation> {
-        let wide = || match self.wide_sections() {
-            Some(wide) => crate::verify_wide::verify_wide(wide.nodes, wide.packets, &self.wide_context()),
-            None => Ok(()),
-        };
         if self.bytes().len() < PARALLEL_VERIFY_BYTES {
-            return self.verify_all_but_wide().and_then(|()| wide());
+            return self.verify_all_but_wide().and_then(|()| self.verify_wide_sections());
         }
         self.verify_in_parallel()
     }
@@ -38,21 +34,25 @@ impl BvhView<'_> {
     /// same result (the first broken rule in the same order). Without wide sections, or where no thread can
     /// be started, everything runs on the caller's thread.
     pub fn verify_in_parallel(&self) -> Result<(), Violation> {
-        let wide = || match self.wide_sections() {
-            Some(wide) => crate::verify_wide::verify_wide(wide.nodes, wide.packets, &self.wide_context()),
-            None => Ok(()),
-        };
         if self.wide_sections().is_none() {
             return self.verify_all_but_wide();
         }
         std::thread::scope(|scope| {
-            let Ok(wide_check) = std::thread::Builder::new().spawn_scoped(scope, wide) else {
-                return self.verify_all_but_wide().and_then(|()| wide());
+            let Ok(wide_check) = std::thread::Builder::new().spawn_scoped(scope, || self.verify_wide_sections()) else {
+                return self.verify_all_but_wide().and_then(|()| self.verify_wide_sections());
             };
             let rest = self.verify_all_but_wide();
             let wide_result = wide_check.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
             rest.and(wide_result)
         })
+    }
+
+    /// Rules V29-V35: the wide sections, where the file has them.
+    fn verify_wide_sections(&self) -> Result<(), Violation> {
+        match self.wide_sections() {
+            Some(wide) => crate::verify_wide::verify_wide(wide.nodes, wide.packets, &self.wide_context()),
+            None => Ok(()),
+        }
     }
 
     /// Rules V11-V28: everything but the wide sections.

@@ -157,8 +157,9 @@ impl<'a> BvhWriter<'a> {
 
     /// Writes the file's bytes to `out` section by section, from the borrowed slices (the file is never laid
     /// out in memory), and returns its byte length. Unlike [`BvhWriter::build`] this does not verify: the
-    /// caller reads the written file back and verifies it (`BvhFile::read`, then `verify`) before using it,
-    /// after freeing what the sections were borrowed from, so that the file is in memory once at most.
+    /// caller reads the written file back and verifies it (`BvhFile::read` or `read_uncached`, then `verify`)
+    /// before using it, after freeing what the sections were borrowed from, so that the file is in memory once
+    /// at most.
     pub fn write_unverified(&self, out: &mut impl std::io::Write) -> Result<u64, Error> {
         let (head, sections) = self.plan_layout()?;
         let io = |source| Error::Unwritable(format!("writing the file: {source}"));
