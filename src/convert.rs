@@ -14,10 +14,10 @@ use serde::Serialize;
 use crate::build::Builder;
 use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
-use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves_in_order, optimize};
+use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
 use crate::pack::pack;
 use crate::up_to_date::input_entries;
-use crate::wide::{WideCosts, collapse_in_order, pack_wide};
+use crate::wide::{WideCosts, collapse, pack_wide};
 
 /// Largest leaf the merger makes by default (the reference table's M = 3 uses 8).
 pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
@@ -238,12 +238,10 @@ pub fn convert_with(
     // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
     // The wide collapse and the leaf merging read the same tree and are independent: run side by side.
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
-    let order = tree.depth_first();
     let (wide_tree, final_tree) = rayon::join(
-        || options.wide.map(|costs| (collapse_in_order(&tree, &costs, &order), costs)),
-        || merge_leaves_in_order(&tree, options.optimize.constants, leaf_size, &order),
+        || options.wide.map(|costs| (collapse(&tree, &costs), costs)),
+        || merge_leaves(&tree, options.optimize.constants, leaf_size),
     );
-    drop(order);
     drop(tree);
     timings.merge = lap(clock);
     let _ = observer(Event::Stage(Stage::Write));

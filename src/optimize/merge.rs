@@ -11,38 +11,29 @@ use crate::cost::SahConstants;
 
 /// The tree with leaves merged; `max_leaf_size` >= 1.
 pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
-    merge_leaves_in_order(tree, constants, max_leaf_size, &tree.depth_first())
-}
-
-/// [`merge_leaves`], given the tree's [`OptTree::depth_first`] order (the conversion computes it once for this
-/// and the wide collapse, which run side by side).
-pub fn merge_leaves_in_order(
-    tree: &OptTree,
-    constants: SahConstants,
-    max_leaf_size: usize,
-    order: &[u32],
-) -> BuildTree {
-    let mut cost = vec![0.0f64; tree.nodes.len()];
-    let mut count = vec![0u32; tree.nodes.len()];
+    // Children first: the subtrees' (cost, triangle count) pairs wait on a stack, the left child's on top, so
+    // only those of nodes whose parent is not done yet are held (at most the depth plus one), not 12 bytes a node.
     let mut collapse = vec![false; tree.nodes.len()];
-    for &i in order.iter().rev() {
+    let mut pending: Vec<(f64, u32)> = Vec::new();
+    for i in tree.children_first() {
         let node = &tree.nodes[i as usize];
         let a = node.aabb.surface_area();
-        let i = i as usize;
         if node.left == NONE {
-            count[i] = 1;
-            cost[i] = constants.intersection * a;
+            pending.push((constants.intersection * a, 1));
             continue;
         }
-        let (l, r) = (node.left as usize, node.right as usize);
-        count[i] = count[l] + count[r];
-        let split = constants.traversal * a + cost[l] + cost[r];
-        let leaf = constants.intersection * count[i] as f64 * a;
-        if count[i] as usize <= max_leaf_size && leaf <= split {
-            cost[i] = leaf;
-            collapse[i] = true;
+        let ((left_cost, left_count), (right_cost, right_count)) = match (pending.pop(), pending.pop()) {
+            (Some(left), Some(right)) => (left, right),
+            _ => unreachable!("reverse depth-first order finishes both children before their parent"),
+        };
+        let count = left_count + right_count;
+        let split = constants.traversal * a + left_cost + right_cost;
+        let leaf = constants.intersection * count as f64 * a;
+        if count as usize <= max_leaf_size && leaf <= split {
+            collapse[i as usize] = true;
+            pending.push((leaf, count));
         } else {
-            cost[i] = split;
+            pending.push((split, count));
         }
     }
     tree.to_build_tree_with_leaves(&|i| collapse[i as usize])

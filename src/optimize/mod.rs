@@ -32,11 +32,11 @@ use serde::Serialize;
 
 pub use edit_log::EditLog;
 pub use measure_index::MeasureIndex;
-pub use merge::{merge_leaves, merge_leaves_in_order};
+pub use merge::merge_leaves;
 pub use params::{Algorithm, OptimizeParams, Preset};
 pub use search::{Move, SearchQueue, best_in_subtree, best_insertion, best_move};
 pub use select::{Selection, is_eligible, select_batch, select_batch_with};
-pub use tree::{NONE, OptNode, OptTree, area};
+pub use tree::{ChildrenFirst, NONE, OptNode, OptTree, area};
 
 use crate::cost::{SahConstants, SahCost, sah_of_sums};
 

@@ -308,6 +308,15 @@ impl OptTree {
         order
     }
 
+    /// Every node after both of its subtrees, the right subtree's nodes before the left one's (the reverse of
+    /// [`OptTree::depth_first`]), walked with an explicit stack of the tree's depth, not an array of its size.
+    /// A pass that keeps each finished subtree's result on a stack finds, at an inner node, its left child's
+    /// result on top and its right child's under it.
+    pub fn children_first(&self) -> ChildrenFirst<'_> {
+        let stack = if self.root == NONE { Vec::new() } else { vec![(self.root, false)] };
+        ChildrenFirst { tree: self, stack }
+    }
+
     /// Largest depth of a node (root 0), by a walk with an explicit stack (memory: the tree's depth).
     pub fn max_depth(&self) -> usize {
         if self.root == NONE {
@@ -431,6 +440,30 @@ impl OptTree {
                 stack.push(node.right);
                 stack.push(node.left);
             }
+        }
+    }
+}
+
+/// The iterator of [`OptTree::children_first`]: the stack holds nodes still to yield, each marked once its
+/// subtrees are on the stack above it.
+pub struct ChildrenFirst<'a> {
+    tree: &'a OptTree,
+    stack: Vec<(u32, bool)>,
+}
+
+impl Iterator for ChildrenFirst<'_> {
+    type Item = u32;
+
+    fn next(&mut self) -> Option<u32> {
+        loop {
+            let (i, expanded) = self.stack.pop()?;
+            let node = &self.tree.nodes[i as usize];
+            if expanded || node.left == NONE {
+                return Some(i);
+            }
+            self.stack.push((i, true));
+            self.stack.push((node.left, false));
+            self.stack.push((node.right, false));
         }
     }
 }

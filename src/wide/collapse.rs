@@ -56,22 +56,46 @@ impl WideCosts {
     }
 }
 
-/// Per binary node: how each `C(n, i)` was reached and what the reconstruction needs. The costs themselves are
-/// kept only while they are needed (see [`fill_table`]).
+/// Per binary node: how each `C(n, i)` was reached, as `width` decisions of 4 bits (two a byte; every decision
+/// is below 16): the table takes `width / 2` bytes a node. The costs themselves are kept only while they are
+/// needed (see [`fill_table`]).
+///
+/// Decision `i - 1` for `i` in `2..=N`: 0 when `C(n, i) = C(n, 1)` (one child), else `k`: `k` slots to the left
+/// child and `i - k` to the right one. Decision 0 (`C(n, 1)` has no split to record): 0 when `C(n, 1)` is a
+/// leaf, else the left child's share `k` (1 to `N - 1`) of `C_distribute(n, N)`, how the wide node made from
+/// `n` spreads its `N` slots. The root may be a wide node even where `C(root, 1)` is a leaf (its node visit is
+/// paid either way), so its share is kept apart.
 struct Table {
     width: usize,
-    /// `split[n * width + (i - 1)]`: 0 when `C(n, i) = C(n, 1)` (one child), else `k`: `k` slots to the left
-    /// child and `i - k` to the right one.
-    split: Vec<u8>,
-    /// For an inner node: the left child's share `k` of `C_distribute(n, N)` (how a wide node made from `n`
-    /// spreads its `N` slots).
-    distribution_split: Vec<u8>,
+    decisions: Vec<u8>,
+    /// `C_distribute(root, N)` and the left child's share in it.
+    root_distribution: (f64, u8),
+    /// Triangles under the root.
+    root_triangles: usize,
+}
+
+impl Table {
+    fn decision(&self, n: u32, index: usize) -> usize {
+        let at = n as usize * self.width + index;
+        ((self.decisions[at / 2] >> (4 * (at % 2))) & 0xf) as usize
+    }
+
+    fn set_decision(&mut self, n: u32, index: usize, value: usize) {
+        debug_assert!(value < 16, "a decision is a slot count below 16");
+        let at = n as usize * self.width + index;
+        let shift = 4 * (at % 2);
+        self.decisions[at / 2] = (self.decisions[at / 2] & !(0xf << shift)) | ((value as u8) << shift);
+    }
+
     /// Whether `C(n, 1)` is a leaf (else a wide node).
-    is_leaf: Vec<bool>,
-    /// Triangles under each node.
-    triangles: Vec<u32>,
-    /// `C_distribute(root, N)`.
-    root_distribution: f64,
+    fn is_leaf(&self, n: u32) -> bool {
+        self.decision(n, 0) == 0
+    }
+
+    /// The left child's share of the slots of the wide node made from inner node `n`.
+    fn distribution_split(&self, n: u32, root: u32) -> usize {
+        if n == root { self.root_distribution.1 as usize } else { self.decision(n, 0) }
+    }
 }
 
 /// The costs `C(n, 1..=N)` of one node (`N` <= 16).
@@ -79,11 +103,6 @@ type CostRow = [f64; 16];
 
 /// Collapses `tree` (the optimizer's binary tree, one triangle per leaf) into a `costs.width`-wide tree.
 pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
-    collapse_in_order(tree, costs, &tree.depth_first())
-}
-
-/// [`collapse`], given the tree's [`OptTree::depth_first`] order.
-pub fn collapse_in_order(tree: &OptTree, costs: &WideCosts, order: &[u32]) -> WideTree {
     let width = costs.width.clamp(2, 16);
     let costs = WideCosts {
         width,
@@ -95,16 +114,15 @@ pub fn collapse_in_order(tree: &OptTree, costs: &WideCosts, order: &[u32]) -> Wi
     if tree.root == NONE {
         return wide;
     }
-    let table = fill_table(tree, &costs, order);
+    let table = fill_table(tree, &costs);
     wide.root_box = tree.nodes[tree.root as usize].aabb;
     let root = tree.root;
     // The root is stored as a wide node either way: with one leaf child (cost node + leaf) or with the DP's
     // children (node + C_distribute), so compare the leaf with C_distribute alone.
     let root_node = tree.nodes[root as usize];
     let root_as_leaf = root_node.left == NONE
-        || (table.triangles[root as usize] as usize <= costs.max_leaf_size
-            && costs.leaf(table.triangles[root as usize] as usize) * root_node.aabb.surface_area()
-                <= table.root_distribution);
+        || (table.root_triangles <= costs.max_leaf_size
+            && costs.leaf(table.root_triangles) * root_node.aabb.surface_area() <= table.root_distribution.0);
     if root_as_leaf {
         // The whole scene is cheapest as one leaf: a root node with that single leaf child.
         let mut children = Vec::new();
@@ -121,7 +139,7 @@ pub fn collapse_in_order(tree: &OptTree, costs: &WideCosts, order: &[u32]) -> Wi
         let mut children = Vec::with_capacity(slots.len());
         let mut expand = Vec::new();
         for n in slots {
-            if table.is_leaf[n as usize] {
+            if table.is_leaf(n) {
                 push_leaf(tree, n, &mut wide.triangle_order, &mut children);
             } else {
                 let index = wide.nodes.len() as u32 + expand.len() as u32;
@@ -143,66 +161,60 @@ pub fn collapse_in_order(tree: &OptTree, costs: &WideCosts, order: &[u32]) -> Wi
     wide
 }
 
-/// Fills the table bottom-up. Nodes are taken in reverse depth-first order, so a node comes right after its
-/// left subtree, which comes right after its right subtree: the cost rows wait on a stack (the left child's
-/// on top), and only the rows of subtrees whose parent is not done yet are held, at most the tree's depth
-/// plus one (a full table of costs took 64 bytes a node, about the size of the optimizer's tree).
-fn fill_table(tree: &OptTree, costs: &WideCosts, order: &[u32]) -> Table {
+/// Fills the table bottom-up. Nodes are taken children first ([`OptTree::children_first`]): the cost rows and
+/// triangle counts wait on a stack (the left child's on top), and only those of subtrees whose parent is not
+/// done yet are held, at most the tree's depth plus one (a full table of costs took 64 bytes a node, about the
+/// size of the optimizer's tree).
+fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
     let width = costs.width;
-    let n = tree.nodes.len();
     let mut table = Table {
         width,
-        split: vec![0; n * width],
-        distribution_split: vec![0; n],
-        is_leaf: vec![false; n],
-        triangles: vec![0; n],
-        root_distribution: f64::INFINITY,
+        decisions: vec![0; (tree.nodes.len() * width).div_ceil(2)],
+        root_distribution: (f64::INFINITY, 0),
+        root_triangles: 0,
     };
-    let mut rows: Vec<CostRow> = Vec::new();
-    for &node_index in order.iter().rev() {
-        let i = node_index as usize;
-        let node = tree.nodes[i];
+    let mut rows: Vec<(CostRow, u32)> = Vec::new();
+    for node_index in tree.children_first() {
+        let node = tree.nodes[node_index as usize];
         let area = node.aabb.surface_area();
         let mut row = [f64::INFINITY; 16];
         if node.left == NONE {
-            table.triangles[i] = 1;
-            table.is_leaf[i] = true;
             row[..width].fill(costs.leaf(1) * area);
-            rows.push(row);
+            rows.push((row, 1));
             continue;
         }
-        let (left_row, right_row) = match (rows.pop(), rows.pop()) {
+        let ((left_row, left_triangles), (right_row, right_triangles)) = match (rows.pop(), rows.pop()) {
             (Some(left), Some(right)) => (left, right),
             _ => unreachable!("reverse depth-first order finishes both children before their parent"),
         };
-        let (l, r) = (node.left as usize, node.right as usize);
-        table.triangles[i] = table.triangles[l] + table.triangles[r];
-        let leaf = if table.triangles[i] as usize <= costs.max_leaf_size {
-            costs.leaf(table.triangles[i] as usize) * area
+        let triangles = left_triangles + right_triangles;
+        let leaf = if triangles as usize <= costs.max_leaf_size {
+            costs.leaf(triangles as usize) * area
         } else {
             f64::INFINITY
         };
         let (distribute_all, k_all) = best_distribution(&left_row, &right_row, width);
-        table.distribution_split[i] = k_all as u8;
         if node_index == tree.root {
-            table.root_distribution = distribute_all;
+            table.root_distribution = (distribute_all, k_all as u8);
         }
         let internal = costs.node_visit * area + distribute_all;
-        table.is_leaf[i] = leaf <= internal;
+        let is_leaf = leaf <= internal;
+        table.set_decision(node_index, 0, if is_leaf { 0 } else { k_all });
         row[0] = leaf.min(internal);
+        let mut split = 0;
         for slots in 2..=width {
             let (distributed, k) = best_distribution(&left_row, &right_row, slots);
-            let at = i * width + slots - 1;
             if distributed < row[slots - 2] {
                 row[slots - 1] = distributed;
-                table.split[at] = k as u8;
+                split = k;
             } else {
                 row[slots - 1] = row[slots - 2];
-                table.split[at] = table.split[at - 1];
             }
+            table.set_decision(node_index, slots - 1, split);
         }
-        rows.push(row);
+        rows.push((row, triangles));
     }
+    table.root_triangles = rows.last().map_or(0, |&(_, triangles)| triangles as usize);
     table
 }
 
@@ -217,16 +229,17 @@ fn best_distribution(left: &CostRow, right: &CostRow, slots: usize) -> (f64, usi
 /// The binary nodes that become the children of the wide node made from inner binary node `n`.
 fn distribute(table: &Table, tree: &OptTree, n: u32, out: &mut Vec<u32>) {
     let node = tree.nodes[n as usize];
-    let k = table.distribution_split[n as usize] as usize;
+    let k = table.distribution_split(n, tree.root);
     gather(table, tree, node.left, k, out);
     gather(table, tree, node.right, table.width - k, out);
 }
 
 /// The children that binary node `n` contributes with at most `slots` slots.
 fn gather(table: &Table, tree: &OptTree, n: u32, slots: usize, out: &mut Vec<u32>) {
-    let split = table.split[n as usize * table.width + slots - 1] as usize;
     let node = tree.nodes[n as usize];
-    if split == 0 || node.left == NONE {
+    // One slot has no split (decision 0 means something else, see `Table`).
+    let split = if node.left == NONE || slots == 1 { 0 } else { table.decision(n, slots - 1) };
+    if split == 0 {
         out.push(n);
     } else {
         gather(table, tree, node.left, split, out);

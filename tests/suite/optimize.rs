@@ -211,6 +211,22 @@ fn one_and_several_threads_give_identical_trees() {
     assert_eq!(one, run(1), "and from run to run");
 }
 
+/// The children-first walk (which the leaf merging and the wide collapse use instead of an order array) is the
+/// depth-first order reversed, on trees whose node numbering the optimizer has shuffled.
+#[test]
+fn the_children_first_walk_is_the_depth_first_order_reversed() {
+    for (seed, count) in [(1u64, 1usize), (2, 2), (3, 7), (4, 500)] {
+        let triangles = random_triangles(seed, count, 10.0);
+        let mut tree = tree_for(&triangles, Builder::SpatialMedian);
+        optimize(&mut tree, &OptimizeParams::default(), &mut |_| ControlFlow::Continue(()));
+        let mut reversed = tree.depth_first();
+        reversed.reverse();
+        assert_eq!(tree.children_first().collect::<Vec<_>>(), reversed, "{count} triangles");
+    }
+    let empty = OptTree { nodes: Vec::new(), root: NONE };
+    assert_eq!(empty.children_first().next(), None, "an empty tree");
+}
+
 #[test]
 fn cancellation_and_time_budget_return_the_best_tree_so_far() {
     let triangles = random_triangles(11, 3000, 10.0);
