@@ -107,7 +107,7 @@ fn kernel_speeds(
     let file = bvhc::loader::BvhWriter::new(&packed_tree.nodes, &packed_tree.triangles).build().unwrap();
     let binary = file.view().tracer();
     let soup: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
-    let bvh = bvhc::wide::pack_wide(wide, &soup, None).unwrap();
+    let bvh = bvhc::wide::pack_wide(wide, &soup, &mut Some, false).unwrap();
     let portable = WideTracer::new(&bvh, None, KernelPath::Portable);
     let avx2 = WideTracer::new(&bvh, None, KernelPath::Avx2);
     let root = &file.view().nodes()[0];

@@ -113,6 +113,13 @@ impl Conversion {
         self
     }
 
+    /// Split references: `Some(budget)` cuts large triangles into at most `budget * triangles` extra
+    /// references before the build (see [`crate::split`]); `None` keeps one a triangle.
+    pub fn splits(mut self, budget: Option<f64>) -> Self {
+        self.options.splits = budget.map(|budget| crate::convert::SplitOptions { budget });
+        self
+    }
+
     /// The glTF scene to convert.
     pub fn scene(mut self, scene: SceneSelector) -> Self {
         self.options.import.scene = Some(scene);

@@ -16,6 +16,7 @@ use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
 use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
 use crate::pack::pack;
+use crate::split::split_triangles;
 use crate::up_to_date::input_entries;
 use crate::wide::{WideCosts, collapse, pack_wide};
 
@@ -44,6 +45,17 @@ pub struct ConvertOptions {
     /// Write the wide sections of format 1.1 (`wide_nodes`, `triangle_packets`), collapsed from the optimized
     /// tree with these constants; `None` writes a 1.0 file without them.
     pub wide: Option<WideCosts>,
+    /// Cut large triangles into split references before the build ([`crate::split`]); `None`: one reference a
+    /// triangle. Recorded only when on, so files converted without splits keep their bytes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub splits: Option<SplitOptions>,
+}
+
+/// How many split references a conversion may add.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SplitOptions {
+    /// At most `budget * triangles` references beyond one a triangle (0.3: 30% more).
+    pub budget: f64,
 }
 
 impl Default for ConvertOptions {
@@ -75,6 +87,7 @@ impl ConvertOptions {
             max_leaf_size: DEFAULT_MAX_LEAF_SIZE,
             write_ids: true,
             wide: Some(WideCosts::default()),
+            splits: None,
         }
     }
 }
@@ -92,8 +105,12 @@ pub struct ConvertReport {
     pub optimization: Option<OptimizeReport>,
     /// Cost of the written tree.
     pub cost: SahCost,
-    /// Triangles written.
+    /// Triangles written (distinct; with split references some are stored more than once).
     pub triangle_count: usize,
+    /// The references the tree was built over (`triangle_count` without splits).
+    pub reference_count: usize,
+    /// Triangle records written (more than `triangle_count` when leaves repeat split triangles).
+    pub stored_triangle_count: usize,
     /// Nodes written.
     pub node_count: usize,
     /// Wide nodes and triangle packets written (absent without wide sections).
@@ -226,7 +243,14 @@ pub fn convert_with(
     }
     let _ = observer(Event::Stage(Stage::Build));
     let clock = Instant::now();
-    let mut tree = OptTree::from_build(options.builder.build(&triangles, 1), &triangles);
+    let (build, reference_count) = match options.splits {
+        Some(splits) => {
+            let references = split_triangles(&triangles, splits.budget);
+            (options.builder.build_references(&references), references.len())
+        }
+        None => (options.builder.build(&triangles, 1), triangles.len()),
+    };
+    let mut tree = OptTree::from_build(build, &triangles);
     timings.build = lap(clock);
     let _ = observer(Event::Stage(Stage::Optimize));
     let clock = Instant::now();
@@ -234,7 +258,7 @@ pub fn convert_with(
         .then(|| optimize(&mut tree, &options.optimize, &mut |p: &Progress| observer(Event::Batch(p))));
     timings.optimize = lap(clock);
     let clock = Instant::now();
-    tree.limit_depth(MAX_DEPTH, &triangles);
+    tree.limit_depth(MAX_DEPTH);
     // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
     // The wide collapse and the leaf merging read the same tree and are independent: run side by side.
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
@@ -251,13 +275,21 @@ pub fn convert_with(
     drop(final_tree);
     let triangle_count = triangles.len();
     drop(triangles);
-    check_every_triangle_once(&packed.triangle_ids, triangle_count)?;
+    check_every_triangle_stored(&packed.triangle_ids, triangle_count, options.splits.is_some())?;
+    let stored_triangle_count = packed.triangles.len();
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup_source_ids[t as usize]).collect();
     drop(soup_source_ids);
     let wide = match wide_tree {
         Some((wide_tree, costs)) => {
-            let bvh = pack_wide(&wide_tree, &packed.triangles, Some(&packed.file_index_of(triangle_count)))?;
+            let split = stored_triangle_count > triangle_count;
+            let bvh = if split {
+                let mut records = packed.record_cursor(triangle_count);
+                pack_wide(&wide_tree, &packed.triangles, &mut |t| records.next(t), true)?
+            } else {
+                let file_index_of = packed.file_index_of(triangle_count);
+                pack_wide(&wide_tree, &packed.triangles, &mut |t| file_index_of.get(t as usize).copied(), false)?
+            };
             let summary = WideSummary {
                 node_count: bvh.nodes().len(),
                 packet_count: bvh.packets().len(),
@@ -273,7 +305,9 @@ pub fn convert_with(
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);
     let metadata = metadata_json(inputs, options, &cost, &imported.report, summary.as_ref());
-    let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles).metadata(&metadata);
+    let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles)
+        .metadata(&metadata)
+        .split_references(stored_triangle_count > triangle_count);
     if options.write_ids {
         writer = writer.triangle_ids(&source_ids).source_table(&soup_sources);
     }
@@ -305,6 +339,8 @@ pub fn convert_with(
         optimization,
         cost,
         triangle_count,
+        reference_count,
+        stored_triangle_count,
         node_count,
         wide: summary,
         file_byte_len: file_byte_len as usize,
@@ -337,16 +373,24 @@ pub fn is_same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// The file may legally repeat triangles (split references), so its verifier cannot notice a triangle lost or
-/// doubled by a builder bug; this O(n) check refuses to write such a tree.
-fn check_every_triangle_once(ids: &[u32], triangle_count: usize) -> Result<(), ConvertError> {
+/// doubled by a builder bug; this O(n) check refuses to write such a tree: every triangle at least once, and
+/// exactly once without splits.
+fn check_every_triangle_stored(ids: &[u32], triangle_count: usize, split: bool) -> Result<(), ConvertError> {
     let mut seen = vec![false; triangle_count];
-    let all_once = ids.len() == triangle_count
-        && ids.iter().all(|&t| seen.get_mut(t as usize).is_some_and(|s| !std::mem::replace(s, true)));
-    if all_once {
-        Ok(())
-    } else {
-        Err(ConvertError::Internal("the built tree does not hold every triangle exactly once".to_string()))
+    let mut repeated = false;
+    for &t in ids {
+        let Some(slot) = seen.get_mut(t as usize) else {
+            return Err(ConvertError::Internal(format!("the built tree holds triangle {t} of {triangle_count}")));
+        };
+        repeated |= std::mem::replace(slot, true);
     }
+    if let Some(t) = seen.iter().position(|&s| !s) {
+        return Err(ConvertError::Internal(format!("the built tree lost triangle {t}")));
+    }
+    if repeated && !split {
+        return Err(ConvertError::Internal("the built tree holds a triangle twice without split references".into()));
+    }
+    Ok(())
 }
 
 fn lap(start: Instant) -> f64 {

@@ -10,6 +10,7 @@ pub mod cost;
 pub mod import;
 pub mod optimize;
 pub mod pack;
+pub mod split;
 pub mod up_to_date;
 pub mod wide;
 

@@ -32,6 +32,51 @@ impl PackedTree {
         }
         file_index_of
     }
+
+    /// Every input triangle's records, in file order (for [`crate::wide::pack_wide`] over split references).
+    pub fn record_cursor(&self, input_triangle_count: usize) -> RecordCursor {
+        let n = input_triangle_count;
+        let mut start = vec![0u32; n + 1];
+        for &t in self.triangle_ids.iter().filter(|&&t| (t as usize) < n) {
+            start[t as usize + 1] += 1;
+        }
+        for t in 0..n {
+            start[t + 1] += start[t];
+        }
+        let mut fill = start.clone();
+        let mut records = vec![0u32; start[n] as usize];
+        for (record, &t) in self.triangle_ids.iter().enumerate().filter(|(_, t)| (**t as usize) < n) {
+            records[fill[t as usize] as usize] = record as u32;
+            fill[t as usize] += 1;
+        }
+        RecordCursor { start, records, taken: vec![0; n] }
+    }
+}
+
+/// For each triangle, its records in the packed triangles, handed out one at a time: what the wide packer
+/// needs when split references store a triangle several times (each record in exactly one lane, V34).
+#[derive(Clone, Debug)]
+pub struct RecordCursor {
+    /// Triangle `t`'s records are `records[start[t] as usize..start[t + 1] as usize]`.
+    start: Vec<u32>,
+    records: Vec<u32>,
+    /// How many of each triangle's records were handed out.
+    taken: Vec<u32>,
+}
+
+impl RecordCursor {
+    /// The next record of triangle `t` not handed out yet.
+    pub fn next(&mut self, t: u32) -> Option<u32> {
+        let t = t as usize;
+        let (first, end) = (*self.start.get(t)? as usize, *self.start.get(t + 1)? as usize);
+        let taken = self.taken.get_mut(t)?;
+        let at = first + *taken as usize;
+        if at >= end {
+            return None;
+        }
+        *taken += 1;
+        self.records.get(at).copied()
+    }
 }
 
 /// Packs `tree`, built over `triangles`.

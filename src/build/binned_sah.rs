@@ -73,8 +73,7 @@ struct Reference {
 }
 
 impl Reference {
-    fn new(vertices: &[[f32; 3]; 3], triangle: u32) -> Reference {
-        let aabb = Aabb::of_triangle(vertices);
+    fn new(aabb: &Aabb, triangle: u32) -> Reference {
         let [x, y, z] = aabb.min;
         let [u, v, w] = aabb.max;
         let (low, high) = ((triangle & 0xFFFF) as f32, (triangle >> 16) as f32);
@@ -98,8 +97,18 @@ impl Reference {
 
 /// Builds a binned SAH tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
 pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {
+    build_binned_sah_over(triangles.len(), |t| Aabb::of_triangle(&triangles[t]), max_leaf_size)
+}
+
+/// [`build_binned_sah`] over `count` boxes (`box_of(i)` for `i < count`, e.g. split references): the tree's
+/// `triangle_order` holds box indices.
+pub fn build_binned_sah_boxes(boxes: &[Aabb], max_leaf_size: usize) -> BuildTree {
+    build_binned_sah_over(boxes.len(), |i| boxes[i], max_leaf_size)
+}
+
+fn build_binned_sah_over(count: usize, box_of: impl Fn(usize) -> Aabb + Sync, max_leaf_size: usize) -> BuildTree {
     let mut references: Vec<Reference> =
-        triangles.par_iter().enumerate().map(|(t, vertices)| Reference::new(vertices, t as u32)).collect();
+        (0..count).into_par_iter().map(|i| Reference::new(&box_of(i), i as u32)).collect();
     if references.is_empty() {
         return BuildTree::default();
     }

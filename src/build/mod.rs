@@ -10,8 +10,8 @@
 mod binned_sah;
 mod spatial_median;
 
-pub use binned_sah::{BIN_COUNT, MEDIAN_FALLBACK_DEPTH, build_binned_sah};
-pub use spatial_median::build_spatial_median;
+pub use binned_sah::{BIN_COUNT, MEDIAN_FALLBACK_DEPTH, build_binned_sah, build_binned_sah_boxes};
+pub use spatial_median::{build_spatial_median, build_spatial_median_boxes};
 
 use crate::aabb::Aabb;
 
@@ -74,6 +74,25 @@ impl Builder {
             Builder::SpatialMedian => build_spatial_median(triangles, max_leaf_size),
             Builder::BinnedSah => build_binned_sah(triangles, max_leaf_size),
         }
+    }
+
+    /// Builds a tree over `boxes` (split references, say): leaves hold box indices.
+    pub fn build_boxes(self, boxes: &[Aabb], max_leaf_size: usize) -> BuildTree {
+        match self {
+            Builder::SpatialMedian => build_spatial_median_boxes(boxes, max_leaf_size),
+            Builder::BinnedSah => build_binned_sah_boxes(boxes, max_leaf_size),
+        }
+    }
+
+    /// Builds a one-reference-per-leaf tree over `references` whose leaves hold the references' *triangles*
+    /// (a triangle may then sit in several leaves, each leaf's box being its reference's box), as the optimizer
+    /// takes it.
+    pub fn build_references(self, references: &crate::split::References) -> BuildTree {
+        let mut tree = self.build_boxes(&references.aabb, 1);
+        for r in &mut tree.triangle_order {
+            *r = references.triangle[*r as usize];
+        }
+        tree
     }
 
     /// The name used in options and reports.

@@ -8,8 +8,13 @@ use crate::aabb::Aabb;
 /// Builds a spatial-median tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
 pub fn build_spatial_median(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {
     let boxes: Vec<Aabb> = triangles.iter().map(Aabb::of_triangle).collect();
+    build_spatial_median_boxes(&boxes, max_leaf_size)
+}
+
+/// [`build_spatial_median`] over boxes (e.g. split references): the tree's `triangle_order` holds box indices.
+pub fn build_spatial_median_boxes(boxes: &[Aabb], max_leaf_size: usize) -> BuildTree {
     let centroids: Vec<[f32; 3]> = boxes.iter().map(Aabb::center).collect();
-    let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
+    let mut order: Vec<u32> = (0..boxes.len() as u32).collect();
     let mut nodes = Vec::new();
     if !order.is_empty() {
         let root_axis = order.iter().fold(Aabb::EMPTY, |b, &t| b.union(&boxes[t as usize])).longest_axis();

@@ -112,6 +112,11 @@ pub struct ConvertArgs {
     /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
     #[arg(long)]
     pub no_wide: bool,
+    /// Cut large triangles into split references before the build, at most this fraction of the triangles
+    /// more (0.3: 30% more). Off by default: on the scenes measured so far the optimized trees trace slower
+    /// with them (docs/evaluation.md).
+    #[arg(long, value_name = "FRACTION", value_parser = parse_split_budget)]
+    pub split_budget: Option<f64>,
     /// The glTF scene to convert, by index or name.
     #[arg(long, value_name = "N|NAME")]
     pub scene: Option<String>,
@@ -153,6 +158,14 @@ fn parse_seconds(text: &str) -> Result<std::time::Duration, String> {
         return Err(format!("'{text}': expected seconds from 0 to {MAX_SECONDS} (a year)"));
     }
     Ok(std::time::Duration::from_secs_f64(seconds))
+}
+
+fn parse_split_budget(text: &str) -> Result<f64, String> {
+    let budget: f64 = text.trim().parse().map_err(|_| format!("'{text}' is not a number"))?;
+    if !(0.0..=4.0).contains(&budget) {
+        return Err(format!("'{text}': expected a fraction from 0 to 4 (at most five references a triangle)"));
+    }
+    Ok(budget)
 }
 
 /// `bvhc render`'s arguments.

@@ -44,6 +44,7 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
         .keep_degenerate(args.keep_degenerate)
         .write_ids(!args.no_ids)
         .write_wide(!args.no_wide)
+        .splits(args.split_budget)
         .force(args.force);
     if let Some(budget) = args.time_budget {
         conversion = conversion.time_budget(budget);

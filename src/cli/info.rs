@@ -103,6 +103,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
             })
         })
         .collect();
+    let unique_triangles = unique_triangle_count(&view);
     if json {
         let report = serde_json::json!({
             "file": path,
@@ -110,6 +111,9 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "file_byte_len": view.bytes().len(),
             "sections": sections,
             "triangle_count": view.triangles().len(),
+            "reference_count": view.triangles().len(),
+            "unique_triangle_count": unique_triangles,
+            "split_references": view.has_split_references(),
             "node_count": view.nodes().len(),
             "wide_node_count": view.wide_sections().map(|w| w.nodes.len()),
             "packet_count": view.wide_sections().map(|w| w.packets.len()),
@@ -148,6 +152,15 @@ pub fn info(path: &Path, json: bool) -> Exit {
         stats.leaf_count,
         stats.max_depth
     );
+    if view.has_split_references() {
+        outln!(
+            out,
+            "split references: {} records of {} triangles ({:.3} a triangle)",
+            view.triangles().len(),
+            unique_triangles,
+            view.triangles().len() as f64 / unique_triangles.max(1) as f64
+        );
+    }
     match view.wide_sections() {
         Some(wide) => outln!(
             out,
@@ -187,4 +200,28 @@ pub fn info(path: &Path, json: bool) -> Exit {
         );
     }
     print(&out, Exit::Success)
+}
+
+/// Distinct triangles in the triangles section: its records, unless `SPLIT_REFERENCES` lets one triangle be
+/// stored several times; then the distinct ids (records with one id are one triangle), or without ids the
+/// distinct vertex triples.
+fn unique_triangle_count(view: &bvhc::loader::BvhView<'_>) -> usize {
+    if !view.has_split_references() {
+        return view.triangles().len();
+    }
+    match view.triangle_ids() {
+        Some(ids) => {
+            let mut ids = ids.to_vec();
+            ids.sort_unstable();
+            ids.dedup();
+            ids.len()
+        }
+        None => {
+            let mut keys: Vec<[u32; 9]> =
+                view.triangles().iter().map(|t| std::array::from_fn(|k| t.vertices[k / 3][k % 3].to_bits())).collect();
+            keys.sort_unstable();
+            keys.dedup();
+            keys.len()
+        }
+    }
 }

@@ -1,4 +1,5 @@
 //! The optimizer's mutable tree: binary, one triangle per leaf, parent links, boxes kept exact by refitting.
+//! With split references a triangle may be in several leaves, each leaf's box being its reference's.
 //!
 //! Kept apart from the packed on-disk layout: the optimizer rewires links in place, then
 //! [`OptTree::to_build_tree_with_leaves`] hands a plain [`BuildTree`] to the packer.
@@ -336,7 +337,7 @@ impl OptTree {
     }
 
     /// Rebuilds (median splits) every subtree that reaches below `max_depth`, so that no node is deeper.
-    pub fn limit_depth(&mut self, max_depth: usize, triangles: &[[[f32; 3]; 3]]) {
+    pub fn limit_depth(&mut self, max_depth: usize) {
         // Subtrees rooted at depth `cut` are rebuilt balanced: their height becomes ceil(log2(leaves)) <= 32.
         let cut = max_depth.saturating_sub(33);
         if self.max_depth() <= max_depth {
@@ -354,12 +355,12 @@ impl OptTree {
             }
         }
         for subtree in roots {
-            self.rebuild_balanced(subtree, triangles);
+            self.rebuild_balanced(subtree);
         }
     }
 
     /// Replaces the subtree under `top` by a balanced one over the same triangles, reusing its nodes.
-    fn rebuild_balanced(&mut self, top: u32, triangles: &[[[f32; 3]; 3]]) {
+    fn rebuild_balanced(&mut self, top: u32) {
         let mut inner = Vec::new();
         let mut leaves = Vec::new();
         let mut stack = vec![top];
@@ -375,7 +376,8 @@ impl OptTree {
         }
         leaves.sort_unstable();
         inner.sort_unstable();
-        let centroid = |leaf: &u32| Aabb::of_triangle(&triangles[self.nodes[*leaf as usize].right as usize]).center();
+        // A leaf's box is its triangle's (or, with split references, its reference's).
+        let centroid = |leaf: &u32| self.nodes[*leaf as usize].aabb.center();
         let keys: Vec<([f32; 3], u32)> = leaves.iter().map(|l| (centroid(l), *l)).collect();
         let parent = self.nodes[top as usize].parent;
         let mut free = inner.into_iter();
@@ -402,7 +404,8 @@ impl OptTree {
     }
 
     /// The tree as a build tree in depth-first order; nodes for which `collapse` holds become one leaf over all
-    /// their triangles (the leaf merger's output), other leaves keep their one triangle.
+    /// their triangles (the leaf merger's output; a triangle that several of its leaves hold as split
+    /// references appears as often, see [`crate::split`]), other leaves keep their one triangle.
     pub fn to_build_tree_with_leaves(&self, collapse: &dyn Fn(u32) -> bool) -> BuildTree {
         let mut build = BuildTree::default();
         if self.root == NONE {

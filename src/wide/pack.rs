@@ -9,14 +9,19 @@ use super::{WideChild, WideTree};
 
 /// Packs `tree` (width at most 8, leaves of at most 32 triangles) into a checked [`WideBvh`] over
 /// `file_triangles`, the triangles section. The tree numbers triangles by their index in the soup it was built
-/// over; `file_index_of[soup index]` is that triangle's index in `file_triangles` (`None`: the same index).
+/// over; `record_of(soup index)` gives the index in `file_triangles` of the record for the next lane that holds
+/// that triangle (see [`crate::pack::PackedTree::record_cursor`]), `None` when there is none.
 ///
 /// Fails with [`Error::Unwritable`] when the tree does not fit the layout (too wide, a leaf of more than 32
 /// triangles, more than 2^28 packets) and with [`Error::Invalid`] when the result breaks a rule of V29-V35.
+///
+/// With `split_references` a triangle may be stored in several records (its leaves then repeat it, once a
+/// record), and the check is V35's split-reference clause.
 pub fn pack_wide(
     tree: &WideTree,
     file_triangles: &[PackedTriangle],
-    file_index_of: Option<&[u32]>,
+    record_of: &mut dyn FnMut(u32) -> Option<u32>,
+    split_references: bool,
 ) -> Result<WideBvh, Error> {
     let unwritable = |why: String| Error::Unwritable(format!("wide sections: {why}"));
     if tree.width > WIDE {
@@ -52,8 +57,8 @@ pub fn pack_wide(
                     for chunk in order.chunks(PACKET_LANES) {
                         lanes.clear();
                         for &t in chunk {
-                            let index = file_index_of.map_or(Some(t), |map| map.get(t as usize).copied());
-                            let lane = index.and_then(|index| Some((index, *file_triangles.get(index as usize)?)));
+                            let lane =
+                                record_of(t).and_then(|index| Some((index, *file_triangles.get(index as usize)?)));
                             lanes.push(lane.ok_or_else(|| {
                                 unwritable(format!("node {i} slot {slot}: triangle {t} is not in the file"))
                             })?);
@@ -72,5 +77,10 @@ pub fn pack_wide(
         }
         nodes.push(packed);
     }
-    Ok(WideBvh::new(nodes, packets, (tree.root_box.min, tree.root_box.max), file_triangles)?)
+    let root_box = (tree.root_box.min, tree.root_box.max);
+    Ok(if split_references {
+        WideBvh::new_split_references(nodes, packets, root_box, file_triangles)?
+    } else {
+        WideBvh::new(nodes, packets, root_box, file_triangles)?
+    })
 }

@@ -109,7 +109,8 @@ pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loa
     let opt = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
     let collapsed = bvhc::wide::collapse(&opt, &bvhc::wide::WideCosts::default());
     let file_index_of = tree.file_index_of(triangles.len());
-    bvhc::wide::pack_wide(&collapsed, &tree.triangles, Some(&file_index_of)).expect("a collapsed tree packs")
+    bvhc::wide::pack_wide(&collapsed, &tree.triangles, &mut |t| file_index_of.get(t as usize).copied(), false)
+        .expect("a collapsed tree packs")
 }
 
 /// Overwrites the last used lane of the last packet with packet 0's lane 0 (index and vertices): a triangle
@@ -278,7 +279,7 @@ pub fn wide_bvh_of(tree: &bvhc::optimize::OptTree, triangles: &[Triangle]) -> bv
     let wide = bvhc::wide::collapse(tree, &bvhc::wide::WideCosts::default());
     let packed: Vec<bvhc::loader::PackedTriangle> =
         triangles.iter().map(|&vertices| bvhc::loader::PackedTriangle { vertices }).collect();
-    bvhc::wide::pack_wide(&wide, &packed, None).expect("a collapsed tree packs")
+    bvhc::wide::pack_wide(&wide, &packed, &mut Some, false).expect("a collapsed tree packs")
 }
 
 /// Every kernel a view can trace with: the binary one, then the wide one on each path this machine runs

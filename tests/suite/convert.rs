@@ -10,11 +10,11 @@ use bvhc::optimize::Preset;
 
 use crate::common::{assert_matches_brute_force, every_kernel, random_rays, scene};
 
-fn teapot() -> PathBuf {
+pub fn teapot() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj")
 }
 
-fn convert_in_pool(threads: usize, input: &Path, output: &Path, options: &ConvertOptions) -> Vec<u8> {
+pub fn convert_in_pool(threads: usize, input: &Path, output: &Path, options: &ConvertOptions) -> Vec<u8> {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
         convert_with(input, output, options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
     });
@@ -34,10 +34,19 @@ fn output_bytes_do_not_depend_on_the_thread_count_or_the_run() {
 }
 
 fn check_scene_against_brute_force(path: &Path, preset: Preset) {
+    check_conversion_against_brute_force(path, &ConvertOptions::preset(preset));
+}
+
+/// Converts `path` with `options`, verifies the file (every rule, the metadata schema) and traces random rays
+/// through every kernel against brute force over the input triangles; returns the report and the file.
+pub fn check_conversion_against_brute_force(
+    path: &Path,
+    options: &ConvertOptions,
+) -> (bvhc::convert::ConvertReport, BvhFile) {
+    let preset = options.preset;
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("scene.bvh");
-    let options = ConvertOptions::preset(preset);
-    let report = convert_with(path, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+    let report = convert_with(path, &output, options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
     let optimization = report.optimization.as_ref().unwrap();
     assert!(optimization.best.cost <= optimization.initial.cost);
     let file = BvhFile::read(&output).unwrap();
@@ -68,6 +77,7 @@ fn check_scene_against_brute_force(path: &Path, preset: Preset) {
     let recorded = metadata["cost"]["sah_cost"].as_f64().unwrap();
     assert_eq!(recorded, report.cost.cost);
     assert_eq!(metadata["build"]["preset"], serde_json::json!(preset));
+    (report, file)
 }
 
 #[test]

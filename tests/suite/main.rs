@@ -22,6 +22,7 @@ mod rules;
 mod rules_wide;
 mod scenes;
 mod spec;
+mod split;
 mod stress;
 mod trace;
 mod traversal;

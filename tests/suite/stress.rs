@@ -254,7 +254,7 @@ fn run_case(case: &Case) -> Counts {
         ControlFlow::Continue(())
     });
     assert!(report.initial.cost.is_finite() && report.best.cost.is_finite(), "{}", case.name);
-    opt.limit_depth(bvhc::loader::format::MAX_DEPTH, &case.triangles);
+    opt.limit_depth(bvhc::loader::format::MAX_DEPTH);
     let merged = merge_leaves(&opt, SahConstants::default(), 8);
     assert!(sah_of_build_tree(&merged, SahConstants::default()).cost.is_finite());
     let packed = pack(&merged, &case.triangles);

@@ -210,7 +210,7 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
         let rays = crate::common::random_rays(seed + 50, 4000, extent * 1.5);
         for (width, max_leaf_size) in [(8, 8), (4, 4), (8, 1)] {
             let wide = collapse(&tree, &WideCosts { width, max_leaf_size, ..WideCosts::default() });
-            let bvh = bvhc::wide::pack_wide(&wide, &packed, None).unwrap();
+            let bvh = bvhc::wide::pack_wide(&wide, &packed, &mut Some, false).unwrap();
             for path in [KernelPath::Portable, KernelPath::Avx2] {
                 if !path.is_supported() {
                     eprintln!("SKIPPED (part): {path:?} is not supported on this machine");

@@ -32,7 +32,29 @@ impl WideBvh {
         root_box: ([f32; 3], [f32; 3]),
         triangles: &[PackedTriangle],
     ) -> Result<WideBvh, Violation> {
-        let context = WideContext { triangles, triangle_ids: None, root_box: Some(root_box), split_references: false };
+        WideBvh::checked(nodes, packets, root_box, triangles, false)
+    }
+
+    /// [`WideBvh::new`] for a triangles section with `SPLIT_REFERENCES` (a triangle may be stored in several
+    /// records, the records with its vertices): V35's split-reference clause applies, so a lane's triangle need
+    /// only overlap its slot's box, and the slots holding a triangle's records must cover it.
+    pub fn new_split_references(
+        nodes: Vec<WideNode8>,
+        packets: Vec<TrianglePacket4>,
+        root_box: ([f32; 3], [f32; 3]),
+        triangles: &[PackedTriangle],
+    ) -> Result<WideBvh, Violation> {
+        WideBvh::checked(nodes, packets, root_box, triangles, true)
+    }
+
+    fn checked(
+        nodes: Vec<WideNode8>,
+        packets: Vec<TrianglePacket4>,
+        root_box: ([f32; 3], [f32; 3]),
+        triangles: &[PackedTriangle],
+        split_references: bool,
+    ) -> Result<WideBvh, Violation> {
+        let context = WideContext { triangles, triangle_ids: None, root_box: Some(root_box), split_references };
         verify_wide(&nodes, &packets, &context)?;
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
         Ok(WideBvh { nodes, packets, root })

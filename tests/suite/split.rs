@@ -1,0 +1,205 @@
+//! Split references (`bvhc::split`): exact pieces whose boxes contain them, references inside their triangles'
+//! boxes within the budget, the same references for any thread count, and conversions with splits that pass
+//! every rule of the format (V25 and V35 check that the leaves holding a triangle's records cover it), trace
+//! like brute force and give the same bytes on 1 and 2 threads.
+
+use std::io::Write;
+use std::path::Path;
+
+use bvhc::aabb::Aabb;
+use bvhc::convert::{ConvertOptions, SplitOptions};
+use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
+use bvhc::split::clip::{Piece, triangle_area};
+use bvhc::split::{References, split_triangles};
+use rand::RngExt;
+
+use crate::common::{random_triangles, rng};
+use crate::convert::{check_conversion_against_brute_force, convert_in_pool, teapot};
+
+type Triangle = [[f32; 3]; 3];
+
+/// Long, thin, tilted triangles, like the planks and pipes of architectural scenes: the ones splitting is for.
+fn long_triangles(seed: u64, count: usize) -> Vec<Triangle> {
+    let mut rng = rng(seed);
+    (0..count)
+        .map(|_| {
+            let a: [f32; 3] = std::array::from_fn(|_| rng.random_range(-10.0..10.0));
+            let along: [f32; 3] = std::array::from_fn(|_| rng.random_range(-8.0..8.0));
+            let side: [f32; 3] = std::array::from_fn(|_| rng.random_range(-0.3..0.3));
+            [a, std::array::from_fn(|k| a[k] + along[k]), std::array::from_fn(|k| a[k] + along[k] + side[k])]
+        })
+        .collect()
+}
+
+/// The area of a planar convex polygon (f64).
+fn polygon_area(corners: &[[f64; 3]]) -> f64 {
+    let mut n = [0.0f64; 3];
+    for i in 1..corners.len().saturating_sub(1) {
+        let (u, v) = (sub(corners[i], corners[0]), sub(corners[i + 1], corners[0]));
+        n[0] += u[1] * v[2] - u[2] * v[1];
+        n[1] += u[2] * v[0] - u[0] * v[2];
+        n[2] += u[0] * v[1] - u[1] * v[0];
+    }
+    0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| a[i] - b[i])
+}
+
+fn box_contains_point(aabb: &Aabb, p: [f64; 3]) -> bool {
+    (0..3).all(|a| f64::from(aabb.min[a]) <= p[a] && p[a] <= f64::from(aabb.max[a]))
+}
+
+/// Cuts every triangle by random planes strictly inside each piece's box, six levels deep: every piece's box
+/// contains its corners and lies inside its triangle's box, and the pieces' areas add up to the triangle's.
+#[test]
+fn cut_pieces_are_inside_their_boxes_and_tile_the_triangle() {
+    let mut rng = rng(7);
+    let mut triangles = long_triangles(3, 200);
+    triangles.extend(random_triangles(4, 200, 10.0));
+    for (t, vertices) in triangles.iter().enumerate() {
+        let whole = Piece::of_triangle(vertices);
+        let triangle_box = whole.aabb;
+        let mut pieces = vec![whole];
+        for _ in 0..6 {
+            let mut next = Vec::new();
+            for piece in pieces {
+                let axis = rng.random_range(0..3);
+                let (low, high) = (piece.aabb.min[axis], piece.aabb.max[axis]);
+                let plane = low + rng.random_range(0.01f32..0.99) * (high - low);
+                if !(low < plane && plane < high) {
+                    next.push(piece);
+                    continue;
+                }
+                let (below, above) = piece.cut(axis, plane);
+                assert!(below.aabb.max[axis] <= plane && above.aabb.min[axis] >= plane, "triangle {t}: cut overlap");
+                next.extend([below, above].into_iter().filter(|p| !p.corners.is_empty()));
+            }
+            pieces = next;
+        }
+        let mut total = 0.0;
+        for piece in &pieces {
+            assert!(triangle_box.contains(&piece.aabb), "triangle {t}: a piece's box leaves the triangle's");
+            for &corner in &piece.corners {
+                assert!(box_contains_point(&piece.aabb, corner), "triangle {t}: corner {corner:?} outside its box");
+            }
+            total += polygon_area(&piece.corners);
+        }
+        let area = triangle_area(vertices);
+        assert!((total - area).abs() <= 1e-9 * area.max(1e-30), "triangle {t}: pieces {total} vs triangle {area}");
+    }
+}
+
+fn check_references(triangles: &[Triangle], references: &References, budget: f64) {
+    assert!(references.len() as f64 <= triangles.len() as f64 * (1.0 + budget), "over budget");
+    assert!(references.triangle.windows(2).all(|w| w[0] <= w[1]), "ordered by triangle");
+    let mut count = vec![0usize; triangles.len()];
+    for (&t, aabb) in references.triangle.iter().zip(&references.aabb) {
+        count[t as usize] += 1;
+        let triangle_box = Aabb::of_triangle(&triangles[t as usize]);
+        assert!(triangle_box.contains(aabb), "triangle {t}: reference box outside the triangle's");
+        assert!((0..3).all(|a| aabb.min[a] <= aabb.max[a]), "triangle {t}: empty reference box");
+    }
+    assert!(count.iter().all(|&c| c >= 1), "a triangle lost");
+}
+
+#[test]
+fn references_stay_in_budget_and_inside_their_triangles_and_do_not_depend_on_threads() {
+    let triangles = long_triangles(11, 3000);
+    for budget in [0.0, 0.1, 0.5, 2.0] {
+        let in_pool = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| split_triangles(&triangles, budget))
+        };
+        let one = in_pool(1);
+        check_references(&triangles, &one, budget);
+        assert_eq!(one, in_pool(2), "budget {budget}: 1 and 2 threads differ");
+        if budget == 0.0 {
+            assert_eq!(one.len(), triangles.len());
+        } else {
+            assert!(one.len() as f64 > triangles.len() as f64 * (1.0 + 0.5 * budget), "budget {budget} unused");
+        }
+    }
+    // Degenerate input: no triangles, one point-like triangle.
+    assert!(split_triangles(&[], 0.3).is_empty());
+    let point = [[1.0f32, 1.0, 1.0]; 3];
+    assert_eq!(split_triangles(&[point], 0.3).len(), 1);
+}
+
+#[test]
+fn the_optimizer_keeps_every_reference_in_one_leaf() {
+    let triangles = long_triangles(12, 1500);
+    let references = split_triangles(&triangles, 0.5);
+    let mut tree = OptTree::from_build(bvhc::build::Builder::BinnedSah.build_references(&references), &triangles);
+    tree.check_reference_invariants(&references).unwrap();
+    optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
+    tree.check_reference_invariants(&references).unwrap();
+    // And the check notices a reference lost.
+    let fewer = References { triangle: references.triangle[1..].to_vec(), aabb: references.aabb[1..].to_vec() };
+    assert!(tree.check_reference_invariants(&fewer).is_err());
+}
+
+fn write_obj(path: &Path, triangles: &[Triangle]) {
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    for t in triangles {
+        for v in t {
+            writeln!(out, "v {} {} {}", v[0], v[1], v[2]).unwrap();
+        }
+    }
+    for i in 0..triangles.len() {
+        writeln!(out, "f {} {} {}", 3 * i + 1, 3 * i + 2, 3 * i + 3).unwrap();
+    }
+}
+
+#[test]
+fn conversions_with_splits_verify_trace_like_brute_force_and_do_not_depend_on_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let long = dir.path().join("long.obj");
+    write_obj(&long, &long_triangles(13, 2000));
+    for (input, preset) in [(teapot(), Preset::Balanced), (long.clone(), Preset::Fast), (long, Preset::MaxQuality)] {
+        let options = ConvertOptions { splits: Some(SplitOptions { budget: 0.5 }), ..ConvertOptions::preset(preset) };
+        let (report, file) = check_conversion_against_brute_force(&input, &options);
+        assert!(report.reference_count > report.triangle_count, "{input:?}: nothing split");
+        assert_eq!(report.stored_triangle_count, file.view().triangles().len());
+        let repeated = report.stored_triangle_count > report.triangle_count;
+        assert_eq!(file.view().has_split_references(), repeated, "{input:?}: SPLIT_REFERENCES iff a repeat");
+        let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+        assert_eq!(metadata["build"]["splits"]["budget"], 0.5);
+        let one = convert_in_pool(1, &input, &dir.path().join("one.bvh"), &options);
+        let two = convert_in_pool(2, &input, &dir.path().join("two.bvh"), &options);
+        assert!(one == two, "{input:?} {preset:?}: 1 and 2 threads differ");
+    }
+    // Without splits nothing is recorded, so files keep the bytes they had.
+    let (_, file) = check_conversion_against_brute_force(&teapot(), &ConvertOptions::default());
+    let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+    assert!(metadata["build"].get("splits").is_none());
+    assert!(!file.view().has_split_references());
+}
+
+/// `bvhc --split-budget` converts with splits; `bvhc info` counts records and distinct triangles.
+#[test]
+fn the_cli_splits_on_request_and_info_counts_references() {
+    let dir = tempfile::tempdir().unwrap();
+    let long = dir.path().join("long.obj");
+    write_obj(&long, &long_triangles(14, 500));
+    let output = dir.path().join("long.bvh");
+    let run = crate::cli::bvhc(&[&long, &"-o", &output, &"--split-budget", &"0.5", &"--json", &"--quiet"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let stored = report["report"]["stored_triangle_count"].as_u64().unwrap();
+    assert!(stored > 500 && report["report"]["reference_count"].as_u64().unwrap() >= stored);
+    let info = crate::cli::bvhc(&[&"info", &output, &"--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(info["reference_count"].as_u64(), Some(stored));
+    assert_eq!(info["unique_triangle_count"], 500);
+    assert_eq!(info["split_references"], true);
+    let text = String::from_utf8(crate::cli::bvhc(&[&"info", &output]).stdout).unwrap();
+    assert!(text.contains(&format!("split references: {stored} records of 500 triangles")), "{text}");
+    // A budget out of range is refused before any work.
+    let refused = crate::cli::bvhc(&[&long, &"-o", &output, &"--split-budget", &"9"]);
+    assert!(!refused.status.success() && String::from_utf8_lossy(&refused.stderr).contains("fraction from 0 to 4"));
+}
