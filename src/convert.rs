@@ -179,7 +179,7 @@ pub enum ConvertError {
         input: PathBuf,
     },
     /// The scene has more triangles than the format's u32 indices allow.
-    #[error("{}: {count} triangles exceed the .bvh limit of 2^32 - 1", path.display())]
+    #[error("{}: {count} triangles (or split references) exceed the .bvh limit of 2^32 - 1", path.display())]
     TooLarge {
         /// The input.
         path: PathBuf,
@@ -246,6 +246,9 @@ pub fn convert_with(
     let (build, reference_count) = match options.splits {
         Some(splits) => {
             let references = split_triangles(&triangles, splits.budget);
+            if u32::try_from(references.len()).is_err() {
+                return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: references.len() });
+            }
             (options.builder.build_references(&references), references.len())
         }
         None => (options.builder.build(&triangles, 1), triangles.len()),

@@ -59,13 +59,18 @@ impl References {
     }
 }
 
-/// Splits the triangles into at most `(1 + budget) * n` references (`budget` >= 0, e.g. 0.3 for 30% more).
+/// The largest budget [`split_triangles`] honours (at most five references a triangle on average).
+pub const MAX_BUDGET: f64 = 4.0;
+
+/// Splits the triangles into at most `(1 + budget) * n` references (`budget` from 0 to [`MAX_BUDGET`], e.g. 0.3
+/// for 30% more; larger budgets are taken as `MAX_BUDGET`, negative or NaN ones as 0).
 pub fn split_triangles(triangles: &[[[f32; 3]; 3]], budget: f64) -> References {
+    let budget = if budget.is_nan() { 0.0 } else { budget.clamp(0.0, MAX_BUDGET) };
     let scene = triangles.par_iter().map(Aabb::of_triangle).reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
     let grid = Grid::new(&scene);
     let scene_area = scene.surface_area();
     let priorities: Vec<f64> = triangles.par_iter().map(|t| priority(t, &grid, scene_area)).collect();
-    let extra = if budget.is_finite() && budget > 0.0 { (budget * triangles.len() as f64) as u64 } else { 0 };
+    let extra = (budget * triangles.len() as f64) as u64;
     let lambda = largest_lambda(&priorities, extra);
     let pieces: Vec<(u32, Aabb)> = triangles
         .par_iter()

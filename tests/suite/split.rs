@@ -124,6 +124,10 @@ fn references_stay_in_budget_and_inside_their_triangles_and_do_not_depend_on_thr
             assert!(one.len() as f64 > triangles.len() as f64 * (1.0 + 0.5 * budget), "budget {budget} unused");
         }
     }
+    // Budgets out of range: NaN and negative split nothing, a huge one stops at five references a triangle.
+    assert_eq!(split_triangles(&triangles, f64::NAN).len(), triangles.len());
+    assert_eq!(split_triangles(&triangles, -1.0).len(), triangles.len());
+    check_references(&triangles, &split_triangles(&triangles, 1e12), bvhc::split::MAX_BUDGET);
     // Degenerate input: no triangles, one point-like triangle.
     assert!(split_triangles(&[], 0.3).is_empty());
     let point = [[1.0f32, 1.0, 1.0]; 3];
