@@ -16,7 +16,7 @@ use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
 use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
 use crate::pack::pack;
-use crate::split::split_triangles;
+use crate::split::{records, split_triangles};
 use crate::up_to_date::input_entries;
 use crate::wide::{WideCosts, collapse, pack_wide};
 
@@ -265,11 +265,21 @@ pub fn convert_with(
     // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
     // The wide collapse and the leaf merging read the same tree and are independent: run side by side.
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
-    let (wide_tree, final_tree) = rayon::join(
+    let (mut wide_tree, mut final_tree) = rayon::join(
         || options.wide.map(|costs| (collapse(&tree, &costs), costs)),
         || merge_leaves(&tree, options.optimize.constants, leaf_size),
     );
     drop(tree);
+    if options.splits.is_some() {
+        // Leaves that gathered several pieces of a triangle hold it once (with the two trees' record counts
+        // kept equal; where the wide leaves have no room for that, both keep every piece).
+        match &mut wide_tree {
+            Some((wide, _)) => {
+                records::remove_repeats_and_balance(&mut final_tree, wide, triangles.len());
+            }
+            None => records::remove_binary_repeats(&mut final_tree, triangles.len()),
+        }
+    }
     timings.merge = lap(clock);
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();

@@ -20,12 +20,11 @@
 //! triangle, which is what makes a tree over references safe to trace (the format's rule V25). Deterministic:
 //! every triangle is split on its own, and the budget's bisection sums whole numbers.
 //!
-//! Every reference becomes one triangle record of the file, in the binary tree's leaves and in the wide
-//! tree's lanes alike, even where merging puts two references of a triangle into one leaf: the format wants
-//! each record in exactly one lane (V34) and the binary leaves to partition the records (V15), and the two
-//! trees merge leaves differently, so removing a repeat on one side only would break one rule or the other.
+//! A leaf that gathers several pieces of one triangle holds it once, with the two trees' record counts kept
+//! equal ([`records`]).
 
 pub mod clip;
+pub mod records;
 
 use rayon::prelude::*;
 

@@ -168,6 +168,7 @@ fn conversions_with_splits_verify_trace_like_brute_force_and_do_not_depend_on_th
         let options = ConvertOptions { splits: Some(SplitOptions { budget: 0.5 }), ..ConvertOptions::preset(preset) };
         let (report, file) = check_conversion_against_brute_force(&input, &options);
         assert!(report.reference_count > report.triangle_count, "{input:?}: nothing split");
+        assert!(report.stored_triangle_count <= report.reference_count);
         assert_eq!(report.stored_triangle_count, file.view().triangles().len());
         let repeated = report.stored_triangle_count > report.triangle_count;
         assert_eq!(file.view().has_split_references(), repeated, "{input:?}: SPLIT_REFERENCES iff a repeat");
@@ -206,4 +207,70 @@ fn the_cli_splits_on_request_and_info_counts_references() {
     // A budget out of range is refused before any work.
     let refused = crate::cli::bvhc(&[&long, &"-o", &output, &"--split-budget", &"9"]);
     assert!(!refused.status.success() && String::from_utf8_lossy(&refused.stderr).contains("fraction from 0 to 4"));
+}
+
+/// Repeats inside a leaf are removed, then the side holding a triangle less often repeats it inside a leaf
+/// that holds it, so that both trees hold every triangle equally often (V15 and V34 for one records section);
+/// where the wide leaves have no room, nothing changes.
+#[test]
+fn repeats_are_removed_and_both_trees_keep_equal_record_counts() {
+    use bvhc::build::{BuildNode, BuildTree};
+    use bvhc::split::records::remove_repeats_and_balance;
+    use bvhc::wide::{WideChild, WideNode, WideTree};
+    let b = Aabb { min: [0.0; 3], max: [1.0; 3] };
+    // Binary: leaves [0 0 1] and [2 1]; wide: leaves [0] and [0 1 2 2].
+    let mut binary = BuildTree {
+        nodes: vec![
+            BuildNode::Inner { aabb: b, left: 1, right: 2 },
+            BuildNode::Leaf { aabb: b, first: 0, count: 3 },
+            BuildNode::Leaf { aabb: b, first: 3, count: 2 },
+        ],
+        triangle_order: vec![0, 0, 1, 2, 1],
+    };
+    let wide_with = |order: Vec<u32>, first_count: u32| WideTree {
+        width: 8,
+        nodes: vec![WideNode {
+            children: vec![
+                (b, WideChild::Leaf { first: 0, count: first_count }),
+                (b, WideChild::Leaf { first: first_count, count: order.len() as u32 - first_count }),
+            ],
+        }],
+        triangle_order: order,
+        root_box: b,
+    };
+    let mut wide = wide_with(vec![0, 0, 1, 2, 2], 1);
+    assert!(remove_repeats_and_balance(&mut binary, &mut wide, 3));
+    // Distinct per leaf: binary 0:1 1:2 2:1, wide 0:2 1:1 2:1 -> binary repeats 0 in its first leaf, wide 1 in
+    // the leaf that holds it.
+    assert_eq!(binary.triangle_order, vec![0, 0, 1, 2, 1]);
+    assert_eq!(binary.nodes[1], BuildNode::Leaf { aabb: b, first: 0, count: 3 });
+    assert_eq!(wide.triangle_order, vec![0, 0, 1, 2, 1]);
+    assert_eq!(wide.nodes[0].children[1].1, WideChild::Leaf { first: 1, count: 4 });
+    let count = |order: &[u32], t: u32| order.iter().filter(|&&x| x == t).count();
+    for t in 0..3 {
+        assert_eq!(count(&binary.triangle_order, t), count(&wide.triangle_order, t), "triangle {t}");
+    }
+    // Plain repeats on both sides: both drop them.
+    let mut binary =
+        BuildTree { nodes: vec![BuildNode::Leaf { aabb: b, first: 0, count: 3 }], triangle_order: vec![1, 0, 1] };
+    let mut wide = wide_with(vec![1, 0, 1], 3);
+    wide.nodes[0].children.truncate(1);
+    assert!(remove_repeats_and_balance(&mut binary, &mut wide, 2));
+    assert_eq!((binary.triangle_order, wide.triangle_order.clone()), (vec![1, 0], vec![1, 0]));
+    // No room: a wide leaf of 32 distinct triangles cannot take the binary side's extra copy.
+    let order: Vec<u32> = (0..32).collect();
+    let mut binary_order = order.clone();
+    binary_order.push(5);
+    let mut binary = BuildTree {
+        nodes: vec![
+            BuildNode::Inner { aabb: b, left: 1, right: 2 },
+            BuildNode::Leaf { aabb: b, first: 0, count: 32 },
+            BuildNode::Leaf { aabb: b, first: 32, count: 1 },
+        ],
+        triangle_order: binary_order.clone(),
+    };
+    let mut wide = wide_with(order.clone(), 32);
+    wide.nodes[0].children.truncate(1);
+    assert!(!remove_repeats_and_balance(&mut binary, &mut wide, 32));
+    assert_eq!((binary.triangle_order, wide.triangle_order), (binary_order, order));
 }
