@@ -113,10 +113,13 @@ fn wide_leaf_slots(tree: &WideTree) -> Vec<(usize, usize)> {
     slots.into_iter().map(|(n, k, _)| (n, k)).collect()
 }
 
+/// A new `triangle_order` and each leaf slot's `(first, count)` in it.
+type PaddedOrder = (Vec<u32>, Vec<(u32, u32)>);
+
 /// The wide tree's order with each leaf without repeats and triangle `t` repeated `extra[t]` more times over
 /// the leaves that hold it, none beyond [`WIDE_LEAF_LIMIT`], with the new `(first, count)` of each slot; `None`
 /// when the leaves cannot take them all.
-fn padded_wide(tree: &WideTree, slots: &[(usize, usize)], extra: &mut [u32]) -> Option<(Vec<u32>, Vec<(u32, u32)>)> {
+fn padded_wide(tree: &WideTree, slots: &[(usize, usize)], extra: &mut [u32]) -> Option<PaddedOrder> {
     let old = &tree.triangle_order;
     let mut order = Vec::with_capacity(old.len());
     let mut ranges = Vec::with_capacity(slots.len());
