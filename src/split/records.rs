@@ -26,7 +26,7 @@ fn distinct(leaf: &[u32]) -> Vec<u32> {
 
 /// Removes repeats inside every leaf of both trees, then makes every triangle occur as often in `binary`'s
 /// leaves as in `wide`'s by repeating it inside leaves that hold it (the binary side in its first leaf; the wide
-/// side spread over its leaves, at most [`WIDE_LEAF_LIMIT`] a leaf). Returns `false`, changing nothing, when
+/// side spread over its leaves, at most 32 triangles a leaf). Returns `false`, changing nothing, when
 /// the wide leaves have no room for that; the trees then keep every reference, which is valid too.
 pub fn remove_repeats_and_balance(binary: &mut BuildTree, wide: &mut WideTree, triangle_count: usize) -> bool {
     let mut in_binary = vec![0u32; triangle_count];
@@ -117,7 +117,7 @@ fn wide_leaf_slots(tree: &WideTree) -> Vec<(usize, usize)> {
 type PaddedOrder = (Vec<u32>, Vec<(u32, u32)>);
 
 /// The wide tree's order with each leaf without repeats and triangle `t` repeated `extra[t]` more times over
-/// the leaves that hold it, none beyond [`WIDE_LEAF_LIMIT`], with the new `(first, count)` of each slot; `None`
+/// the leaves that hold it, none beyond `WIDE_LEAF_LIMIT`, with the new `(first, count)` of each slot; `None`
 /// when the leaves cannot take them all.
 fn padded_wide(tree: &WideTree, slots: &[(usize, usize)], extra: &mut [u32]) -> Option<PaddedOrder> {
     let old = &tree.triangle_order;
