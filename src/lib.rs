@@ -7,6 +7,7 @@ pub mod build;
 pub mod conversion;
 pub mod convert;
 pub mod cost;
+pub mod epo;
 pub mod import;
 pub mod optimize;
 pub mod pack;
