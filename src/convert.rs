@@ -14,7 +14,9 @@ use serde::Serialize;
 use crate::build::Builder;
 use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
-use crate::optimize::{OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, optimize};
+use crate::optimize::{
+    OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, merge_leaves_of_references, optimize,
+};
 use crate::pack::pack;
 use crate::split::{records, split_triangles};
 use crate::up_to_date::input_entries;
@@ -267,7 +269,10 @@ pub fn convert_with(
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
     let (mut wide_tree, mut final_tree) = rayon::join(
         || options.wide.map(|costs| (collapse(&tree, &costs), costs)),
-        || merge_leaves(&tree, options.optimize.constants, leaf_size),
+        || match options.splits {
+            Some(_) => merge_leaves_of_references(&tree, options.optimize.constants, leaf_size),
+            None => merge_leaves(&tree, options.optimize.constants, leaf_size),
+        },
     );
     drop(tree);
     if options.splits.is_some() {

@@ -11,22 +11,43 @@ use crate::cost::SahConstants;
 
 /// The tree with leaves merged; `max_leaf_size` >= 1.
 pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
+    merge(tree, constants, max_leaf_size, false)
+}
+
+/// [`merge_leaves`] for a tree over split references, where several leaves may hold pieces of one triangle: a
+/// merged leaf holds each triangle once (see [`crate::split::records`]), so `t_N` counts the distinct triangles
+/// of `N`'s subtree. The same tree as [`merge_leaves`] where no triangle repeats.
+pub fn merge_leaves_of_references(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
+    merge(tree, constants, max_leaf_size, true)
+}
+
+fn merge(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct: bool) -> BuildTree {
     // Children first: the subtrees' (cost, triangle count) pairs wait on a stack, the left child's on top, so
     // only those of nodes whose parent is not done yet are held (at most the depth plus one), not 12 bytes a node.
     let mut collapse = vec![false; tree.nodes.len()];
     let mut pending: Vec<(f64, u32)> = Vec::new();
+    let mut held = HeldTriangles::default();
+    // Any count above the limit stands for "too many for a leaf".
+    let too_many = u32::try_from(max_leaf_size).unwrap_or(u32::MAX - 1).saturating_add(1);
     for i in tree.children_first() {
         let node = &tree.nodes[i as usize];
         let a = node.aabb.surface_area();
         if node.left == NONE {
             pending.push((constants.intersection * a, 1));
+            if distinct {
+                held.push_leaf(node.right);
+            }
             continue;
         }
         let ((left_cost, left_count), (right_cost, right_count)) = match (pending.pop(), pending.pop()) {
             (Some(left), Some(right)) => (left, right),
             _ => unreachable!("reverse depth-first order finishes both children before their parent"),
         };
-        let count = left_count + right_count;
+        let count = if distinct {
+            held.join(left_count, right_count, too_many)
+        } else {
+            left_count.saturating_add(right_count)
+        };
         let split = constants.traversal * a + left_cost + right_cost;
         let leaf = constants.intersection * count as f64 * a;
         if count as usize <= max_leaf_size && leaf <= split {
@@ -37,4 +58,61 @@ pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usiz
         }
     }
     tree.to_build_tree_with_leaves(&|i| collapse[i as usize])
+}
+
+/// The distinct triangles (sorted) of each pending subtree that can still become one leaf, concatenated in the
+/// order of the pending stack; a subtree with too many holds none here.
+#[derive(Default)]
+struct HeldTriangles {
+    ids: Vec<u32>,
+    union: Vec<u32>,
+}
+
+impl HeldTriangles {
+    fn push_leaf(&mut self, triangle: u32) {
+        self.ids.push(triangle);
+    }
+
+    /// Replaces the top two subtrees' lists (the left child's on top, `left` and `right` their distinct counts)
+    /// by their union's, and returns its size, or `too_many` (holding nothing) when that reaches it.
+    fn join(&mut self, left: u32, right: u32, too_many: u32) -> u32 {
+        let listed = |count: u32| if count < too_many { count as usize } else { 0 };
+        let end = self.ids.len();
+        let (left_start, right_start) = (end - listed(left), end - listed(left) - listed(right));
+        if left >= too_many || right >= too_many {
+            self.ids.truncate(right_start);
+            return too_many;
+        }
+        self.union.clear();
+        let (mut a, mut b) = (right_start, left_start);
+        while a < left_start || b < end {
+            let next = match (self.ids.get(a).filter(|_| a < left_start), self.ids.get(b).filter(|_| b < end)) {
+                (Some(&x), Some(&y)) if x == y => {
+                    a += 1;
+                    b += 1;
+                    x
+                }
+                (Some(&x), Some(&y)) if x < y => {
+                    a += 1;
+                    x
+                }
+                (_, Some(&y)) => {
+                    b += 1;
+                    y
+                }
+                (Some(&x), None) => {
+                    a += 1;
+                    x
+                }
+                (None, None) => unreachable!("the loop runs while either list has entries"),
+            };
+            self.union.push(next);
+        }
+        self.ids.truncate(right_start);
+        if self.union.len() >= too_many as usize {
+            return too_many;
+        }
+        self.ids.extend_from_slice(&self.union);
+        self.union.len() as u32
+    }
 }

@@ -32,7 +32,7 @@ use serde::Serialize;
 
 pub use edit_log::EditLog;
 pub use measure_index::MeasureIndex;
-pub use merge::merge_leaves;
+pub use merge::{merge_leaves, merge_leaves_of_references};
 pub use params::{Algorithm, OptimizeParams, Preset};
 pub use search::{Move, SearchQueue, best_in_subtree, best_insertion, best_move};
 pub use select::{Selection, is_eligible, select_batch, select_batch_with};

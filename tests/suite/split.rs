@@ -8,6 +8,7 @@ use std::path::Path;
 
 use bvhc::aabb::Aabb;
 use bvhc::convert::{ConvertOptions, SplitOptions};
+use bvhc::epo::polygon_area;
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
 use bvhc::split::clip::{Piece, triangle_area};
 use bvhc::split::{References, split_triangles};
@@ -29,22 +30,6 @@ fn long_triangles(seed: u64, count: usize) -> Vec<Triangle> {
             [a, std::array::from_fn(|k| a[k] + along[k]), std::array::from_fn(|k| a[k] + along[k] + side[k])]
         })
         .collect()
-}
-
-/// The area of a planar convex polygon (f64).
-fn polygon_area(corners: &[[f64; 3]]) -> f64 {
-    let mut n = [0.0f64; 3];
-    for i in 1..corners.len().saturating_sub(1) {
-        let (u, v) = (sub(corners[i], corners[0]), sub(corners[i + 1], corners[0]));
-        n[0] += u[1] * v[2] - u[2] * v[1];
-        n[1] += u[2] * v[0] - u[0] * v[2];
-        n[2] += u[0] * v[1] - u[1] * v[0];
-    }
-    0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| a[i] - b[i])
 }
 
 fn box_contains_point(aabb: &Aabb, p: [f64; 3]) -> bool {
@@ -273,4 +258,41 @@ fn repeats_are_removed_and_both_trees_keep_equal_record_counts() {
     wide.nodes[0].children.truncate(1);
     assert!(!remove_repeats_and_balance(&mut binary, &mut wide, 32));
     assert_eq!((binary.triangle_order, wide.triangle_order), (binary_order, order));
+}
+
+/// Merging over split references counts a triangle once per leaf: where no triangle repeats it is the plain
+/// merge; over references its cost (after repeats are removed) is never above the plain merge's with repeats
+/// removed afterwards (the dynamic program is exact for the distinct count, and that tree is one of its
+/// options), and no leaf holds more distinct triangles than the limit.
+#[test]
+fn merging_over_references_counts_each_triangle_once_a_leaf() {
+    use bvhc::build::{BuildNode, Builder};
+    use bvhc::cost::{SahConstants, sah_of_build_tree};
+    use bvhc::optimize::{merge_leaves, merge_leaves_of_references};
+    use bvhc::split::records::remove_binary_repeats;
+    let constants = SahConstants::default();
+    let plain = random_triangles(5, 800, 10.0);
+    let tree = OptTree::from_build(Builder::BinnedSah.build(&plain, 1), &plain);
+    for limit in [1, 4, 8] {
+        assert_eq!(merge_leaves_of_references(&tree, constants, limit), merge_leaves(&tree, constants, limit));
+    }
+    let triangles = long_triangles(13, 1500);
+    let references = split_triangles(&triangles, 1.0);
+    assert!(references.len() > 2500);
+    let mut tree = OptTree::from_build(Builder::BinnedSah.build_references(&references), &triangles);
+    optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
+    for limit in [2, 4, 8] {
+        let mut aware = merge_leaves_of_references(&tree, constants, limit);
+        let mut naive = merge_leaves(&tree, constants, limit);
+        remove_binary_repeats(&mut aware, triangles.len());
+        remove_binary_repeats(&mut naive, triangles.len());
+        let (aware_cost, naive_cost) =
+            (sah_of_build_tree(&aware, constants).cost, sah_of_build_tree(&naive, constants).cost);
+        assert!(aware_cost <= naive_cost * (1.0 + 1e-12), "limit {limit}: {aware_cost} > {naive_cost}");
+        for node in &aware.nodes {
+            if let BuildNode::Leaf { count, .. } = node {
+                assert!(*count as usize <= limit);
+            }
+        }
+    }
 }
