@@ -20,7 +20,7 @@ use crate::optimize::{
 use crate::pack::pack;
 use crate::split::{records, split_triangles};
 use crate::up_to_date::input_entries;
-use crate::wide::{WideCosts, collapse, pack_wide};
+use crate::wide::{WideCosts, collapse, collapse_references, pack_wide};
 
 /// Largest leaf the merger makes by default (the reference table's M = 3 uses 8).
 pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
@@ -268,7 +268,12 @@ pub fn convert_with(
     // The wide collapse and the leaf merging read the same tree and are independent: run side by side.
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
     let (mut wide_tree, mut final_tree) = rayon::join(
-        || options.wide.map(|costs| (collapse(&tree, &costs), costs)),
+        || {
+            options.wide.map(|costs| match options.splits {
+                Some(_) => (collapse_references(&tree, &costs), costs),
+                None => (collapse(&tree, &costs), costs),
+            })
+        },
         || match options.splits {
             Some(_) => merge_leaves_of_references(&tree, options.optimize.constants, leaf_size),
             None => merge_leaves(&tree, options.optimize.constants, leaf_size),

@@ -24,6 +24,7 @@
 //! equal ([`records`]).
 
 pub mod clip;
+pub(crate) mod distinct;
 pub mod records;
 
 use rayon::prelude::*;

@@ -17,6 +17,7 @@
 
 use crate::aabb::Aabb;
 use crate::optimize::{NONE, OptTree};
+use crate::split::distinct::HeldTriangles;
 
 use super::{WideChild, WideNode, WideTree};
 
@@ -103,6 +104,17 @@ type CostRow = [f64; 16];
 
 /// Collapses `tree` (the optimizer's binary tree, one triangle per leaf) into a `costs.width`-wide tree.
 pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
+    collapse_with(tree, costs, false)
+}
+
+/// [`collapse`] for a tree over split references, where several leaves may hold pieces of one triangle: a wide
+/// leaf holds each triangle once (see [`crate::split::records`]), so `t(n)` counts the distinct triangles of
+/// `n`'s subtree. The same tree as [`collapse`] where no triangle repeats.
+pub fn collapse_references(tree: &OptTree, costs: &WideCosts) -> WideTree {
+    collapse_with(tree, costs, true)
+}
+
+fn collapse_with(tree: &OptTree, costs: &WideCosts, distinct: bool) -> WideTree {
     let width = costs.width.clamp(2, 16);
     let costs = WideCosts {
         width,
@@ -114,7 +126,7 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
     if tree.root == NONE {
         return wide;
     }
-    let table = fill_table(tree, &costs);
+    let table = fill_table(tree, &costs, distinct);
     wide.root_box = tree.nodes[tree.root as usize].aabb;
     let root = tree.root;
     // The root is stored as a wide node either way: with one leaf child (cost node + leaf) or with the DP's
@@ -165,7 +177,7 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
 /// triangle counts wait on a stack (the left child's on top), and only those of subtrees whose parent is not
 /// done yet are held, at most the tree's depth plus one (a full table of costs took 64 bytes a node, about the
 /// size of the optimizer's tree).
-fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
+fn fill_table(tree: &OptTree, costs: &WideCosts, distinct: bool) -> Table {
     let width = costs.width;
     let mut table = Table {
         width,
@@ -174,6 +186,8 @@ fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
         root_triangles: 0,
     };
     let mut rows: Vec<(CostRow, u32)> = Vec::new();
+    let mut held = HeldTriangles::default();
+    let too_many = u32::try_from(costs.max_leaf_size).unwrap_or(u32::MAX - 1).saturating_add(1);
     for node_index in tree.children_first() {
         let node = tree.nodes[node_index as usize];
         let area = node.aabb.surface_area();
@@ -181,13 +195,20 @@ fn fill_table(tree: &OptTree, costs: &WideCosts) -> Table {
         if node.left == NONE {
             row[..width].fill(costs.leaf(1) * area);
             rows.push((row, 1));
+            if distinct {
+                held.push_leaf(node.right);
+            }
             continue;
         }
         let ((left_row, left_triangles), (right_row, right_triangles)) = match (rows.pop(), rows.pop()) {
             (Some(left), Some(right)) => (left, right),
             _ => unreachable!("reverse depth-first order finishes both children before their parent"),
         };
-        let triangles = left_triangles + right_triangles;
+        let triangles = if distinct {
+            held.join(left_triangles, right_triangles, too_many)
+        } else {
+            left_triangles.saturating_add(right_triangles)
+        };
         let leaf = if triangles as usize <= costs.max_leaf_size {
             costs.leaf(triangles as usize) * area
         } else {

@@ -5,7 +5,7 @@
 mod collapse;
 mod pack;
 
-pub use collapse::{WideCosts, collapse};
+pub use collapse::{WideCosts, collapse, collapse_references};
 pub use pack::pack_wide;
 
 use crate::aabb::Aabb;

@@ -289,9 +289,57 @@ fn merging_over_references_counts_each_triangle_once_a_leaf() {
         let (aware_cost, naive_cost) =
             (sah_of_build_tree(&aware, constants).cost, sah_of_build_tree(&naive, constants).cost);
         assert!(aware_cost <= naive_cost * (1.0 + 1e-12), "limit {limit}: {aware_cost} > {naive_cost}");
+        assert!(aware_cost < naive_cost, "limit {limit}: no leaf gained from counting distinct triangles");
         for node in &aware.nodes {
             if let BuildNode::Leaf { count, .. } = node {
                 assert!(*count as usize <= limit);
+            }
+        }
+    }
+}
+
+/// The wide collapse over split references counts each triangle once a leaf: where no triangle repeats it is
+/// the plain collapse; over references its cost with leaves priced by distinct triangles is never above the
+/// plain collapse's priced the same way (its dynamic program is exact for that cost, and the plain tree is one
+/// of its options), and no leaf holds more distinct triangles than the limit.
+#[test]
+fn the_wide_collapse_over_references_counts_each_triangle_once_a_leaf() {
+    use bvhc::build::Builder;
+    use bvhc::wide::{WideChild, WideCosts, WideTree, collapse, collapse_references};
+    let costs = WideCosts::default();
+    let plain = random_triangles(6, 800, 10.0);
+    let tree = OptTree::from_build(Builder::BinnedSah.build(&plain, 1), &plain);
+    assert_eq!(collapse_references(&tree, &costs), collapse(&tree, &costs));
+    let distinct_cost = |wide: &WideTree| {
+        let mut counted = wide.clone();
+        for node in &mut counted.nodes {
+            for (_, child) in &mut node.children {
+                if let WideChild::Leaf { first, count } = child {
+                    let mut leaf = wide.triangle_order[*first as usize..(*first + *count) as usize].to_vec();
+                    leaf.sort_unstable();
+                    leaf.dedup();
+                    *count = leaf.len() as u32;
+                }
+            }
+        }
+        counted
+    };
+    let triangles = long_triangles(14, 1500);
+    let references = split_triangles(&triangles, 1.0);
+    let mut tree = OptTree::from_build(Builder::BinnedSah.build_references(&references), &triangles);
+    optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
+    for max_leaf_size in [4, 8] {
+        let costs = WideCosts { max_leaf_size, ..WideCosts::default() };
+        let aware = distinct_cost(&collapse_references(&tree, &costs));
+        let naive = distinct_cost(&collapse(&tree, &costs));
+        let (aware_cost, naive_cost) = (aware.cost(&costs), naive.cost(&costs));
+        assert!(aware_cost <= naive_cost * (1.0 + 1e-12), "limit {max_leaf_size}: {aware_cost} > {naive_cost}");
+        assert!(aware_cost < naive_cost, "limit {max_leaf_size}: no leaf gained from counting distinct triangles");
+        for node in &aware.nodes {
+            for (_, child) in &node.children {
+                if let WideChild::Leaf { count, .. } = child {
+                    assert!(*count as usize <= max_leaf_size);
+                }
             }
         }
     }
