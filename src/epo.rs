@@ -154,6 +154,20 @@ impl Spans {
 /// The area of the convex polygon `corners` outside every box of `boxes`: the parts outside the first box (cut
 /// off one box side at a time, each a convex polygon) measured against the other boxes in turn.
 fn area_outside(corners: Vec<[f64; 3]>, boxes: &[Aabb]) -> f64 {
+    // Only boxes that meet the polygon's bounds can take area from it: the pieces of a split triangle each meet
+    // a few of its boxes, so this keeps the recursion narrow.
+    let (low, high) = corners.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(low, high), p| {
+        (std::array::from_fn(|a| low[a].min(p[a])), std::array::from_fn(|a| high[a].max(p[a])))
+    });
+    // Strictly: a box that only touches the polygon (as the boxes of neighbouring pieces do along their cut)
+    // takes no area from it; along an axis the polygon is flat on, the box must reach its plane.
+    let meets = |b: &&Aabb| {
+        (0..3).all(|a| {
+            let (min, max) = (f64::from(b.min[a]), f64::from(b.max[a]));
+            if low[a] == high[a] { min <= low[a] && low[a] <= max } else { min < high[a] && low[a] < max }
+        })
+    };
+    let boxes: Vec<Aabb> = boxes.iter().filter(meets).copied().collect();
     let Some((aabb, rest)) = boxes.split_first() else { return polygon_area(&corners) };
     let mut remaining = corners;
     let mut sum = 0.0;
@@ -161,6 +175,11 @@ fn area_outside(corners: Vec<[f64; 3]>, boxes: &[Aabb]) -> f64 {
         for (bound, outside_below) in [(f64::from(aabb.min[axis]), true), (f64::from(aabb.max[axis]), false)] {
             if polygon_area(&remaining) <= 0.0 {
                 return sum;
+            }
+            // Outside is strictly beyond the side: a polygon lying in the side's plane is inside.
+            let beyond = |p: &[f64; 3]| if outside_below { p[axis] < bound } else { p[axis] > bound };
+            if !remaining.iter().any(beyond) {
+                continue;
             }
             let outside = clip_to_half_space(&remaining, axis, bound, outside_below);
             if polygon_area(&outside) > 0.0 {
@@ -323,7 +342,11 @@ mod tests {
         let b = Aabb { min: [0.5, 0.0, -1.0], max: [2.0, 1.0, 1.0] };
         assert!((area_outside(triangle.clone(), &[a, b]) - 6.0).abs() < 1e-12);
         assert!((area_outside(triangle.clone(), &[b, a]) - 6.0).abs() < 1e-12);
-        assert!((area_outside(triangle, &[]) - 8.0).abs() < 1e-12);
+        assert!((area_outside(triangle.clone(), &[]) - 8.0).abs() < 1e-12);
+        // Flat boxes in the triangle's own plane (as the boxes of an axis-aligned triangle's pieces are).
+        let flat_a = Aabb { min: [0.0, 0.0, 0.0], max: [1.0, 1.0, 0.0] };
+        let flat_b = Aabb { min: [0.5, 0.0, 0.0], max: [2.0, 1.0, 0.0] };
+        assert!((area_outside(triangle, &[flat_a, flat_b]) - 6.0).abs() < 1e-12);
     }
 
     #[test]
