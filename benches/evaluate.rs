@@ -1,11 +1,17 @@
 //! Run time against error, in the columns of the reference table (`../shared/guide/algorithm.md`): for each
-//! scene, SAH cost, build and optimization seconds, render seconds (a fixed set of primary and ambient
-//! occlusion rays through the loader's kernel on all threads; in brackets relative to M = 1), and average
-//! traversal steps and triangle tests per ray. Methods: M = 1 (spatial median), the binned SAH start, M = 2
-//! (optimized, one triangle per leaf) and M = 3 (leaves merged) for the balanced and max-quality presets, and,
-//! side by side in the same run, obvhs 0.4's presets and svenstaro's `bvh` 0.13, their trees repacked into
-//! the `.bvh` layout so that one cost definition and one kernel measure all of them. "error" is the cost above
-//! the lowest cost any method reached on that scene.
+//! scene, SAH cost, end-point overlap (EPO, Aila, Karras and Laine 2013: `bvhc::epo`), references per
+//! triangle, build and optimization seconds, render seconds (a fixed set of primary, ambient occlusion and
+//! incoherent rays through the loader's binary kernel on all threads; in brackets relative to M = 1), and
+//! average traversal steps and triangle tests per ray. Methods: M = 1 (spatial median), the binned SAH start,
+//! M = 2 (optimized, one reference per leaf) and M = 3 (leaves merged) for the balanced and max-quality presets,
+//! the balanced preset over split references (`bvhc::split`) at two budgets, and, side by side in the same run,
+//! obvhs 0.4's presets (`very_slow_build` with its pre-splits, as the preset has them, and without) and
+//! svenstaro's `bvh` 0.13, their trees repacked into the `.bvh` layout so that one cost definition and one
+//! kernel measure all of them. "error" is the cost above the lowest cost any method reached on that scene.
+//!
+//! A second table per scene times what a user of `bvhc` gets: files converted with the default options, without
+//! and with split references (`--split-budget`), traced through the file's default kernel (the wide one) with
+//! the same rays; steps and isect there count wide node visits and packet tests.
 //!
 //! `cargo bench --bench evaluate` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
 //! `BVHC_SCENES` overrides the folder.
@@ -17,11 +23,14 @@ use std::time::{Duration, Instant};
 
 use bvhc::aabb::Aabb;
 use bvhc::build::{BuildNode, BuildTree, Builder};
+use bvhc::convert::{ConvertOptions, SplitOptions, convert_with};
 use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::epo::end_point_overlap;
 use bvhc::import::{ImportOptions, import};
-use bvhc::loader::{Ray, Tracer, TraversalStats};
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, optimize};
+use bvhc::loader::{BvhFile, Ray, Tracer, TraversalStats};
+use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, merge_leaves_of_references, optimize};
 use bvhc::pack::pack;
+use bvhc::split::{records, split_triangles};
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
@@ -75,8 +84,31 @@ fn ours(triangles: &[Triangle]) -> Vec<Method> {
             tree: merged,
         });
     }
+    for budget in SPLIT_BUDGETS {
+        let (references, split_time) = timed(|| split_triangles(triangles, budget));
+        let (build, build_time) = timed(|| Builder::BinnedSah.build_references(&references));
+        let mut tree = OptTree::from_build(build, triangles);
+        let params = OptimizeParams::preset(Preset::Balanced);
+        let report = optimize(&mut tree, &params, &mut |_| std::ops::ControlFlow::Continue(()));
+        let (mut merged, merge_time) = timed(|| merge_leaves_of_references(&tree, constants, 8));
+        records::remove_binary_repeats(&mut merged, triangles.len());
+        let mut single = merge_leaves_of_references(&tree, constants, 1);
+        records::remove_binary_repeats(&mut single, triangles.len());
+        for (leaves, tree, optimize) in [("M=2", single, report.elapsed), ("M=3", merged, report.elapsed + merge_time)]
+        {
+            methods.push(Method {
+                name: format!("{leaves} balanced, split {budget}"),
+                build: split_time + build_time,
+                optimize: Some(optimize),
+                tree,
+            });
+        }
+    }
     methods
 }
+
+/// Split budgets of the split-reference methods (extra references over triangles).
+const SPLIT_BUDGETS: [f64; 2] = [0.1, 0.3];
 
 /// obvhs's tree as a build tree (children at `first_index`, `first_index + 1`, as in the `.bvh` layout).
 fn from_obvhs(bvh: &obvhs::bvh2::Bvh2) -> BuildTree {
@@ -99,11 +131,13 @@ fn obvhs_methods(triangles: &[Triangle]) -> Vec<Method> {
         ("fast_build", BvhBuildParams::fast_build()),
         ("medium_build", BvhBuildParams::medium_build()),
         ("very_slow_build", BvhBuildParams::very_slow_build()),
+        ("very_slow_build, no pre-split", BvhBuildParams { pre_split: false, ..BvhBuildParams::very_slow_build() }),
+        ("very_slow_build, 1 a leaf", BvhBuildParams { max_prims_per_leaf: 1, ..BvhBuildParams::very_slow_build() }),
     ]
     .into_iter()
     .map(|(name, params)| {
-        // pre_split references a triangle from several leaves; keep one reference per triangle for repacking.
-        let params = BvhBuildParams { pre_split: false, ..params };
+        // With pre_split, a triangle's pieces are separate primitives that keep the triangle's index, so its
+        // leaves may reference a triangle several times, as split references do in a .bvh file.
         let mut core = Duration::ZERO;
         let (bvh, build) = timed(|| obvhs::bvh2::builder::build_bvh2_from_tris(&tris, params, &mut core));
         Method { name: format!("obvhs {name}"), build, optimize: None, tree: from_obvhs(&bvh) }
@@ -167,8 +201,16 @@ fn svenstaro(triangles: &[Triangle]) -> Method {
     Method { name: "svenstaro bvh 0.13".into(), build, optimize: None, tree }
 }
 
-/// Primary rays (a 512 x 384 camera) and 4 ambient occlusion rays per primary hit, fixed for all methods.
-fn ray_set(tracer: &Tracer<'_>, min: [f32; 3], max: [f32; 3]) -> (Vec<Ray>, Vec<Ray>) {
+/// The fixed ray set of every method: primary rays (a 512 x 384 camera), 4 ambient occlusion rays per primary
+/// hit (any hit, within a fifth of the scene's size), and as many incoherent rays as primary ones (closest hit;
+/// origins uniform in the scene's box, directions uniform on the sphere).
+struct RaySet {
+    primary: Vec<Ray>,
+    ao: Vec<Ray>,
+    incoherent: Vec<Ray>,
+}
+
+fn ray_set(tracer: &Tracer<'_>, min: [f32; 3], max: [f32; 3]) -> RaySet {
     let (width, height) = (512usize, 384usize);
     let center: [f32; 3] = std::array::from_fn(|a| 0.5 * (min[a] + max[a]));
     let size = (0..3).map(|a| max[a] - min[a]).fold(0.0f32, f32::max);
@@ -188,13 +230,28 @@ fn ray_set(tracer: &Tracer<'_>, min: [f32; 3], max: [f32; 3]) -> (Vec<Ray>, Vec<
         if let Some(hit) = tracer.closest_hit(ray) {
             let point: [f32; 3] = std::array::from_fn(|a| ray.origin[a] + hit.t * ray.direction[a]);
             for k in 0..4u64 {
-                let h = (i as u64 * 4 + k).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-                let d: [f32; 3] = std::array::from_fn(|a| ((h >> (a * 16)) & 0xFFFF) as f32 / 32768.0 - 1.0);
+                let d = unit_cube_point(i as u64 * 4 + k).map(|c| 2.0 * c - 1.0);
                 ao.push(Ray { origin: point, direction: d, t_min: size * 1e-4, t_max: size * 0.2 });
             }
         }
     }
-    (primary, ao)
+    let incoherent = (0..primary.len() as u64)
+        .map(|i| {
+            let u = unit_cube_point(0x5EED_0000_0000 + i);
+            let origin: [f32; 3] = std::array::from_fn(|a| min[a] + u[a] * (max[a] - min[a]));
+            let v = unit_cube_point(0xD1CE_0000_0000 + i);
+            let (z, phi) = (2.0 * v[0] - 1.0, std::f32::consts::TAU * v[1]);
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            Ray::new(origin, [r * phi.cos(), r * phi.sin(), z])
+        })
+        .collect();
+    RaySet { primary, ao, incoherent }
+}
+
+/// A point of the unit cube from a counter (three 16-bit fields of a multiplicative hash).
+fn unit_cube_point(i: u64) -> [f32; 3] {
+    let h = i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    std::array::from_fn(|a| ((h >> (a * 16)) & 0xFFFF) as f32 / 65536.0)
 }
 
 fn normalize(a: [f32; 3]) -> [f32; 3] {
@@ -206,27 +263,27 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
-/// Render seconds (median of 3, all threads), steps and triangle tests per ray.
-fn render(tracer: &Tracer<'_>, primary: &[Ray], ao: &[Ray]) -> (f64, f64, f64) {
+/// Render seconds (median of 5, all threads), steps and triangle tests per ray.
+fn render(tracer: &Tracer<'_>, rays: &RaySet) -> (f64, f64, f64) {
+    let closest = |set: &[Ray]| {
+        set.par_chunks(1024).map(|c| c.iter().filter(|r| tracer.closest_hit(r).is_some()).count()).sum::<usize>()
+    };
     let run = || {
-        let hits = primary
-            .par_chunks(1024)
-            .map(|c| c.iter().filter(|r| tracer.closest_hit(r).is_some()).count())
-            .sum::<usize>();
-        let occluded = ao.par_chunks(1024).map(|c| c.iter().filter(|r| tracer.any_hit(r)).count()).sum::<usize>();
+        let hits = closest(&rays.primary) + closest(&rays.incoherent);
+        let occluded = rays.ao.par_chunks(1024).map(|c| c.iter().filter(|r| tracer.any_hit(r)).count()).sum::<usize>();
         std::hint::black_box((hits, occluded));
     };
-    let mut samples: Vec<f64> = (0..3).map(|_| timed(run).1.as_secs_f64()).collect();
+    let mut samples: Vec<f64> = (0..5).map(|_| timed(run).1.as_secs_f64()).collect();
     samples.sort_by(f64::total_cmp);
     let mut stats = TraversalStats::default();
-    for r in primary {
+    for r in rays.primary.iter().chain(&rays.incoherent) {
         tracer.closest_hit_counted(r, &mut stats);
     }
-    for r in ao {
+    for r in &rays.ao {
         tracer.any_hit_counted(r, &mut stats);
     }
-    let rays = (primary.len() + ao.len()) as f64;
-    (samples[1], stats.node_visits as f64 / rays, stats.triangle_tests as f64 / rays)
+    let count = (rays.primary.len() + rays.ao.len() + rays.incoherent.len()) as f64;
+    (samples[2], stats.node_visits as f64 / count, stats.triangle_tests as f64 / count)
 }
 
 fn main() {
@@ -237,7 +294,7 @@ fn main() {
     let wanted: Option<Vec<String>> = harness::wanted_scenes("BVHC_EVAL_SCENES");
     let constants = SahConstants::default();
     println!(
-        "{} threads; SAH (c_T, c_I) = (3, 2) by bvhc's cost module; render: 512 x 384 primary rays + 4 AO rays per hit through bvhc's kernel; times in seconds from this run",
+        "{} threads; SAH and EPO with (c_T, c_I) = (3, 2) by bvhc's cost module; refs: triangle records over triangles; render: 512 x 384 primary rays, 4 AO rays per hit and 512 x 384 incoherent rays through bvhc's binary kernel, median of 5; times in seconds from this run",
         rayon::current_num_threads()
     );
     for (name, relative) in SCENES {
@@ -254,29 +311,72 @@ fn main() {
         methods.extend(obvhs_methods(&triangles));
         methods.push(svenstaro(&triangles));
         let packed: Vec<_> = methods.iter().map(|m| pack(&m.tree, &triangles)).collect();
+        for (method, tree) in methods.iter().zip(&packed) {
+            let mut held = vec![false; triangles.len()];
+            tree.triangle_ids.iter().for_each(|&t| held[t as usize] = true);
+            assert!(held.iter().all(|&h| h), "{}: a triangle is missing from the tree", method.name);
+        }
         let reference = &packed[1];
         let tracer = Tracer::new(&reference.nodes, &reference.triangles, None);
         let (min, max) = (reference.nodes[0].min, reference.nodes[0].max);
-        let (primary, ao) = ray_set(&tracer, min, max);
+        let rays = ray_set(&tracer, min, max);
         let costs: Vec<f64> = methods.iter().map(|m| sah_of_build_tree(&m.tree, constants).cost).collect();
         let best = costs.iter().cloned().fold(f64::INFINITY, f64::min);
-        println!("\n### {name} ({} triangles; {} primary + {} AO rays)\n", triangles.len(), primary.len(), ao.len());
         println!(
-            "| method | cost | error | build s | opt s | render s | steps | isect |\n|---|---|---|---|---|---|---|---|"
+            "\n### {name} ({} triangles; {} primary + {} AO + {} incoherent rays)\n",
+            triangles.len(),
+            rays.primary.len(),
+            rays.ao.len(),
+            rays.incoherent.len()
+        );
+        println!(
+            "| method | cost | error | EPO | refs | build s | opt s | render s | steps | isect |\n|---|---|---|---|---|---|---|---|---|---|"
         );
         let mut baseline = None;
         for ((method, tree), cost) in methods.iter().zip(&packed).zip(&costs) {
             let tracer = Tracer::new(&tree.nodes, &tree.triangles, None);
-            let (seconds, steps, tests) = render(&tracer, &primary, &ao);
+            let (seconds, steps, tests) = render(&tracer, &rays);
             let base = *baseline.get_or_insert(seconds);
+            let epo = end_point_overlap(&method.tree, &triangles, constants);
             println!(
-                "| {} | {cost:.2} | {:.2} | {:.3} | {} | {seconds:.3} ({:.1}) | {steps:.2} | {tests:.2} |",
+                "| {} | {cost:.2} | {:.2} | {epo:.2} | {:.3} | {:.3} | {} | {seconds:.3} ({:.1}) | {steps:.2} | {tests:.2} |",
                 method.name,
                 cost - best,
+                tree.triangles.len() as f64 / triangles.len() as f64,
                 method.build.as_secs_f64(),
                 method.optimize.map_or("-".to_string(), |d| format!("{:.3}", d.as_secs_f64())),
                 100.0 * seconds / base
             );
         }
+        files_table(&path, &rays);
+    }
+}
+
+/// Converts the scene with the default options and split budgets, and traces `rays` through each file's default
+/// kernel.
+fn files_table(scene: &std::path::Path, rays: &RaySet) {
+    let dir = tempfile::tempdir().unwrap();
+    println!(
+        "\n| file (defaults) | records | file MB | SAH | wide cost | render s | wide steps | packets |\n|---|---|---|---|---|---|---|---|"
+    );
+    let mut baseline = None;
+    for budget in [None, Some(0.1), Some(0.3)] {
+        let output = dir.path().join("scene.bvh");
+        let options =
+            ConvertOptions { splits: budget.map(|budget| SplitOptions { budget }), ..ConvertOptions::default() };
+        let report = convert_with(scene, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+        let file = BvhFile::read(&output).unwrap();
+        let tracer = file.view().tracer();
+        let (seconds, steps, tests) = render(&tracer, rays);
+        let base = *baseline.get_or_insert(seconds);
+        println!(
+            "| {} | {} | {:.1} | {:.2} | {} | {seconds:.3} ({:.1}) | {steps:.2} | {tests:.2} |",
+            budget.map_or("no splits".to_string(), |b| format!("--split-budget {b}")),
+            report.stored_triangle_count,
+            std::fs::metadata(&output).unwrap().len() as f64 / 1e6,
+            report.cost.cost,
+            report.wide.map_or("-".to_string(), |w| format!("{:.2}", w.cost)),
+            100.0 * seconds / base
+        );
     }
 }
