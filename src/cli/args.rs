@@ -112,9 +112,9 @@ pub struct ConvertArgs {
     /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
     #[arg(long)]
     pub no_wide: bool,
-    /// Cut large triangles into split references before the build, at most this fraction of the triangles
-    /// more (0.3: 30% more). Off by default: on the scenes measured so far the optimized trees trace slower
-    /// with them (docs/evaluation.md).
+    /// Cut long, slanted triangles into split references before the build, at most this fraction of the
+    /// triangles more (0.3: 30% more). Off by default: on the scenes measured so far the files trace no faster
+    /// with them through the default (wide) kernel (docs/evaluation.md).
     #[arg(long, value_name = "FRACTION", value_parser = parse_split_budget)]
     pub split_budget: Option<f64>,
     /// The glTF scene to convert, by index or name.
