@@ -373,7 +373,7 @@ fn files_table(scene: &std::path::Path, rays: &RaySet) {
             "| {} | {} | {:.1} | {:.2} | {} | {seconds:.3} ({:.1}) | {steps:.2} | {tests:.2} |",
             budget.map_or("no splits".to_string(), |b| format!("--split-budget {b}")),
             report.stored_triangle_count,
-            std::fs::metadata(&output).unwrap().len() as f64 / 1e6,
+            report.file_byte_len as f64 / 1e6,
             report.cost.cost,
             report.wide.map_or("-".to_string(), |w| format!("{:.2}", w.cost)),
             100.0 * seconds / base

@@ -267,20 +267,23 @@ pub fn convert_with(
     // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
     // The wide collapse and the leaf merging read the same tree and are independent: run side by side.
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
+    // Over split references both count a triangle once a leaf.
+    let over_references = options.splits.is_some();
+    let constants = options.optimize.constants;
     let (mut wide_tree, mut final_tree) = rayon::join(
         || {
-            options.wide.map(|costs| match options.splits {
-                Some(_) => (collapse_references(&tree, &costs), costs),
-                None => (collapse(&tree, &costs), costs),
+            options.wide.map(|costs| match over_references {
+                true => (collapse_references(&tree, &costs), costs),
+                false => (collapse(&tree, &costs), costs),
             })
         },
-        || match options.splits {
-            Some(_) => merge_leaves_of_references(&tree, options.optimize.constants, leaf_size),
-            None => merge_leaves(&tree, options.optimize.constants, leaf_size),
+        || match over_references {
+            true => merge_leaves_of_references(&tree, constants, leaf_size),
+            false => merge_leaves(&tree, constants, leaf_size),
         },
     );
     drop(tree);
-    if options.splits.is_some() {
+    if over_references {
         // Leaves that gathered several pieces of a triangle hold it once (with the two trees' record counts
         // kept equal; where the wide leaves have no room for that, both keep every piece).
         match &mut wide_tree {

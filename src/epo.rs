@@ -22,6 +22,7 @@ use rayon::prelude::*;
 use crate::aabb::Aabb;
 use crate::build::{BuildNode, BuildTree};
 use crate::cost::SahConstants;
+use crate::split::clip::sub;
 
 /// The end-point overlap of `tree` over `triangles` (0 for an empty tree or a scene without area).
 pub fn end_point_overlap(tree: &BuildTree, triangles: &[[[f32; 3]; 3]], constants: SahConstants) -> f64 {
@@ -37,6 +38,7 @@ pub fn end_point_overlap(tree: &BuildTree, triangles: &[[[f32; 3]; 3]], constant
         .par_iter()
         .enumerate()
         .map(|(t, vertices)| triangle_overlap(tree, &spans, t, vertices, constants))
+        // Summed in triangle order after the parallel part, so the figure does not depend on the threads.
         .collect::<Vec<f64>>()
         .iter()
         .sum();
@@ -241,10 +243,6 @@ pub fn polygon_area(corners: &[[f64; 3]]) -> f64 {
         normal[2] += u[0] * v[1] - u[1] * v[0];
     }
     0.5 * (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt()
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| a[i] - b[i])
 }
 
 #[cfg(test)]

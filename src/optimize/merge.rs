@@ -8,7 +8,7 @@
 use super::tree::{NONE, OptTree};
 use crate::build::BuildTree;
 use crate::cost::SahConstants;
-use crate::split::distinct::HeldTriangles;
+use crate::split::distinct::LeafCounts;
 
 /// The tree with leaves merged; `max_leaf_size` >= 1.
 pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
@@ -27,28 +27,19 @@ fn merge(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct
     // only those of nodes whose parent is not done yet are held (at most the depth plus one), not 12 bytes a node.
     let mut collapse = vec![false; tree.nodes.len()];
     let mut pending: Vec<(f64, u32)> = Vec::new();
-    let mut held = HeldTriangles::default();
-    // Any count above the limit stands for "too many for a leaf".
-    let too_many = u32::try_from(max_leaf_size).unwrap_or(u32::MAX - 1).saturating_add(1);
+    let mut counts = LeafCounts::new(max_leaf_size, distinct);
     for i in tree.children_first() {
         let node = &tree.nodes[i as usize];
         let a = node.aabb.surface_area();
         if node.left == NONE {
-            pending.push((constants.intersection * a, 1));
-            if distinct {
-                held.push_leaf(node.right);
-            }
+            pending.push((constants.intersection * a, counts.leaf(node.right)));
             continue;
         }
         let ((left_cost, left_count), (right_cost, right_count)) = match (pending.pop(), pending.pop()) {
             (Some(left), Some(right)) => (left, right),
             _ => unreachable!("reverse depth-first order finishes both children before their parent"),
         };
-        let count = if distinct {
-            held.join(left_count, right_count, too_many)
-        } else {
-            left_count.saturating_add(right_count)
-        };
+        let count = counts.join(left_count, right_count);
         let split = constants.traversal * a + left_cost + right_cost;
         let leaf = constants.intersection * count as f64 * a;
         if count as usize <= max_leaf_size && leaf <= split {

@@ -105,6 +105,7 @@ pub fn ideal_box_area(vertices: &[[f32; 3]; 3]) -> f64 {
     n[0].abs() + n[1].abs() + n[2].abs()
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+/// `a - b`.
+pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|i| a[i] - b[i])
 }

@@ -1,56 +1,51 @@
-//! Distinct triangle counts of subtrees over split references, for the bottom-up dynamic programs that choose
-//! leaves (the leaf merging and the wide collapse): a leaf holds each triangle once (see [`super::records`]), so
-//! it is priced by how many distinct triangles its subtree references. Only counts up to the leaf limit matter,
-//! so each pending subtree keeps its distinct triangles while they fit in a leaf, and "too many" otherwise.
+//! Triangle counts of subtrees for the bottom-up dynamic programs that choose leaves (the leaf merging and the
+//! wide collapse). Over split references a leaf holds each triangle once (see [`super::records`]), so it is
+//! priced by how many *distinct* triangles its subtree references. Only counts up to the leaf limit matter, so
+//! each pending subtree keeps its distinct triangles while they fit in a leaf, and "too many" otherwise.
 
-/// The distinct triangles (sorted) of each pending subtree that can still become one leaf, concatenated in the
-/// order of the pending stack; a subtree with too many holds none here.
-#[derive(Default)]
-pub(crate) struct HeldTriangles {
+/// The triangle counts of the subtrees pending on a dynamic program's stack (children first, the left child's
+/// on top). Plain counts add up; distinct counts keep, for each pending subtree that can still become one
+/// leaf, its distinct triangles (sorted), concatenated in stack order (a subtree with too many holds none).
+pub(crate) struct LeafCounts {
+    distinct: bool,
+    /// Any count from here up stands for "too many for a leaf".
+    too_many: u32,
     ids: Vec<u32>,
     union: Vec<u32>,
 }
 
-impl HeldTriangles {
-    pub(crate) fn push_leaf(&mut self, triangle: u32) {
-        self.ids.push(triangle);
+impl LeafCounts {
+    /// Counts for leaves of at most `max_leaf_size` triangles; `distinct` for a tree over split references.
+    pub(crate) fn new(max_leaf_size: usize, distinct: bool) -> LeafCounts {
+        let too_many = u32::try_from(max_leaf_size).unwrap_or(u32::MAX - 1).saturating_add(1);
+        LeafCounts { distinct, too_many, ids: Vec::new(), union: Vec::new() }
     }
 
-    /// Replaces the top two subtrees' lists (the left child's on top, `left` and `right` their distinct counts)
-    /// by their union's, and returns its size, or `too_many` (holding nothing) when that reaches it.
-    pub(crate) fn join(&mut self, left: u32, right: u32, too_many: u32) -> u32 {
+    /// The count of a leaf of the binary tree (one reference of `triangle`): 1.
+    pub(crate) fn leaf(&mut self, triangle: u32) -> u32 {
+        if self.distinct {
+            self.ids.push(triangle);
+        }
+        1
+    }
+
+    /// The count of the parent of the top two pending subtrees (counts `left` on top, then `right`), which it
+    /// replaces: their sum, or with distinct counts the size of their union (at most the "too many" value).
+    pub(crate) fn join(&mut self, left: u32, right: u32) -> u32 {
+        if !self.distinct {
+            return left.saturating_add(right);
+        }
+        let too_many = self.too_many;
         let listed = |count: u32| if count < too_many { count as usize } else { 0 };
-        let end = self.ids.len();
-        let (left_start, right_start) = (end - listed(left), end - listed(left) - listed(right));
+        let right_start = self.ids.len() - listed(left) - listed(right);
         if left >= too_many || right >= too_many {
             self.ids.truncate(right_start);
             return too_many;
         }
         self.union.clear();
-        let (mut a, mut b) = (right_start, left_start);
-        while a < left_start || b < end {
-            let next = match (self.ids.get(a).filter(|_| a < left_start), self.ids.get(b).filter(|_| b < end)) {
-                (Some(&x), Some(&y)) if x == y => {
-                    a += 1;
-                    b += 1;
-                    x
-                }
-                (Some(&x), Some(&y)) if x < y => {
-                    a += 1;
-                    x
-                }
-                (_, Some(&y)) => {
-                    b += 1;
-                    y
-                }
-                (Some(&x), None) => {
-                    a += 1;
-                    x
-                }
-                (None, None) => unreachable!("the loop runs while either list has entries"),
-            };
-            self.union.push(next);
-        }
+        self.union.extend_from_slice(&self.ids[right_start..]);
+        self.union.sort_unstable();
+        self.union.dedup();
         self.ids.truncate(right_start);
         if self.union.len() >= too_many as usize {
             return too_many;

@@ -17,7 +17,7 @@
 
 use crate::aabb::Aabb;
 use crate::optimize::{NONE, OptTree};
-use crate::split::distinct::HeldTriangles;
+use crate::split::distinct::LeafCounts;
 
 use super::{WideChild, WideNode, WideTree};
 
@@ -186,29 +186,21 @@ fn fill_table(tree: &OptTree, costs: &WideCosts, distinct: bool) -> Table {
         root_triangles: 0,
     };
     let mut rows: Vec<(CostRow, u32)> = Vec::new();
-    let mut held = HeldTriangles::default();
-    let too_many = u32::try_from(costs.max_leaf_size).unwrap_or(u32::MAX - 1).saturating_add(1);
+    let mut counts = LeafCounts::new(costs.max_leaf_size, distinct);
     for node_index in tree.children_first() {
         let node = tree.nodes[node_index as usize];
         let area = node.aabb.surface_area();
         let mut row = [f64::INFINITY; 16];
         if node.left == NONE {
             row[..width].fill(costs.leaf(1) * area);
-            rows.push((row, 1));
-            if distinct {
-                held.push_leaf(node.right);
-            }
+            rows.push((row, counts.leaf(node.right)));
             continue;
         }
         let ((left_row, left_triangles), (right_row, right_triangles)) = match (rows.pop(), rows.pop()) {
             (Some(left), Some(right)) => (left, right),
             _ => unreachable!("reverse depth-first order finishes both children before their parent"),
         };
-        let triangles = if distinct {
-            held.join(left_triangles, right_triangles, too_many)
-        } else {
-            left_triangles.saturating_add(right_triangles)
-        };
+        let triangles = counts.join(left_triangles, right_triangles);
         let leaf = if triangles as usize <= costs.max_leaf_size {
             costs.leaf(triangles as usize) * area
         } else {
