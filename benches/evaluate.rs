@@ -14,7 +14,7 @@
 //! the same rays; steps and isect there count wide node visits and packet tests.
 //!
 //! `cargo bench --bench evaluate` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
-//! `BVHC_SCENES` overrides the folder.
+//! `BVHC_EVAL_FILES_ONLY=1` prints only the second table, `BVHC_SCENES` overrides the folder.
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -23,13 +23,14 @@ use std::time::{Duration, Instant};
 
 use bvhc::aabb::Aabb;
 use bvhc::build::{BuildNode, BuildTree, Builder};
-use bvhc::convert::{ConvertOptions, SplitOptions, convert_with};
+use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, convert_with};
 use bvhc::cost::{SahConstants, sah_of_build_tree};
 use bvhc::epo::end_point_overlap;
 use bvhc::import::{ImportOptions, import};
 use bvhc::loader::{BvhFile, Ray, Tracer, TraversalStats};
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, merge_leaves_of_references, optimize};
 use bvhc::pack::pack;
+use bvhc::split::sbvh::{SbvhParams, build_sbvh};
 use bvhc::split::{records, split_triangles};
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
@@ -44,6 +45,7 @@ const SCENES: &[(&str, &str)] = &[
     ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
     ("toycar", "khr-toy-car/ToyCar.gltf"),
     ("bunny", "stanford-bunny-ply/bun_zipper.ply"),
+    ("milktruck", "khr-cesium-milk-truck/CesiumMilkTruck.gltf"),
 ];
 
 struct Method {
@@ -84,9 +86,21 @@ fn ours(triangles: &[Triangle]) -> Vec<Method> {
             tree: merged,
         });
     }
-    for budget in SPLIT_BUDGETS {
+    let pre_split = |budget| {
         let (references, split_time) = timed(|| split_triangles(triangles, budget));
         let (build, build_time) = timed(|| Builder::BinnedSah.build_references(&references));
+        (build, split_time + build_time)
+    };
+    let spatial = |params: SbvhParams| timed(|| build_sbvh(triangles, &params));
+    // The SBVH as conversions run it, and one that cuts every triangle wherever the paper's threshold allows.
+    let every = SbvhParams { alpha: 1e-5, min_waste_ratio: 0.0, ..SbvhParams::with_budget(0.3) };
+    let builds = [
+        ("pre-split 0.1".to_string(), pre_split(0.1)),
+        ("SBVH 0.1".to_string(), spatial(SbvhParams::with_budget(0.1))),
+        ("SBVH 0.3".to_string(), spatial(SbvhParams::with_budget(0.3))),
+        ("SBVH 0.3 every triangle, alpha 1e-5".to_string(), spatial(every)),
+    ];
+    for (split_name, (build, build_time)) in builds {
         let mut tree = OptTree::from_build(build, triangles);
         let params = OptimizeParams::preset(Preset::Balanced);
         let report = optimize(&mut tree, &params, &mut |_| std::ops::ControlFlow::Continue(()));
@@ -97,8 +111,8 @@ fn ours(triangles: &[Triangle]) -> Vec<Method> {
         for (leaves, tree, optimize) in [("M=2", single, report.elapsed), ("M=3", merged, report.elapsed + merge_time)]
         {
             methods.push(Method {
-                name: format!("{leaves} balanced, split {budget}"),
-                build: split_time + build_time,
+                name: format!("{leaves} balanced, {split_name}"),
+                build: build_time,
                 optimize: Some(optimize),
                 tree,
             });
@@ -106,9 +120,6 @@ fn ours(triangles: &[Triangle]) -> Vec<Method> {
     }
     methods
 }
-
-/// Split budgets of the split-reference methods (extra references over triangles).
-const SPLIT_BUDGETS: [f64; 2] = [0.1, 0.3];
 
 /// obvhs's tree as a build tree (children at `first_index`, `first_index + 1`, as in the `.bvh` layout).
 fn from_obvhs(bvh: &obvhs::bvh2::Bvh2) -> BuildTree {
@@ -293,6 +304,7 @@ fn main() {
     let dir = harness::scenes_dir();
     let wanted: Option<Vec<String>> = harness::wanted_scenes("BVHC_EVAL_SCENES");
     let constants = SahConstants::default();
+    let files_only = std::env::var_os("BVHC_EVAL_FILES_ONLY").is_some();
     println!(
         "{} threads; SAH and EPO with (c_T, c_I) = (3, 2) by bvhc's cost module; refs: triangle records over triangles; render: 512 x 384 primary rays, 4 AO rays per hit and 512 x 384 incoherent rays through bvhc's binary kernel, median of 5; times in seconds from this run",
         rayon::current_num_threads()
@@ -307,6 +319,14 @@ fn main() {
             continue;
         }
         let triangles = import(&path, &ImportOptions::default()).unwrap().soup.triangle_vertices();
+        if files_only {
+            let start = pack(&Builder::BinnedSah.build(&triangles, 1), &triangles);
+            let tracer = Tracer::new(&start.nodes, &start.triangles, None);
+            let rays = ray_set(&tracer, start.nodes[0].min, start.nodes[0].max);
+            println!("\n### {name} ({} triangles)", triangles.len());
+            files_table(&path, &rays);
+            continue;
+        }
         let mut methods = ours(&triangles);
         methods.extend(obvhs_methods(&triangles));
         methods.push(svenstaro(&triangles));
@@ -360,10 +380,10 @@ fn files_table(scene: &std::path::Path, rays: &RaySet) {
         "\n| file (defaults) | records | file MB | SAH | wide cost | render s | wide steps | packets |\n|---|---|---|---|---|---|---|---|"
     );
     let mut baseline = None;
-    for budget in [None, Some(0.1), Some(0.3)] {
+    let sbvh = |budget| Some(SplitOptions { budget, method: SplitMethod::Sbvh });
+    for splits in [None, Some(SplitOptions { budget: 0.1, method: SplitMethod::PreSplit }), sbvh(0.1), sbvh(0.3)] {
         let output = dir.path().join("scene.bvh");
-        let options =
-            ConvertOptions { splits: budget.map(|budget| SplitOptions { budget }), ..ConvertOptions::default() };
+        let options = ConvertOptions { splits, ..ConvertOptions::default() };
         let report = convert_with(scene, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
         let file = BvhFile::read(&output).unwrap();
         let tracer = file.view().tracer();
@@ -371,7 +391,11 @@ fn files_table(scene: &std::path::Path, rays: &RaySet) {
         let base = *baseline.get_or_insert(seconds);
         println!(
             "| {} | {} | {:.1} | {:.2} | {} | {seconds:.3} ({:.1}) | {steps:.2} | {tests:.2} |",
-            budget.map_or("no splits".to_string(), |b| format!("--split-budget {b}")),
+            splits.map_or("no splits".to_string(), |s| format!(
+                "--split-budget {} --split-method {}",
+                s.budget,
+                s.method.name()
+            )),
             report.stored_triangle_count,
             report.file_byte_len as f64 / 1e6,
             report.cost.cost,

@@ -113,10 +113,20 @@ impl Conversion {
         self
     }
 
-    /// Split references: `Some(budget)` cuts large triangles into at most `budget * triangles` extra
-    /// references before the build (see [`crate::split`]); `None` keeps one a triangle.
+    /// Split references: `Some(budget)` cuts triangles into at most `budget * triangles` extra references
+    /// (see [`crate::split`]), by the method set with [`Conversion::split_method`] (the SBVH unless told);
+    /// `None` keeps one a triangle.
     pub fn splits(mut self, budget: Option<f64>) -> Self {
-        self.options.splits = budget.map(|budget| crate::convert::SplitOptions { budget });
+        let method = self.options.splits.map(|s| s.method).unwrap_or_default();
+        self.options.splits = budget.map(|budget| crate::convert::SplitOptions { budget, method });
+        self
+    }
+
+    /// Where split references are cut (used when [`Conversion::splits`] turns them on).
+    pub fn split_method(mut self, method: crate::convert::SplitMethod) -> Self {
+        if let Some(splits) = &mut self.options.splits {
+            splits.method = method;
+        }
         self
     }
 

@@ -18,6 +18,7 @@ use crate::optimize::{
     OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, merge_leaves_of_references, optimize,
 };
 use crate::pack::pack;
+use crate::split::sbvh::{SbvhParams, build_sbvh};
 use crate::split::{records, split_triangles};
 use crate::up_to_date::input_entries;
 use crate::wide::{WideCosts, collapse, collapse_references, pack_wide};
@@ -53,11 +54,43 @@ pub struct ConvertOptions {
     pub splits: Option<SplitOptions>,
 }
 
-/// How many split references a conversion may add.
+/// How a conversion splits references, and how many it may add.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct SplitOptions {
     /// At most `budget * triangles` references beyond one a triangle (0.3: 30% more).
     pub budget: f64,
+    /// Where the cuts are made.
+    pub method: SplitMethod,
+}
+
+impl SplitOptions {
+    /// The default method with `budget`.
+    pub fn with_budget(budget: f64) -> SplitOptions {
+        SplitOptions { budget, method: SplitMethod::default() }
+    }
+}
+
+/// Where triangles are cut into split references.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SplitMethod {
+    /// During the top-down build, where a node's children would overlap ([`crate::split::sbvh`], Stich et
+    /// al. 2009): the better trees in every scene measured (`docs/evaluation.md`).
+    #[default]
+    Sbvh,
+    /// Before the build, large triangles at grid planes ([`crate::split::split_triangles`], Karras and Aila
+    /// 2013).
+    PreSplit,
+}
+
+impl SplitMethod {
+    /// The name used in options and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            SplitMethod::Sbvh => "sbvh",
+            SplitMethod::PreSplit => "pre-split",
+        }
+    }
 }
 
 impl Default for ConvertOptions {
@@ -246,12 +279,20 @@ pub fn convert_with(
     let _ = observer(Event::Stage(Stage::Build));
     let clock = Instant::now();
     let (build, reference_count) = match options.splits {
-        Some(splits) => {
-            let references = split_triangles(&triangles, splits.budget);
+        Some(SplitOptions { budget, method: SplitMethod::PreSplit }) => {
+            let references = split_triangles(&triangles, budget);
             if u32::try_from(references.len()).is_err() {
                 return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: references.len() });
             }
             (options.builder.build_references(&references), references.len())
+        }
+        Some(SplitOptions { budget, method: SplitMethod::Sbvh }) => {
+            let build = build_sbvh(&triangles, &SbvhParams::with_budget(budget));
+            let reference_count = build.triangle_order.len();
+            if u32::try_from(reference_count).is_err() {
+                return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: reference_count });
+            }
+            (build, reference_count)
         }
         None => (options.builder.build(&triangles, 1), triangles.len()),
     };

@@ -117,6 +117,9 @@ pub struct ConvertArgs {
     /// with them through the default (wide) kernel (docs/evaluation.md).
     #[arg(long, value_name = "FRACTION", value_parser = parse_split_budget)]
     pub split_budget: Option<f64>,
+    /// Where split references are cut: during the build where children overlap (SBVH), or before it.
+    #[arg(long, value_enum, default_value_t = SplitMethodArg::Sbvh)]
+    pub split_method: SplitMethodArg,
     /// The glTF scene to convert, by index or name.
     #[arg(long, value_name = "N|NAME")]
     pub scene: Option<String>,
@@ -208,6 +211,15 @@ pub enum BuilderArg {
     BinnedSah,
     /// Spatial median.
     SpatialMedian,
+}
+
+/// `--split-method`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SplitMethodArg {
+    /// Spatial splits during the build (Stich et al. 2009).
+    Sbvh,
+    /// Large triangles cut at grid planes before the build (Karras and Aila 2013).
+    PreSplit,
 }
 
 /// `--selection`.

@@ -6,12 +6,12 @@ use std::time::Duration;
 
 use bvhc::Conversion;
 use bvhc::build::Builder;
-use bvhc::convert::{ConvertError, Event, Stage};
+use bvhc::convert::{ConvertError, Event, SplitMethod, Stage};
 use bvhc::import::{ErrorKind, ImportLimits, SceneSelector};
 use bvhc::optimize::{Preset, Selection};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::args::{BuilderArg, ConvertArgs, PresetArg, SelectionArg};
+use super::args::{BuilderArg, ConvertArgs, PresetArg, SelectionArg, SplitMethodArg};
 use super::output::{outln, print};
 use super::{Exit, fail, loader_exit};
 
@@ -45,6 +45,10 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
         .write_ids(!args.no_ids)
         .write_wide(!args.no_wide)
         .splits(args.split_budget)
+        .split_method(match args.split_method {
+            SplitMethodArg::Sbvh => SplitMethod::Sbvh,
+            SplitMethodArg::PreSplit => SplitMethod::PreSplit,
+        })
         .force(args.force);
     if let Some(budget) = args.time_budget {
         conversion = conversion.time_budget(budget);

@@ -24,6 +24,26 @@ impl Piece {
         Piece { corners: vertices.iter().map(|v| v.map(f64::from)).collect(), aabb: Aabb::of_triangle(vertices) }
     }
 
+    /// The part of the triangle inside `aabb` (a box that holds part of it, such as a split reference's box),
+    /// cut exactly by those of the box's sides that cross the triangle's box; `None` when nothing of the triangle
+    /// is left (the box then only meets it in the one-step margins that clipped boxes keep).
+    pub fn within(vertices: &[[f32; 3]; 3], aabb: &Aabb) -> Option<Piece> {
+        let mut piece = Piece::of_triangle(vertices);
+        for axis in 0..3 {
+            let (low, high) = (aabb.min[axis], aabb.max[axis]);
+            if piece.aabb.min[axis] < low && low < piece.aabb.max[axis] {
+                piece = piece.cut(axis, low).1;
+            }
+            if piece.corners.len() >= 3 && piece.aabb.min[axis] < high && high < piece.aabb.max[axis] {
+                piece = piece.cut(axis, high).0;
+            }
+            if piece.corners.len() < 3 {
+                return None;
+            }
+        }
+        Some(piece)
+    }
+
     /// The two pieces on either side of the plane `x[axis] = plane`, which must lie strictly inside this piece's
     /// box along `axis` (so both sides hold part of the piece's box; a side may still be a sliver).
     pub fn cut(&self, axis: usize, plane: f32) -> (Piece, Piece) {

@@ -27,6 +27,7 @@
 pub mod clip;
 pub(crate) mod distinct;
 pub mod records;
+pub mod sbvh;
 
 use rayon::prelude::*;
 

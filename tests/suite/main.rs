@@ -20,6 +20,7 @@ mod optimize_property;
 mod roundtrip;
 mod rules;
 mod rules_wide;
+mod sbvh;
 mod scenes;
 mod spec;
 mod split;

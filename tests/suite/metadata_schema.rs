@@ -6,7 +6,7 @@ use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use bvhc::build::Builder;
-use bvhc::convert::{ConvertOptions, convert_with};
+use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, convert_with};
 use bvhc::import::SceneSelector;
 use bvhc::loader::BvhFile;
 use bvhc::optimize::Preset;
@@ -40,6 +40,12 @@ fn every_written_file_matches_the_metadata_schema() {
     options.skip_optimization = true;
     options.optimize.time_budget = Some(std::time::Duration::from_millis(1500));
     convert_and_check(&teapot, &options);
+    // Split references, by either method.
+    for method in [SplitMethod::Sbvh, SplitMethod::PreSplit] {
+        let split = ConvertOptions { splits: Some(SplitOptions { budget: 0.3, method }), ..ConvertOptions::default() };
+        let metadata = convert_and_check(&teapot, &split);
+        assert_eq!(metadata["build"]["splits"]["method"], serde_json::to_value(method).unwrap());
+    }
     // Dropped and kept degenerate triangles are counted by kind.
     let degenerate = repro("keep-degenerate-message.obj");
     let dropped = convert_and_check(&degenerate, &ConvertOptions::preset(Preset::Fast));

@@ -7,7 +7,7 @@ use std::io::Write;
 use std::path::Path;
 
 use bvhc::aabb::Aabb;
-use bvhc::convert::{ConvertOptions, SplitOptions};
+use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions};
 use bvhc::epo::polygon_area;
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
 use bvhc::split::clip::{Piece, triangle_area};
@@ -20,7 +20,7 @@ use crate::convert::{check_conversion_against_brute_force, convert_in_pool, teap
 type Triangle = [[f32; 3]; 3];
 
 /// Long, thin, tilted triangles, like the planks and pipes of architectural scenes: the ones splitting is for.
-fn long_triangles(seed: u64, count: usize) -> Vec<Triangle> {
+pub fn long_triangles(seed: u64, count: usize) -> Vec<Triangle> {
     let mut rng = rng(seed);
     (0..count)
         .map(|_| {
@@ -149,8 +149,20 @@ fn conversions_with_splits_verify_trace_like_brute_force_and_do_not_depend_on_th
     let dir = tempfile::tempdir().unwrap();
     let long = dir.path().join("long.obj");
     write_obj(&long, &long_triangles(13, 2000));
-    for (input, preset) in [(teapot(), Preset::Balanced), (long.clone(), Preset::Fast), (long, Preset::MaxQuality)] {
-        let options = ConvertOptions { splits: Some(SplitOptions { budget: 0.5 }), ..ConvertOptions::preset(preset) };
+    let mixed = dir.path().join("mixed.obj");
+    let mut triangles = long_triangles(15, 300);
+    triangles.extend(random_triangles(16, 3000, 10.0));
+    write_obj(&mixed, &triangles);
+    let (pre_split, sbvh) = (SplitMethod::PreSplit, SplitMethod::Sbvh);
+    for (input, preset, method) in [
+        (teapot(), Preset::Balanced, pre_split),
+        (long.clone(), Preset::Fast, pre_split),
+        (long, Preset::MaxQuality, pre_split),
+        (mixed.clone(), Preset::Balanced, sbvh),
+        (mixed, Preset::Fast, sbvh),
+    ] {
+        let options =
+            ConvertOptions { splits: Some(SplitOptions { budget: 0.5, method }), ..ConvertOptions::preset(preset) };
         let (report, file) = check_conversion_against_brute_force(&input, &options);
         assert!(report.reference_count > report.triangle_count, "{input:?}: nothing split");
         assert!(report.stored_triangle_count <= report.reference_count);
@@ -161,7 +173,7 @@ fn conversions_with_splits_verify_trace_like_brute_force_and_do_not_depend_on_th
         assert_eq!(metadata["build"]["splits"]["budget"], 0.5);
         let one = convert_in_pool(1, &input, &dir.path().join("one.bvh"), &options);
         let two = convert_in_pool(2, &input, &dir.path().join("two.bvh"), &options);
-        assert!(one == two, "{input:?} {preset:?}: 1 and 2 threads differ");
+        assert!(one == two, "{input:?} {preset:?} {method:?}: 1 and 2 threads differ");
     }
     // Without splits nothing is recorded, so files keep the bytes they had.
     let (_, file) = check_conversion_against_brute_force(&teapot(), &ConvertOptions::default());
@@ -189,6 +201,17 @@ fn the_cli_splits_on_request_and_info_counts_references() {
     assert_eq!(info["split_references"], true);
     let text = String::from_utf8(crate::cli::bvhc(&[&"info", &output]).stdout).unwrap();
     assert!(text.contains(&format!("split references: {stored} records of 500 triangles")), "{text}");
+    // Either method, recorded in the metadata (the SBVH unless told).
+    for (flags, method) in [(vec![], "sbvh"), (vec!["--split-method", "pre-split"], "pre_split")] {
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> =
+            vec![&long, &"-o", &output, &"--split-budget", &"0.5", &"--force", &"--quiet"];
+        args.extend(flags.iter().map(|f| f as &dyn AsRef<std::ffi::OsStr>));
+        let run = crate::cli::bvhc(&args);
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let file = bvhc::loader::BvhFile::read(&output).unwrap();
+        let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+        assert_eq!(metadata["build"]["splits"]["method"], method);
+    }
     // A budget out of range is refused before any work.
     let refused = crate::cli::bvhc(&[&long, &"-o", &output, &"--split-budget", &"9"]);
     assert!(!refused.status.success() && String::from_utf8_lossy(&refused.stderr).contains("fraction from 0 to 4"));

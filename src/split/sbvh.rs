@@ -1,0 +1,510 @@
+//! Spatial splits during the top-down build: the SBVH of M. Stich, H. Friedrich and A. Dietrich, "Spatial
+//! Splits in Bounding Volume Hierarchies", High Performance Graphics 2009 (the method, not any code).
+//!
+//! Each node weighs the best binned *object* split (centroids of its references' boxes, [`BINS`] bins an axis)
+//! against the best *spatial* split: [`BINS`] equal slabs of the node's box an axis, each reference's piece
+//! of its triangle chopped exactly at the slab planes it crosses (see [`clip`](super::clip)), a plane's cost
+//! `A_left n_left + A_right n_right` with the references that cross it counted on both sides. Spatial splits are
+//! tried only where the object split's children overlap by more than `alpha` times the root's surface area
+//! (the paper's overlap threshold), and a crossing reference is kept whole on one side where that is cheaper
+//! than cutting it (the paper's reference unsplitting).
+//!
+//! A reference budget bounds the tree: the root may add `budget * n` references, and every node hands what its
+//! own split did not spend to its children in proportion to their reference counts (floored), so the whole
+//! tree stays within `(1 + budget) n` references and the choice at a node never depends on the order in which
+//! other subtrees are built. The build recurses down to one reference a leaf, as the optimizer takes it; a leaf
+//! box is its reference's box, which contains the reference's piece, and a triangle's references' boxes
+//! together cover it (each cut hands both sides a box containing its part), which is the format's rule V25.
+//!
+//! Deterministic: boxes are unions and counts sums, exact in any order, and subtrees built in parallel are laid
+//! out in preorder exactly as a sequential build lays them out.
+
+use std::borrow::Cow;
+
+use rayon::prelude::*;
+
+use super::clip::{Piece, ideal_box_area};
+use crate::aabb::Aabb;
+use crate::build::{BuildNode, BuildTree, MEDIAN_FALLBACK_DEPTH};
+
+/// Bins (object splits) and slabs (spatial splits) an axis.
+pub const BINS: usize = 16;
+/// The overlap threshold: spatial splits are tried where the object split's children overlap by more than this
+/// fraction of the root's surface area. Stich et al. suggest 10^-5; here that tries spatial splits in nearly
+/// every node, and 10^-3 gives the same trees' quality at a third of the build time (balanced preset, budget
+/// 0.1, wide cost of kitchen / 2CylinderEngine / toy car 10.843 / 26.333 / 9.357 at 10^-5, 10.844 / 26.262 /
+/// 9.342 at 10^-3; SBVH build of the 871k-triangle dragon 3.1 s against 1.06 s, binned SAH 0.24 s).
+pub const DEFAULT_ALPHA: f64 = 1e-3;
+/// By default only triangles whose pieces could remove at least this fraction of their box's area are cut (the
+/// area [`ideal_box_area`] says splitting can remove, as in [`super::MIN_WASTE_RATIO`] for pre-splitting).
+/// Flat triangles that fill half of their box's face (the two halves of an axis-aligned rectangle: floors,
+/// walls, tiles) are at exactly 0.5, and cutting them lowers the binary tree's SAH but raises the cost of the
+/// wide tree that default files are traced by. Measured at `alpha` 10^-5 (balanced preset, budget 0.1, the
+/// wide collapse's cost against the unsplit tree's, as `cargo bench --bench evaluate` reports it for files):
+/// with no threshold kitchen +3.7%, 2CylinderEngine -4.2%, toy car -3.8%, milk truck +2.5%; at 0.501 -0.7%,
+/// -3.0%, -3.4%, +0.8%; at 0.55 -2.1%, -2.3%, -2.4%, +0.7%; at 0.6 -2.1%, -2.0%, -1.5%, +0.8%.
+pub const MIN_WASTE_RATIO: f64 = 0.55;
+/// Subtrees with more references than this are built in parallel.
+const PARALLEL_THRESHOLD: usize = 4096;
+
+/// How the SBVH may split.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SbvhParams {
+    /// At most `budget * n` references beyond one a triangle (clamped to 0 ..= [`super::MAX_BUDGET`]).
+    pub budget: f64,
+    /// Overlap threshold, relative to the root's surface area.
+    pub alpha: f64,
+    /// Only triangles whose pieces could remove at least this fraction of their box's area are cut.
+    pub min_waste_ratio: f64,
+}
+
+impl SbvhParams {
+    /// `budget` with the default thresholds.
+    pub fn with_budget(budget: f64) -> SbvhParams {
+        SbvhParams { budget, alpha: DEFAULT_ALPHA, min_waste_ratio: MIN_WASTE_RATIO }
+    }
+}
+
+/// A piece of triangle `triangle` inside `aabb`.
+#[derive(Clone, Copy, Debug)]
+struct Reference {
+    aabb: Aabb,
+    triangle: u32,
+}
+
+impl Reference {
+    fn centroid(&self, axis: usize) -> f32 {
+        0.5 * self.aabb.min[axis] + 0.5 * self.aabb.max[axis]
+    }
+}
+
+/// Builds an SBVH over `triangles` with one reference a leaf; the tree's `triangle_order` holds each leaf's
+/// triangle (a triangle may lie in several leaves, each with its own box), as
+/// [`Builder::build_references`](crate::build::Builder::build_references) returns for pre-split references.
+pub fn build_sbvh(triangles: &[[[f32; 3]; 3]], params: &SbvhParams) -> BuildTree {
+    let references: Vec<Reference> = triangles
+        .par_iter()
+        .enumerate()
+        .map(|(t, v)| Reference { aabb: Aabb::of_triangle(v), triangle: t as u32 })
+        .collect();
+    if references.is_empty() {
+        return BuildTree::default();
+    }
+    let budget = if params.budget.is_nan() { 0.0 } else { params.budget.clamp(0.0, super::MAX_BUDGET) };
+    let root = union_of(&references);
+    let alpha = if params.alpha.is_nan() { 0.0 } else { params.alpha.max(0.0) };
+    let min_waste_ratio = if params.min_waste_ratio.is_nan() { 0.0 } else { params.min_waste_ratio };
+    let splittable = triangles.par_iter().map(|t| worth_cutting(t, min_waste_ratio)).collect();
+    let builder = Sbvh { triangles, splittable, min_overlap: alpha * root.surface_area() };
+    let extra = (budget * triangles.len() as f64) as usize;
+    let mut out = Subtree::default();
+    builder.build(references, root, extra, 0, &mut out);
+    BuildTree { nodes: out.nodes, triangle_order: out.order }
+}
+
+/// A subtree in preorder: node 0 its root, child indices and leaf positions local to it.
+#[derive(Default)]
+struct Subtree {
+    nodes: Vec<BuildNode>,
+    order: Vec<u32>,
+}
+
+impl Subtree {
+    /// Appends `other` (its indices shifted to where it lands).
+    fn append(&mut self, other: Subtree) {
+        let (node_base, order_base) = (self.nodes.len() as u32, self.order.len() as u32);
+        self.nodes.extend(other.nodes.into_iter().map(|node| match node {
+            BuildNode::Inner { aabb, left, right } => {
+                BuildNode::Inner { aabb, left: left + node_base, right: right + node_base }
+            }
+            BuildNode::Leaf { aabb, first, count } => BuildNode::Leaf { aabb, first: first + order_base, count },
+        }));
+        self.order.extend(other.order);
+    }
+}
+
+struct Sbvh<'a> {
+    triangles: &'a [[[f32; 3]; 3]],
+    /// Per triangle: whether its references may be cut ([`worth_cutting`]).
+    splittable: Vec<bool>,
+    /// `alpha` times the root's surface area.
+    min_overlap: f64,
+}
+
+/// The two sides of a split, and the references it added.
+struct Split {
+    left: Vec<Reference>,
+    right: Vec<Reference>,
+    added: usize,
+}
+
+impl Sbvh<'_> {
+    /// Writes the subtree over `references` (box `aabb`, at most `extra` more references) at the end of `out`.
+    fn build(&self, references: Vec<Reference>, aabb: Aabb, extra: usize, depth: usize, out: &mut Subtree) {
+        if references.len() == 1 {
+            out.nodes.push(BuildNode::Leaf { aabb: references[0].aabb, first: out.order.len() as u32, count: 1 });
+            out.order.push(references[0].triangle);
+            return;
+        }
+        let count = references.len();
+        let Split { left, right, added } = self.split(references, &aabb, extra, depth);
+        let rest = extra - added;
+        let left_extra = (rest as u128 * left.len() as u128 / (left.len() + right.len()) as u128) as usize;
+        let (left_box, right_box) = (union_of(&left), union_of(&right));
+        let at = out.nodes.len();
+        out.nodes.push(BuildNode::Inner { aabb, left: at as u32 + 1, right: 0 });
+        let right_at = if count > PARALLEL_THRESHOLD {
+            let (mut l, mut r) = (Subtree::default(), Subtree::default());
+            rayon::join(
+                || self.build(left, left_box, left_extra, depth + 1, &mut l),
+                || self.build(right, right_box, rest - left_extra, depth + 1, &mut r),
+            );
+            out.append(l);
+            let right_at = out.nodes.len();
+            out.append(r);
+            right_at
+        } else {
+            self.build(left, left_box, left_extra, depth + 1, out);
+            let right_at = out.nodes.len();
+            self.build(right, right_box, rest - left_extra, depth + 1, out);
+            right_at
+        };
+        out.nodes[at] = BuildNode::Inner { aabb, left: at as u32 + 1, right: right_at as u32 };
+    }
+
+    /// The cheaper of the best object split and (where its children overlap enough and the budget allows) the
+    /// best spatial split; the median reference where no centroids spread or the node is too deep.
+    fn split(&self, references: Vec<Reference>, aabb: &Aabb, extra: usize, depth: usize) -> Split {
+        if depth >= MEDIAN_FALLBACK_DEPTH {
+            return median_split(references);
+        }
+        let Some(object) = best_object_split(&references) else { return median_split(references) };
+        let spatial = (extra > 0 && object.overlap > self.min_overlap)
+            .then(|| self.best_spatial_split(&references, aabb))
+            .flatten()
+            .filter(|plane| plane.cost < object.cost)
+            .and_then(|plane| self.spatial_partition(&references, &plane, extra));
+        // The binned estimate assumed every crossing reference cut; the split as made must still win.
+        if let Some((split, cost)) = spatial
+            && cost < object.cost
+        {
+            return split;
+        }
+        let (left, right) = references.into_iter().partition(|r| object.goes_left(r));
+        Split { left, right, added: 0 }
+    }
+
+    /// The piece of `reference`'s triangle inside its box; `None` (the reference then stays whole) where its
+    /// triangle is not to be cut or clipping leaves no area.
+    fn piece(&self, reference: &Reference) -> Option<Piece> {
+        if !self.splittable[reference.triangle as usize] {
+            return None;
+        }
+        let vertices = &self.triangles[reference.triangle as usize];
+        if Aabb::of_triangle(vertices) == reference.aabb {
+            return Some(Piece::of_triangle(vertices));
+        }
+        Piece::within(vertices, &reference.aabb)
+    }
+
+    /// The spatial plane of lowest binned cost on any axis (every reference that crosses it counted on both
+    /// sides).
+    fn best_spatial_split(&self, references: &[Reference], aabb: &Aabb) -> Option<SpatialPlane> {
+        let slabs: [Option<Slabs>; 3] = std::array::from_fn(|axis| Slabs::new(aabb, axis));
+        let mut bins = [[(Aabb::EMPTY, 0u32, 0u32); BINS]; 3];
+        for reference in references {
+            // Most references lie in one slab an axis; only those that cross a plane are clipped (once, for all
+            // the axes on which they cross one).
+            let mut piece = None;
+            for (axis, slabs) in slabs.iter().enumerate() {
+                let Some(slabs) = slabs else { continue };
+                let mut add = |bin: usize, aabb: Aabb, enters: bool, exits: bool| {
+                    let b = &mut bins[axis][bin];
+                    b.0 = b.0.union(&aabb);
+                    b.1 += u32::from(enters);
+                    b.2 += u32::from(exits);
+                };
+                let first = slabs.slab_from(reference.aabb.min[axis]);
+                if first >= slabs.slab_to(reference.aabb.max[axis]) {
+                    add(first, reference.aabb, true, true);
+                } else {
+                    let piece = piece.get_or_insert_with(|| self.piece(reference));
+                    chop(reference, piece.as_ref(), slabs, &mut add);
+                }
+            }
+        }
+        let mut best: Option<SpatialPlane> = None;
+        for (axis, (slabs, bins)) in slabs.iter().zip(&bins).enumerate() {
+            let Some(slabs) = slabs else { continue };
+            let mut right_areas = [0.0f64; BINS];
+            let mut right = Aabb::EMPTY;
+            for k in (1..BINS).rev() {
+                right = right.union(&bins[k].0);
+                right_areas[k] = right.surface_area();
+            }
+            let (mut left, mut n_left) = (Aabb::EMPTY, 0usize);
+            let mut n_right: usize = bins.iter().map(|b| b.2 as usize).sum();
+            for k in 1..BINS {
+                left = left.union(&bins[k - 1].0);
+                n_left += bins[k - 1].1 as usize;
+                n_right -= bins[k - 1].2 as usize;
+                if n_left == 0 || n_right == 0 {
+                    continue;
+                }
+                let cost = left.surface_area() * n_left as f64 + right_areas[k] * n_right as f64;
+                if best.as_ref().is_none_or(|b| cost < b.cost) {
+                    best = Some(SpatialPlane { axis, position: slabs.planes[k - 1], cost });
+                }
+            }
+        }
+        best
+    }
+
+    /// Sends each reference to the side of `plane` it lies on. One that crosses it is cut in two, or kept whole
+    /// on one side where the paper's unsplitting test finds that cheaper; at most `extra` are cut, the largest
+    /// first, and the rest go whole to their cheaper side. Returns the split and its cost (`A_left n_left +
+    /// A_right n_right` of the sides as they are), `None` when a side ends up empty.
+    fn spatial_partition(&self, references: &[Reference], plane: &SpatialPlane, extra: usize) -> Option<(Split, f64)> {
+        let (axis, position) = (plane.axis, plane.position);
+        let (mut left, mut right) = (Vec::new(), Vec::new());
+        let mut crossing = Vec::new();
+        for r in references {
+            if r.aabb.max[axis] <= position {
+                left.push(*r);
+            } else if r.aabb.min[axis] >= position {
+                right.push(*r);
+            } else {
+                crossing.push(*r);
+            }
+        }
+        let (mut left_box, mut right_box) = (union_of(&left), union_of(&right));
+        let mut cut: Vec<(Reference, Piece, Piece)> = Vec::new();
+        for r in crossing {
+            match self.piece(&r).map(|p| p.cut(axis, position)) {
+                Some((below, above)) if below.corners.len() >= 3 && above.corners.len() >= 3 => {
+                    left_box = left_box.union(&below.aabb);
+                    right_box = right_box.union(&above.aabb);
+                    cut.push((r, below, above));
+                }
+                // No area on one side (or not to be cut): the reference goes whole to the side of its centre.
+                _ => {
+                    if r.centroid(axis) < position {
+                        left_box = left_box.union(&r.aabb);
+                        left.push(r);
+                    } else {
+                        right_box = right_box.union(&r.aabb);
+                        right.push(r);
+                    }
+                }
+            }
+        }
+        // The largest references first (a node holds one reference of a triangle at most, so the order is
+        // total), since cutting them removes the most area.
+        cut.sort_unstable_by(|(a, ..), (b, ..)| {
+            b.aabb.surface_area().total_cmp(&a.aabb.surface_area()).then(a.triangle.cmp(&b.triangle))
+        });
+        // Unsplitting (Stich et al., section 4.3): with the sides as they stand, cutting costs
+        // A_l n_l + A_r n_r against the whole reference on one side (one fewer on the other).
+        let mut added = 0;
+        let (n_left, n_right) = (left.len() + cut.len(), right.len() + cut.len());
+        let (mut n_left, mut n_right) = (n_left as f64, n_right as f64);
+        for (r, below, above) in cut {
+            let (a_left, a_right) = (left_box.surface_area(), right_box.surface_area());
+            let split_cost = if added < extra { a_left * n_left + a_right * n_right } else { f64::INFINITY };
+            let whole_left = left_box.union(&r.aabb).surface_area() * n_left + a_right * (n_right - 1.0);
+            let whole_right = a_left * (n_left - 1.0) + right_box.union(&r.aabb).surface_area() * n_right;
+            if whole_left <= split_cost && whole_left <= whole_right {
+                left_box = left_box.union(&r.aabb);
+                n_right -= 1.0;
+                left.push(r);
+            } else if whole_right <= split_cost {
+                right_box = right_box.union(&r.aabb);
+                n_left -= 1.0;
+                right.push(r);
+            } else {
+                left.push(Reference { aabb: below.aabb, triangle: r.triangle });
+                right.push(Reference { aabb: above.aabb, triangle: r.triangle });
+                added += 1;
+            }
+        }
+        if left.is_empty() || right.is_empty() {
+            return None;
+        }
+        let cost =
+            union_of(&left).surface_area() * left.len() as f64 + union_of(&right).surface_area() * right.len() as f64;
+        Some((Split { left, right, added }, cost))
+    }
+}
+
+/// Whether pieces of the triangle could remove at least `min_waste_ratio` of its box's area (see
+/// [`MIN_WASTE_RATIO`]).
+fn worth_cutting(vertices: &[[f32; 3]; 3], min_waste_ratio: f64) -> bool {
+    let box_area = Aabb::of_triangle(vertices).surface_area();
+    box_area > 0.0 && box_area - ideal_box_area(vertices) >= min_waste_ratio * box_area
+}
+
+/// The slab planes of a node's box along one axis: `BINS - 1` increasing f32 positions strictly inside it.
+struct Slabs {
+    axis: usize,
+    planes: [f32; BINS - 1],
+}
+
+impl Slabs {
+    /// `None` where the box is too thin along `axis` for distinct planes strictly inside it.
+    fn new(aabb: &Aabb, axis: usize) -> Option<Slabs> {
+        let (low, high) = (f64::from(aabb.min[axis]), f64::from(aabb.max[axis]));
+        let planes: [f32; BINS - 1] =
+            std::array::from_fn(|k| (low + (high - low) * (k + 1) as f64 / BINS as f64) as f32);
+        let inside = planes.iter().all(|&p| aabb.min[axis] < p && p < aabb.max[axis]);
+        let increasing = planes.windows(2).all(|w| w[0] < w[1]);
+        (inside && increasing).then_some(Slabs { axis, planes })
+    }
+
+    /// The slab holding coordinate `x` at its low end: planes at or below `x`.
+    fn slab_from(&self, x: f32) -> usize {
+        self.planes.partition_point(|&p| p <= x)
+    }
+
+    /// The slab holding coordinate `x` at its high end: planes below `x`.
+    fn slab_to(&self, x: f32) -> usize {
+        self.planes.partition_point(|&p| p < x)
+    }
+}
+
+/// Hands `emit(slab, box, enters, exits)` the box of each slab's part of `reference` (its `piece`, cut exactly
+/// at the planes it crosses; a reference without a piece goes whole to the slab of its centre). `enters` is
+/// true in the reference's first slab and `exits` in its last.
+fn chop(reference: &Reference, piece: Option<&Piece>, slabs: &Slabs, emit: &mut impl FnMut(usize, Aabb, bool, bool)) {
+    let axis = slabs.axis;
+    let Some(piece) = piece else {
+        let slab = slabs.slab_from(reference.centroid(axis));
+        emit(slab, reference.aabb, true, true);
+        return;
+    };
+    let (first, last) = (slabs.slab_from(piece.aabb.min[axis]), slabs.slab_to(piece.aabb.max[axis]));
+    if first >= last {
+        emit(first, piece.aabb, true, true);
+        return;
+    }
+    let mut rest = Cow::Borrowed(piece);
+    let (mut slab, mut entered) = (first, false);
+    for k in first..last {
+        let plane = slabs.planes[k];
+        if !(rest.aabb.min[axis] < plane && plane < rest.aabb.max[axis]) {
+            break;
+        }
+        let (below, above) = rest.cut(axis, plane);
+        if above.corners.len() < 3 {
+            rest = Cow::Owned(below);
+            break;
+        }
+        if below.corners.len() >= 3 {
+            emit(slab, below.aabb, !entered, false);
+            entered = true;
+        }
+        rest = Cow::Owned(above);
+        slab = k + 1;
+    }
+    emit(slab, rest.aabb, !entered, true);
+}
+
+/// A spatial split: references left of `position` along `axis` go left, those right of it right.
+struct SpatialPlane {
+    axis: usize,
+    position: f32,
+    cost: f64,
+}
+
+/// An object split: references whose centroid lies in a bin below `bin` go left.
+#[derive(Clone, Copy)]
+struct ObjectSplit {
+    axis: usize,
+    low: f32,
+    scale: f32,
+    bin: usize,
+    cost: f64,
+    /// Surface area of the intersection of the two children's boxes.
+    overlap: f64,
+}
+
+impl ObjectSplit {
+    fn bin_of(&self, c: f32) -> usize {
+        (((c - self.low) * self.scale) as usize).min(BINS - 1)
+    }
+
+    fn goes_left(&self, r: &Reference) -> bool {
+        self.bin_of(r.centroid(self.axis)) < self.bin
+    }
+}
+
+/// The binned SAH object split of lowest `A_left n_left + A_right n_right`; `None` where no axis has spread
+/// centroids.
+fn best_object_split(references: &[Reference]) -> Option<ObjectSplit> {
+    let centroids = references.iter().fold(Aabb::EMPTY, |b, r| b.grow(&std::array::from_fn(|a| r.centroid(a))));
+    let mut best: Option<(ObjectSplit, Aabb, Aabb)> = None;
+    for axis in 0..3 {
+        let (low, high) = (centroids.min[axis], centroids.max[axis]);
+        let scale = BINS as f32 / (high - low);
+        if high <= low || !scale.is_finite() {
+            continue;
+        }
+        let mut split = ObjectSplit { axis, low, scale, bin: 0, cost: f64::INFINITY, overlap: 0.0 };
+        let mut bins = [(Aabb::EMPTY, 0usize); BINS];
+        for r in references {
+            let b = &mut bins[split.bin_of(r.centroid(axis))];
+            b.0 = b.0.union(&r.aabb);
+            b.1 += 1;
+        }
+        let mut right_boxes = [Aabb::EMPTY; BINS];
+        let mut right = Aabb::EMPTY;
+        for k in (1..BINS).rev() {
+            right = right.union(&bins[k].0);
+            right_boxes[k] = right;
+        }
+        let (mut left, mut n_left) = (Aabb::EMPTY, 0);
+        for k in 1..BINS {
+            left = left.union(&bins[k - 1].0);
+            n_left += bins[k - 1].1;
+            let n_right = references.len() - n_left;
+            if n_left == 0 || n_right == 0 {
+                continue;
+            }
+            let cost = left.surface_area() * n_left as f64 + right_boxes[k].surface_area() * n_right as f64;
+            if best.as_ref().is_none_or(|(b, _, _)| cost < b.cost) {
+                split.bin = k;
+                split.cost = cost;
+                best = Some((split, left, right_boxes[k]));
+            }
+        }
+    }
+    best.map(|(mut split, left, right)| {
+        split.overlap = intersection(&left, &right).surface_area();
+        split
+    })
+}
+
+/// The intersection of two boxes (empty, with zero area, when they are apart).
+fn intersection(a: &Aabb, b: &Aabb) -> Aabb {
+    Aabb { min: std::array::from_fn(|i| a.min[i].max(b.min[i])), max: std::array::from_fn(|i| a.max[i].min(b.max[i])) }
+}
+
+/// Splits at the median reference by centroid along the longest axis of the node's centroids (ties by
+/// triangle, then box, so the order is total and the result deterministic).
+fn median_split(mut references: Vec<Reference>) -> Split {
+    let centroids = references.iter().fold(Aabb::EMPTY, |b, r| b.grow(&std::array::from_fn(|a| r.centroid(a))));
+    let axis = centroids.longest_axis();
+    let key = |r: &Reference| (r.centroid(axis), r.triangle, r.aabb.min, r.aabb.max);
+    references.sort_unstable_by(|a, b| {
+        let (ka, kb) = (key(a), key(b));
+        ka.0.total_cmp(&kb.0).then(ka.1.cmp(&kb.1)).then_with(|| {
+            let bits = |x: [f32; 3], y: [f32; 3]| x.map(f32::to_bits).into_iter().chain(y.map(f32::to_bits));
+            bits(ka.2, ka.3).cmp(bits(kb.2, kb.3))
+        })
+    });
+    let right = references.split_off(references.len() / 2);
+    Split { left: references, right, added: 0 }
+}
+
+fn union_of(references: &[Reference]) -> Aabb {
+    references.iter().fold(Aabb::EMPTY, |b, r| b.union(&r.aabb))
+}
