@@ -275,7 +275,8 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
 }
 
 /// Render seconds (median of 5, all threads), steps and triangle tests per ray.
-fn render(tracer: &Tracer<'_>, rays: &RaySet) -> (f64, f64, f64) {
+/// Seconds to trace the whole ray set once (all threads).
+fn render_once(tracer: &Tracer<'_>, rays: &RaySet) -> f64 {
     let closest = |set: &[Ray]| {
         set.par_chunks(1024).map(|c| c.iter().filter(|r| tracer.closest_hit(r).is_some()).count()).sum::<usize>()
     };
@@ -284,8 +285,11 @@ fn render(tracer: &Tracer<'_>, rays: &RaySet) -> (f64, f64, f64) {
         let occluded = rays.ao.par_chunks(1024).map(|c| c.iter().filter(|r| tracer.any_hit(r)).count()).sum::<usize>();
         std::hint::black_box((hits, occluded));
     };
-    let mut samples: Vec<f64> = (0..5).map(|_| timed(run).1.as_secs_f64()).collect();
-    samples.sort_by(f64::total_cmp);
+    timed(run).1.as_secs_f64()
+}
+
+/// Node visits and triangle tests per ray.
+fn traversal_counts(tracer: &Tracer<'_>, rays: &RaySet) -> (f64, f64) {
     let mut stats = TraversalStats::default();
     for r in rays.primary.iter().chain(&rays.incoherent) {
         tracer.closest_hit_counted(r, &mut stats);
@@ -294,7 +298,14 @@ fn render(tracer: &Tracer<'_>, rays: &RaySet) -> (f64, f64, f64) {
         tracer.any_hit_counted(r, &mut stats);
     }
     let count = (rays.primary.len() + rays.ao.len() + rays.incoherent.len()) as f64;
-    (samples[2], stats.node_visits as f64 / count, stats.triangle_tests as f64 / count)
+    (stats.node_visits as f64 / count, stats.triangle_tests as f64 / count)
+}
+
+/// The median of 5 renders, and the traversal counts.
+fn render(tracer: &Tracer<'_>, rays: &RaySet) -> (f64, f64, f64) {
+    let mut samples: Vec<f64> = (0..5).map(|_| render_once(tracer, rays)).collect();
+    let (steps, tests) = traversal_counts(tracer, rays);
+    (median(&mut samples), steps, tests)
 }
 
 fn main() {
@@ -372,26 +383,39 @@ fn main() {
     }
 }
 
-/// Converts the scene with the default options and split budgets, and traces `rays` through each file's default
-/// kernel.
+/// Converts the scene with the default options and each split setting, and traces `rays` through each file's
+/// default kernel: [`FILE_ROUNDS`] rounds that render every file once in turn, so that the machine's drift
+/// falls on all files alike; a file's time is its median, its ratio the median of its per-round ratios to the
+/// unsplit file.
 fn files_table(scene: &std::path::Path, rays: &RaySet) {
     let dir = tempfile::tempdir().unwrap();
     println!(
-        "\n| file (defaults) | records | file MB | SAH | wide cost | render s | wide steps | packets |\n|---|---|---|---|---|---|---|---|"
+        "\n| file (defaults) | records | file MB | SAH | wide cost | render s | vs unsplit | wide steps | packets |\n|---|---|---|---|---|---|---|---|---|"
     );
-    let mut baseline = None;
     let sbvh = |budget| Some(SplitOptions { budget, method: SplitMethod::Sbvh });
-    for splits in [None, Some(SplitOptions { budget: 0.1, method: SplitMethod::PreSplit }), sbvh(0.1), sbvh(0.3)] {
-        let output = dir.path().join("scene.bvh");
-        let options = ConvertOptions { splits, ..ConvertOptions::default() };
+    let settings = [None, Some(SplitOptions { budget: 0.1, method: SplitMethod::PreSplit }), sbvh(0.1), sbvh(0.3)];
+    let mut files = Vec::new();
+    for (i, splits) in settings.iter().enumerate() {
+        let output = dir.path().join(format!("scene-{i}.bvh"));
+        let options = ConvertOptions { splits: *splits, ..ConvertOptions::default() };
         let report = convert_with(scene, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
-        let file = BvhFile::read(&output).unwrap();
-        let tracer = file.view().tracer();
-        let (seconds, steps, tests) = render(&tracer, rays);
-        let base = *baseline.get_or_insert(seconds);
+        files.push((report, BvhFile::read(&output).unwrap()));
+    }
+    let tracers: Vec<Tracer<'_>> = files.iter().map(|(_, file)| file.view().tracer()).collect();
+    let mut times = vec![Vec::new(); tracers.len()];
+    let mut ratios = vec![Vec::new(); tracers.len()];
+    for _ in 0..FILE_ROUNDS {
+        let round: Vec<f64> = tracers.iter().map(|tracer| render_once(tracer, rays)).collect();
+        for (i, &t) in round.iter().enumerate() {
+            times[i].push(t);
+            ratios[i].push(t / round[0]);
+        }
+    }
+    for (i, (splits, (report, _))) in settings.iter().zip(&files).enumerate() {
+        let (steps, tests) = traversal_counts(&tracers[i], rays);
         println!(
-            "| {} | {} | {:.1} | {:.2} | {} | {seconds:.3} ({:.1}) | {steps:.2} | {tests:.2} |",
-            splits.map_or("no splits".to_string(), |s| format!(
+            "| {} | {} | {:.1} | {:.2} | {} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
+            splits.map_or("--no-splits".to_string(), |s| format!(
                 "--split-budget {} --split-method {}",
                 s.budget,
                 s.method.name()
@@ -400,7 +424,16 @@ fn files_table(scene: &std::path::Path, rays: &RaySet) {
             report.file_byte_len as f64 / 1e6,
             report.cost.cost,
             report.wide.map_or("-".to_string(), |w| format!("{:.2}", w.cost)),
-            100.0 * seconds / base
+            median(&mut times[i]),
+            median(&mut ratios[i]),
         );
     }
+}
+
+/// Rounds of the files table.
+const FILE_ROUNDS: usize = 9;
+
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
 }

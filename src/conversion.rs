@@ -55,10 +55,12 @@ impl Conversion {
         }
     }
 
-    /// Uses a preset's optimizer parameters (other options are kept).
+    /// Uses a preset's optimizer parameters and splits (other options are kept; call [`Conversion::splits`]
+    /// after this to override the splits).
     pub fn preset(mut self, preset: Preset) -> Self {
         let constants = self.options.optimize.constants;
         self.options.preset = preset;
+        self.options.splits = crate::convert::SplitOptions::for_preset(preset);
         self.options.optimize =
             crate::optimize::OptimizeParams { constants, ..crate::optimize::OptimizeParams::preset(preset) };
         self
@@ -115,7 +117,8 @@ impl Conversion {
 
     /// Split references: `Some(budget)` cuts triangles into at most `budget * triangles` extra references
     /// (see [`crate::split`]), by the method set with [`Conversion::split_method`] (the SBVH unless told);
-    /// `None` keeps one a triangle.
+    /// `None` keeps one a triangle. Without this call the preset decides (the SBVH within
+    /// [`crate::convert::DEFAULT_SPLIT_BUDGET`] except for `fast`).
     pub fn splits(mut self, budget: Option<f64>) -> Self {
         let method = self.options.splits.map(|s| s.method).unwrap_or_default();
         self.options.splits = budget.map(|budget| crate::convert::SplitOptions { budget, method });

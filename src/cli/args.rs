@@ -112,11 +112,14 @@ pub struct ConvertArgs {
     /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
     #[arg(long)]
     pub no_wide: bool,
-    /// Cut long, slanted triangles into split references before the build, at most this fraction of the
-    /// triangles more (0.3: 30% more). Off by default: on the scenes measured so far the files trace no faster
-    /// with them through the default (wide) kernel (docs/evaluation.md).
-    #[arg(long, value_name = "FRACTION", value_parser = parse_split_budget)]
+    /// Cut triangles into split references where that makes the tree cheaper, at most this fraction of the
+    /// triangles more (default 0.3 with the balanced and max-quality presets; fast does not split unless given
+    /// this). Measured in docs/evaluation.md.
+    #[arg(long, value_name = "FRACTION", value_parser = parse_split_budget, conflicts_with = "no_splits")]
     pub split_budget: Option<f64>,
+    /// One reference a triangle: no split references, whatever the preset.
+    #[arg(long)]
+    pub no_splits: bool,
     /// Where split references are cut: during the build where children overlap (SBVH), or before it.
     #[arg(long, value_enum, default_value_t = SplitMethodArg::Sbvh)]
     pub split_method: SplitMethodArg,

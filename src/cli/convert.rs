@@ -44,12 +44,16 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
         .keep_degenerate(args.keep_degenerate)
         .write_ids(!args.no_ids)
         .write_wide(!args.no_wide)
-        .splits(args.split_budget)
-        .split_method(match args.split_method {
-            SplitMethodArg::Sbvh => SplitMethod::Sbvh,
-            SplitMethodArg::PreSplit => SplitMethod::PreSplit,
-        })
         .force(args.force);
+    if args.no_splits {
+        conversion = conversion.splits(None);
+    } else if let Some(budget) = args.split_budget {
+        conversion = conversion.splits(Some(budget));
+    }
+    conversion = conversion.split_method(match args.split_method {
+        SplitMethodArg::Sbvh => SplitMethod::Sbvh,
+        SplitMethodArg::PreSplit => SplitMethod::PreSplit,
+    });
     if let Some(budget) = args.time_budget {
         conversion = conversion.time_budget(budget);
     }

@@ -175,11 +175,23 @@ fn conversions_with_splits_verify_trace_like_brute_force_and_do_not_depend_on_th
         let two = convert_in_pool(2, &input, &dir.path().join("two.bvh"), &options);
         assert!(one == two, "{input:?} {preset:?} {method:?}: 1 and 2 threads differ");
     }
-    // Without splits nothing is recorded, so files keep the bytes they had.
-    let (_, file) = check_conversion_against_brute_force(&teapot(), &ConvertOptions::default());
-    let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
-    assert!(metadata["build"].get("splits").is_none());
-    assert!(!file.view().has_split_references());
+    // Without splits nothing is recorded, so files keep the bytes they had; the fast preset does not split.
+    let metadata_of = |file: &bvhc::loader::BvhFile| -> serde_json::Value {
+        serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap()
+    };
+    for options in [ConvertOptions { splits: None, ..ConvertOptions::default() }, ConvertOptions::preset(Preset::Fast)]
+    {
+        let (_, file) = check_conversion_against_brute_force(&teapot(), &options);
+        assert!(metadata_of(&file)["build"].get("splits").is_none());
+        assert!(!file.view().has_split_references());
+    }
+    // The default (balanced) and max-quality presets allow the SBVH 30% more references.
+    for preset in [Preset::Balanced, Preset::MaxQuality] {
+        let (report, file) = check_conversion_against_brute_force(&teapot(), &ConvertOptions::preset(preset));
+        let splits = &metadata_of(&file)["build"]["splits"];
+        assert_eq!((splits["budget"].as_f64(), splits["method"].as_str()), (Some(0.3), Some("sbvh")));
+        assert!(report.reference_count as f64 <= 1.3 * report.triangle_count as f64);
+    }
 }
 
 /// `bvhc --split-budget` converts with splits; `bvhc info` counts records and distinct triangles.
@@ -212,6 +224,12 @@ fn the_cli_splits_on_request_and_info_counts_references() {
         let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
         assert_eq!(metadata["build"]["splits"]["method"], method);
     }
+    // --no-splits: one reference a triangle even with a preset that splits.
+    let run = crate::cli::bvhc(&[&long, &"-o", &output, &"--no-splits", &"--force", &"--json", &"--quiet"]);
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["report"]["reference_count"], 500);
+    let both = crate::cli::bvhc(&[&long, &"-o", &output, &"--no-splits", &"--split-budget", &"0.1"]);
+    assert!(!both.status.success(), "--no-splits with --split-budget accepted");
     // A budget out of range is refused before any work.
     let refused = crate::cli::bvhc(&[&long, &"-o", &output, &"--split-budget", &"9"]);
     assert!(!refused.status.success() && String::from_utf8_lossy(&refused.stderr).contains("fraction from 0 to 4"));
