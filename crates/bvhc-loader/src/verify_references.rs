@@ -64,59 +64,58 @@ fn verify_split_coverage(
     triangles: &[PackedTriangle],
     ids: Option<&[u32]>,
 ) -> Result<(), Violation> {
-    let placements = nodes.iter().enumerate().filter(|(_, n)| n.is_leaf()).flat_map(|(leaf, node)| {
-        (node.index..node.index + node.count).map(move |t| Placement {
-            triangle: t,
-            container: leaf as u32,
-            min: node.min,
-            max: node.max,
-        })
-    });
-    verify_coverage(placements, triangles, ids, Rule::SplitCoverage, "leaves")
-}
-
-/// A triangle record placed in a box: a binary leaf (V25) or a wide leaf slot (V35).
-pub(crate) struct Placement {
-    /// The record's index in the triangles section (in bounds).
-    pub triangle: u32,
-    /// The leaf node, or the wide node's slot as `node * 8 + slot`, for the message.
-    pub container: u32,
-    /// The box's minimum corner.
-    pub min: [f32; 3],
-    /// The box's maximum corner.
-    pub max: [f32; 3],
+    let placements = nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| n.is_leaf())
+        .flat_map(|(leaf, node)| (node.index..node.index + node.count).map(move |t| (t, leaf as u32)));
+    let box_of = |leaf: u32| (nodes[leaf as usize].min, nodes[leaf as usize].max);
+    verify_coverage(placements, box_of, triangles, ids, Rule::SplitCoverage, "leaves")
 }
 
 /// Whether the boxes that hold the references of each triangle (the records with the same id, with ids, and
-/// the same vertices) cover it; `rule` names the failure.
+/// the same vertices) cover it; `rule` names the failure. `placements` are (record, container) pairs: the
+/// record's index in the triangles section (in bounds) and the binary leaf (V25) or the wide slot as `node * 8
+/// + slot` (V35) whose box, `box_of(container)`, holds it.
+///
+/// Memory: 16 bytes a placement (the id, a 32-bit hash of the vertices' bits, record and container); records
+/// are grouped by sorting on the id and hash, then exactly on the vertices within each run of equal hashes.
 pub(crate) fn verify_coverage(
-    placements: impl Iterator<Item = Placement>,
+    placements: impl Iterator<Item = (u32, u32)>,
+    box_of: impl Fn(u32) -> ([f32; 3], [f32; 3]),
     triangles: &[PackedTriangle],
     ids: Option<&[u32]>,
     rule: Rule,
     containers: &str,
 ) -> Result<(), Violation> {
-    // (id or 0, vertex bits, placement) for every placement, grouped by the first two.
-    let mut references: Vec<(u32, [u32; 9], Placement)> = placements
-        .map(|p| {
-            let v = &triangles[p.triangle as usize].vertices;
-            let bits = std::array::from_fn(|k| v[k / 3][k % 3].to_bits());
-            (ids.map_or(0, |ids| ids[p.triangle as usize]), bits, p)
-        })
-        .collect();
-    references.sort_unstable_by_key(|r| (r.0, r.1, r.2.triangle, r.2.container));
-    for group in references.chunk_by(|a, b| a.0 == b.0 && a.1 == b.1) {
-        let t = group[0].2.triangle as usize;
-        let boxes: Vec<([f32; 3], [f32; 3])> = group.iter().map(|r| (r.2.min, r.2.max)).collect();
-        if !is_covered(&triangles[t].vertices, &boxes) {
-            let held_by: Vec<u32> = group.iter().map(|r| r.2.container).collect();
-            return Err(violation(
-                rule,
-                format!("triangle {t}: the boxes of its {containers} {held_by:?} do not cover all of it"),
-            ));
+    let bits = |t: u32| -> [u32; 9] {
+        let v = &triangles[t as usize].vertices;
+        std::array::from_fn(|k| v[k / 3][k % 3].to_bits())
+    };
+    let mut references: Vec<(u32, u32, u32, u32)> =
+        placements.map(|(t, container)| (ids.map_or(0, |ids| ids[t as usize]), hash(&bits(t)), t, container)).collect();
+    references.sort_unstable();
+    for run in references.chunk_by_mut(|a, b| a.0 == b.0 && a.1 == b.1) {
+        run.sort_by_key(|r| (bits(r.2), r.2, r.3));
+        for group in run.chunk_by(|a, b| bits(a.2) == bits(b.2)) {
+            let t = group[0].2 as usize;
+            let boxes: Vec<([f32; 3], [f32; 3])> = group.iter().map(|r| box_of(r.3)).collect();
+            if !is_covered(&triangles[t].vertices, &boxes) {
+                let held_by: Vec<u32> = group.iter().map(|r| r.3).collect();
+                return Err(violation(
+                    rule,
+                    format!("triangle {t}: the boxes of its {containers} {held_by:?} do not cover all of it"),
+                ));
+            }
         }
     }
     Ok(())
+}
+
+/// A 32-bit hash of a triangle's vertex bits (FNV-1a over the words), for grouping; equal hashes are then
+/// told apart exactly.
+fn hash(bits: &[u32; 9]) -> u32 {
+    bits.iter().fold(0x811c_9dc5u32, |h, &w| (h ^ w).wrapping_mul(0x0100_0193))
 }
 
 type Point = [f64; 3];

@@ -17,7 +17,7 @@ use crate::format::{
     EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, PACKET_LANES, PackedTriangle, TrianglePacket4, UNUSED_LANE,
     UNUSED_LANE_COORDINATE_BITS, WIDE, WideNode8,
 };
-use crate::verify_references::{Placement, verify_coverage};
+use crate::verify_references::verify_coverage;
 
 /// What a wide tree is checked against: the triangles section and the binary root's box.
 pub(crate) struct WideContext<'a> {
@@ -231,15 +231,17 @@ fn check_boxes_and_leaves(
                         ));
                     }
                     if context.split_references {
-                        placements.push(Placement { triangle: t, container: (i * WIDE + slot) as u32, min, max });
+                        placements.push((t, (i * WIDE + slot) as u32));
                     }
                 }
             }
         }
     }
     if context.split_references {
+        let box_of = |container: u32| slot_box(&nodes[container as usize / WIDE], container as usize % WIDE);
         verify_coverage(
             placements.into_iter(),
+            box_of,
             context.triangles,
             context.triangle_ids,
             Rule::LaneInLeaf,
