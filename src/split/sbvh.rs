@@ -97,30 +97,83 @@ pub fn build_sbvh(triangles: &[[[f32; 3]; 3]], params: &SbvhParams) -> BuildTree
     let splittable = triangles.par_iter().map(|t| worth_cutting(t, min_waste_ratio)).collect();
     let builder = Sbvh { triangles, splittable, min_overlap: alpha * root.surface_area() };
     let extra = (budget * triangles.len() as f64) as usize;
-    let mut out = Subtree::default();
-    builder.build(references, root, extra, 0, &mut out);
-    BuildTree { nodes: out.nodes, triangle_order: out.order }
+    // Every subtree gets the slots its references and budget could fill (see `Slots`); unused ones are squeezed
+    // out at the end, which keeps preorder.
+    let capacity = references.len() + extra;
+    let mut nodes = Vec::with_capacity(2 * capacity - 1);
+    nodes.par_extend(rayon::iter::repeat_n(UNUSED, 2 * capacity - 1));
+    let mut order = Vec::with_capacity(capacity);
+    order.par_extend(rayon::iter::repeat_n(UNUSED_POSITION, capacity));
+    let slots = Slots { nodes: &mut nodes, node_at: 0, order: &mut order, order_at: 0 };
+    builder.build(references, root, extra, 0, slots);
+    squeeze_unused(nodes, order)
 }
 
-/// A subtree in preorder: node 0 its root, child indices and leaf positions local to it.
-#[derive(Default)]
-struct Subtree {
-    nodes: Vec<BuildNode>,
-    order: Vec<u32>,
+/// A node slot no node was written to.
+const UNUSED: BuildNode = BuildNode::Leaf { aabb: Aabb::EMPTY, first: 0, count: 0 };
+/// A leaf-order slot no reference was written to.
+const UNUSED_POSITION: u32 = u32::MAX;
+
+/// Where a subtree over `m` references with a budget of `e` is written: `2 (m + e) - 1` node slots and `m + e`
+/// leaf-order slots, as many as it can fill (`m + e` leaves at most). A node takes its first slot and hands its
+/// children `2 (m_l + e_l) - 1` and `2 (m_r + e_r) - 1`, which add up: `m_l + m_r = m + added` and `e_l + e_r
+/// = e - added`. `node_at` and `order_at` are the first slots' positions in the whole arrays.
+struct Slots<'s> {
+    nodes: &'s mut [BuildNode],
+    node_at: u32,
+    order: &'s mut [u32],
+    order_at: u32,
 }
 
-impl Subtree {
-    /// Appends `other` (its indices shifted to where it lands).
-    fn append(&mut self, other: Subtree) {
-        let (node_base, order_base) = (self.nodes.len() as u32, self.order.len() as u32);
-        self.nodes.extend(other.nodes.into_iter().map(|node| match node {
-            BuildNode::Inner { aabb, left, right } => {
-                BuildNode::Inner { aabb, left: left + node_base, right: right + node_base }
-            }
-            BuildNode::Leaf { aabb, first, count } => BuildNode::Leaf { aabb, first: first + order_base, count },
-        }));
-        self.order.extend(other.order);
+impl<'s> Slots<'s> {
+    /// This node's slot, then the slots of a left child that may have `left_leaves` leaves, then the rest.
+    fn split(self, left_leaves: usize) -> (&'s mut BuildNode, Slots<'s>, Slots<'s>) {
+        let (node, rest) = self.nodes.split_first_mut().expect("a node has a slot");
+        let (left_nodes, right_nodes) = rest.split_at_mut(2 * left_leaves - 1);
+        let (left_order, right_order) = self.order.split_at_mut(left_leaves);
+        let left = Slots { nodes: left_nodes, node_at: self.node_at + 1, order: left_order, order_at: self.order_at };
+        let right = Slots {
+            nodes: right_nodes,
+            node_at: self.node_at + 2 * left_leaves as u32,
+            order: right_order,
+            order_at: self.order_at + left_leaves as u32,
+        };
+        (node, left, right)
     }
+}
+
+/// The tree without the unused slots: nodes and leaf positions renumbered (in place; both arrays are in
+/// preorder with gaps, so dropping the gaps keeps preorder).
+fn squeeze_unused(mut nodes: Vec<BuildNode>, mut order: Vec<u32>) -> BuildTree {
+    let renumbering = |used: &mut dyn Iterator<Item = bool>| {
+        let mut next = 0u32;
+        used.map(|u| {
+            let index = next;
+            next += u32::from(u);
+            index
+        })
+        .collect::<Vec<u32>>()
+    };
+    let new_position = renumbering(&mut order.iter().map(|&t| t != UNUSED_POSITION));
+    order.retain(|&t| t != UNUSED_POSITION);
+    let is_used = |node: &BuildNode| !matches!(node, BuildNode::Leaf { count: 0, .. });
+    let new_index = renumbering(&mut nodes.iter().map(is_used));
+    let mut kept = 0;
+    for i in 0..nodes.len() {
+        let node = match nodes[i] {
+            BuildNode::Inner { aabb, left, right } => {
+                BuildNode::Inner { aabb, left: new_index[left as usize], right: new_index[right as usize] }
+            }
+            BuildNode::Leaf { aabb, first, count } if count > 0 => {
+                BuildNode::Leaf { aabb, first: new_position[first as usize], count }
+            }
+            BuildNode::Leaf { .. } => continue,
+        };
+        nodes[kept] = node;
+        kept += 1;
+    }
+    nodes.truncate(kept);
+    BuildTree { nodes, triangle_order: order }
 }
 
 struct Sbvh<'a> {
@@ -139,37 +192,31 @@ struct Split {
 }
 
 impl Sbvh<'_> {
-    /// Writes the subtree over `references` (box `aabb`, at most `extra` more references) at the end of `out`.
-    fn build(&self, references: Vec<Reference>, aabb: Aabb, extra: usize, depth: usize, out: &mut Subtree) {
-        if references.len() == 1 {
-            out.nodes.push(BuildNode::Leaf { aabb: references[0].aabb, first: out.order.len() as u32, count: 1 });
-            out.order.push(references[0].triangle);
+    /// Writes the subtree over `references` (box `aabb`, at most `extra` more references) into `slots`.
+    fn build(&self, references: Vec<Reference>, aabb: Aabb, extra: usize, depth: usize, slots: Slots<'_>) {
+        if let [only] = references[..] {
+            slots.nodes[0] = BuildNode::Leaf { aabb: only.aabb, first: slots.order_at, count: 1 };
+            slots.order[0] = only.triangle;
             return;
         }
         let count = references.len();
         let Split { left, right, added } = self.split(references, &aabb, extra, depth);
         let rest = extra - added;
         let left_extra = (rest as u128 * left.len() as u128 / (left.len() + right.len()) as u128) as usize;
+        let right_extra = rest - left_extra;
         let (left_box, right_box) = (union_of(&left), union_of(&right));
-        let at = out.nodes.len();
-        out.nodes.push(BuildNode::Inner { aabb, left: at as u32 + 1, right: 0 });
-        let right_at = if count > PARALLEL_THRESHOLD {
-            let (mut l, mut r) = (Subtree::default(), Subtree::default());
+        let (node, left_slots, right_slots) = slots.split(left.len() + left_extra);
+        *node = BuildNode::Inner { aabb, left: left_slots.node_at, right: right_slots.node_at };
+        let depth = depth + 1;
+        if count > PARALLEL_THRESHOLD {
             rayon::join(
-                || self.build(left, left_box, left_extra, depth + 1, &mut l),
-                || self.build(right, right_box, rest - left_extra, depth + 1, &mut r),
+                || self.build(left, left_box, left_extra, depth, left_slots),
+                || self.build(right, right_box, right_extra, depth, right_slots),
             );
-            out.append(l);
-            let right_at = out.nodes.len();
-            out.append(r);
-            right_at
         } else {
-            self.build(left, left_box, left_extra, depth + 1, out);
-            let right_at = out.nodes.len();
-            self.build(right, right_box, rest - left_extra, depth + 1, out);
-            right_at
-        };
-        out.nodes[at] = BuildNode::Inner { aabb, left: at as u32 + 1, right: right_at as u32 };
+            self.build(left, left_box, left_extra, depth, left_slots);
+            self.build(right, right_box, right_extra, depth, right_slots);
+        }
     }
 
     /// The cheaper of the best object split and (where its children overlap enough and the budget allows) the
