@@ -237,7 +237,11 @@ impl Sbvh<'_> {
         {
             return split;
         }
-        let (left, right) = references.into_iter().partition(|r| object.goes_left(r));
+        let mut left = Vec::with_capacity(object.left_count);
+        let mut right = Vec::with_capacity(references.len() - object.left_count);
+        for r in references {
+            if object.goes_left(&r) { left.push(r) } else { right.push(r) }
+        }
         Split { left, right, added: 0 }
     }
 
@@ -469,6 +473,8 @@ struct ObjectSplit {
     low: f32,
     scale: f32,
     bin: usize,
+    /// References that go left.
+    left_count: usize,
     cost: f64,
     /// Surface area of the intersection of the two children's boxes.
     overlap: f64,
@@ -488,20 +494,32 @@ impl ObjectSplit {
 /// centroids.
 fn best_object_split(references: &[Reference]) -> Option<ObjectSplit> {
     let centroids = references.iter().fold(Aabb::EMPTY, |b, r| b.grow(&std::array::from_fn(|a| r.centroid(a))));
-    let mut best: Option<(ObjectSplit, Aabb, Aabb)> = None;
-    for axis in 0..3 {
+    let splits: [Option<ObjectSplit>; 3] = std::array::from_fn(|axis| {
         let (low, high) = (centroids.min[axis], centroids.max[axis]);
         let scale = BINS as f32 / (high - low);
-        if high <= low || !scale.is_finite() {
-            continue;
+        (high > low && scale.is_finite()).then_some(ObjectSplit {
+            axis,
+            low,
+            scale,
+            bin: 0,
+            left_count: 0,
+            cost: f64::INFINITY,
+            overlap: 0.0,
+        })
+    });
+    // One pass bins all three axes.
+    let mut bins = [[(Aabb::EMPTY, 0usize); BINS]; 3];
+    for r in references {
+        for (axis, split) in splits.iter().enumerate() {
+            if let Some(split) = split {
+                let b = &mut bins[axis][split.bin_of(r.centroid(axis))];
+                b.0 = b.0.union(&r.aabb);
+                b.1 += 1;
+            }
         }
-        let mut split = ObjectSplit { axis, low, scale, bin: 0, cost: f64::INFINITY, overlap: 0.0 };
-        let mut bins = [(Aabb::EMPTY, 0usize); BINS];
-        for r in references {
-            let b = &mut bins[split.bin_of(r.centroid(axis))];
-            b.0 = b.0.union(&r.aabb);
-            b.1 += 1;
-        }
+    }
+    let mut best: Option<(ObjectSplit, Aabb, Aabb)> = None;
+    for (mut split, bins) in splits.into_iter().zip(&bins).filter_map(|(s, b)| s.map(|s| (s, b))) {
         let mut right_boxes = [Aabb::EMPTY; BINS];
         let mut right = Aabb::EMPTY;
         for k in (1..BINS).rev() {
@@ -518,8 +536,7 @@ fn best_object_split(references: &[Reference]) -> Option<ObjectSplit> {
             }
             let cost = left.surface_area() * n_left as f64 + right_boxes[k].surface_area() * n_right as f64;
             if best.as_ref().is_none_or(|(b, _, _)| cost < b.cost) {
-                split.bin = k;
-                split.cost = cost;
+                (split.bin, split.left_count, split.cost) = (k, n_left, cost);
                 best = Some((split, left, right_boxes[k]));
             }
         }
