@@ -4,14 +4,17 @@
 //! incoherent rays through the loader's binary kernel on all threads; in brackets relative to M = 1), and
 //! average traversal steps and triangle tests per ray. Methods: M = 1 (spatial median), the binned SAH start,
 //! M = 2 (optimized, one reference per leaf) and M = 3 (leaves merged) for the balanced and max-quality presets,
-//! the balanced preset over split references (`bvhc::split`) at two budgets, and, side by side in the same run,
-//! obvhs 0.4's presets (`very_slow_build` with its pre-splits, as the preset has them, and without) and
-//! svenstaro's `bvh` 0.13, their trees repacked into the `.bvh` layout so that one cost definition and one
-//! kernel measure all of them. "error" is the cost above the lowest cost any method reached on that scene.
+//! the balanced preset over split references (`bvhc::split`: pre-split at budget 0.1, the SBVH as conversions
+//! run it at 0.1 and 0.3, and an SBVH that cuts every triangle at the paper's overlap threshold), and, side by
+//! side in the same run, obvhs 0.4's presets (`very_slow_build` with its pre-splits, as the preset has them,
+//! without, and at one primitive a leaf) and svenstaro's `bvh` 0.13, their trees repacked into the `.bvh`
+//! layout so that one cost definition and one kernel measure all of them. "error" is the cost above the lowest
+//! cost any method reached on that scene.
 //!
-//! A second table per scene times what a user of `bvhc` gets: files converted with the default options, without
-//! and with split references (`--split-budget`), traced through the file's default kernel (the wide one) with
-//! the same rays; steps and isect there count wide node visits and packet tests.
+//! A second table per scene times what a user of `bvhc` gets: files converted with the default options under
+//! each split setting (`--no-splits`, `--split-budget`, `--split-method`), and obvhs's one-a-leaf tree finished
+//! into a file as conversions finish theirs, traced through the file's default kernel (the wide one) with the
+//! same rays, in rounds (see [`files_table`]); steps and isect there count wide node visits and packet tests.
 //!
 //! `cargo bench --bench evaluate` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
 //! `BVHC_EVAL_FILES_ONLY=1` prints only the second table, `BVHC_SCENES` overrides the folder.
@@ -24,14 +27,15 @@ use std::time::{Duration, Instant};
 use bvhc::aabb::Aabb;
 use bvhc::build::{BuildNode, BuildTree, Builder};
 use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, convert_with};
-use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::cost::{SahConstants, sah_of_build_tree, sah_of_packed};
 use bvhc::epo::end_point_overlap;
 use bvhc::import::{ImportOptions, import};
-use bvhc::loader::{BvhFile, Ray, Tracer, TraversalStats};
+use bvhc::loader::{BvhFile, BvhWriter, Ray, Tracer, TraversalStats};
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, merge_leaves_of_references, optimize};
 use bvhc::pack::pack;
 use bvhc::split::sbvh::{SbvhParams, build_sbvh};
 use bvhc::split::{records, split_triangles};
+use bvhc::wide::{WideCosts, collapse_references, pack_wide};
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
@@ -335,7 +339,7 @@ fn main() {
             let tracer = Tracer::new(&start.nodes, &start.triangles, None);
             let rays = ray_set(&tracer, start.nodes[0].min, start.nodes[0].max);
             println!("\n### {name} ({} triangles)", triangles.len());
-            files_table(&path, &rays);
+            files_table(&path, &rays, vec![obvhs_single_file(&triangles)]);
             continue;
         }
         let mut methods = ours(&triangles);
@@ -379,15 +383,50 @@ fn main() {
                 100.0 * seconds / base
             );
         }
-        files_table(&path, &rays);
+        files_table(&path, &rays, vec![obvhs_single_file(&triangles)]);
     }
+}
+
+/// obvhs's `very_slow_build` at one primitive a leaf and without its pre-splits, as a file finished by bvhc
+/// (leaf merging, wide collapse), named for the files table. Without pre-splits because obvhs's split boxes do
+/// not always contain their pieces: with them, the engine's triangle 99794 is not covered by the boxes of the
+/// wide leaves that hold it (rule V35), and the file would not verify.
+fn obvhs_single_file(triangles: &[Triangle]) -> (String, BvhFile, f64) {
+    let tris = harness::obvhs_triangles(triangles);
+    let params = BvhBuildParams { max_prims_per_leaf: 1, pre_split: false, ..BvhBuildParams::very_slow_build() };
+    let mut core = Duration::ZERO;
+    let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(&tris, params, &mut core);
+    let name = "obvhs very_slow_build, no pre-split, 1 a leaf; merged and collapsed by bvhc".to_string();
+    let (file, wide_cost) = file_of_single_leaf_tree(&from_obvhs(&bvh), triangles);
+    (name, file, wide_cost)
+}
+
+/// An in-memory file of a tree with one triangle (or split reference) a leaf, finished as conversions finish
+/// theirs: leaves merged and the wide tree collapsed over references (each triangle counted once a leaf), repeats
+/// removed, both trees packed. So another builder's tree is traced by the same kernel as a converted file.
+fn file_of_single_leaf_tree(tree: &BuildTree, triangles: &[Triangle]) -> (BvhFile, f64) {
+    let opt = OptTree::from_build(tree.clone(), triangles);
+    let costs = WideCosts::default();
+    let mut wide = collapse_references(&opt, &costs);
+    let mut binary = merge_leaves_of_references(&opt, SahConstants::default(), 8);
+    records::remove_repeats_and_balance(&mut binary, &mut wide, triangles.len());
+    let packed = pack(&binary, triangles);
+    let split = packed.triangles.len() > triangles.len();
+    let mut records = packed.record_cursor(triangles.len());
+    let bvh = pack_wide(&wide, &packed.triangles, &mut |t| records.next(t), split).unwrap();
+    let file = BvhWriter::new(&packed.nodes, &packed.triangles)
+        .split_references(split)
+        .wide(bvh.nodes(), bvh.packets())
+        .build()
+        .unwrap();
+    (file, wide.cost(&costs))
 }
 
 /// Converts the scene with the default options and each split setting, and traces `rays` through each file's
 /// default kernel: [`FILE_ROUNDS`] rounds that render every file once in turn, so that the machine's drift
 /// falls on all files alike; a file's time is its median, its ratio the median of its per-round ratios to the
 /// unsplit file.
-fn files_table(scene: &std::path::Path, rays: &RaySet) {
+fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhFile, f64)>) {
     let dir = tempfile::tempdir().unwrap();
     println!(
         "\n| file (defaults) | records | file MB | SAH | wide cost | render s | vs unsplit | wide steps | packets |\n|---|---|---|---|---|---|---|---|---|"
@@ -401,7 +440,12 @@ fn files_table(scene: &std::path::Path, rays: &RaySet) {
         let report = convert_with(scene, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
         files.push((report, BvhFile::read(&output).unwrap()));
     }
-    let tracers: Vec<Tracer<'_>> = files.iter().map(|(_, file)| file.view().tracer()).collect();
+    let tracers: Vec<Tracer<'_>> = files
+        .iter()
+        .map(|(_, file)| file)
+        .chain(others.iter().map(|(_, file, _)| file))
+        .map(|f| f.view().tracer())
+        .collect();
     let mut times = vec![Vec::new(); tracers.len()];
     let mut ratios = vec![Vec::new(); tracers.len()];
     for _ in 0..FILE_ROUNDS {
@@ -424,6 +468,18 @@ fn files_table(scene: &std::path::Path, rays: &RaySet) {
             report.file_byte_len as f64 / 1e6,
             report.cost.cost,
             report.wide.map_or("-".to_string(), |w| format!("{:.2}", w.cost)),
+            median(&mut times[i]),
+            median(&mut ratios[i]),
+        );
+    }
+    for (i, (name, file, wide_cost)) in others.iter().enumerate() {
+        let i = files.len() + i;
+        let (steps, tests) = traversal_counts(&tracers[i], rays);
+        let bytes = file.view().bytes().len() as f64 / 1e6;
+        let records = file.view().triangles().len();
+        let sah = sah_of_packed(file.view().nodes(), SahConstants::default()).cost;
+        println!(
+            "| {name} | {records} | {bytes:.1} | {sah:.2} | {wide_cost:.2} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
             median(&mut times[i]),
             median(&mut ratios[i]),
         );
