@@ -122,12 +122,16 @@ type Point = [f64; 3];
 
 /// Whether the boxes cover the triangle (see the module doc for the tolerance).
 fn is_covered(vertices: &[[f32; 3]; 3], boxes: &[([f32; 3], [f32; 3])]) -> bool {
+    // A box holding the three corners holds the whole (convex) triangle: most references are whole triangles,
+    // and this spares them the clipping.
+    let holds = |(min, max): &([f32; 3], [f32; 3]), v: &[f32; 3]| (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a]);
+    if boxes.iter().any(|b| vertices.iter().all(|v| holds(b, v))) {
+        return true;
+    }
     let triangle: Vec<Point> = vertices.iter().map(|v| v.map(f64::from)).collect();
     let area = polygon_area(&triangle);
     if area == 0.0 {
-        return vertices
-            .iter()
-            .all(|v| boxes.iter().any(|(min, max)| (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a])));
+        return vertices.iter().all(|v| boxes.iter().any(|b| holds(b, v)));
     }
     let mut pieces = vec![triangle];
     for b in boxes {
