@@ -14,7 +14,8 @@
 //!
 //! `cargo bench --bench traversal [--features embree]`; `BVHC_SCENES` overrides the scenes folder,
 //! `BVHC_BENCH_RAYS` the ray count, `BVHC_TRAVERSAL_SCENES=kitchen,engine` picks scenes; `BVHC_EMBREE_QUALITY=medium`
-//! builds Embree's trees without spatial splits, `BVHC_EMBREE_ISA` caps its instruction set.
+//! builds Embree's trees without spatial splits, `BVHC_EMBREE_ISA` caps its instruction set,
+//! `BVHC_TRAVERSAL_NO_SPLITS=1` converts our files with `--no-splits`.
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -78,7 +79,11 @@ fn converted_scene(
         return None;
     }
     let output = out.join("scene.bvh");
-    convert_with(&path, &output, &ConvertOptions::default(), &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+    let mut options = ConvertOptions::default();
+    if std::env::var_os("BVHC_TRAVERSAL_NO_SPLITS").is_some() {
+        options.splits = None;
+    }
+    convert_with(&path, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
     Some((path, BvhFile::read(&output).unwrap()))
 }
 
