@@ -64,13 +64,14 @@ fn verify_split_coverage(
     triangles: &[PackedTriangle],
     ids: Option<&[u32]>,
 ) -> Result<(), Violation> {
-    let placements = nodes
+    let placements: Vec<(u32, u32)> = nodes
         .iter()
         .enumerate()
         .filter(|(_, n)| n.is_leaf())
-        .flat_map(|(leaf, node)| (node.index..node.index + node.count).map(move |t| (t, leaf as u32)));
+        .flat_map(|(leaf, node)| (node.index..node.index + node.count).map(move |t| (t, leaf as u32)))
+        .collect();
     let box_of = |leaf: u32| (nodes[leaf as usize].min, nodes[leaf as usize].max);
-    verify_coverage(placements, box_of, triangles, ids, Rule::SplitCoverage, "leaves")
+    verify_coverage(&placements, box_of, triangles, ids, Rule::SplitCoverage, "leaves")
 }
 
 /// Whether the boxes that hold the references of each triangle (the records with the same id, with ids, and
@@ -78,10 +79,12 @@ fn verify_split_coverage(
 /// record's index in the triangles section (in bounds) and the binary leaf (V25) or the wide slot as `node * 8
 /// + slot` (V35) whose box, `box_of(container)`, holds it.
 ///
-/// Memory: 16 bytes a placement (the id, a 32-bit hash of the vertices' bits, record and container); records
-/// are grouped by sorting on the id and hash, then exactly on the vertices within each run of equal hashes.
+/// A triangle whose every record lies in a box holding all of it is covered; only the others are grouped (by
+/// sorting on the id and a 32-bit hash of the vertices' bits, then exactly on the vertices within each run of
+/// equal hashes), with every record of theirs. Memory: the keys of those triangles, and 16 bytes a record of
+/// theirs.
 pub(crate) fn verify_coverage(
-    placements: impl Iterator<Item = (u32, u32)>,
+    placements: &[(u32, u32)],
     box_of: impl Fn(u32) -> ([f32; 3], [f32; 3]),
     triangles: &[PackedTriangle],
     ids: Option<&[u32]>,
@@ -92,8 +95,22 @@ pub(crate) fn verify_coverage(
         let v = &triangles[t as usize].vertices;
         std::array::from_fn(|k| v[k / 3][k % 3].to_bits())
     };
-    let mut references: Vec<(u32, u32, u32, u32)> =
-        placements.map(|(t, container)| (ids.map_or(0, |ids| ids[t as usize]), hash(&bits(t)), t, container)).collect();
+    let key = |t: u32| (ids.map_or(0, |ids| ids[t as usize]), hash(&bits(t)));
+    let held_whole = |t: u32, container: u32| {
+        let (min, max) = box_of(container);
+        triangles[t as usize].vertices.iter().all(|v| (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a]))
+    };
+    let mut partly_held: Vec<(u32, u32)> =
+        placements.iter().filter(|&&(t, c)| !held_whole(t, c)).map(|&(t, _)| key(t)).collect();
+    partly_held.sort_unstable();
+    partly_held.dedup();
+    let mut references: Vec<(u32, u32, u32, u32)> = placements
+        .iter()
+        .filter_map(|&(t, container)| {
+            let (id, hash) = key(t);
+            partly_held.binary_search(&(id, hash)).is_ok().then_some((id, hash, t, container))
+        })
+        .collect();
     references.sort_unstable();
     for run in references.chunk_by_mut(|a, b| a.0 == b.0 && a.1 == b.1) {
         run.sort_by_key(|r| (bits(r.2), r.2, r.3));

@@ -240,7 +240,7 @@ fn check_boxes_and_leaves(
     if context.split_references {
         let box_of = |container: u32| slot_box(&nodes[container as usize / WIDE], container as usize % WIDE);
         verify_coverage(
-            placements.into_iter(),
+            &placements,
             box_of,
             context.triangles,
             context.triangle_ids,
