@@ -368,9 +368,11 @@ fn main() {
             "| method | cost | error | EPO | refs | build s | opt s | render s | steps | isect |\n|---|---|---|---|---|---|---|---|---|---|"
         );
         let mut baseline = None;
+        let mut samples = Vec::new();
         for ((method, tree), cost) in methods.iter().zip(&packed).zip(&costs) {
             let tracer = Tracer::new(&tree.nodes, &tree.triangles, None);
             let (seconds, steps, tests) = render(&tracer, &rays);
+            samples.push(([1.0, steps, tests], seconds));
             let base = *baseline.get_or_insert(seconds);
             let epo = end_point_overlap(&method.tree, &triangles, constants);
             println!(
@@ -383,8 +385,44 @@ fn main() {
                 100.0 * seconds / base
             );
         }
+        print_kernel_fit(&samples, rays.primary.len() + rays.ao.len() + rays.incoherent.len());
         files_table(&path, &rays, vec![obvhs_single_file(&triangles)]);
     }
+}
+
+/// The binary kernel's costs measured from the table: a least squares fit of the time a ray as `c + a steps +
+/// b isect` over every tree of the scene, so that `b / a` can be set against the SAH constants' ratio `c_I /
+/// c_T` = 2 / 3 that the optimizer and the leaf merging use. The trees vary both counts, but not independently,
+/// so the fit is ill-conditioned (a scene may give a negative term) and only the spread across scenes means much.
+fn print_kernel_fit(samples: &[([f64; 3], f64)], ray_count: usize) {
+    let per_ray = |seconds: f64| seconds * rayon::current_num_threads() as f64 / ray_count as f64 * 1e9;
+    let mut normal = [[0.0f64; 4]; 3];
+    for (x, seconds) in samples {
+        for i in 0..3 {
+            for j in 0..3 {
+                normal[i][j] += x[i] * x[j];
+            }
+            normal[i][3] += x[i] * per_ray(*seconds);
+        }
+    }
+    for i in 0..3 {
+        let pivot = normal[i];
+        for row in normal.iter_mut().skip(i + 1) {
+            let f = row[i] / pivot[i];
+            row.iter_mut().zip(&pivot).skip(i).for_each(|(value, p)| *value -= f * p);
+        }
+    }
+    let mut fit = [0.0f64; 3];
+    for i in (0..3).rev() {
+        fit[i] = (normal[i][3] - (i + 1..3).map(|k| normal[i][k] * fit[k]).sum::<f64>()) / normal[i][i];
+    }
+    println!(
+        "\nBinary kernel fit over these trees (thread-ns a ray): {:.1} + {:.2} a step + {:.2} a triangle test; test / step = {:.2} (the SAH constants: 0.67)",
+        fit[0],
+        fit[1],
+        fit[2],
+        fit[2] / fit[1]
+    );
 }
 
 /// obvhs's `very_slow_build` at one primitive a leaf and without its pre-splits, as a file finished by bvhc
