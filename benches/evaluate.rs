@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use bvhc::aabb::Aabb;
 use bvhc::build::{BuildNode, BuildTree, Builder};
-use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, convert_with};
+use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, convert_with, merge_and_collapse};
 use bvhc::cost::{SahConstants, sah_of_build_tree, sah_of_packed};
 use bvhc::epo::end_point_overlap;
 use bvhc::import::{ImportOptions, import};
@@ -35,7 +35,7 @@ use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, merge_leaves
 use bvhc::pack::pack;
 use bvhc::split::sbvh::{SbvhParams, build_sbvh};
 use bvhc::split::{records, split_triangles};
-use bvhc::wide::{WideCosts, collapse_references, pack_wide};
+use bvhc::wide::pack_wide;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
@@ -440,14 +440,13 @@ fn obvhs_single_file(triangles: &[Triangle]) -> (String, BvhFile, f64) {
 }
 
 /// An in-memory file of a tree with one triangle (or split reference) a leaf, finished as conversions finish
-/// theirs: leaves merged and the wide tree collapsed over references (each triangle counted once a leaf), repeats
-/// removed, both trees packed. So another builder's tree is traced by the same kernel as a converted file.
+/// theirs (`merge_and_collapse` with the default options, then both trees packed), so that another builder's
+/// tree is traced by the same kernel as a converted file.
 fn file_of_single_leaf_tree(tree: &BuildTree, triangles: &[Triangle]) -> (BvhFile, f64) {
+    let repeats = tree.triangle_order.len() > triangles.len();
     let opt = OptTree::from_build(tree.clone(), triangles);
-    let costs = WideCosts::default();
-    let mut wide = collapse_references(&opt, &costs);
-    let mut binary = merge_leaves_of_references(&opt, SahConstants::default(), 8);
-    records::remove_repeats_and_balance(&mut binary, &mut wide, triangles.len());
+    let (binary, wide) = merge_and_collapse(&opt, &ConvertOptions::default(), triangles.len(), repeats);
+    let (wide, costs) = wide.expect("the default options collapse a wide tree");
     let packed = pack(&binary, triangles);
     let split = packed.triangles.len() > triangles.len();
     let mut records = packed.record_cursor(triangles.len());

@@ -11,7 +11,7 @@ use bvhc_loader::format::MAX_DEPTH;
 use bvhc_loader::{AtomicOutput, BvhFile, BvhWriter};
 use serde::Serialize;
 
-use crate::build::Builder;
+use crate::build::{BuildTree, Builder};
 use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
 use crate::optimize::{
@@ -21,7 +21,7 @@ use crate::pack::pack;
 use crate::split::sbvh::{SbvhParams, build_sbvh};
 use crate::split::{records, split_triangles};
 use crate::up_to_date::input_entries;
-use crate::wide::{WideCosts, collapse, collapse_references, pack_wide};
+use crate::wide::{WideCosts, WideTree, collapse, collapse_references, pack_wide};
 
 /// Largest leaf the merger makes by default (the reference table's M = 3 uses 8).
 pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
@@ -80,7 +80,7 @@ impl SplitOptions {
 }
 
 /// The default split budget: at most 30% more references (the 1.3x). It is a cap rather than a target:
-/// with the SBVH's thresholds the evaluated scenes used 0.1-2.6% more references at 0.1 and at 0.3 alike
+/// with the SBVH's thresholds the evaluated scenes used 0.1-2.7% more references at 0.1 and at 0.3 alike
 /// (`cargo bench --bench evaluate`, files table, 2026-12-03), and 0.3 gave the engine and toy car slightly lower
 /// wide costs (26.12 / 9.26 against 26.20 / 9.32).
 pub const DEFAULT_SPLIT_BUDGET: f64 = 0.3;
@@ -320,35 +320,9 @@ pub fn convert_with(
     timings.optimize = lap(clock);
     let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH);
-    // The collapse starts from the one-triangle-per-leaf tree: its dynamic program chooses the leaves.
-    // The wide collapse and the leaf merging read the same tree and are independent: run side by side.
-    let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
-    // Over split references both count a triangle once a leaf.
-    let over_references = options.splits.is_some();
-    let constants = options.optimize.constants;
-    let (mut wide_tree, mut final_tree) = rayon::join(
-        || {
-            options.wide.map(|costs| match over_references {
-                true => (collapse_references(&tree, &costs), costs),
-                false => (collapse(&tree, &costs), costs),
-            })
-        },
-        || match over_references {
-            true => merge_leaves_of_references(&tree, constants, leaf_size),
-            false => merge_leaves(&tree, constants, leaf_size),
-        },
-    );
+    let over_references = reference_count > triangles.len();
+    let (final_tree, wide_tree) = merge_and_collapse(&tree, options, triangles.len(), over_references);
     drop(tree);
-    if over_references {
-        // Leaves that gathered several pieces of a triangle hold it once (with the two trees' record counts
-        // kept equal; where the wide leaves have no room for that, both keep every piece).
-        match &mut wide_tree {
-            Some((wide, _)) => {
-                records::remove_repeats_and_balance(&mut final_tree, wide, triangles.len());
-            }
-            None => records::remove_binary_repeats(&mut final_tree, triangles.len()),
-        }
-    }
     timings.merge = lap(clock);
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
@@ -357,7 +331,7 @@ pub fn convert_with(
     drop(final_tree);
     let triangle_count = triangles.len();
     drop(triangles);
-    check_every_triangle_stored(&packed.triangle_ids, triangle_count, options.splits.is_some())?;
+    check_every_triangle_stored(&packed.triangle_ids, triangle_count, over_references)?;
     let stored_triangle_count = packed.triangles.len();
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
     let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup_source_ids[t as usize]).collect();
@@ -428,6 +402,44 @@ pub fn convert_with(
         file_byte_len: file_byte_len as usize,
         timings,
     })
+}
+
+/// The merge stage of a conversion: the leaf merging (up to `options.max_leaf_size` when leaves are merged) and
+/// the wide collapse (when `options.wide` asks for it) of an optimized tree with one reference a leaf. Both
+/// start from that tree (the collapse's dynamic program chooses its own leaves) and run side by side. With
+/// `repeats` (some triangle lies in several leaves: split references) both count a triangle once a leaf, and
+/// leaves that gathered several pieces of a triangle then hold it once, with the two trees' record counts kept
+/// equal (where the wide leaves have no room for that, both keep every piece); without repeats that is the
+/// plain count, which the plain programs get faster.
+pub fn merge_and_collapse(
+    tree: &OptTree,
+    options: &ConvertOptions,
+    triangle_count: usize,
+    repeats: bool,
+) -> (BuildTree, Option<(WideTree, WideCosts)>) {
+    let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
+    let constants = options.optimize.constants;
+    let (mut wide_tree, mut final_tree) = rayon::join(
+        || {
+            options.wide.map(|costs| match repeats {
+                true => (collapse_references(tree, &costs), costs),
+                false => (collapse(tree, &costs), costs),
+            })
+        },
+        || match repeats {
+            true => merge_leaves_of_references(tree, constants, leaf_size),
+            false => merge_leaves(tree, constants, leaf_size),
+        },
+    );
+    if repeats {
+        match &mut wide_tree {
+            Some((wide, _)) => {
+                records::remove_repeats_and_balance(&mut final_tree, wide, triangle_count);
+            }
+            None => records::remove_binary_repeats(&mut final_tree, triangle_count),
+        }
+    }
+    (final_tree, wide_tree)
 }
 
 /// Fails when `output` is (the same file as) one of `inputs`.

@@ -96,7 +96,9 @@ pub fn build_sbvh(triangles: &[[[f32; 3]; 3]], params: &SbvhParams) -> BuildTree
     let min_waste_ratio = if params.min_waste_ratio.is_nan() { 0.0 } else { params.min_waste_ratio };
     let splittable = triangles.par_iter().map(|t| worth_cutting(t, min_waste_ratio)).collect();
     let builder = Sbvh { triangles, splittable, min_overlap: alpha * root.surface_area() };
-    let extra = (budget * triangles.len() as f64) as usize;
+    // At most `2 (n + extra) - 1` nodes, numbered in u32.
+    let most_leaves = (u32::MAX as usize).div_ceil(2);
+    let extra = ((budget * triangles.len() as f64) as usize).min(most_leaves.saturating_sub(triangles.len()));
     // Every subtree gets the slots its references and budget could fill (see `Slots`); unused ones are squeezed
     // out at the end, which keeps preorder.
     let capacity = references.len() + extra;
@@ -188,6 +190,8 @@ struct Sbvh<'a> {
 struct Split {
     left: Vec<Reference>,
     right: Vec<Reference>,
+    /// The union of each side's boxes.
+    boxes: [Aabb; 2],
     added: usize,
 }
 
@@ -200,11 +204,10 @@ impl Sbvh<'_> {
             return;
         }
         let count = references.len();
-        let Split { left, right, added } = self.split(references, &aabb, extra, depth);
+        let Split { left, right, boxes: [left_box, right_box], added } = self.split(references, &aabb, extra, depth);
         let rest = extra - added;
         let left_extra = (rest as u128 * left.len() as u128 / (left.len() + right.len()) as u128) as usize;
         let right_extra = rest - left_extra;
-        let (left_box, right_box) = (union_of(&left), union_of(&right));
         let (node, left_slots, right_slots) = slots.split(left.len() + left_extra);
         *node = BuildNode::Inner { aabb, left: left_slots.node_at, right: right_slots.node_at };
         let depth = depth + 1;
@@ -242,7 +245,7 @@ impl Sbvh<'_> {
         for r in references {
             if object.goes_left(&r) { left.push(r) } else { right.push(r) }
         }
-        Split { left, right, added: 0 }
+        Split { left, right, boxes: object.boxes, added: 0 }
     }
 
     /// The piece of `reference`'s triangle inside its box; `None` (the reference then stays whole) where its
@@ -251,11 +254,7 @@ impl Sbvh<'_> {
         if !self.splittable[reference.triangle as usize] {
             return None;
         }
-        let vertices = &self.triangles[reference.triangle as usize];
-        if Aabb::of_triangle(vertices) == reference.aabb {
-            return Some(Piece::of_triangle(vertices));
-        }
-        Piece::within(vertices, &reference.aabb)
+        Piece::within(&self.triangles[reference.triangle as usize], &reference.aabb)
     }
 
     /// The spatial plane of lowest binned cost on any axis (every reference that crosses it counted on both
@@ -381,9 +380,9 @@ impl Sbvh<'_> {
         if left.is_empty() || right.is_empty() {
             return None;
         }
-        let cost =
-            union_of(&left).surface_area() * left.len() as f64 + union_of(&right).surface_area() * right.len() as f64;
-        Some((Split { left, right, added }, cost))
+        let boxes = [union_of(&left), union_of(&right)];
+        let cost = boxes[0].surface_area() * left.len() as f64 + boxes[1].surface_area() * right.len() as f64;
+        Some((Split { left, right, boxes, added }, cost))
     }
 }
 
@@ -475,6 +474,8 @@ struct ObjectSplit {
     bin: usize,
     /// References that go left.
     left_count: usize,
+    /// The union of the boxes of the references that go left, then right (from the bins, exact).
+    boxes: [Aabb; 2],
     cost: f64,
     /// Surface area of the intersection of the two children's boxes.
     overlap: f64,
@@ -503,6 +504,7 @@ fn best_object_split(references: &[Reference]) -> Option<ObjectSplit> {
             scale,
             bin: 0,
             left_count: 0,
+            boxes: [Aabb::EMPTY; 2],
             cost: f64::INFINITY,
             overlap: 0.0,
         })
@@ -518,7 +520,7 @@ fn best_object_split(references: &[Reference]) -> Option<ObjectSplit> {
             }
         }
     }
-    let mut best: Option<(ObjectSplit, Aabb, Aabb)> = None;
+    let mut best: Option<ObjectSplit> = None;
     for (mut split, bins) in splits.into_iter().zip(&bins).filter_map(|(s, b)| s.map(|s| (s, b))) {
         let mut right_boxes = [Aabb::EMPTY; BINS];
         let mut right = Aabb::EMPTY;
@@ -535,14 +537,14 @@ fn best_object_split(references: &[Reference]) -> Option<ObjectSplit> {
                 continue;
             }
             let cost = left.surface_area() * n_left as f64 + right_boxes[k].surface_area() * n_right as f64;
-            if best.as_ref().is_none_or(|(b, _, _)| cost < b.cost) {
-                (split.bin, split.left_count, split.cost) = (k, n_left, cost);
-                best = Some((split, left, right_boxes[k]));
+            if best.as_ref().is_none_or(|b| cost < b.cost) {
+                (split.bin, split.left_count, split.cost, split.boxes) = (k, n_left, cost, [left, right_boxes[k]]);
+                best = Some(split);
             }
         }
     }
-    best.map(|(mut split, left, right)| {
-        split.overlap = intersection(&left, &right).surface_area();
+    best.map(|mut split| {
+        split.overlap = intersection(&split.boxes[0], &split.boxes[1]).surface_area();
         split
     })
 }
@@ -553,20 +555,17 @@ fn intersection(a: &Aabb, b: &Aabb) -> Aabb {
 }
 
 /// Splits at the median reference by centroid along the longest axis of the node's centroids (ties by
-/// triangle, then box, so the order is total and the result deterministic).
+/// triangle: a node holds at most one reference of a triangle, so the order is total and the split
+/// deterministic).
 fn median_split(mut references: Vec<Reference>) -> Split {
     let centroids = references.iter().fold(Aabb::EMPTY, |b, r| b.grow(&std::array::from_fn(|a| r.centroid(a))));
     let axis = centroids.longest_axis();
-    let key = |r: &Reference| (r.centroid(axis), r.triangle, r.aabb.min, r.aabb.max);
-    references.sort_unstable_by(|a, b| {
-        let (ka, kb) = (key(a), key(b));
-        ka.0.total_cmp(&kb.0).then(ka.1.cmp(&kb.1)).then_with(|| {
-            let bits = |x: [f32; 3], y: [f32; 3]| x.map(f32::to_bits).into_iter().chain(y.map(f32::to_bits));
-            bits(ka.2, ka.3).cmp(bits(kb.2, kb.3))
-        })
+    let mid = references.len() / 2;
+    references.select_nth_unstable_by(mid, |a, b| {
+        a.centroid(axis).total_cmp(&b.centroid(axis)).then(a.triangle.cmp(&b.triangle))
     });
-    let right = references.split_off(references.len() / 2);
-    Split { left: references, right, added: 0 }
+    let right = references.split_off(mid);
+    Split { boxes: [union_of(&references), union_of(&right)], left: references, right, added: 0 }
 }
 
 fn union_of(references: &[Reference]) -> Aabb {

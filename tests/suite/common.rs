@@ -304,3 +304,8 @@ pub fn kernel_paths() -> Vec<bvhc::loader::KernelPath> {
         })
         .collect()
 }
+
+/// `f` run in a rayon pool of `threads` threads (for checks that results do not depend on the thread count).
+pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(f)
+}

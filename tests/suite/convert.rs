@@ -15,7 +15,7 @@ pub fn teapot() -> PathBuf {
 }
 
 pub fn convert_in_pool(threads: usize, input: &Path, output: &Path, options: &ConvertOptions) -> Vec<u8> {
-    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
+    crate::common::in_pool(threads, || {
         convert_with(input, output, options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
     });
     std::fs::read(output).unwrap()

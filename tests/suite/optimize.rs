@@ -199,7 +199,7 @@ fn every_selection_strategy_converges() {
 fn one_and_several_threads_give_identical_trees() {
     let triangles = random_triangles(10, 5000, 10.0);
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
+        crate::common::in_pool(threads, || {
             let mut tree = tree_for(&triangles, Builder::BinnedSah);
             optimize(&mut tree, &OptimizeParams::default(), &mut |_| ControlFlow::Continue(()));
             tree

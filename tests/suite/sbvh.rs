@@ -11,8 +11,8 @@ use bvhc::split::References;
 use bvhc::split::sbvh::{SbvhParams, build_sbvh};
 use rand::RngExt;
 
-use crate::common::{random_triangles, rng};
-use crate::split::long_triangles;
+use crate::common::{in_pool, random_triangles, rng};
+use crate::split::{box_contains_point, long_triangles};
 
 type Triangle = [[f32; 3]; 3];
 
@@ -27,10 +27,6 @@ fn leaves(tree: &BuildTree) -> References {
         }
     }
     references
-}
-
-fn in_box(aabb: &Aabb, p: [f64; 3]) -> bool {
-    (0..3).all(|a| f64::from(aabb.min[a]) <= p[a] && p[a] <= f64::from(aabb.max[a]))
 }
 
 /// Every inner node's box is the union of its children's; the leaves hold every triangle, within the budget,
@@ -63,7 +59,10 @@ fn check_sbvh(triangles: &[Triangle], tree: &BuildTree, budget: f64, seed: u64) 
             points.push(at(u, v));
         }
         for p in points {
-            assert!(boxes.iter().any(|aabb| in_box(aabb, p)), "triangle {t}: point {p:?} in none of its boxes");
+            assert!(
+                boxes.iter().any(|aabb| box_contains_point(aabb, p)),
+                "triangle {t}: point {p:?} in none of its boxes"
+            );
         }
     }
 }
@@ -73,16 +72,10 @@ fn sbvh_covers_every_triangle_within_budget_and_does_not_depend_on_threads() {
     let mut triangles = long_triangles(21, 3000);
     triangles.extend(random_triangles(22, 2000, 10.0));
     for budget in [0.0, 0.1, 0.3, 1.0] {
-        let in_pool = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| build_sbvh(&triangles, &SbvhParams::with_budget(budget)))
-        };
-        let one = in_pool(1);
+        let build = || build_sbvh(&triangles, &SbvhParams::with_budget(budget));
+        let one = in_pool(1, build);
         check_sbvh(&triangles, &one, budget, 23);
-        assert_eq!(one, in_pool(2), "budget {budget}: 1 and 2 threads differ");
+        assert_eq!(one, in_pool(2, build), "budget {budget}: 1 and 2 threads differ");
         let leaf_count = leaves(&one).len();
         if budget == 0.0 {
             assert_eq!(leaf_count, triangles.len(), "splits without a budget");

@@ -14,7 +14,7 @@ use bvhc::split::clip::{Piece, triangle_area};
 use bvhc::split::{References, split_triangles};
 use rand::RngExt;
 
-use crate::common::{random_triangles, rng};
+use crate::common::{in_pool, random_triangles, rng};
 use crate::convert::{check_conversion_against_brute_force, convert_in_pool, teapot};
 
 type Triangle = [[f32; 3]; 3];
@@ -32,7 +32,7 @@ pub fn long_triangles(seed: u64, count: usize) -> Vec<Triangle> {
         .collect()
 }
 
-fn box_contains_point(aabb: &Aabb, p: [f64; 3]) -> bool {
+pub fn box_contains_point(aabb: &Aabb, p: [f64; 3]) -> bool {
     (0..3).all(|a| f64::from(aabb.min[a]) <= p[a] && p[a] <= f64::from(aabb.max[a]))
 }
 
@@ -93,16 +93,10 @@ fn check_references(triangles: &[Triangle], references: &References, budget: f64
 fn references_stay_in_budget_and_inside_their_triangles_and_do_not_depend_on_threads() {
     let triangles = long_triangles(11, 3000);
     for budget in [0.0, 0.1, 0.5, 2.0] {
-        let in_pool = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| split_triangles(&triangles, budget))
-        };
-        let one = in_pool(1);
+        let split = || split_triangles(&triangles, budget);
+        let one = in_pool(1, split);
         check_references(&triangles, &one, budget);
-        assert_eq!(one, in_pool(2), "budget {budget}: 1 and 2 threads differ");
+        assert_eq!(one, in_pool(2, split), "budget {budget}: 1 and 2 threads differ");
         if budget == 0.0 {
             assert_eq!(one.len(), triangles.len());
         } else {

@@ -96,10 +96,7 @@ pub(crate) fn verify_coverage(
         std::array::from_fn(|k| v[k / 3][k % 3].to_bits())
     };
     let key = |t: u32| (ids.map_or(0, |ids| ids[t as usize]), hash(&bits(t)));
-    let held_whole = |t: u32, container: u32| {
-        let (min, max) = box_of(container);
-        triangles[t as usize].vertices.iter().all(|v| (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a]))
-    };
+    let held_whole = |t: u32, container: u32| holds_triangle(&box_of(container), &triangles[t as usize].vertices);
     let mut partly_held: Vec<(u32, u32)> =
         placements.iter().filter(|&&(t, c)| !held_whole(t, c)).map(|&(t, _)| key(t)).collect();
     partly_held.sort_unstable();
@@ -135,20 +132,28 @@ fn hash(bits: &[u32; 9]) -> u32 {
     bits.iter().fold(0x811c_9dc5u32, |h, &w| (h ^ w).wrapping_mul(0x0100_0193))
 }
 
+/// Whether the box holds the point (boundaries included).
+fn holds_point((min, max): &([f32; 3], [f32; 3]), v: &[f32; 3]) -> bool {
+    (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a])
+}
+
+/// Whether the box holds the triangle: its three corners, and so (being convex) all of it.
+fn holds_triangle(aabb: &([f32; 3], [f32; 3]), vertices: &[[f32; 3]; 3]) -> bool {
+    vertices.iter().all(|v| holds_point(aabb, v))
+}
+
 type Point = [f64; 3];
 
 /// Whether the boxes cover the triangle (see the module doc for the tolerance).
 fn is_covered(vertices: &[[f32; 3]; 3], boxes: &[([f32; 3], [f32; 3])]) -> bool {
-    // A box holding the three corners holds the whole (convex) triangle: most references are whole triangles,
-    // and this spares them the clipping.
-    let holds = |(min, max): &([f32; 3], [f32; 3]), v: &[f32; 3]| (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a]);
-    if boxes.iter().any(|b| vertices.iter().all(|v| holds(b, v))) {
+    // Most references are whole triangles: a box that holds one spares the clipping.
+    if boxes.iter().any(|b| holds_triangle(b, vertices)) {
         return true;
     }
     let triangle: Vec<Point> = vertices.iter().map(|v| v.map(f64::from)).collect();
     let area = polygon_area(&triangle);
     if area == 0.0 {
-        return vertices.iter().all(|v| boxes.iter().any(|b| holds(b, v)));
+        return vertices.iter().all(|v| boxes.iter().any(|b| holds_point(b, v)));
     }
     let mut pieces = vec![triangle];
     for b in boxes {
