@@ -140,12 +140,17 @@ fn priority(vertices: &[[f32; 3]; 3], grid: &Grid, scene_area: f64) -> f64 {
     if grid.plane_for(&aabb).is_none() {
         return 0.0;
     }
-    let box_area = aabb.surface_area();
-    let waste = (box_area - ideal_box_area(vertices)).max(0.0);
-    if scene_area <= 0.0 || waste <= 0.0 || waste < MIN_WASTE_RATIO * box_area {
+    if scene_area <= 0.0 || !worth_cutting(vertices, MIN_WASTE_RATIO) {
         return 0.0;
     }
-    (waste / scene_area).cbrt()
+    ((aabb.surface_area() - ideal_box_area(vertices)) / scene_area).cbrt()
+}
+
+/// Whether pieces of the triangle could remove at least `min_waste_ratio` of its box's area: `A_box -
+/// A_ideal >= min_waste_ratio * A_box` with `A_box > 0` ([`clip::ideal_box_area`]).
+pub(crate) fn worth_cutting(vertices: &[[f32; 3]; 3], min_waste_ratio: f64) -> bool {
+    let box_area = Aabb::of_triangle(vertices).surface_area();
+    box_area > 0.0 && box_area - ideal_box_area(vertices) >= min_waste_ratio * box_area
 }
 
 /// Cuts `piece` with `splits` planes in all (fewer where no plane crosses a piece) and hands out each final

@@ -23,7 +23,8 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
-use super::clip::{Piece, ideal_box_area};
+use super::clip::Piece;
+use super::worth_cutting;
 use crate::aabb::Aabb;
 use crate::build::{BuildNode, BuildTree, MEDIAN_FALLBACK_DEPTH};
 
@@ -36,7 +37,7 @@ pub const BINS: usize = 16;
 /// 9.342 at 10^-3; SBVH build of the 871k-triangle dragon 3.1 s against 1.06 s, binned SAH 0.24 s).
 pub const DEFAULT_ALPHA: f64 = 1e-3;
 /// By default only triangles whose pieces could remove at least this fraction of their box's area are cut (the
-/// area [`ideal_box_area`] says splitting can remove, as in [`super::MIN_WASTE_RATIO`] for pre-splitting).
+/// area [`ideal_box_area`](super::clip::ideal_box_area) says splitting can remove, as in [`super::MIN_WASTE_RATIO`] for pre-splitting).
 /// Flat triangles that fill half of their box's face (the two halves of an axis-aligned rectangle: floors,
 /// walls, tiles) are at exactly 0.5, and cutting them lowers the binary tree's SAH but raises the cost of the
 /// wide tree that default files are traced by. Measured at `alpha` 10^-5 (balanced preset, budget 0.1, the
@@ -180,7 +181,7 @@ fn squeeze_unused(mut nodes: Vec<BuildNode>, mut order: Vec<u32>) -> BuildTree {
 
 struct Sbvh<'a> {
     triangles: &'a [[[f32; 3]; 3]],
-    /// Per triangle: whether its references may be cut ([`worth_cutting`]).
+    /// Per triangle: whether its references may be cut ([`MIN_WASTE_RATIO`]).
     splittable: Vec<bool>,
     /// `alpha` times the root's surface area.
     min_overlap: f64,
@@ -384,13 +385,6 @@ impl Sbvh<'_> {
         let cost = boxes[0].surface_area() * left.len() as f64 + boxes[1].surface_area() * right.len() as f64;
         Some((Split { left, right, boxes, added }, cost))
     }
-}
-
-/// Whether pieces of the triangle could remove at least `min_waste_ratio` of its box's area (see
-/// [`MIN_WASTE_RATIO`]).
-fn worth_cutting(vertices: &[[f32; 3]; 3], min_waste_ratio: f64) -> bool {
-    let box_area = Aabb::of_triangle(vertices).surface_area();
-    box_area > 0.0 && box_area - ideal_box_area(vertices) >= min_waste_ratio * box_area
 }
 
 /// The slab planes of a node's box along one axis: `BINS - 1` increasing f32 positions strictly inside it.
