@@ -54,3 +54,60 @@ impl LeafCounts {
         self.union.len() as u32
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::LeafCounts;
+    use crate::aabb::Aabb;
+    use crate::optimize::{NONE, OptNode, OptTree};
+
+    /// A random tree over `leaves` (triangle ids, some repeated), split at random points of the list.
+    fn random_tree(leaves: &[u32], seed: &mut u64) -> OptTree {
+        fn grow(tree: &mut OptTree, leaves: &[u32], parent: u32, seed: &mut u64) -> u32 {
+            let index = tree.nodes.len() as u32;
+            let aabb = Aabb { min: [0.0; 3], max: [1.0; 3] };
+            tree.nodes.push(OptNode { aabb, parent, left: NONE, right: leaves[0] });
+            if leaves.len() > 1 {
+                *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                let cut = 1 + (*seed >> 33) as usize % (leaves.len() - 1);
+                let left = grow(tree, &leaves[..cut], index, seed);
+                let right = grow(tree, &leaves[cut..], index, seed);
+                (tree.nodes[index as usize].left, tree.nodes[index as usize].right) = (left, right);
+            }
+            index
+        }
+        let mut tree = OptTree { nodes: Vec::new(), root: 0 };
+        grow(&mut tree, leaves, NONE, seed);
+        tree
+    }
+
+    /// Every subtree's count equals a brute-force count of its distinct triangles (capped at the limit + 1),
+    /// over random trees where some triangles are referenced once and others up to four times.
+    #[test]
+    fn counts_equal_brute_force_distinct_counts() {
+        let mut seed = 7u64;
+        for round in 0..40u32 {
+            let mut leaves: Vec<u32> = (0..60).collect();
+            leaves.extend((0..40).map(|i| (i * 7 + round) % 20));
+            let tree = random_tree(&leaves, &mut seed);
+            for limit in [1usize, 2, 4, 8, 200] {
+                let mut counts = LeafCounts::new(limit, true);
+                let mut pending: Vec<(u32, Vec<u32>)> = Vec::new();
+                for i in tree.children_first() {
+                    let node = tree.nodes[i as usize];
+                    if node.left == NONE {
+                        pending.push((counts.leaf(node.right), vec![node.right]));
+                        continue;
+                    }
+                    let ((left, mut ids), (right, right_ids)) = (pending.pop().unwrap(), pending.pop().unwrap());
+                    let count = counts.join(left, right);
+                    ids.extend(right_ids);
+                    ids.sort_unstable();
+                    ids.dedup();
+                    assert_eq!(count as usize, ids.len().min(limit + 1), "round {round}, limit {limit}");
+                    pending.push((count, ids));
+                }
+            }
+        }
+    }
+}
