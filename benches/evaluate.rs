@@ -7,20 +7,25 @@
 //! the balanced preset over split references (`bvhc::split`: pre-split at budget 0.1, the SBVH as conversions
 //! run it at 0.1 and 0.3, and an SBVH that cuts every triangle at the paper's overlap threshold), and, side by
 //! side in the same run, obvhs 0.4's presets (`very_slow_build` with its pre-splits, as the preset has them,
-//! without, and at one primitive a leaf) and svenstaro's `bvh` 0.13, their trees repacked into the `.bvh`
-//! layout so that one cost definition and one kernel measure all of them. "error" is the cost above the lowest
-//! cost any method reached on that scene.
+//! without, and at one primitive a leaf), svenstaro's `bvh` 0.13 and, with `--features tinybvh`, tinybvh's
+//! SBVH (`common/tinybvh.rs`), their trees repacked into the `.bvh` layout so that one cost definition and one
+//! kernel measure all of them. "error" is the cost above the lowest cost any method reached on that scene.
+//! Under the table: which peer trees lack triangles or fail the loader's coverage rule for split references.
 //!
 //! A second table per scene times what a user of `bvhc` gets: files converted with the default options under
-//! each split setting (`--no-splits`, `--split-budget`, `--split-method`), and obvhs's one-a-leaf tree finished
-//! into a file as conversions finish theirs, traced through the file's default kernel (the wide one) with the
+//! each split setting (`--no-splits`, `--split-budget`, `--split-method`), files made by a conversion's stages
+//! over SBVHs with other overlap and waste thresholds, and obvhs's one-a-leaf tree finished into a file as
+//! conversions finish theirs, traced through the file's default kernel (the wide one) with the
 //! same rays, in rounds (see [`files_table`]); steps and isect there count wide node visits and packet tests.
 //!
-//! `cargo bench --bench evaluate` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
+//! `cargo bench --bench evaluate [--features tinybvh]` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
 //! `BVHC_EVAL_FILES_ONLY=1` prints only the second table, `BVHC_SCENES` overrides the folder.
 
 #[path = "common/harness.rs"]
 mod harness;
+#[cfg(feature = "tinybvh")]
+#[path = "common/tinybvh.rs"]
+mod tinybvh;
 
 use std::time::{Duration, Instant};
 
@@ -158,6 +163,13 @@ fn obvhs_methods(triangles: &[Triangle]) -> Vec<Method> {
         Method { name: format!("obvhs {name}"), build, optimize: None, tree: from_obvhs(&bvh) }
     })
     .collect()
+}
+
+/// tinybvh's SBVH as it builds it (no reinsertion: the wrapper does not offer tinybvh's optimizer).
+#[cfg(feature = "tinybvh")]
+fn tinybvh_method(triangles: &[Triangle]) -> Method {
+    let (tree, build) = timed(|| tinybvh::sbvh(triangles));
+    Method { name: tinybvh::NAME.into(), build, optimize: None, tree }
 }
 
 struct Shape {
@@ -339,18 +351,17 @@ fn main() {
             let tracer = Tracer::new(&start.nodes, &start.triangles, None);
             let rays = ray_set(&tracer, start.nodes[0].min, start.nodes[0].max);
             println!("\n### {name} ({} triangles)", triangles.len());
-            files_table(&path, &rays, vec![obvhs_single_file(&triangles)]);
+            files_table(&path, &rays, other_files(&triangles));
             continue;
         }
         let mut methods = ours(&triangles);
+        let own_methods = methods.len();
         methods.extend(obvhs_methods(&triangles));
         methods.push(svenstaro(&triangles));
+        #[cfg(feature = "tinybvh")]
+        methods.push(tinybvh_method(&triangles));
         let packed: Vec<_> = methods.iter().map(|m| pack(&m.tree, &triangles)).collect();
-        for (method, tree) in methods.iter().zip(&packed) {
-            let mut held = vec![false; triangles.len()];
-            tree.triangle_ids.iter().for_each(|&t| held[t as usize] = true);
-            assert!(held.iter().all(|&h| h), "{}: a triangle is missing from the tree", method.name);
-        }
+        let tree_notes = check_trees(&methods, &packed, &triangles, own_methods);
         let reference = &packed[1];
         let tracer = Tracer::new(&reference.nodes, &reference.triangles, None);
         let (min, max) = (reference.nodes[0].min, reference.nodes[0].max);
@@ -385,9 +396,55 @@ fn main() {
                 100.0 * seconds / base
             );
         }
+        println!("\n{tree_notes}");
         print_kernel_fit(&samples, rays.primary.len() + rays.ao.len() + rays.incoherent.len());
-        files_table(&path, &rays, vec![obvhs_single_file(&triangles)]);
+        files_table(&path, &rays, other_files(&triangles));
     }
+}
+
+/// Checks every tree against the scene. bvhc's trees (the first `own_methods`) must hold every triangle; a
+/// peer's tree that does not is named, with how many of the triangles it lacks have no area (no ray hits those).
+/// Every tree that repeats a triangle goes through the loader's verifier as a file with `SPLIT_REFERENCES`
+/// (rule V25: the leaves that reference a triangle together cover all of it): a tree whose boxes miss part of a
+/// triangle loses hits, so its render time is not quite comparable. Returns the findings as a sentence.
+fn check_trees(
+    methods: &[Method],
+    packed: &[bvhc::pack::PackedTree],
+    triangles: &[Triangle],
+    own_methods: usize,
+) -> String {
+    let mut findings = Vec::new();
+    let mut repeating = 0;
+    for (i, (method, tree)) in methods.iter().zip(packed).enumerate() {
+        let mut held = vec![false; triangles.len()];
+        tree.triangle_ids.iter().for_each(|&t| held[t as usize] = true);
+        let missing: Vec<usize> = (0..triangles.len()).filter(|&t| !held[t]).collect();
+        assert!(i >= own_methods || missing.is_empty(), "{}: a triangle is missing from the tree", method.name);
+        if !missing.is_empty() {
+            let flat = missing.iter().filter(|&&t| has_no_area(&triangles[t])).count();
+            findings.push(format!("{} omits {} triangles ({flat} of them without area)", method.name, missing.len()));
+        }
+        if tree.triangles.len() > triangles.len() {
+            repeating += 1;
+            if let Err(error) = BvhWriter::new(&tree.nodes, &tree.triangles).split_references(true).build() {
+                findings.push(format!("{} fails the loader's verifier: {error}", method.name));
+            }
+        }
+    }
+    let summary = format!("{repeating} trees repeat triangles and were verified as split-reference files.");
+    if findings.is_empty() {
+        format!("{summary} Every tree holds every triangle and every verified tree passes.")
+    } else {
+        format!("{summary} Findings: {}.", findings.join("; "))
+    }
+}
+
+/// Whether a triangle's cross product is zero in f64 (its vertices are collinear or repeated).
+fn has_no_area(t: &Triangle) -> bool {
+    let edge = |a: usize| -> [f64; 3] { std::array::from_fn(|k| t[a][k] as f64 - t[0][k] as f64) };
+    let (u, v) = (edge(1), edge(2));
+    let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    n == [0.0; 3]
 }
 
 /// The binary kernel's costs measured from the table: a least squares fit of the time a ray as `c + a steps +
@@ -425,6 +482,13 @@ fn print_kernel_fit(samples: &[([f64; 3], f64)], ray_count: usize) {
     );
 }
 
+/// The files table's rows beyond converted files: SBVH threshold variants and obvhs's tree.
+fn other_files(triangles: &[Triangle]) -> Vec<(String, BvhFile, f64)> {
+    let mut files = sbvh_threshold_files(triangles);
+    files.push(obvhs_single_file(triangles));
+    files
+}
+
 /// obvhs's `very_slow_build` at one primitive a leaf and without its pre-splits, as a file finished by bvhc
 /// (leaf merging, wide collapse), named for the files table. Without pre-splits because obvhs's split boxes do
 /// not always contain their pieces: with them, the engine's triangle 99794 is not covered by the boxes of the
@@ -435,17 +499,41 @@ fn obvhs_single_file(triangles: &[Triangle]) -> (String, BvhFile, f64) {
     let mut core = Duration::ZERO;
     let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(&tris, params, &mut core);
     let name = "obvhs very_slow_build, no pre-split, 1 a leaf; merged and collapsed by bvhc".to_string();
-    let (file, wide_cost) = file_of_single_leaf_tree(&from_obvhs(&bvh), triangles);
+    let (file, wide_cost) = file_of_single_leaf_tree(from_obvhs(&bvh), triangles, false);
     (name, file, wide_cost)
 }
 
+/// Default files over SBVHs with other thresholds than conversions use (budget 0.3 in all), made by the same
+/// stages as a conversion (build, balanced optimization, `merge_and_collapse`), for choosing the thresholds by
+/// render time through the wide kernel.
+fn sbvh_threshold_files(triangles: &[Triangle]) -> Vec<(String, BvhFile, f64)> {
+    let default = SbvhParams::with_budget(0.3);
+    [(1e-5, default.min_waste_ratio), (default.alpha, 0.0), (1e-5, 0.0)]
+        .into_iter()
+        .map(|(alpha, min_waste_ratio)| {
+            let params = SbvhParams { alpha, min_waste_ratio, ..default };
+            let (file, wide_cost) = file_of_single_leaf_tree(build_sbvh(triangles, &params), triangles, true);
+            (
+                format!("SBVH 0.3, alpha {alpha:e}, waste ratio {min_waste_ratio}; stages of a conversion"),
+                file,
+                wide_cost,
+            )
+        })
+        .collect()
+}
+
 /// An in-memory file of a tree with one triangle (or split reference) a leaf, finished as conversions finish
-/// theirs (`merge_and_collapse` with the default options, then both trees packed), so that another builder's
-/// tree is traced by the same kernel as a converted file.
-fn file_of_single_leaf_tree(tree: &BuildTree, triangles: &[Triangle]) -> (BvhFile, f64) {
+/// theirs (with `optimize`, the balanced preset's optimization first; then `merge_and_collapse` with the
+/// default options, and both trees packed), so that another builder's tree is traced by the same kernel as a
+/// converted file.
+fn file_of_single_leaf_tree(tree: BuildTree, triangles: &[Triangle], optimize_first: bool) -> (BvhFile, f64) {
     let repeats = tree.triangle_order.len() > triangles.len();
-    let opt = OptTree::from_build(tree.clone(), triangles);
-    let (binary, wide) = merge_and_collapse(&opt, &ConvertOptions::default(), triangles.len(), repeats);
+    let mut opt = OptTree::from_build(tree, triangles);
+    let options = ConvertOptions::default();
+    if optimize_first {
+        optimize(&mut opt, &options.optimize, &mut |_| std::ops::ControlFlow::Continue(()));
+    }
+    let (binary, wide) = merge_and_collapse(&opt, &options, triangles.len(), repeats);
     let (wide, costs) = wide.expect("the default options collapse a wide tree");
     let packed = pack(&binary, triangles);
     let split = packed.triangles.len() > triangles.len();
