@@ -13,9 +13,8 @@
 //! Under the table: which peer trees lack triangles or fail the loader's coverage rule for split references.
 //!
 //! A second table per scene times what a user of `bvhc` gets: files converted with the default options under
-//! each split setting (`--no-splits`, `--split-budget`, `--split-method`), files made by a conversion's stages
-//! over SBVHs with other overlap and waste thresholds, and obvhs's one-a-leaf tree finished into a file as
-//! conversions finish theirs, traced through the file's default kernel (the wide one) with the
+//! each split setting (`--no-splits`, `--split-budget`, `--split-method`, `--split-triangles`), and obvhs's
+//! one-a-leaf tree finished into a file as conversions finish theirs, traced through the file's default kernel (the wide one) with the
 //! same rays, in rounds (see [`files_table`]); steps and isect there count wide node visits and packet tests.
 //!
 //! `cargo bench --bench evaluate [--features tinybvh]` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks scenes,
@@ -31,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use bvhc::aabb::Aabb;
 use bvhc::build::{BuildNode, BuildTree, Builder};
-use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, convert_with, merge_and_collapse};
+use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles, convert_with, merge_and_collapse};
 use bvhc::cost::{SahConstants, sah_of_build_tree, sah_of_packed};
 use bvhc::epo::end_point_overlap;
 use bvhc::import::{ImportOptions, import};
@@ -482,11 +481,9 @@ fn print_kernel_fit(samples: &[([f64; 3], f64)], ray_count: usize) {
     );
 }
 
-/// The files table's rows beyond converted files: SBVH threshold variants and obvhs's tree.
+/// The files table's rows beyond converted files: obvhs's tree.
 fn other_files(triangles: &[Triangle]) -> Vec<(String, BvhFile, f64)> {
-    let mut files = sbvh_threshold_files(triangles);
-    files.push(obvhs_single_file(triangles));
-    files
+    vec![obvhs_single_file(triangles)]
 }
 
 /// obvhs's `very_slow_build` at one primitive a leaf and without its pre-splits, as a file finished by bvhc
@@ -499,40 +496,17 @@ fn obvhs_single_file(triangles: &[Triangle]) -> (String, BvhFile, f64) {
     let mut core = Duration::ZERO;
     let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(&tris, params, &mut core);
     let name = "obvhs very_slow_build, no pre-split, 1 a leaf; merged and collapsed by bvhc".to_string();
-    let (file, wide_cost) = file_of_single_leaf_tree(from_obvhs(&bvh), triangles, false);
+    let (file, wide_cost) = file_of_single_leaf_tree(from_obvhs(&bvh), triangles);
     (name, file, wide_cost)
 }
 
-/// Default files over SBVHs with other thresholds than conversions use (budget 0.3 in all), made by the same
-/// stages as a conversion (build, balanced optimization, `merge_and_collapse`), for choosing the thresholds by
-/// render time through the wide kernel.
-fn sbvh_threshold_files(triangles: &[Triangle]) -> Vec<(String, BvhFile, f64)> {
-    let default = SbvhParams::with_budget(0.3);
-    [(1e-5, default.min_waste_ratio), (default.alpha, 0.0), (1e-5, 0.0)]
-        .into_iter()
-        .map(|(alpha, min_waste_ratio)| {
-            let params = SbvhParams { alpha, min_waste_ratio, ..default };
-            let (file, wide_cost) = file_of_single_leaf_tree(build_sbvh(triangles, &params), triangles, true);
-            (
-                format!("SBVH 0.3, alpha {alpha:e}, waste ratio {min_waste_ratio}; stages of a conversion"),
-                file,
-                wide_cost,
-            )
-        })
-        .collect()
-}
-
 /// An in-memory file of a tree with one triangle (or split reference) a leaf, finished as conversions finish
-/// theirs (with `optimize`, the balanced preset's optimization first; then `merge_and_collapse` with the
-/// default options, and both trees packed), so that another builder's tree is traced by the same kernel as a
-/// converted file.
-fn file_of_single_leaf_tree(tree: BuildTree, triangles: &[Triangle], optimize_first: bool) -> (BvhFile, f64) {
+/// theirs (`merge_and_collapse` with the default options, then both trees packed), so that another builder's
+/// tree is traced by the same kernel as a converted file.
+fn file_of_single_leaf_tree(tree: BuildTree, triangles: &[Triangle]) -> (BvhFile, f64) {
     let repeats = tree.triangle_order.len() > triangles.len();
-    let mut opt = OptTree::from_build(tree, triangles);
+    let opt = OptTree::from_build(tree, triangles);
     let options = ConvertOptions::default();
-    if optimize_first {
-        optimize(&mut opt, &options.optimize, &mut |_| std::ops::ControlFlow::Continue(()));
-    }
     let (binary, wide) = merge_and_collapse(&opt, &options, triangles.len(), repeats);
     let (wide, costs) = wide.expect("the default options collapse a wide tree");
     let packed = pack(&binary, triangles);
@@ -556,8 +530,16 @@ fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhF
     println!(
         "\n| file (defaults) | records | file MB | SAH | wide cost | render s | vs unsplit | wide steps | packets |\n|---|---|---|---|---|---|---|---|---|"
     );
-    let sbvh = |budget| Some(SplitOptions { budget, method: SplitMethod::Sbvh });
-    let settings = [None, Some(SplitOptions { budget: 0.1, method: SplitMethod::PreSplit }), sbvh(0.1), sbvh(0.3)];
+    let sbvh = |budget| Some(SplitOptions { budget, method: SplitMethod::Sbvh, ..SplitOptions::with_budget(0.0) });
+    let cut = |triangles| Some(SplitOptions { triangles, ..SplitOptions::with_budget(0.3) });
+    let settings = [
+        None,
+        Some(SplitOptions { method: SplitMethod::PreSplit, ..SplitOptions::with_budget(0.1) }),
+        sbvh(0.1),
+        sbvh(0.3),
+        cut(SplitTriangles::Any),
+        cut(SplitTriangles::Choose),
+    ];
     let mut files = Vec::new();
     for (i, splits) in settings.iter().enumerate() {
         let output = dir.path().join(format!("scene-{i}.bvh"));
@@ -585,9 +567,13 @@ fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhF
         println!(
             "| {} | {} | {:.1} | {:.2} | {} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
             splits.map_or("--no-splits".to_string(), |s| format!(
-                "--split-budget {} --split-method {}",
+                "--split-budget {} --split-method {}{}",
                 s.budget,
-                s.method.name()
+                s.method.name(),
+                match s.triangles {
+                    SplitTriangles::Wasteful => String::new(),
+                    other => format!(" --split-triangles {}", other.name()),
+                }
             )),
             report.stored_triangle_count,
             report.file_byte_len as f64 / 1e6,

@@ -120,8 +120,8 @@ impl Conversion {
     /// `None` keeps one a triangle. Without this call the preset decides (the SBVH within
     /// [`crate::convert::DEFAULT_SPLIT_BUDGET`] except for `fast`).
     pub fn splits(mut self, budget: Option<f64>) -> Self {
-        let method = self.options.splits.map(|s| s.method).unwrap_or_default();
-        self.options.splits = budget.map(|budget| crate::convert::SplitOptions { budget, method });
+        let (method, triangles) = self.options.splits.map(|s| (s.method, s.triangles)).unwrap_or_default();
+        self.options.splits = budget.map(|budget| crate::convert::SplitOptions { budget, method, triangles });
         self
     }
 
@@ -129,6 +129,15 @@ impl Conversion {
     pub fn split_method(mut self, method: crate::convert::SplitMethod) -> Self {
         if let Some(splits) = &mut self.options.splits {
             splits.method = method;
+        }
+        self
+    }
+
+    /// Which triangles split references are cut from (used when splits are on; the preset decides otherwise:
+    /// [`crate::convert::SplitTriangles::Choose`] for `max-quality`, `Wasteful` for `balanced`).
+    pub fn split_triangles(mut self, triangles: crate::convert::SplitTriangles) -> Self {
+        if let Some(splits) = &mut self.options.splits {
+            splits.triangles = triangles;
         }
         self
     }

@@ -15,11 +15,12 @@ use crate::build::{BuildTree, Builder};
 use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
 use crate::optimize::{
-    OptTree, OptimizeParams, OptimizeReport, Preset, Progress, merge_leaves, merge_leaves_of_references, optimize,
+    OptTree, OptimizeParams, OptimizeReport, Preset, Progress, StopReason, merge_leaves, merge_leaves_of_references,
+    optimize,
 };
 use crate::pack::pack;
 use crate::split::sbvh::{SbvhParams, build_sbvh};
-use crate::split::{records, split_triangles};
+use crate::split::{records, split_triangles_with};
 use crate::up_to_date::input_entries;
 use crate::wide::{WideCosts, WideTree, collapse, collapse_references, pack_wide};
 
@@ -61,21 +62,69 @@ pub struct SplitOptions {
     pub budget: f64,
     /// Where the cuts are made.
     pub method: SplitMethod,
+    /// Which triangles may be cut. Recorded only when not the default, so files converted before the choice
+    /// existed keep their bytes.
+    #[serde(skip_serializing_if = "SplitTriangles::is_default")]
+    pub triangles: SplitTriangles,
 }
 
 impl SplitOptions {
-    /// The default method with `budget`.
+    /// The default method and triangles with `budget`.
     pub fn with_budget(budget: f64) -> SplitOptions {
-        SplitOptions { budget, method: SplitMethod::default() }
+        SplitOptions { budget, method: SplitMethod::default(), triangles: SplitTriangles::default() }
     }
 
     /// A preset's splits: the SBVH within [`DEFAULT_SPLIT_BUDGET`] for `balanced` and `max-quality`, none for
     /// `fast` (whose point is the conversion's speed: the SBVH build takes about four times the binned one).
+    /// `max-quality` also chooses which triangles to cut ([`SplitTriangles::Choose`]: two builds).
     pub fn for_preset(preset: Preset) -> Option<SplitOptions> {
         match preset {
             Preset::Fast => None,
-            Preset::Balanced | Preset::MaxQuality => Some(SplitOptions::with_budget(DEFAULT_SPLIT_BUDGET)),
+            Preset::Balanced => Some(SplitOptions::with_budget(DEFAULT_SPLIT_BUDGET)),
+            Preset::MaxQuality => Some(SplitOptions {
+                triangles: SplitTriangles::Choose,
+                ..SplitOptions::with_budget(DEFAULT_SPLIT_BUDGET)
+            }),
         }
+    }
+}
+
+/// Which triangles a conversion may cut into split references.
+///
+/// Triangles that fill half of their box's face (the two halves of an axis-aligned rectangle) are the case that
+/// matters: cutting them lowers the binary tree's SAH everywhere, but the wide tree that files are traced by
+/// gets cheaper on some scenes and dearer on others, and no per-triangle threshold separates the two (balanced
+/// preset, SBVH 0.3, wide cost against the default `Wasteful`: kitchen 11.46 / 10.85, 2CylinderEngine 24.79 /
+/// 26.12, wide render time through the default kernel 1.057 / 0.987 and 0.888 / 0.956 of the unsplit file;
+/// thresholds of 0.5 and 0.501 gave the same split as 0 and as 0.55 on both scenes: `cargo bench --bench
+/// evaluate`, 2026-12-03, `docs/evaluation.md`). So the choice is made by measuring both trees.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SplitTriangles {
+    /// Only triangles whose pieces could remove a large part of their box's area (at least
+    /// [`crate::split::sbvh::MIN_WASTE_RATIO`], [`crate::split::MIN_WASTE_RATIO`] for pre-splitting).
+    #[default]
+    Wasteful,
+    /// Any triangle the method finds worth cutting (no waste threshold).
+    Any,
+    /// Both of the above, each built, optimized and merged; the tree whose wide collapse costs less (the binary
+    /// SAH without wide sections) is written, `Wasteful`'s on a tie. About twice the build, optimization and
+    /// merge time.
+    Choose,
+}
+
+impl SplitTriangles {
+    /// The name used in options.
+    pub fn name(self) -> &'static str {
+        match self {
+            SplitTriangles::Wasteful => "wasteful",
+            SplitTriangles::Any => "any",
+            SplitTriangles::Choose => "choose",
+        }
+    }
+
+    fn is_default(&self) -> bool {
+        *self == SplitTriangles::Wasteful
     }
 }
 
@@ -169,6 +218,9 @@ pub struct ConvertReport {
     pub file_byte_len: usize,
     /// Seconds per stage: import, build, optimize, merge, pack, write.
     pub timings: Timings,
+    /// With [`SplitTriangles::Choose`]: the candidates' costs and the one written (absent when a cancelled
+    /// optimization left no time for the second).
+    pub split_choice: Option<SplitChoice>,
 }
 
 /// The wide sections of a conversion: their sizes and the collapsed tree's cost.
@@ -291,39 +343,31 @@ pub fn convert_with(
     if u32::try_from(triangles.len()).is_err() {
         return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
     }
-    let _ = observer(Event::Stage(Stage::Build));
-    let clock = Instant::now();
-    let (build, reference_count) = match options.splits {
-        Some(SplitOptions { budget, method: SplitMethod::PreSplit }) => {
-            let references = split_triangles(&triangles, budget);
-            if u32::try_from(references.len()).is_err() {
-                return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: references.len() });
+    let (candidate, split_choice) = match options.splits {
+        Some(splits) if splits.triangles == SplitTriangles::Choose => {
+            // Each candidate gets half of a time budget, so that the conversion keeps to it.
+            let mut halved = options.clone();
+            halved.optimize.time_budget = options.optimize.time_budget.map(|t| t / 2);
+            let first = candidate(input, &triangles, &halved, false, observer, &mut timings)?;
+            let cancelled = first.optimization.as_ref().is_some_and(|r| r.stop == StopReason::Cancelled);
+            if cancelled {
+                (first, None)
+            } else {
+                let second = candidate(input, &triangles, &halved, true, observer, &mut timings)?;
+                let (wasteful_cost, any_cost) = (first.score(options), second.score(options));
+                let kept = if any_cost < wasteful_cost { SplitTriangles::Any } else { SplitTriangles::Wasteful };
+                let measure = if options.wide.is_some() { "wide_cost" } else { "sah_cost" };
+                let choice = SplitChoice { kept, measure, wasteful_cost, any_cost };
+                (if kept == SplitTriangles::Any { second } else { first }, Some(choice))
             }
-            (options.builder.build_references(&references), references.len())
         }
-        Some(SplitOptions { budget, method: SplitMethod::Sbvh }) => {
-            let build = build_sbvh(&triangles, &SbvhParams::with_budget(budget));
-            let reference_count = build.triangle_order.len();
-            if u32::try_from(reference_count).is_err() {
-                return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: reference_count });
-            }
-            (build, reference_count)
+        splits => {
+            let any = splits.is_some_and(|s| s.triangles == SplitTriangles::Any);
+            (candidate(input, &triangles, options, any, observer, &mut timings)?, None)
         }
-        None => (options.builder.build(&triangles, 1), triangles.len()),
     };
-    let mut tree = OptTree::from_build(build, &triangles);
-    timings.build = lap(clock);
-    let _ = observer(Event::Stage(Stage::Optimize));
-    let clock = Instant::now();
-    let optimization = (!options.skip_optimization)
-        .then(|| optimize(&mut tree, &options.optimize, &mut |p: &Progress| observer(Event::Batch(p))));
-    timings.optimize = lap(clock);
-    let clock = Instant::now();
-    tree.limit_depth(MAX_DEPTH);
+    let Candidate { final_tree, wide_tree, reference_count, optimization } = candidate;
     let over_references = reference_count > triangles.len();
-    let (final_tree, wide_tree) = merge_and_collapse(&tree, options, triangles.len(), over_references);
-    drop(tree);
-    timings.merge = lap(clock);
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
     let cost = sah_of_build_tree(&final_tree, options.optimize.constants);
@@ -360,7 +404,7 @@ pub fn convert_with(
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);
-    let metadata = metadata_json(inputs, options, &cost, &imported.report, summary.as_ref());
+    let metadata = metadata_json(inputs, options, &cost, &imported.report, summary.as_ref(), split_choice.as_ref());
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles)
         .metadata(&metadata)
         .split_references(stored_triangle_count > triangle_count);
@@ -401,7 +445,88 @@ pub fn convert_with(
         wide: summary,
         file_byte_len: file_byte_len as usize,
         timings,
+        split_choice,
     })
+}
+
+/// A conversion's tree before packing: built, optimized and merged.
+struct Candidate {
+    final_tree: BuildTree,
+    wide_tree: Option<(WideTree, WideCosts)>,
+    /// The references the tree was built over.
+    reference_count: usize,
+    optimization: Option<OptimizeReport>,
+}
+
+impl Candidate {
+    /// What [`SplitTriangles::Choose`] compares: the wide tree's cost, or the binary SAH without wide sections.
+    fn score(&self, options: &ConvertOptions) -> f64 {
+        match &self.wide_tree {
+            Some((wide, costs)) => wide.cost(costs),
+            None => sah_of_build_tree(&self.final_tree, options.optimize.constants).cost,
+        }
+    }
+}
+
+/// The build, optimize and merge stages of a conversion (their times added to `timings`), cutting split
+/// references (where `options.splits` allows them) in any triangle worth cutting when `any_triangle`, else only
+/// in triangles that waste a large part of their box.
+fn candidate(
+    input: &Path,
+    triangles: &[[[f32; 3]; 3]],
+    options: &ConvertOptions,
+    any_triangle: bool,
+    observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
+    timings: &mut Timings,
+) -> Result<Candidate, ConvertError> {
+    let _ = observer(Event::Stage(Stage::Build));
+    let clock = Instant::now();
+    let too_large = |count: usize| ConvertError::TooLarge { path: input.to_path_buf(), count };
+    let (build, reference_count) = match options.splits {
+        Some(SplitOptions { budget, method: SplitMethod::PreSplit, .. }) => {
+            let ratio = if any_triangle { 0.0 } else { crate::split::MIN_WASTE_RATIO };
+            let references = split_triangles_with(triangles, budget, ratio);
+            u32::try_from(references.len()).map_err(|_| too_large(references.len()))?;
+            (options.builder.build_references(&references), references.len())
+        }
+        Some(SplitOptions { budget, method: SplitMethod::Sbvh, .. }) => {
+            let ratio = if any_triangle { 0.0 } else { crate::split::sbvh::MIN_WASTE_RATIO };
+            let build =
+                build_sbvh(triangles, &SbvhParams { min_waste_ratio: ratio, ..SbvhParams::with_budget(budget) });
+            let reference_count = build.triangle_order.len();
+            u32::try_from(reference_count).map_err(|_| too_large(reference_count))?;
+            (build, reference_count)
+        }
+        None => (options.builder.build(triangles, 1), triangles.len()),
+    };
+    let mut tree = OptTree::from_build(build, triangles);
+    timings.build += lap(clock);
+    let _ = observer(Event::Stage(Stage::Optimize));
+    let clock = Instant::now();
+    let optimization = (!options.skip_optimization)
+        .then(|| optimize(&mut tree, &options.optimize, &mut |p: &Progress| observer(Event::Batch(p))));
+    timings.optimize += lap(clock);
+    let clock = Instant::now();
+    tree.limit_depth(MAX_DEPTH);
+    let over_references = reference_count > triangles.len();
+    let (final_tree, wide_tree) = merge_and_collapse(&tree, options, triangles.len(), over_references);
+    drop(tree);
+    timings.merge += lap(clock);
+    Ok(Candidate { final_tree, wide_tree, reference_count, optimization })
+}
+
+/// How [`SplitTriangles::Choose`] chose: the two candidates' costs and the one written.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SplitChoice {
+    /// The candidate written: [`SplitTriangles::Wasteful`] or [`SplitTriangles::Any`].
+    pub kept: SplitTriangles,
+    /// What was compared: `wide_cost` (the wide collapse's cost, [`crate::wide::WideTree::cost`]) or `sah_cost`
+    /// (the binary tree's, for files without wide sections).
+    pub measure: &'static str,
+    /// The cost of the tree cut only in wasteful triangles.
+    pub wasteful_cost: f64,
+    /// The cost of the tree cut in any triangle.
+    pub any_cost: f64,
 }
 
 /// The merge stage of a conversion: the leaf merging (up to `options.max_leaf_size` when leaves are merged) and
@@ -500,6 +625,7 @@ fn metadata_json(
     cost: &SahCost,
     import: &ImportReport,
     wide: Option<&WideSummary>,
+    split_choice: Option<&SplitChoice>,
 ) -> String {
     let keep = options.import.keep_degenerate;
     let dropped = |count: u64| if keep { 0 } else { count };
@@ -529,6 +655,9 @@ fn metadata_json(
     });
     if let Some(wide) = wide {
         metadata["wide"] = serde_json::to_value(wide).unwrap_or_default();
+    }
+    if let Some(choice) = split_choice {
+        metadata["split_choice"] = serde_json::to_value(choice).unwrap_or_default();
     }
     metadata.to_string()
 }

@@ -123,6 +123,11 @@ pub struct ConvertArgs {
     /// Where split references are cut: during the build where children overlap (SBVH), or before it.
     #[arg(long, value_enum, default_value_t = SplitMethodArg::Sbvh)]
     pub split_method: SplitMethodArg,
+    /// Which triangles split references are cut from: only those that waste much of their box (the balanced
+    /// preset's), any the method finds worth cutting, or choose by converting both and keeping the tree whose
+    /// wide cost is lower (the max-quality preset's; about twice the time). Default: the preset's.
+    #[arg(long, value_enum, conflicts_with = "no_splits")]
+    pub split_triangles: Option<SplitTrianglesArg>,
     /// The glTF scene to convert, by index or name.
     #[arg(long, value_name = "N|NAME")]
     pub scene: Option<String>,
@@ -223,6 +228,17 @@ pub enum SplitMethodArg {
     Sbvh,
     /// Large triangles cut at grid planes before the build (Karras and Aila 2013).
     PreSplit,
+}
+
+/// `--split-triangles`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SplitTrianglesArg {
+    /// Only triangles whose pieces could remove a large part of their box's area.
+    Wasteful,
+    /// Any triangle the method finds worth cutting.
+    Any,
+    /// Convert with both and keep the tree whose wide cost is lower.
+    Choose,
 }
 
 /// `--selection`.

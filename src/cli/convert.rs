@@ -6,12 +6,12 @@ use std::time::Duration;
 
 use bvhc::Conversion;
 use bvhc::build::Builder;
-use bvhc::convert::{ConvertError, Event, SplitMethod, Stage};
+use bvhc::convert::{ConvertError, Event, SplitMethod, SplitTriangles, Stage};
 use bvhc::import::{ErrorKind, ImportLimits, SceneSelector};
 use bvhc::optimize::{Preset, Selection};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::args::{BuilderArg, ConvertArgs, PresetArg, SelectionArg, SplitMethodArg};
+use super::args::{BuilderArg, ConvertArgs, PresetArg, SelectionArg, SplitMethodArg, SplitTrianglesArg};
 use super::output::{outln, print};
 use super::{Exit, fail, loader_exit};
 
@@ -54,6 +54,13 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
         SplitMethodArg::Sbvh => SplitMethod::Sbvh,
         SplitMethodArg::PreSplit => SplitMethod::PreSplit,
     });
+    if let Some(triangles) = args.split_triangles {
+        conversion = conversion.split_triangles(match triangles {
+            SplitTrianglesArg::Wasteful => SplitTriangles::Wasteful,
+            SplitTrianglesArg::Any => SplitTriangles::Any,
+            SplitTrianglesArg::Choose => SplitTriangles::Choose,
+        });
+    }
     if let Some(budget) = args.time_budget {
         conversion = conversion.time_budget(budget);
     }

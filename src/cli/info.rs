@@ -194,6 +194,17 @@ pub fn info(path: &Path, json: bool) -> Exit {
             );
         }
         outln!(out, "build options: {}", metadata["build"]);
+        let choice = &metadata["split_choice"];
+        if choice.is_object() {
+            outln!(
+                out,
+                "split choice: kept the tree cut in {} triangles ({}: wasteful {}, any {})",
+                choice["kept"].as_str().unwrap_or("?"),
+                choice["measure"].as_str().unwrap_or("?"),
+                choice["wasteful_cost"],
+                choice["any_cost"]
+            );
+        }
         outln!(
             out,
             "timings: not recorded in the file (they would make identical builds differ); see `bvhc ... --json`"

@@ -77,11 +77,17 @@ pub const MAX_BUDGET: f64 = 4.0;
 /// Splits the triangles into at most `(1 + budget) * n` references (`budget` from 0 to [`MAX_BUDGET`], e.g. 0.3
 /// for 30% more; larger budgets are taken as `MAX_BUDGET`, negative or NaN ones as 0).
 pub fn split_triangles(triangles: &[[[f32; 3]; 3]], budget: f64) -> References {
+    split_triangles_with(triangles, budget, MIN_WASTE_RATIO)
+}
+
+/// [`split_triangles`] with another waste threshold than [`MIN_WASTE_RATIO`]: only triangles whose pieces could
+/// remove at least `min_waste_ratio` of their box's area are cut (0: any triangle a grid plane crosses).
+pub fn split_triangles_with(triangles: &[[[f32; 3]; 3]], budget: f64, min_waste_ratio: f64) -> References {
     let budget = if budget.is_nan() { 0.0 } else { budget.clamp(0.0, MAX_BUDGET) };
     let scene = triangles.par_iter().map(Aabb::of_triangle).reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
     let grid = Grid::new(&scene);
     let scene_area = scene.surface_area();
-    let priorities: Vec<f64> = triangles.par_iter().map(|t| priority(t, &grid, scene_area)).collect();
+    let priorities: Vec<f64> = triangles.par_iter().map(|t| priority(t, &grid, scene_area, min_waste_ratio)).collect();
     let extra = (budget * triangles.len() as f64) as u64;
     let lambda = largest_lambda(&priorities, extra);
     let pieces: Vec<(u32, Aabb)> = triangles
@@ -134,13 +140,14 @@ fn largest_lambda(priorities: &[f64], extra: u64) -> f64 {
     low
 }
 
-/// `((A_box - A_ideal) / A_scene)^(1/3)`, 0 for a triangle no grid plane crosses.
-fn priority(vertices: &[[f32; 3]; 3], grid: &Grid, scene_area: f64) -> f64 {
+/// `((A_box - A_ideal) / A_scene)^(1/3)`, 0 for a triangle no grid plane crosses or that wastes less than
+/// `min_waste_ratio` of its box.
+fn priority(vertices: &[[f32; 3]; 3], grid: &Grid, scene_area: f64, min_waste_ratio: f64) -> f64 {
     let aabb = Aabb::of_triangle(vertices);
     if grid.plane_for(&aabb).is_none() {
         return 0.0;
     }
-    if scene_area <= 0.0 || !worth_cutting(vertices, MIN_WASTE_RATIO) {
+    if scene_area <= 0.0 || !worth_cutting(vertices, min_waste_ratio) {
         return 0.0;
     }
     ((aabb.surface_area() - ideal_box_area(vertices)) / scene_area).cbrt()

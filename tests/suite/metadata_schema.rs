@@ -6,7 +6,7 @@ use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use bvhc::build::Builder;
-use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, convert_with};
+use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles, convert_with};
 use bvhc::import::SceneSelector;
 use bvhc::loader::BvhFile;
 use bvhc::optimize::Preset;
@@ -42,9 +42,32 @@ fn every_written_file_matches_the_metadata_schema() {
     convert_and_check(&teapot, &options);
     // Split references, by either method.
     for method in [SplitMethod::Sbvh, SplitMethod::PreSplit] {
-        let split = ConvertOptions { splits: Some(SplitOptions { budget: 0.3, method }), ..ConvertOptions::default() };
+        let split = ConvertOptions {
+            splits: Some(SplitOptions { method, ..SplitOptions::with_budget(0.3) }),
+            ..ConvertOptions::default()
+        };
         let metadata = convert_and_check(&teapot, &split);
         assert_eq!(metadata["build"]["splits"]["method"], serde_json::to_value(method).unwrap());
+        assert!(metadata["build"]["splits"].get("triangles").is_none(), "the default is not recorded");
+        assert!(metadata.get("split_choice").is_none());
+        // Which triangles, and the choice between both (with and without wide sections).
+        for (triangles, wide) in
+            [(SplitTriangles::Any, true), (SplitTriangles::Choose, true), (SplitTriangles::Choose, false)]
+        {
+            let mut options = split.clone();
+            options.splits = options.splits.map(|s| SplitOptions { triangles, ..s });
+            options.wide = options.wide.filter(|_| wide);
+            let metadata = convert_and_check(&teapot, &options);
+            assert_eq!(metadata["build"]["splits"]["triangles"], triangles.name());
+            let choice = &metadata["split_choice"];
+            assert_eq!(choice.is_object(), triangles == SplitTriangles::Choose, "{choice}");
+            if choice.is_object() {
+                assert_eq!(choice["measure"], if wide { "wide_cost" } else { "sah_cost" });
+                let written = if wide { &metadata["wide"]["cost"] } else { &metadata["cost"]["sah_cost"] };
+                let kept_cost = &choice[format!("{}_cost", choice["kept"].as_str().unwrap())];
+                assert_eq!(kept_cost, written, "the kept candidate's cost is the written tree's");
+            }
+        }
     }
     // Dropped and kept degenerate triangles are counted by kind.
     let degenerate = repro("keep-degenerate-message.obj");

@@ -7,14 +7,14 @@ use std::io::Write;
 use std::path::Path;
 
 use bvhc::aabb::Aabb;
-use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions};
+use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles, convert_with};
 use bvhc::epo::polygon_area;
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
 use bvhc::split::clip::{Piece, triangle_area};
 use bvhc::split::{References, split_triangles};
 use rand::RngExt;
 
-use crate::common::{in_pool, random_triangles, rng};
+use crate::common::{in_pool, random_point, random_triangles, rng};
 use crate::convert::{check_conversion_against_brute_force, convert_in_pool, teapot};
 
 type Triangle = [[f32; 3]; 3];
@@ -138,6 +138,122 @@ fn write_obj(path: &Path, triangles: &[Triangle]) {
     }
 }
 
+/// Axis-aligned rectangles, each as its two triangles (each fills half of its box's face: the case where
+/// cutting is worth it on some scenes and not on others), spread over a few planes at random sizes.
+fn rectangles(seed: u64, count: usize) -> Vec<Triangle> {
+    let mut rng = rng(seed);
+    let mut triangles = Vec::new();
+    for i in 0..count {
+        let [x, y, _] = random_point(&mut rng, 20.0);
+        let [w, h, _] = random_point(&mut rng, 6.0).map(|c| c.abs() + 0.05);
+        let z = (i % 5) as f32 * 2.0;
+        let (a, b, c, d) = ([x, y, z], [x + w, y, z], [x + w, y + h, z], [x, y + h, z]);
+        let rotate = |p: [f32; 3]| if i % 3 == 0 { [p[2], p[0], p[1]] } else { p };
+        triangles.push([a, b, c].map(rotate));
+        triangles.push([a, c, d].map(rotate));
+    }
+    triangles
+}
+
+/// The six faces of `boxes` random axis-aligned boxes (a room and its furniture), each face tiled by a grid of
+/// rectangles as two triangles each, like floors and walls of architectural scenes.
+fn tiled_boxes(seed: u64, boxes: usize) -> Vec<Triangle> {
+    let mut rng = rng(seed);
+    let mut triangles = Vec::new();
+    for b in 0..boxes {
+        let (min, size) = if b == 0 {
+            ([-20.0f32; 3], [40.0f32; 3])
+        } else {
+            (random_point(&mut rng, 15.0), random_point(&mut rng, 4.0).map(|c| c.abs() + 0.5))
+        };
+        for axis in 0..3 {
+            let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+            for side in [0.0, 1.0] {
+                let tiles = 8;
+                for i in 0..tiles {
+                    for j in 0..tiles {
+                        let corner = |di: f32, dj: f32| {
+                            let mut p = [0.0f32; 3];
+                            p[axis] = min[axis] + side * size[axis];
+                            p[u] = min[u] + (i as f32 + di) / tiles as f32 * size[u];
+                            p[v] = min[v] + (j as f32 + dj) / tiles as f32 * size[v];
+                            p
+                        };
+                        let (a, b, c, d) = (corner(0.0, 0.0), corner(1.0, 0.0), corner(1.0, 1.0), corner(0.0, 1.0));
+                        triangles.push([a, b, c]);
+                        triangles.push([a, c, d]);
+                    }
+                }
+            }
+        }
+    }
+    triangles
+}
+
+/// `SplitTriangles::Choose` writes the tree of whichever of `Wasteful` and `Any` has the lower wide cost: its
+/// nodes, triangles and wide sections are that conversion's byte for byte, the costs it records are the two
+/// conversions' own, and it gives the same bytes on 1 and 2 threads. On these scenes `Any` cuts triangles that
+/// `Wasteful` leaves whole, and each choice is made on some scene (rectangles scattered at random sizes: `Any`;
+/// tiled walls: `Wasteful`, as on the kitchen).
+#[test]
+fn choosing_which_triangles_to_cut_keeps_the_cheaper_of_both_conversions() {
+    let dir = tempfile::tempdir().unwrap();
+    let quads = dir.path().join("quads.obj");
+    let mut triangles = rectangles(21, 700);
+    triangles.extend(long_triangles(22, 100));
+    write_obj(&quads, &triangles);
+    let mixed = dir.path().join("mixed.obj");
+    let mut triangles = rectangles(23, 300);
+    triangles.extend(random_triangles(24, 2000, 10.0));
+    write_obj(&mixed, &triangles);
+    let room = dir.path().join("room.obj");
+    write_obj(&room, &tiled_boxes(25, 12));
+    let sections = |file: &bvhc::loader::BvhFile| {
+        let view = file.view();
+        let wide = view.wide_sections().unwrap();
+        let bytes: [Vec<u8>; 4] = [
+            bytemuck::cast_slice(view.nodes()).to_vec(),
+            bytemuck::cast_slice(view.triangles()).to_vec(),
+            bytemuck::cast_slice(wide.nodes).to_vec(),
+            bytemuck::cast_slice(wide.packets).to_vec(),
+        ];
+        bytes
+    };
+    // The expected choice is this data's (seeded), so that both ways of choosing are exercised.
+    for (input, expected) in
+        [(quads, SplitTriangles::Any), (mixed, SplitTriangles::Any), (room, SplitTriangles::Wasteful)]
+    {
+        let convert = |triangles: SplitTriangles| {
+            let options = ConvertOptions {
+                splits: Some(SplitOptions { triangles, ..SplitOptions::with_budget(0.3) }),
+                ..ConvertOptions::default()
+            };
+            let output = dir.path().join(format!("{}.bvh", triangles.name()));
+            let report = convert_with(&input, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+            (report, bvhc::loader::BvhFile::read(&output).unwrap(), options)
+        };
+        let (wasteful, wasteful_file, _) = convert(SplitTriangles::Wasteful);
+        let (any, any_file, _) = convert(SplitTriangles::Any);
+        let (chosen, chosen_file, options) = convert(SplitTriangles::Choose);
+        assert!(any.reference_count > wasteful.reference_count, "{input:?}: Any cut nothing more");
+        let choice = chosen.split_choice.expect("a choice was made");
+        let (wasteful_cost, any_cost) = (wasteful.wide.unwrap().cost, any.wide.unwrap().cost);
+        assert_eq!((choice.wasteful_cost, choice.any_cost), (wasteful_cost, any_cost));
+        let (kept, kept_file) = if any_cost < wasteful_cost {
+            (SplitTriangles::Any, &any_file)
+        } else {
+            (SplitTriangles::Wasteful, &wasteful_file)
+        };
+        assert_eq!(kept, expected, "{input:?}: wasteful {wasteful_cost}, any {any_cost}");
+        assert_eq!(choice.kept, kept);
+        assert!(sections(&chosen_file) == sections(kept_file), "{input:?}: not the kept conversion's tree");
+        assert_eq!(chosen.wide.unwrap().cost, wasteful_cost.min(any_cost));
+        let one = convert_in_pool(1, &input, &dir.path().join("one.bvh"), &options);
+        let two = convert_in_pool(2, &input, &dir.path().join("two.bvh"), &options);
+        assert!(one == two, "{input:?}: 1 and 2 threads differ");
+    }
+}
+
 #[test]
 fn conversions_with_splits_verify_trace_like_brute_force_and_do_not_depend_on_threads() {
     let dir = tempfile::tempdir().unwrap();
@@ -155,8 +271,10 @@ fn conversions_with_splits_verify_trace_like_brute_force_and_do_not_depend_on_th
         (mixed.clone(), Preset::Balanced, sbvh),
         (mixed, Preset::Fast, sbvh),
     ] {
-        let options =
-            ConvertOptions { splits: Some(SplitOptions { budget: 0.5, method }), ..ConvertOptions::preset(preset) };
+        let options = ConvertOptions {
+            splits: Some(SplitOptions { method, ..SplitOptions::with_budget(0.5) }),
+            ..ConvertOptions::preset(preset)
+        };
         let (report, file) = check_conversion_against_brute_force(&input, &options);
         assert!(report.reference_count > report.triangle_count, "{input:?}: nothing split");
         assert!(report.stored_triangle_count <= report.reference_count);
@@ -218,6 +336,25 @@ fn the_cli_splits_on_request_and_info_counts_references() {
         let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
         assert_eq!(metadata["build"]["splits"]["method"], method);
     }
+    // --split-triangles, recorded; the max-quality preset chooses unless told, and records the choice.
+    for (flags, triangles) in [
+        (vec!["--split-triangles", "any"], Some("any")),
+        (vec!["--preset", "max-quality"], Some("choose")),
+        (vec!["--preset", "max-quality", "--split-triangles", "wasteful"], None),
+    ] {
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&long, &"-o", &output, &"--force", &"--quiet"];
+        args.extend(flags.iter().map(|f| f as &dyn AsRef<std::ffi::OsStr>));
+        let run = crate::cli::bvhc(&args);
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let file = bvhc::loader::BvhFile::read(&output).unwrap();
+        let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+        assert_eq!(metadata["build"]["splits"]["triangles"].as_str(), triangles, "{flags:?}");
+        assert_eq!(metadata["split_choice"].is_object(), triangles == Some("choose"), "{flags:?}");
+        let info = String::from_utf8(crate::cli::bvhc(&[&"info", &output]).stdout).unwrap();
+        assert_eq!(info.contains("split choice: kept the tree cut in "), triangles == Some("choose"), "{info}");
+    }
+    let both = crate::cli::bvhc(&[&long, &"-o", &output, &"--no-splits", &"--split-triangles", &"any"]);
+    assert!(!both.status.success(), "--no-splits with --split-triangles accepted");
     // --no-splits: one reference a triangle even with a preset that splits.
     let run = crate::cli::bvhc(&[&long, &"-o", &output, &"--no-splits", &"--force", &"--json", &"--quiet"]);
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
