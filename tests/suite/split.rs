@@ -251,6 +251,19 @@ fn choosing_which_triangles_to_cut_keeps_the_cheaper_of_both_conversions() {
         let one = convert_in_pool(1, &input, &dir.path().join("one.bvh"), &options);
         let two = convert_in_pool(2, &input, &dir.path().join("two.bvh"), &options);
         assert!(one == two, "{input:?}: 1 and 2 threads differ");
+        // Cancelling the first candidate's optimization writes that candidate, with no choice recorded.
+        let cancelled = dir.path().join("cancelled.bvh");
+        let mut stop = |event: bvhc::convert::Event<'_>| match event {
+            bvhc::convert::Event::Batch(_) => std::ops::ControlFlow::Break(()),
+            _ => std::ops::ControlFlow::Continue(()),
+        };
+        let report = convert_with(&input, &cancelled, &options, &mut stop).unwrap();
+        assert!(report.split_choice.is_none());
+        assert_eq!(report.reference_count, wasteful.reference_count, "{input:?}: not the first candidate");
+        let file = bvhc::loader::BvhFile::read(&cancelled).unwrap();
+        file.view().verify().unwrap();
+        let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
+        assert!(metadata.get("split_choice").is_none());
     }
 }
 
