@@ -10,7 +10,9 @@
 //! without, and at one primitive a leaf), svenstaro's `bvh` 0.13 and, with `--features tinybvh`, tinybvh's
 //! SBVH (`common/tinybvh.rs`), their trees repacked into the `.bvh` layout so that one cost definition and one
 //! kernel measure all of them. "error" is the cost above the lowest cost any method reached on that scene.
-//! Under the table: which peer trees lack triangles or fail the loader's coverage rule for split references.
+//! Under the table: which peer trees lack triangles or fail the loader's coverage rule for split references,
+//! a least squares fit of the kernel's cost a step and a test, and the default tree merged with other
+//! constants, timed.
 //!
 //! A second table per scene times what a user of `bvhc` gets: files converted with the default options under
 //! each split setting (`--no-splits`, `--split-budget`, `--split-method`, `--split-triangles`), and obvhs's
@@ -397,6 +399,7 @@ fn main() {
         }
         println!("\n{tree_notes}");
         print_kernel_fit(&samples, rays.primary.len() + rays.ao.len() + rays.incoherent.len());
+        merge_constants_table(&triangles, &rays);
         files_table(&path, &rays, other_files(&triangles));
     }
 }
@@ -484,6 +487,45 @@ fn print_kernel_fit(samples: &[([f64; 3], f64)], ray_count: usize) {
 /// The files table's rows beyond converted files: obvhs's tree.
 fn other_files(triangles: &[Triangle]) -> Vec<(String, BvhFile, f64)> {
     vec![obvhs_single_file(triangles)]
+}
+
+/// Merge constants judged by render time: the default tree (SBVH 0.3, balanced optimization) merged with
+/// several `(c_T, c_I)` and leaf limits, traced through the binary kernel in [`FILE_ROUNDS`] paired rounds; a
+/// row's ratio is the median of its per-round ratios to (3, 2) with leaves of up to 8, the constants
+/// conversions use. A lower `c_I / c_T` merges more (fewer node visits, more triangle tests).
+fn merge_constants_table(triangles: &[Triangle], rays: &RaySet) {
+    let mut tree = OptTree::from_build(build_sbvh(triangles, &SbvhParams::with_budget(0.3)), triangles);
+    optimize(&mut tree, &OptimizeParams::preset(Preset::Balanced), &mut |_| std::ops::ControlFlow::Continue(()));
+    let variants = [(3.0, 2.0, 8), (3.0, 3.0, 8), (3.0, 1.5, 8), (3.0, 1.0, 8), (3.0, 0.75, 8), (3.0, 1.0, 16)];
+    let packed: Vec<_> = variants
+        .iter()
+        .map(|&(traversal, intersection, max_leaf_size)| {
+            let constants = SahConstants { traversal, intersection };
+            let mut merged = merge_leaves_of_references(&tree, constants, max_leaf_size);
+            records::remove_binary_repeats(&mut merged, triangles.len());
+            pack(&merged, triangles)
+        })
+        .collect();
+    let tracers: Vec<Tracer<'_>> = packed.iter().map(|p| Tracer::new(&p.nodes, &p.triangles, None)).collect();
+    let mut ratios = vec![Vec::new(); tracers.len()];
+    for _ in 0..FILE_ROUNDS {
+        let round: Vec<f64> = tracers.iter().map(|tracer| render_once(tracer, rays)).collect();
+        round.iter().zip(&mut ratios).for_each(|(t, r)| r.push(t / round[0]));
+    }
+    println!(
+        "\nMerge constants by render time (default tree, binary kernel, {FILE_ROUNDS} paired rounds):\n\n| (c_T, c_I), leaf limit | leaves a record | render vs (3, 2) | steps | isect |\n|---|---|---|---|---|"
+    );
+    for (((traversal, intersection, limit), (tree, tracer)), ratios) in
+        variants.iter().zip(packed.iter().zip(&tracers)).zip(&mut ratios)
+    {
+        let (steps, tests) = traversal_counts(tracer, rays);
+        let leaves = tree.nodes.iter().filter(|n| n.count > 0).count();
+        println!(
+            "| ({traversal}, {intersection}), {limit} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
+            leaves as f64 / tree.triangles.len() as f64,
+            median(ratios)
+        );
+    }
 }
 
 /// obvhs's `very_slow_build` at one primitive a leaf and without its pre-splits, as a file finished by bvhc
