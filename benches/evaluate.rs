@@ -15,7 +15,8 @@
 //! constants, timed.
 //!
 //! A second table per scene times what a user of `bvhc` gets: files converted with the default options under
-//! each split setting (`--no-splits`, `--split-budget`, `--split-method`, `--split-triangles`), and obvhs's
+//! each split setting (`--no-splits`, `--split-budget`, `--split-method`, `--split-triangles`) and
+//! optimizer setting (`--optimize-over`), and obvhs's
 //! one-a-leaf tree finished into a file as conversions finish theirs, traced through the file's default kernel (the wide one) with the
 //! same rays, in rounds (see [`files_table`]); steps and isect there count wide node visits and packet tests.
 //!
@@ -32,7 +33,9 @@ use std::time::{Duration, Instant};
 
 use bvhc::aabb::Aabb;
 use bvhc::build::{BuildNode, BuildTree, Builder};
-use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles, convert_with, merge_and_collapse};
+use bvhc::convert::{
+    ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles, convert_with, merge_and_collapse,
+};
 use bvhc::cost::{SahConstants, sah_of_build_tree, sah_of_packed};
 use bvhc::epo::end_point_overlap;
 use bvhc::import::{ImportOptions, import};
@@ -574,18 +577,25 @@ fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhF
     );
     let sbvh = |budget| Some(SplitOptions { budget, method: SplitMethod::Sbvh, ..SplitOptions::with_budget(0.0) });
     let cut = |triangles| Some(SplitOptions { triangles, ..SplitOptions::with_budget(0.3) });
+    let default_splits = SplitOptions::for_preset(Preset::Balanced);
     let settings = [
-        None,
-        Some(SplitOptions { method: SplitMethod::PreSplit, ..SplitOptions::with_budget(0.1) }),
-        sbvh(0.1),
-        sbvh(0.3),
-        cut(SplitTriangles::Any),
-        cut(SplitTriangles::Choose),
+        (None, OptimizeOver::References),
+        (
+            Some(SplitOptions { method: SplitMethod::PreSplit, ..SplitOptions::with_budget(0.1) }),
+            OptimizeOver::References,
+        ),
+        (sbvh(0.1), OptimizeOver::References),
+        (sbvh(0.3), OptimizeOver::References),
+        (cut(SplitTriangles::Any), OptimizeOver::References),
+        (cut(SplitTriangles::Choose), OptimizeOver::References),
+        (default_splits, OptimizeOver::Clusters),
+        (default_splits, OptimizeOver::Choose),
+        (cut(SplitTriangles::Choose), OptimizeOver::Choose),
     ];
     let mut files = Vec::new();
-    for (i, splits) in settings.iter().enumerate() {
+    for (i, (splits, optimize_over)) in settings.iter().enumerate() {
         let output = dir.path().join(format!("scene-{i}.bvh"));
-        let options = ConvertOptions { splits: *splits, ..ConvertOptions::default() };
+        let options = ConvertOptions { splits: *splits, optimize_over: *optimize_over, ..ConvertOptions::default() };
         let report = convert_with(scene, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
         files.push((report, BvhFile::read(&output).unwrap()));
     }
@@ -604,10 +614,14 @@ fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhF
             ratios[i].push(t / round[0]);
         }
     }
-    for (i, (splits, (report, _))) in settings.iter().zip(&files).enumerate() {
+    for (i, ((splits, optimize_over), (report, _))) in settings.iter().zip(&files).enumerate() {
         let (steps, tests) = traversal_counts(&tracers[i], rays);
+        let over = match optimize_over {
+            OptimizeOver::References => String::new(),
+            other => format!(" --optimize-over {}", other.name()),
+        };
         println!(
-            "| {} | {} | {:.1} | {:.2} | {} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
+            "| {}{over} | {} | {:.1} | {:.2} | {} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
             splits.map_or("--no-splits".to_string(), |s| format!(
                 "--split-budget {} --split-method {}{}",
                 s.budget,

@@ -61,6 +61,7 @@ impl Conversion {
         let constants = self.options.optimize.constants;
         self.options.preset = preset;
         self.options.splits = crate::convert::SplitOptions::for_preset(preset);
+        self.options.optimize_over = crate::convert::OptimizeOver::for_preset(preset);
         self.options.optimize =
             crate::optimize::OptimizeParams { constants, ..crate::optimize::OptimizeParams::preset(preset) };
         self
@@ -139,6 +140,13 @@ impl Conversion {
         if let Some(splits) = &mut self.options.splits {
             splits.triangles = triangles;
         }
+        self
+    }
+
+    /// What reinsertion optimizes over (the preset decides otherwise:
+    /// [`crate::convert::OptimizeOver::Choose`] for `max-quality`, `References` for the others).
+    pub fn optimize_over(mut self, over: crate::convert::OptimizeOver) -> Self {
+        self.options.optimize_over = over;
         self
     }
 

@@ -15,8 +15,8 @@ use crate::build::{BuildTree, Builder};
 use crate::cost::{SahCost, sah_of_build_tree};
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
 use crate::optimize::{
-    OptTree, OptimizeParams, OptimizeReport, Preset, Progress, StopReason, merge_leaves, merge_leaves_of_references,
-    optimize,
+    DEFAULT_CLUSTER_SIZE, OptTree, OptimizeParams, OptimizeReport, Preset, Progress, StopReason, merge_leaves,
+    merge_leaves_of_references, optimize, optimize_over_clusters,
 };
 use crate::pack::pack;
 use crate::split::sbvh::{SbvhParams, build_sbvh};
@@ -53,6 +53,53 @@ pub struct ConvertOptions {
     /// when on, so files converted without splits keep the bytes they had before splits existed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub splits: Option<SplitOptions>,
+    /// What the optimizer's leaves are. Recorded only when not the default, so files converted before the
+    /// choice existed keep their bytes.
+    #[serde(skip_serializing_if = "OptimizeOver::is_default")]
+    pub optimize_over: OptimizeOver,
+}
+
+/// What reinsertion optimizes over.
+///
+/// With one reference a leaf (Bittner et al.'s setting) the optimizer lowers the binary tree's inner areas but
+/// breaks up the small subtrees the builder made, which become the file's leaves; over the builder's subtrees
+/// of up to [`DEFAULT_CLUSTER_SIZE`] references ([`optimize_over_clusters`]) those stay as built. Which wins
+/// depends on the scene (wide render time through the default kernel, clusters against references: kitchen
+/// 0.925, milk truck 0.974, 2CylinderEngine 1.022, dragon res2 1.015, others within 1%: `docs/evaluation.md`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OptimizeOver {
+    /// One reference a leaf.
+    #[default]
+    References,
+    /// The built tree's subtrees of up to [`DEFAULT_CLUSTER_SIZE`] references, kept as built.
+    Clusters,
+    /// Both, each optimized and merged; the tree whose wide cost (binary SAH without wide sections) is lower
+    /// is written, `References`' on a tie.
+    Choose,
+}
+
+impl OptimizeOver {
+    /// The name used in options.
+    pub fn name(self) -> &'static str {
+        match self {
+            OptimizeOver::References => "references",
+            OptimizeOver::Clusters => "clusters",
+            OptimizeOver::Choose => "choose",
+        }
+    }
+
+    /// A preset's choice: `max-quality` chooses, the others optimize over references.
+    pub fn for_preset(preset: Preset) -> OptimizeOver {
+        match preset {
+            Preset::MaxQuality => OptimizeOver::Choose,
+            Preset::Fast | Preset::Balanced => OptimizeOver::References,
+        }
+    }
+
+    fn is_default(&self) -> bool {
+        *self == OptimizeOver::References
+    }
 }
 
 /// How a conversion splits references, and how many it may add.
@@ -187,6 +234,7 @@ impl ConvertOptions {
             write_ids: true,
             wide: Some(WideCosts::default()),
             splits: SplitOptions::for_preset(preset),
+            optimize_over: OptimizeOver::for_preset(preset),
         }
     }
 }
@@ -218,9 +266,9 @@ pub struct ConvertReport {
     pub file_byte_len: usize,
     /// Seconds per stage: import, build, optimize, merge, pack, write.
     pub timings: Timings,
-    /// With [`SplitTriangles::Choose`]: the candidates' costs and the one written (absent when a cancelled
-    /// optimization left no time for the second).
-    pub split_choice: Option<SplitChoice>,
+    /// With [`SplitTriangles::Choose`] or [`OptimizeOver::Choose`]: the candidates' costs and the one written
+    /// (absent when a cancelled optimization ended the search at the first).
+    pub choice: Option<Choice>,
 }
 
 /// The wide sections of a conversion: their sizes and the collapsed tree's cost.
@@ -343,29 +391,7 @@ pub fn convert_with(
     if u32::try_from(triangles.len()).is_err() {
         return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
     }
-    let (candidate, split_choice) = match options.splits {
-        Some(splits) if splits.triangles == SplitTriangles::Choose => {
-            // Each candidate gets half of a time budget, so that the conversion keeps to it.
-            let mut halved = options.clone();
-            halved.optimize.time_budget = options.optimize.time_budget.map(|t| t / 2);
-            let first = candidate(input, &triangles, &halved, false, observer, &mut timings)?;
-            let cancelled = first.optimization.as_ref().is_some_and(|r| r.stop == StopReason::Cancelled);
-            if cancelled {
-                (first, None)
-            } else {
-                let second = candidate(input, &triangles, &halved, true, observer, &mut timings)?;
-                let (wasteful_cost, any_cost) = (first.score(options), second.score(options));
-                let kept = if any_cost < wasteful_cost { SplitTriangles::Any } else { SplitTriangles::Wasteful };
-                let measure = if options.wide.is_some() { "wide_cost" } else { "sah_cost" };
-                let choice = SplitChoice { kept, measure, wasteful_cost, any_cost };
-                (if kept == SplitTriangles::Any { second } else { first }, Some(choice))
-            }
-        }
-        splits => {
-            let any = splits.is_some_and(|s| s.triangles == SplitTriangles::Any);
-            (candidate(input, &triangles, options, any, observer, &mut timings)?, None)
-        }
-    };
+    let (candidate, choice) = best_candidate(input, &triangles, options, observer, &mut timings)?;
     let Candidate { final_tree, wide_tree, reference_count, optimization } = candidate;
     let over_references = reference_count > triangles.len();
     let _ = observer(Event::Stage(Stage::Write));
@@ -404,7 +430,7 @@ pub fn convert_with(
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);
-    let metadata = metadata_json(inputs, options, &cost, &imported.report, summary.as_ref(), split_choice.as_ref());
+    let metadata = metadata_json(inputs, options, &cost, &imported.report, summary.as_ref(), choice.as_ref());
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles)
         .metadata(&metadata)
         .split_references(stored_triangle_count > triangle_count);
@@ -445,7 +471,7 @@ pub fn convert_with(
         wide: summary,
         file_byte_len: file_byte_len as usize,
         timings,
-        split_choice,
+        choice,
     })
 }
 
@@ -468,17 +494,76 @@ impl Candidate {
     }
 }
 
-/// The build, optimize and merge stages of a conversion (their times added to `timings`), cutting split
-/// references (where `options.splits` allows them) in any triangle worth cutting when `any_triangle`, else only
-/// in triangles that waste a large part of their box.
-fn candidate(
+/// Every candidate the options ask for (which triangles may be cut, what the optimizer's leaves are: one each
+/// unless told to choose), built, optimized and merged, and the one whose [`Candidate::score`] is lowest (the
+/// first on a tie), with the costs of all when there were several. A time budget is shared equally; a
+/// cancelled optimization ends the search (its tree competes with those made before it).
+fn best_candidate(
+    input: &Path,
+    triangles: &[[[f32; 3]; 3]],
+    options: &ConvertOptions,
+    observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
+    timings: &mut Timings,
+) -> Result<(Candidate, Option<Choice>), ConvertError> {
+    let cut_any: &[bool] = match options.splits.map(|s| s.triangles) {
+        Some(SplitTriangles::Choose) => &[false, true],
+        Some(SplitTriangles::Any) => &[true],
+        _ => &[false],
+    };
+    let over_clusters: &[bool] = match options.optimize_over {
+        OptimizeOver::References => &[false],
+        OptimizeOver::Clusters => &[true],
+        OptimizeOver::Choose => &[false, true],
+    };
+    let mut shared = options.clone();
+    let count = (cut_any.len() * over_clusters.len()) as u32;
+    shared.optimize.time_budget = options.optimize.time_budget.map(|t| t / count);
+    let mut best: Option<(Candidate, f64)> = None;
+    let mut costs = Vec::new();
+    'search: for &any_triangle in cut_any {
+        let (built, reference_count) = build_stage(input, triangles, &shared, any_triangle, observer, timings)?;
+        let mut built = Some(built);
+        for (k, &clusters) in over_clusters.iter().enumerate() {
+            // The last candidate of this build takes the tree; the others optimize a copy.
+            let tree = if k + 1 < over_clusters.len() { built.clone() } else { built.take() };
+            let Some(tree) = tree else { unreachable!("the built tree is taken by the last candidate only") };
+            let candidate =
+                optimize_and_merge(tree, reference_count, triangles.len(), &shared, clusters, observer, timings);
+            let score = candidate.score(options);
+            let cancelled = candidate.optimization.as_ref().is_some_and(|r| r.stop == StopReason::Cancelled);
+            costs.push(CandidateCost {
+                split_triangles: if any_triangle { SplitTriangles::Any } else { SplitTriangles::Wasteful },
+                optimize_over: if clusters { OptimizeOver::Clusters } else { OptimizeOver::References },
+                cost: score,
+            });
+            if best.as_ref().is_none_or(|(_, lowest)| score < *lowest) {
+                best = Some((candidate, score));
+            }
+            if cancelled {
+                break 'search;
+            }
+        }
+    }
+    let Some((kept, lowest)) = best else { unreachable!("at least one candidate is made") };
+    let choice = (costs.len() > 1).then(|| Choice {
+        measure: if options.wide.is_some() { "wide_cost" } else { "sah_cost" },
+        kept: costs.iter().position(|c| c.cost == lowest).unwrap_or(0),
+        candidates: costs,
+    });
+    Ok((kept, choice))
+}
+
+/// The build stage: the initial tree, cutting split references (where `options.splits` allows them) in any
+/// triangle worth cutting when `any_triangle`, else only in triangles that waste a large part of their box;
+/// and the number of references it holds.
+fn build_stage(
     input: &Path,
     triangles: &[[[f32; 3]; 3]],
     options: &ConvertOptions,
     any_triangle: bool,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
-) -> Result<Candidate, ConvertError> {
+) -> Result<(OptTree, usize), ConvertError> {
     let _ = observer(Event::Stage(Stage::Build));
     let clock = Instant::now();
     let too_large = |count: usize| ConvertError::TooLarge { path: input.to_path_buf(), count };
@@ -491,42 +576,68 @@ fn candidate(
         }
         Some(SplitOptions { budget, method: SplitMethod::Sbvh, .. }) => {
             let ratio = if any_triangle { 0.0 } else { crate::split::sbvh::MIN_WASTE_RATIO };
-            let build =
-                build_sbvh(triangles, &SbvhParams { min_waste_ratio: ratio, ..SbvhParams::with_budget(budget) });
+            let params = SbvhParams { min_waste_ratio: ratio, ..SbvhParams::with_budget(budget) };
+            let build = build_sbvh(triangles, &params);
             let reference_count = build.triangle_order.len();
             u32::try_from(reference_count).map_err(|_| too_large(reference_count))?;
             (build, reference_count)
         }
         None => (options.builder.build(triangles, 1), triangles.len()),
     };
-    let mut tree = OptTree::from_build(build, triangles);
+    let tree = OptTree::from_build(build, triangles);
     timings.build += lap(clock);
+    Ok((tree, reference_count))
+}
+
+/// The optimize and merge stages of a conversion (their times added to `timings`): reinsertion over one
+/// reference a leaf, or with `clusters` over the built tree's small subtrees ([`optimize_over_clusters`]).
+fn optimize_and_merge(
+    mut tree: OptTree,
+    reference_count: usize,
+    triangle_count: usize,
+    options: &ConvertOptions,
+    clusters: bool,
+    observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
+    timings: &mut Timings,
+) -> Candidate {
     let _ = observer(Event::Stage(Stage::Optimize));
     let clock = Instant::now();
-    let optimization = (!options.skip_optimization)
-        .then(|| optimize(&mut tree, &options.optimize, &mut |p: &Progress| observer(Event::Batch(p))));
+    let mut progress = |p: &Progress| observer(Event::Batch(p));
+    let optimization = (!options.skip_optimization).then(|| match clusters {
+        true => optimize_over_clusters(&mut tree, &options.optimize, DEFAULT_CLUSTER_SIZE, &mut progress),
+        false => optimize(&mut tree, &options.optimize, &mut progress),
+    });
     timings.optimize += lap(clock);
     let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH);
-    let over_references = reference_count > triangles.len();
-    let (final_tree, wide_tree) = merge_and_collapse(&tree, options, triangles.len(), over_references);
+    let repeats = reference_count > triangle_count;
+    let (final_tree, wide_tree) = merge_and_collapse(&tree, options, triangle_count, repeats);
     drop(tree);
     timings.merge += lap(clock);
-    Ok(Candidate { final_tree, wide_tree, reference_count, optimization })
+    Candidate { final_tree, wide_tree, reference_count, optimization }
 }
 
-/// How [`SplitTriangles::Choose`] chose: the two candidates' costs and the one written.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct SplitChoice {
-    /// The candidate written: [`SplitTriangles::Wasteful`] or [`SplitTriangles::Any`].
-    pub kept: SplitTriangles,
+/// How a conversion chose among candidate trees ([`SplitTriangles::Choose`], [`OptimizeOver::Choose`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Choice {
     /// What was compared: `wide_cost` (the wide collapse's cost, [`crate::wide::WideTree::cost`]) or `sah_cost`
     /// (the binary tree's, for files without wide sections).
     pub measure: &'static str,
-    /// The cost of the tree cut only in wasteful triangles.
-    pub wasteful_cost: f64,
-    /// The cost of the tree cut in any triangle.
-    pub any_cost: f64,
+    /// Every candidate made, in the order made.
+    pub candidates: Vec<CandidateCost>,
+    /// The index in `candidates` of the one written.
+    pub kept: usize,
+}
+
+/// One candidate of a [`Choice`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CandidateCost {
+    /// Which triangles it could cut: [`SplitTriangles::Wasteful`] or [`SplitTriangles::Any`].
+    pub split_triangles: SplitTriangles,
+    /// What its optimizer's leaves were: [`OptimizeOver::References`] or [`OptimizeOver::Clusters`].
+    pub optimize_over: OptimizeOver,
+    /// Its cost under the choice's measure.
+    pub cost: f64,
 }
 
 /// The merge stage of a conversion: the leaf merging (up to `options.max_leaf_size` when leaves are merged) and
@@ -625,7 +736,7 @@ fn metadata_json(
     cost: &SahCost,
     import: &ImportReport,
     wide: Option<&WideSummary>,
-    split_choice: Option<&SplitChoice>,
+    choice: Option<&Choice>,
 ) -> String {
     let keep = options.import.keep_degenerate;
     let dropped = |count: u64| if keep { 0 } else { count };
@@ -656,8 +767,8 @@ fn metadata_json(
     if let Some(wide) = wide {
         metadata["wide"] = serde_json::to_value(wide).unwrap_or_default();
     }
-    if let Some(choice) = split_choice {
-        metadata["split_choice"] = serde_json::to_value(choice).unwrap_or_default();
+    if let Some(choice) = choice {
+        metadata["choice"] = serde_json::to_value(choice).unwrap_or_default();
     }
     metadata.to_string()
 }

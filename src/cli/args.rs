@@ -128,6 +128,11 @@ pub struct ConvertArgs {
     /// wide cost is lower (the max-quality preset's; about twice the time). Default: the preset's.
     #[arg(long, value_enum, conflicts_with = "no_splits")]
     pub split_triangles: Option<SplitTrianglesArg>,
+    /// What reinsertion optimizes over: one reference a leaf (the balanced preset's), the built tree's subtrees
+    /// of up to 4 references kept as built, or choose by converting with both and keeping the tree whose wide
+    /// cost is lower (the max-quality preset's). Default: the preset's.
+    #[arg(long, value_enum)]
+    pub optimize_over: Option<OptimizeOverArg>,
     /// The glTF scene to convert, by index or name.
     #[arg(long, value_name = "N|NAME")]
     pub scene: Option<String>,
@@ -237,6 +242,17 @@ pub enum SplitTrianglesArg {
     Wasteful,
     /// Any triangle the method finds worth cutting.
     Any,
+    /// Convert with both and keep the tree whose wide cost is lower.
+    Choose,
+}
+
+/// `--optimize-over`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OptimizeOverArg {
+    /// One reference a leaf.
+    References,
+    /// The built tree's subtrees of up to 4 references, kept as built.
+    Clusters,
     /// Convert with both and keep the tree whose wide cost is lower.
     Choose,
 }

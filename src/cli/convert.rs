@@ -6,12 +6,14 @@ use std::time::Duration;
 
 use bvhc::Conversion;
 use bvhc::build::Builder;
-use bvhc::convert::{ConvertError, Event, SplitMethod, SplitTriangles, Stage};
+use bvhc::convert::{ConvertError, Event, OptimizeOver, SplitMethod, SplitTriangles, Stage};
 use bvhc::import::{ErrorKind, ImportLimits, SceneSelector};
 use bvhc::optimize::{Preset, Selection};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::args::{BuilderArg, ConvertArgs, PresetArg, SelectionArg, SplitMethodArg, SplitTrianglesArg};
+use super::args::{
+    BuilderArg, ConvertArgs, OptimizeOverArg, PresetArg, SelectionArg, SplitMethodArg, SplitTrianglesArg,
+};
 use super::output::{outln, print};
 use super::{Exit, fail, loader_exit};
 
@@ -59,6 +61,13 @@ fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
             SplitTrianglesArg::Wasteful => SplitTriangles::Wasteful,
             SplitTrianglesArg::Any => SplitTriangles::Any,
             SplitTrianglesArg::Choose => SplitTriangles::Choose,
+        });
+    }
+    if let Some(over) = args.optimize_over {
+        conversion = conversion.optimize_over(match over {
+            OptimizeOverArg::References => OptimizeOver::References,
+            OptimizeOverArg::Clusters => OptimizeOver::Clusters,
+            OptimizeOverArg::Choose => OptimizeOver::Choose,
         });
     }
     if let Some(budget) = args.time_budget {

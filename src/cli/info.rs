@@ -194,16 +194,18 @@ pub fn info(path: &Path, json: bool) -> Exit {
             );
         }
         outln!(out, "build options: {}", metadata["build"]);
-        let choice = &metadata["split_choice"];
-        if choice.is_object() {
-            outln!(
-                out,
-                "split choice: kept the tree cut in {} triangles ({}: wasteful {}, any {})",
-                choice["kept"].as_str().unwrap_or("?"),
-                choice["measure"].as_str().unwrap_or("?"),
-                choice["wasteful_cost"],
-                choice["any_cost"]
-            );
+        let choice = &metadata["choice"];
+        if let (Some(candidates), Some(kept)) = (choice["candidates"].as_array(), choice["kept"].as_u64()) {
+            let name = |c: &serde_json::Value| {
+                format!(
+                    "{} triangles cut, over {}",
+                    c["split_triangles"].as_str().unwrap_or("?"),
+                    c["optimize_over"].as_str().unwrap_or("?")
+                )
+            };
+            let costs: Vec<String> = candidates.iter().map(|c| format!("{}: {}", name(c), c["cost"])).collect();
+            let kept = candidates.get(kept as usize).map_or("?".to_string(), name);
+            outln!(out, "choice by {}: kept {kept} ({})", choice["measure"].as_str().unwrap_or("?"), costs.join("; "));
         }
         outln!(
             out,

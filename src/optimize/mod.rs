@@ -12,6 +12,7 @@
 //! Both loops keep the best tree seen (batch costs are not monotone) and return it; both are deterministic, and
 //! the parallel one gives the same tree for any number of threads.
 
+mod clusters;
 mod edit_log;
 mod invariants;
 mod measure_index;
@@ -30,6 +31,7 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 
+pub use clusters::{DEFAULT_CLUSTER_SIZE, optimize_over_clusters};
 pub use edit_log::EditLog;
 pub use measure_index::MeasureIndex;
 pub use merge::{merge_leaves, merge_leaves_of_references};

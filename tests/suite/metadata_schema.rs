@@ -6,7 +6,7 @@ use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use bvhc::build::Builder;
-use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles, convert_with};
+use bvhc::convert::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles, convert_with};
 use bvhc::import::SceneSelector;
 use bvhc::loader::BvhFile;
 use bvhc::optimize::Preset;
@@ -49,23 +49,38 @@ fn every_written_file_matches_the_metadata_schema() {
         let metadata = convert_and_check(&teapot, &split);
         assert_eq!(metadata["build"]["splits"]["method"], serde_json::to_value(method).unwrap());
         assert!(metadata["build"]["splits"].get("triangles").is_none(), "the default is not recorded");
-        assert!(metadata.get("split_choice").is_none());
-        // Which triangles, and the choice between both (with and without wide sections).
-        for (triangles, wide) in
-            [(SplitTriangles::Any, true), (SplitTriangles::Choose, true), (SplitTriangles::Choose, false)]
-        {
+        assert!(metadata.get("choice").is_none());
+        assert!(metadata["build"].get("optimize_over").is_none(), "the default is not recorded");
+        // Which triangles, what the optimizer's leaves are, and the choice among candidates (with and without
+        // wide sections).
+        for (triangles, over, wide) in [
+            (SplitTriangles::Any, OptimizeOver::Clusters, true),
+            (SplitTriangles::Choose, OptimizeOver::References, true),
+            (SplitTriangles::Choose, OptimizeOver::Choose, false),
+            (SplitTriangles::Wasteful, OptimizeOver::Choose, true),
+        ] {
             let mut options = split.clone();
             options.splits = options.splits.map(|s| SplitOptions { triangles, ..s });
+            options.optimize_over = over;
             options.wide = options.wide.filter(|_| wide);
             let metadata = convert_and_check(&teapot, &options);
-            assert_eq!(metadata["build"]["splits"]["triangles"], triangles.name());
-            let choice = &metadata["split_choice"];
-            assert_eq!(choice.is_object(), triangles == SplitTriangles::Choose, "{choice}");
-            if choice.is_object() {
+            let recorded = |value: &serde_json::Value, default: &str| value.as_str().unwrap_or(default).to_string();
+            assert_eq!(recorded(&metadata["build"]["splits"]["triangles"], "wasteful"), triangles.name());
+            assert_eq!(recorded(&metadata["build"]["optimize_over"], "references"), over.name());
+            let choice = &metadata["choice"];
+            let chose = triangles == SplitTriangles::Choose || over == OptimizeOver::Choose;
+            assert_eq!(choice.is_object(), chose, "{choice}");
+            if chose {
                 assert_eq!(choice["measure"], if wide { "wide_cost" } else { "sah_cost" });
+                let candidates = choice["candidates"].as_array().unwrap();
+                let made = if triangles == SplitTriangles::Choose { 2 } else { 1 }
+                    * if over == OptimizeOver::Choose { 2 } else { 1 };
+                assert_eq!(candidates.len(), made);
                 let written = if wide { &metadata["wide"]["cost"] } else { &metadata["cost"]["sah_cost"] };
-                let kept_cost = &choice[format!("{}_cost", choice["kept"].as_str().unwrap())];
-                assert_eq!(kept_cost, written, "the kept candidate's cost is the written tree's");
+                let kept = &candidates[choice["kept"].as_u64().unwrap() as usize];
+                assert_eq!(&kept["cost"], written, "the kept candidate's cost is the written tree's");
+                let lowest = candidates.iter().map(|c| c["cost"].as_f64().unwrap()).fold(f64::INFINITY, f64::min);
+                assert_eq!(kept["cost"].as_f64(), Some(lowest));
             }
         }
     }

@@ -236,16 +236,17 @@ fn choosing_which_triangles_to_cut_keeps_the_cheaper_of_both_conversions() {
         let (any, any_file, _) = convert(SplitTriangles::Any);
         let (chosen, chosen_file, options) = convert(SplitTriangles::Choose);
         assert!(any.reference_count > wasteful.reference_count, "{input:?}: Any cut nothing more");
-        let choice = chosen.split_choice.expect("a choice was made");
+        let choice = chosen.choice.expect("a choice was made");
         let (wasteful_cost, any_cost) = (wasteful.wide.unwrap().cost, any.wide.unwrap().cost);
-        assert_eq!((choice.wasteful_cost, choice.any_cost), (wasteful_cost, any_cost));
+        let costs: Vec<(SplitTriangles, f64)> = choice.candidates.iter().map(|c| (c.split_triangles, c.cost)).collect();
+        assert_eq!(costs, [(SplitTriangles::Wasteful, wasteful_cost), (SplitTriangles::Any, any_cost)]);
         let (kept, kept_file) = if any_cost < wasteful_cost {
             (SplitTriangles::Any, &any_file)
         } else {
             (SplitTriangles::Wasteful, &wasteful_file)
         };
         assert_eq!(kept, expected, "{input:?}: wasteful {wasteful_cost}, any {any_cost}");
-        assert_eq!(choice.kept, kept);
+        assert_eq!(choice.candidates[choice.kept].split_triangles, kept);
         assert!(sections(&chosen_file) == sections(kept_file), "{input:?}: not the kept conversion's tree");
         assert_eq!(chosen.wide.unwrap().cost, wasteful_cost.min(any_cost));
         let one = convert_in_pool(1, &input, &dir.path().join("one.bvh"), &options);
@@ -259,12 +260,38 @@ fn choosing_which_triangles_to_cut_keeps_the_cheaper_of_both_conversions() {
             _ => std::ops::ControlFlow::Continue(()),
         };
         let report = convert_with(&input, &cancelled, &options, &mut stop).unwrap();
-        assert!(report.split_choice.is_none());
+        assert!(report.choice.is_none());
         assert_eq!(report.reference_count, wasteful.reference_count, "{input:?}: not the first candidate");
         let file = bvhc::loader::BvhFile::read(&cancelled).unwrap();
         file.view().verify().unwrap();
         let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
-        assert!(metadata.get("split_choice").is_none());
+        assert!(metadata.get("choice").is_none());
+    }
+}
+
+/// Conversions that optimize over clusters, or choose between that and references, with and without split
+/// references, verify, trace like brute force and give the same bytes on 1 and 2 threads.
+#[test]
+fn conversions_over_clusters_trace_like_brute_force_and_do_not_depend_on_threads() {
+    use bvhc::convert::OptimizeOver;
+    let dir = tempfile::tempdir().unwrap();
+    let mixed = dir.path().join("mixed.obj");
+    let mut triangles = rectangles(31, 300);
+    triangles.extend(random_triangles(32, 2000, 10.0));
+    write_obj(&mixed, &triangles);
+    for input in [teapot(), mixed] {
+        for (over, splits) in [
+            (OptimizeOver::Clusters, SplitOptions::for_preset(Preset::Balanced)),
+            (OptimizeOver::Clusters, None),
+            (OptimizeOver::Choose, SplitOptions::for_preset(Preset::Balanced)),
+        ] {
+            let options = ConvertOptions { optimize_over: over, splits, ..ConvertOptions::default() };
+            let (report, _) = check_conversion_against_brute_force(&input, &options);
+            assert_eq!(report.choice.is_some(), over == OptimizeOver::Choose);
+            let one = convert_in_pool(1, &input, &dir.path().join("one.bvh"), &options);
+            let two = convert_in_pool(2, &input, &dir.path().join("two.bvh"), &options);
+            assert!(one == two, "{input:?} {over:?}: 1 and 2 threads differ");
+        }
     }
 }
 
@@ -350,11 +377,13 @@ fn the_cli_splits_on_request_and_info_counts_references() {
         let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
         assert_eq!(metadata["build"]["splits"]["method"], method);
     }
-    // --split-triangles, recorded; the max-quality preset chooses unless told, and records the choice.
-    for (flags, triangles) in [
-        (vec!["--split-triangles", "any"], Some("any")),
-        (vec!["--preset", "max-quality"], Some("choose")),
-        (vec!["--preset", "max-quality", "--split-triangles", "wasteful"], None),
+    // --split-triangles and --optimize-over, recorded; the max-quality preset chooses both unless told, and
+    // records the choice (four candidates).
+    for (flags, triangles, candidates) in [
+        (vec!["--split-triangles", "any"], Some("any"), 0),
+        (vec!["--preset", "max-quality"], Some("choose"), 4),
+        (vec!["--preset", "max-quality", "--split-triangles", "wasteful", "--optimize-over", "references"], None, 0),
+        (vec!["--optimize-over", "choose"], None, 2),
     ] {
         let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&long, &"-o", &output, &"--force", &"--quiet"];
         args.extend(flags.iter().map(|f| f as &dyn AsRef<std::ffi::OsStr>));
@@ -363,9 +392,10 @@ fn the_cli_splits_on_request_and_info_counts_references() {
         let file = bvhc::loader::BvhFile::read(&output).unwrap();
         let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
         assert_eq!(metadata["build"]["splits"]["triangles"].as_str(), triangles, "{flags:?}");
-        assert_eq!(metadata["split_choice"].is_object(), triangles == Some("choose"), "{flags:?}");
+        let made = metadata["choice"]["candidates"].as_array().map_or(0, |c| c.len());
+        assert_eq!(made, candidates, "{flags:?}");
         let info = String::from_utf8(crate::cli::bvhc(&[&"info", &output]).stdout).unwrap();
-        assert_eq!(info.contains("split choice: kept the tree cut in "), triangles == Some("choose"), "{info}");
+        assert_eq!(info.contains("choice by wide_cost: kept "), candidates > 0, "{info}");
     }
     let both = crate::cli::bvhc(&[&long, &"-o", &output, &"--no-splits", &"--split-triangles", &"any"]);
     assert!(!both.status.success(), "--no-splits with --split-triangles accepted");

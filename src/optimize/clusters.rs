@@ -1,0 +1,220 @@
+//! Reinsertion over clusters: the optimizer run on the part of a built tree above its small subtrees.
+//!
+//! The reinsertion loop (Bittner et al. 2013, see [`super`]) prices a tree with one reference a leaf, but the
+//! file's leaves are the subtrees of up to 8 references that leaf merging and the wide collapse make
+//! afterwards. Reinsertion lowers the inner nodes' areas and breaks up the small, tight subtrees a top-down
+//! builder makes at the bottom: on the kitchen the wide tree's leaf part (packets times leaf areas) rose by
+//! 7-22% while its node part fell (`docs/evaluation.md`). Here the built tree's subtrees that leaf merging
+//! would make a leaf of at most `max_cluster` references (the merge's own rule, with the optimizer's
+//! constants) are kept as they were built, each standing in as one leaf of a smaller tree, and reinsertion
+//! optimizes that tree; the clusters are then put back under its leaves. The optimizer works on boxes only, so
+//! a cluster is just its root's box; the clusters' insides are never changed.
+
+use std::ops::ControlFlow;
+
+use super::tree::{NONE, OptNode, OptTree};
+use super::{OptimizeParams, OptimizeReport, Progress, cost_of, optimize};
+use crate::cost::SahConstants;
+
+/// Cluster size used by conversions: subtrees of up to 4 references (measured against 2 on the wide cost of
+/// seven scenes: kitchen 10.29 against 10.67, 2CylinderEngine 25.63 / 26.08, scanned meshes within 0.5%).
+pub const DEFAULT_CLUSTER_SIZE: usize = 4;
+
+/// Optimizes `tree` (with one reference a leaf) by reinsertion over its clusters of up to `max_cluster`
+/// references, in place; the report's costs are those of the whole tree before and after, and its batches
+/// those of the tree over clusters. Deterministic for any number of threads, as [`optimize`] is.
+pub fn optimize_over_clusters(
+    tree: &mut OptTree,
+    params: &OptimizeParams,
+    max_cluster: usize,
+    progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
+) -> OptimizeReport {
+    let initial = cost_of(tree, params.constants);
+    let roots = cluster_roots(tree, params.constants, max_cluster);
+    let mut upper = tree_over(tree, &roots);
+    let mut report = optimize(&mut upper, params, progress);
+    *tree = expanded(&upper, tree, &roots);
+    report.initial = initial;
+    report.best = cost_of(tree, params.constants);
+    report
+}
+
+/// The roots of the clusters, depth first: the topmost nodes whose subtree the leaf merge would make one leaf
+/// of at most `max_cluster` references (`c_I n SA <= c_T SA + C(left) + C(right)`, as in
+/// [`super::merge_leaves`]), and the leaves no such node holds.
+fn cluster_roots(tree: &OptTree, constants: SahConstants, max_cluster: usize) -> Vec<u32> {
+    let mut merged = vec![false; tree.nodes.len()];
+    let mut pending: Vec<(f64, usize)> = Vec::new();
+    for i in tree.children_first() {
+        let node = &tree.nodes[i as usize];
+        let area = node.aabb.surface_area();
+        if node.left == NONE {
+            pending.push((constants.intersection * area, 1));
+            continue;
+        }
+        let (Some((left_cost, left_count)), Some((right_cost, right_count))) = (pending.pop(), pending.pop()) else {
+            unreachable!("reverse depth-first order finishes both children before their parent");
+        };
+        let count = left_count + right_count;
+        let split = constants.traversal * area + left_cost + right_cost;
+        let leaf = constants.intersection * count as f64 * area;
+        merged[i as usize] = count <= max_cluster && leaf <= split;
+        pending.push((if merged[i as usize] { leaf } else { split }, count));
+    }
+    let mut roots = Vec::new();
+    if tree.root == NONE {
+        return roots;
+    }
+    let mut stack = vec![tree.root];
+    while let Some(i) = stack.pop() {
+        let node = &tree.nodes[i as usize];
+        if node.left == NONE || merged[i as usize] {
+            roots.push(i);
+        } else {
+            stack.push(node.right);
+            stack.push(node.left);
+        }
+    }
+    roots
+}
+
+/// The part of `tree` above `roots`: the same inner nodes, and one leaf per cluster with the cluster's box,
+/// whose `right` is the cluster's index in `roots`.
+fn tree_over(tree: &OptTree, roots: &[u32]) -> OptTree {
+    let mut upper = OptTree { nodes: Vec::with_capacity(2 * roots.len()), root: NONE };
+    if roots.is_empty() {
+        return upper;
+    }
+    let mut next_root = 0u32;
+    // (node of `tree`, parent in `upper`, whether it is the parent's left child)
+    let mut stack = vec![(tree.root, NONE, true)];
+    while let Some((i, parent, is_left)) = stack.pop() {
+        let node = &tree.nodes[i as usize];
+        let index = upper.nodes.len() as u32;
+        let at_cluster = roots.get(next_root as usize) == Some(&i);
+        let (left, right) = if at_cluster {
+            next_root += 1;
+            (NONE, next_root - 1)
+        } else {
+            stack.push((node.right, index, false));
+            stack.push((node.left, index, true));
+            (NONE, NONE)
+        };
+        upper.nodes.push(OptNode { aabb: node.aabb, parent, left, right });
+        link(&mut upper, parent, index, is_left);
+    }
+    upper.root = 0;
+    upper
+}
+
+/// The tree with one reference a leaf again: `upper`'s nodes, each of its leaves replaced by the subtree of
+/// `tree` at that cluster's root.
+fn expanded(upper: &OptTree, tree: &OptTree, roots: &[u32]) -> OptTree {
+    let mut whole = OptTree { nodes: Vec::with_capacity(tree.nodes.len()), root: NONE };
+    if upper.root == NONE {
+        return whole;
+    }
+    // (whether the node is `upper`'s, its index there or in `tree`, parent in `whole`, is it a left child)
+    let mut stack = vec![(true, upper.root, NONE, true)];
+    while let Some((in_upper, i, parent, is_left)) = stack.pop() {
+        let node = if in_upper { &upper.nodes[i as usize] } else { &tree.nodes[i as usize] };
+        if in_upper && node.left == NONE {
+            stack.push((false, roots[node.right as usize], parent, is_left));
+            continue;
+        }
+        let index = whole.nodes.len() as u32;
+        let right = if node.left == NONE { node.right } else { NONE };
+        whole.nodes.push(OptNode { aabb: node.aabb, parent, left: NONE, right });
+        link(&mut whole, parent, index, is_left);
+        if node.left != NONE {
+            stack.push((in_upper, node.right, index, false));
+            stack.push((in_upper, node.left, index, true));
+        }
+    }
+    whole.root = 0;
+    whole
+}
+
+/// Makes `child` the left or right child of `parent` (nothing for the root).
+fn link(tree: &mut OptTree, parent: u32, child: u32, is_left: bool) {
+    if parent == NONE {
+        return;
+    }
+    let parent = &mut tree.nodes[parent as usize];
+    if is_left {
+        parent.left = child;
+    } else {
+        parent.right = child;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{cluster_roots, optimize_over_clusters};
+    use crate::build::Builder;
+    use crate::optimize::tree::{NONE, OptTree};
+    use crate::optimize::{OptimizeParams, Preset, cost_of};
+
+    /// Triangles scattered in a cube, from a fixed linear congruential sequence.
+    fn scattered(count: usize) -> Vec<[[f32; 3]; 3]> {
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        (0..count)
+            .map(|_| {
+                let c = [next() * 10.0, next() * 10.0, next() * 10.0];
+                std::array::from_fn(|_| std::array::from_fn(|a| c[a] + next() * 0.6))
+            })
+            .collect()
+    }
+
+    /// A subtree's shape and contents, depth first: each node as its box's bits and, for a leaf, its reference.
+    fn subtree(tree: &OptTree, root: u32) -> Vec<(Vec<u32>, u32)> {
+        let mut out = Vec::new();
+        let mut stack = vec![root];
+        while let Some(i) = stack.pop() {
+            let node = &tree.nodes[i as usize];
+            let bits = node.aabb.min.iter().chain(&node.aabb.max).map(|c| c.to_bits()).collect();
+            out.push((bits, if node.left == NONE { node.right } else { NONE }));
+            if node.left != NONE {
+                stack.push(node.right);
+                stack.push(node.left);
+            }
+        }
+        out
+    }
+
+    /// Every cluster of the built tree is found whole, node for node, in the optimized tree; the tree keeps
+    /// its invariants and every reference; its cost is not above the built tree's and is what the report says;
+    /// and the result does not depend on the thread count.
+    #[test]
+    fn clusters_stay_as_built_and_the_tree_above_them_is_optimized() {
+        let triangles = scattered(3000);
+        let built = OptTree::from_build(Builder::BinnedSah.build(&triangles, 1), &triangles);
+        let params = OptimizeParams::preset(Preset::Balanced);
+        let roots = cluster_roots(&built, params.constants, 4);
+        assert!(roots.len() < 2900, "hardly any cluster holds several references: {}", roots.len());
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut tree = built.clone();
+                let report =
+                    optimize_over_clusters(&mut tree, &params, 4, &mut |_| std::ops::ControlFlow::Continue(()));
+                (tree, report)
+            })
+        };
+        let (tree, report) = run(2);
+        tree.check_invariants(&triangles).unwrap();
+        assert!(report.best.cost < report.initial.cost);
+        assert_eq!(report.initial.cost, cost_of(&built, params.constants).cost);
+        assert_eq!(report.best.cost, cost_of(&tree, params.constants).cost);
+        let all: std::collections::HashSet<Vec<(Vec<u32>, u32)>> =
+            (0..tree.nodes.len() as u32).map(|i| subtree(&tree, i)).collect();
+        for &root in &roots {
+            assert!(all.contains(&subtree(&built, root)), "cluster at {root} was changed");
+        }
+        assert_eq!(run(1).0, tree, "1 and 2 threads differ");
+    }
+}
