@@ -143,8 +143,8 @@ impl Conversion {
         self
     }
 
-    /// What reinsertion optimizes over (the preset decides otherwise:
-    /// [`crate::convert::OptimizeOver::Choose`] for `max-quality`, `References` for the others).
+    /// What reinsertion optimizes over (the preset decides otherwise, see
+    /// [`crate::convert::OptimizeOver::for_preset`]).
     pub fn optimize_over(mut self, over: crate::convert::OptimizeOver) -> Self {
         self.options.optimize_over = over;
         self

@@ -7,8 +7,9 @@
 //! 7-22% while its node part fell (`docs/evaluation.md`). Here the built tree's subtrees that leaf merging
 //! would make a leaf of at most `max_cluster` references (the merge's own rule, with the optimizer's
 //! constants) are kept as they were built, each standing in as one leaf of a smaller tree, and reinsertion
-//! optimizes that tree; the clusters are then put back under its leaves. The optimizer works on boxes only, so
-//! a cluster is just its root's box; the clusters' insides are never changed.
+//! optimizes that tree; the clusters are then put back under its leaves, in place. The optimizer works on
+//! boxes only, so a cluster is just its root's box; the clusters' insides are never changed. With clusters of
+//! up to 4 the optimizer moves 2.5-4x fewer leaves, and takes under half the time.
 
 use std::ops::ControlFlow;
 
@@ -31,9 +32,9 @@ pub fn optimize_over_clusters(
 ) -> OptimizeReport {
     let initial = cost_of(tree, params.constants);
     let roots = cluster_roots(tree, params.constants, max_cluster);
-    let mut upper = tree_over(tree, &roots);
+    let (mut upper, slots) = tree_over(tree, &roots);
     let mut report = optimize(&mut upper, params, progress);
-    *tree = expanded(&upper, tree, &roots);
+    put_back(&upper, &slots, &roots, tree);
     report.initial = initial;
     report.best = cost_of(tree, params.constants);
     report
@@ -79,11 +80,12 @@ fn cluster_roots(tree: &OptTree, constants: SahConstants, max_cluster: usize) ->
 }
 
 /// The part of `tree` above `roots`: the same inner nodes, and one leaf per cluster with the cluster's box,
-/// whose `right` is the cluster's index in `roots`.
-fn tree_over(tree: &OptTree, roots: &[u32]) -> OptTree {
+/// whose `right` is the cluster's index in `roots`; and for each of its nodes, the node of `tree` it stands for.
+fn tree_over(tree: &OptTree, roots: &[u32]) -> (OptTree, Vec<u32>) {
     let mut upper = OptTree { nodes: Vec::with_capacity(2 * roots.len()), root: NONE };
+    let mut slots = Vec::with_capacity(2 * roots.len());
     if roots.is_empty() {
-        return upper;
+        return (upper, slots);
     }
     let mut next_root = 0u32;
     // (node of `tree`, parent in `upper`, whether it is the parent's left child)
@@ -91,48 +93,44 @@ fn tree_over(tree: &OptTree, roots: &[u32]) -> OptTree {
     while let Some((i, parent, is_left)) = stack.pop() {
         let node = &tree.nodes[i as usize];
         let index = upper.nodes.len() as u32;
-        let at_cluster = roots.get(next_root as usize) == Some(&i);
-        let (left, right) = if at_cluster {
+        let right = if roots.get(next_root as usize) == Some(&i) {
             next_root += 1;
-            (NONE, next_root - 1)
+            next_root - 1
         } else {
             stack.push((node.right, index, false));
             stack.push((node.left, index, true));
-            (NONE, NONE)
+            NONE
         };
-        upper.nodes.push(OptNode { aabb: node.aabb, parent, left, right });
+        upper.nodes.push(OptNode { aabb: node.aabb, parent, left: NONE, right });
+        slots.push(i);
         link(&mut upper, parent, index, is_left);
     }
     upper.root = 0;
-    upper
+    (upper, slots)
 }
 
-/// The tree with one reference a leaf again: `upper`'s nodes, each of its leaves replaced by the subtree of
-/// `tree` at that cluster's root.
-fn expanded(upper: &OptTree, tree: &OptTree, roots: &[u32]) -> OptTree {
-    let mut whole = OptTree { nodes: Vec::with_capacity(tree.nodes.len()), root: NONE };
+/// Writes the optimized `upper` back into `tree`, in place: reinsertion keeps every node in its slot (it only
+/// relinks them), so each of `upper`'s inner nodes still stands for the inner node of `tree` in `slots`, and
+/// each leaf for its cluster's root; those nodes take `upper`'s links and boxes (a cluster keeps its box and
+/// everything below it).
+fn put_back(upper: &OptTree, slots: &[u32], roots: &[u32], tree: &mut OptTree) {
     if upper.root == NONE {
-        return whole;
+        return;
     }
-    // (whether the node is `upper`'s, its index there or in `tree`, parent in `whole`, is it a left child)
-    let mut stack = vec![(true, upper.root, NONE, true)];
-    while let Some((in_upper, i, parent, is_left)) = stack.pop() {
-        let node = if in_upper { &upper.nodes[i as usize] } else { &tree.nodes[i as usize] };
-        if in_upper && node.left == NONE {
-            stack.push((false, roots[node.right as usize], parent, is_left));
-            continue;
-        }
-        let index = whole.nodes.len() as u32;
-        let right = if node.left == NONE { node.right } else { NONE };
-        whole.nodes.push(OptNode { aabb: node.aabb, parent, left: NONE, right });
-        link(&mut whole, parent, index, is_left);
+    let slot_of = |u: u32| {
+        let node = &upper.nodes[u as usize];
+        if node.left == NONE { roots[node.right as usize] } else { slots[u as usize] }
+    };
+    for (u, node) in upper.nodes.iter().enumerate() {
+        let slot = slot_of(u as u32) as usize;
+        tree.nodes[slot].parent = if node.parent == NONE { NONE } else { slot_of(node.parent) };
         if node.left != NONE {
-            stack.push((in_upper, node.right, index, false));
-            stack.push((in_upper, node.left, index, true));
+            tree.nodes[slot].aabb = node.aabb;
+            tree.nodes[slot].left = slot_of(node.left);
+            tree.nodes[slot].right = slot_of(node.right);
         }
     }
-    whole.root = 0;
-    whole
+    tree.root = slot_of(upper.root);
 }
 
 /// Makes `child` the left or right child of `parent` (nothing for the root).

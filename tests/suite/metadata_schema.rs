@@ -50,7 +50,7 @@ fn every_written_file_matches_the_metadata_schema() {
         assert_eq!(metadata["build"]["splits"]["method"], serde_json::to_value(method).unwrap());
         assert!(metadata["build"]["splits"].get("triangles").is_none(), "the default is not recorded");
         assert!(metadata.get("choice").is_none());
-        assert!(metadata["build"].get("optimize_over").is_none(), "the default is not recorded");
+        assert_eq!(metadata["build"]["optimize_over"], "clusters", "the balanced preset's");
         // Which triangles, what the optimizer's leaves are, and the choice among candidates (with and without
         // wide sections).
         for (triangles, over, wide) in [
