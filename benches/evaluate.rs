@@ -4,8 +4,9 @@
 //! incoherent rays through the loader's binary kernel on all threads; in brackets relative to M = 1), and
 //! average traversal steps and triangle tests per ray. Methods: M = 1 (spatial median), the binned SAH start,
 //! M = 2 (optimized, one reference per leaf) and M = 3 (leaves merged) for the balanced and max-quality presets,
-//! the balanced preset over split references (`bvhc::split`: pre-split at budget 0.1, the SBVH as conversions
-//! run it at 0.1 and 0.3, and an SBVH that cuts every triangle at the paper's overlap threshold), and, side by
+//! the balanced preset over split references (`bvhc::split`: pre-split at budget 0.1, the SBVH at 0.1 and 0.3,
+//! the SBVH 0.3 optimized over clusters as default conversions make it, and an SBVH that cuts every triangle
+//! at the paper's overlap threshold), and, side by
 //! side in the same run, obvhs 0.4's presets (`very_slow_build` with its pre-splits, as the preset has them,
 //! without, and at one primitive a leaf), svenstaro's `bvh` 0.13 and, with `--features tinybvh`, tinybvh's
 //! SBVH (`common/tinybvh.rs`), their trees repacked into the `.bvh` layout so that one cost definition and one
