@@ -64,8 +64,9 @@ pub struct ConvertOptions {
 /// With one reference a leaf (Bittner et al.'s setting) the optimizer lowers the binary tree's inner areas but
 /// breaks up the small subtrees the builder made, which become the file's leaves; over the builder's subtrees
 /// of up to [`DEFAULT_CLUSTER_SIZE`] references ([`optimize_over_clusters`]) those stay as built. Which wins
-/// depends on the scene (wide render time through the default kernel, clusters against references: kitchen
-/// 0.925, milk truck 0.974, 2CylinderEngine 1.022, dragon res2 1.015, others within 1%: `docs/evaluation.md`).
+/// depends on the scene (wide render time through the default kernel, clusters against references, two runs:
+/// kitchen 0.925 and 0.926, milk truck 0.974 and 0.979, 2CylinderEngine 1.022 and 0.996, dragon res2 1.015
+/// and 1.004, the others within 1.5%: `docs/evaluation.md`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum OptimizeOver {
@@ -91,7 +92,7 @@ impl OptimizeOver {
 
     /// A preset's choice: `balanced` optimizes over clusters (measured through the wide kernel against
     /// references: kitchen 0.928, milk truck 0.988 of the render time, the other six scenes within noise, at
-    /// 0.2-0.7% higher wide cost on the scanned meshes; the 7.8M-triangle dragon grid converts in 24.8 s
+    /// 0.1-0.7% higher wide cost on the scanned meshes; the 7.8M-triangle dragon grid converts in 24.8 s
     /// instead of 37.4 s: `docs/evaluation.md`, `docs/scale.md`), `max-quality` chooses, `fast` keeps Bittner
     /// et al.'s one reference a leaf (not measured otherwise).
     pub fn for_preset(preset: Preset) -> OptimizeOver {
@@ -490,7 +491,7 @@ struct Candidate {
 }
 
 impl Candidate {
-    /// What [`SplitTriangles::Choose`] compares: the wide tree's cost, or the binary SAH without wide sections.
+    /// What a [`Choice`] compares: the wide tree's cost, or the binary SAH without wide sections.
     fn score(&self, options: &ConvertOptions) -> f64 {
         match &self.wide_tree {
             Some((wide, costs)) => wide.cost(costs),
