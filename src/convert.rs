@@ -516,7 +516,9 @@ fn best_candidate(
         Some(SplitTriangles::Any) => &[true],
         _ => &[false],
     };
+    // Without optimization both ways give the same tree.
     let over_clusters: &[bool] = match options.optimize_over {
+        _ if options.skip_optimization => &[false],
         OptimizeOver::References => &[false],
         OptimizeOver::Clusters => &[true],
         OptimizeOver::Choose => &[false, true],

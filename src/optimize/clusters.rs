@@ -17,8 +17,9 @@ use super::tree::{NONE, OptNode, OptTree};
 use super::{OptimizeParams, OptimizeReport, Progress, cost_of, optimize};
 use crate::cost::SahConstants;
 
-/// Cluster size used by conversions: subtrees of up to 4 references (measured against 2 on the wide cost of
-/// seven scenes: kitchen 10.29 against 10.67, 2CylinderEngine 25.63 / 26.08, scanned meshes within 0.5%).
+/// Cluster size used by conversions: subtrees of up to 4 references (measured against 2 and 8 on the wide
+/// cost, SBVH 0.3, balanced: kitchen 10.29 against 10.67 and 10.35, 2CylinderEngine 25.63 / 26.08 / 25.65,
+/// the scanned meshes within 0.5%).
 pub const DEFAULT_CLUSTER_SIZE: usize = 4;
 
 /// Optimizes `tree` (with one reference a leaf) by reinsertion over its clusters of up to `max_cluster`
