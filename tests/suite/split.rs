@@ -294,6 +294,15 @@ fn conversions_over_clusters_trace_like_brute_force_and_do_not_depend_on_threads
             let two = convert_in_pool(2, &input, &dir.path().join("two.bvh"), &options);
             assert!(one == two, "{input:?} {over:?}: 1 and 2 threads differ");
         }
+        // Without optimization there is nothing to choose between.
+        let options = ConvertOptions {
+            optimize_over: OptimizeOver::Choose,
+            skip_optimization: true,
+            ..ConvertOptions::default()
+        };
+        let output = dir.path().join("unoptimized.bvh");
+        let report = convert_with(&input, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+        assert!(report.choice.is_none() && report.optimization.is_none());
     }
 }
 
