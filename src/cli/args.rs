@@ -128,9 +128,9 @@ pub struct ConvertArgs {
     /// wide cost is lower (the max-quality preset's; about twice the time). Default: the preset's.
     #[arg(long, value_enum, conflicts_with = "no_splits")]
     pub split_triangles: Option<SplitTrianglesArg>,
-    /// What reinsertion optimizes over: one reference a leaf (the fast preset's), the built tree's subtrees of
-    /// up to 4 references kept as built (the balanced preset's), or choose by converting with both and keeping
-    /// the tree whose wide cost is lower (the max-quality preset's). Default: the preset's.
+    /// What reinsertion optimizes over: one reference a leaf, the built tree's subtrees of up to 4 references
+    /// kept as built (the fast and balanced presets'), or choose by converting with both and keeping the tree
+    /// whose wide cost is lower (the max-quality preset's). Default: the preset's.
     #[arg(long, value_enum)]
     pub optimize_over: Option<OptimizeOverArg>,
     /// The glTF scene to convert, by index or name.
