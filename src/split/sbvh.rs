@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use super::clip::Piece;
 use super::worth_cutting;
 use crate::aabb::Aabb;
-use crate::build::{BuildNode, BuildTree, MEDIAN_FALLBACK_DEPTH};
+use crate::build::{BuildNode, BuildTree, MEDIAN_FALLBACK_DEPTH, build_binned_sah_boxes};
 
 /// Bins (object splits) and slabs (spatial splits) an axis.
 pub const BINS: usize = 16;
@@ -110,6 +110,24 @@ pub fn build_sbvh(triangles: &[[[f32; 3]; 3]], params: &SbvhParams) -> BuildTree
     let slots = Slots { nodes: &mut nodes, node_at: 0, order: &mut order, order_at: 0 };
     builder.build(references, root, extra, 0, slots);
     squeeze_unused(nodes, order)
+}
+
+/// Writes the binned SAH builder's tree over `references` (object splits only, one reference a leaf, built in
+/// place in one pair of arrays instead of new vectors at every node) into `slots`, which hold room for it.
+fn write_object_split_subtree(references: &[Reference], slots: Slots<'_>) {
+    let boxes: Vec<Aabb> = references.iter().map(|r| r.aabb).collect();
+    let subtree = build_binned_sah_boxes(&boxes, 1);
+    for (slot, node) in slots.nodes.iter_mut().zip(&subtree.nodes) {
+        *slot = match *node {
+            BuildNode::Inner { aabb, left, right } => {
+                BuildNode::Inner { aabb, left: slots.node_at + left, right: slots.node_at + right }
+            }
+            BuildNode::Leaf { aabb, first, count } => BuildNode::Leaf { aabb, first: slots.order_at + first, count },
+        };
+    }
+    for (slot, &i) in slots.order.iter_mut().zip(&subtree.triangle_order) {
+        *slot = references[i as usize].triangle;
+    }
 }
 
 /// A node slot no node was written to.
@@ -203,6 +221,11 @@ impl Sbvh<'_> {
             slots.nodes[0] = BuildNode::Leaf { aabb: only.aabb, first: slots.order_at, count: 1 };
             slots.order[0] = only.triangle;
             return;
+        }
+        // No spatial split can happen in this subtree: without budget, or where the node's whole box is not
+        // larger than the overlap that makes one worth trying (the children's overlap lies inside it).
+        if extra == 0 || aabb.surface_area() <= self.min_overlap {
+            return write_object_split_subtree(&references, slots);
         }
         let count = references.len();
         let Split { left, right, boxes: [left_box, right_box], added } = self.split(references, &aabb, extra, depth);
