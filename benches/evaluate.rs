@@ -586,7 +586,7 @@ fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhF
     println!(
         "\n| file (defaults) | records | file MB | SAH | wide cost | render s | vs unsplit | wide steps | packets |\n|---|---|---|---|---|---|---|---|---|"
     );
-    let sbvh = |budget| Some(SplitOptions { budget, method: SplitMethod::Sbvh, ..SplitOptions::with_budget(0.0) });
+    let sbvh = |budget| Some(SplitOptions::with_budget(budget));
     let cut = |triangles| Some(SplitOptions { triangles, ..SplitOptions::with_budget(0.3) });
     let default_splits = SplitOptions::for_preset(Preset::Balanced);
     let settings = [

@@ -525,7 +525,8 @@ fn best_candidate(
     let mut shared = options.clone();
     let count = (cut_any.len() * over_clusters.len()) as u32;
     shared.optimize.time_budget = options.optimize.time_budget.map(|t| t / count);
-    let mut best: Option<(Candidate, f64)> = None;
+    // (candidate, its score, its index in `costs`)
+    let mut best: Option<(Candidate, f64, usize)> = None;
     let mut costs = Vec::new();
     'search: for &any_triangle in cut_any {
         let (built, reference_count) = build_stage(input, triangles, &shared, any_triangle, observer, timings)?;
@@ -543,18 +544,18 @@ fn best_candidate(
                 optimize_over: if clusters { OptimizeOver::Clusters } else { OptimizeOver::References },
                 cost: score,
             });
-            if best.as_ref().is_none_or(|(_, lowest)| score < *lowest) {
-                best = Some((candidate, score));
+            if best.as_ref().is_none_or(|(_, lowest, _)| score < *lowest) {
+                best = Some((candidate, score, costs.len() - 1));
             }
             if cancelled {
                 break 'search;
             }
         }
     }
-    let Some((kept, lowest)) = best else { unreachable!("at least one candidate is made") };
+    let Some((kept, _, kept_index)) = best else { unreachable!("at least one candidate is made") };
     let choice = (costs.len() > 1).then(|| Choice {
         measure: if options.wide.is_some() { "wide_cost" } else { "sah_cost" },
-        kept: costs.iter().position(|c| c.cost == lowest).unwrap_or(0),
+        kept: kept_index,
         candidates: costs,
     });
     Ok((kept, choice))

@@ -23,6 +23,13 @@ pub fn merge_leaves_of_references(tree: &OptTree, constants: SahConstants, max_l
 }
 
 fn merge(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct: bool) -> BuildTree {
+    let collapse = merged_nodes(tree, constants, max_leaf_size, distinct);
+    tree.to_build_tree_with_leaves(&|i| collapse[i as usize])
+}
+
+/// For every node, whether the merge makes its whole subtree one leaf (true for the nodes below such a node
+/// too): the dynamic program above, with `distinct` counting a triangle once a leaf.
+pub(super) fn merged_nodes(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct: bool) -> Vec<bool> {
     // Children first: the subtrees' (cost, triangle count) pairs wait on a stack, the left child's on top, so
     // only those of nodes whose parent is not done yet are held (at most the depth plus one), not 12 bytes a node.
     let mut collapse = vec![false; tree.nodes.len()];
@@ -49,5 +56,5 @@ fn merge(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct
             pending.push((split, count));
         }
     }
-    tree.to_build_tree_with_leaves(&|i| collapse[i as usize])
+    collapse
 }
