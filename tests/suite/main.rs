@@ -18,6 +18,7 @@ mod mutation;
 mod optimize;
 mod optimize_property;
 mod roundtrip;
+mod same_bytes;
 mod rules;
 mod rules_wide;
 mod sbvh;
