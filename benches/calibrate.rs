@@ -16,10 +16,11 @@ mod rays;
 
 use std::ops::ControlFlow;
 
-use bvhc::build::Builder;
+use bvhc::builders::Builder;
+use bvhc::layout::{WideCosts, collapse};
 use bvhc::loader::{KernelPath, PackedTriangle, TraversalCounter, WideTracer};
 use bvhc::optimize::{OptTree, OptimizeParams, optimize};
-use bvhc::wide::{WideCosts, collapse, pack_wide};
+use bvhc::pack::pack_wide;
 
 #[derive(Default)]
 struct Counts {

@@ -15,11 +15,12 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use bvhc::build::Builder;
-use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::builders::Builder;
+use bvhc::cost::SahConstants;
 use bvhc::import::{ImportOptions, import};
+use bvhc::layout::merge_leaves;
 use bvhc::loader::{Ray, Tracer};
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, Selection, merge_leaves, optimize};
+use bvhc::optimize::{OptTree, OptimizeParams, Preset, Selection, optimize};
 use bvhc::pack::pack;
 use plotters::prelude::*;
 use rayon::prelude::*;
@@ -200,7 +201,7 @@ fn main() {
                 let build = merge_leaves(snapshot, constants, leaf);
                 let packed = pack(&build, &triangles);
                 let seconds = render_seconds(&Tracer::new(&packed.nodes, &packed.triangles, None), &ray_set);
-                render[k].1.push((sah_of_build_tree(&build, constants).cost, seconds * 1e3));
+                render[k].1.push((build.sah_cost(constants).cost, seconds * 1e3));
             }
         }
         for (_, points) in &mut render {

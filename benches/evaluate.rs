@@ -32,23 +32,23 @@ mod tinybvh;
 
 use std::time::{Duration, Instant};
 
-use bvhc::aabb::Aabb;
-use bvhc::build::{BuildNode, BuildTree, Builder};
+use bvhc::build_tree::{BuildNode, BuildTree};
+use bvhc::builders::Builder;
+use bvhc::builders::sbvh::{SbvhParams, build_sbvh};
+use bvhc::builders::split_triangles;
 use bvhc::convert::{
     ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles, convert_with, merge_and_collapse,
 };
-use bvhc::cost::{SahConstants, sah_of_build_tree, sah_of_packed};
+use bvhc::cost::{SahConstants, sah_of_packed};
 use bvhc::epo::end_point_overlap;
+use bvhc::geometry::Aabb;
 use bvhc::import::{ImportOptions, import};
+use bvhc::layout::{cluster_roots, records};
+use bvhc::layout::{merge_leaves, merge_leaves_of_references};
 use bvhc::loader::{BvhFile, BvhWriter, Ray, Tracer, TraversalStats};
-use bvhc::optimize::{
-    DEFAULT_CLUSTER_SIZE, OptTree, OptimizeParams, Preset, merge_leaves, merge_leaves_of_references, optimize,
-    optimize_over_clusters,
-};
+use bvhc::optimize::{DEFAULT_CLUSTER_SIZE, OptTree, OptimizeParams, Preset, optimize, optimize_over_clusters};
 use bvhc::pack::pack;
-use bvhc::split::sbvh::{SbvhParams, build_sbvh};
-use bvhc::split::{records, split_triangles};
-use bvhc::wide::pack_wide;
+use bvhc::pack::pack_wide;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 
@@ -124,7 +124,10 @@ fn ours(triangles: &[Triangle]) -> Vec<Method> {
         let params = OptimizeParams::preset(Preset::Balanced);
         let mut go = |_: &bvhc::optimize::Progress| std::ops::ControlFlow::Continue(());
         let report = match clusters {
-            true => optimize_over_clusters(&mut tree, &params, DEFAULT_CLUSTER_SIZE, &mut go),
+            true => {
+                let roots = cluster_roots(&tree, params.constants, DEFAULT_CLUSTER_SIZE);
+                optimize_over_clusters(&mut tree, &params, &roots, &mut go)
+            }
             false => optimize(&mut tree, &params, &mut go),
         };
         let (mut merged, merge_time) = timed(|| merge_leaves_of_references(&tree, constants, 8));
@@ -380,7 +383,7 @@ fn main() {
         let tracer = Tracer::new(&reference.nodes, &reference.triangles, None);
         let (min, max) = (reference.nodes[0].min, reference.nodes[0].max);
         let rays = ray_set(&tracer, min, max);
-        let costs: Vec<f64> = methods.iter().map(|m| sah_of_build_tree(&m.tree, constants).cost).collect();
+        let costs: Vec<f64> = methods.iter().map(|m| m.tree.sah_cost(constants).cost).collect();
         let best = costs.iter().cloned().fold(f64::INFINITY, f64::min);
         println!(
             "\n### {name} ({} triangles; {} primary + {} AO + {} incoherent rays)\n",
@@ -509,7 +512,8 @@ fn other_files(triangles: &[Triangle]) -> Vec<(String, BvhFile, f64)> {
 fn merge_constants_table(triangles: &[Triangle], rays: &RaySet) {
     let mut tree = OptTree::from_build(build_sbvh(triangles, &SbvhParams::with_budget(0.3)), triangles);
     let params = OptimizeParams::preset(Preset::Balanced);
-    optimize_over_clusters(&mut tree, &params, DEFAULT_CLUSTER_SIZE, &mut |_| std::ops::ControlFlow::Continue(()));
+    let roots = cluster_roots(&tree, params.constants, DEFAULT_CLUSTER_SIZE);
+    optimize_over_clusters(&mut tree, &params, &roots, &mut |_| std::ops::ControlFlow::Continue(()));
     let variants = [(3.0, 2.0, 8), (3.0, 3.0, 8), (3.0, 1.5, 8), (3.0, 1.0, 8), (3.0, 0.75, 8), (3.0, 1.0, 16)];
     let packed: Vec<_> = variants
         .iter()

@@ -8,7 +8,7 @@ use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use bvhc::build::build_binned_sah;
+use bvhc::builders::build_binned_sah;
 use bvhc::import::{ImportOptions, import};
 use bvhc::loader::{BvhFile, BvhView, BvhWriter, MappedBvh, TraversalStats};
 use bvhc::pack::pack;

@@ -13,11 +13,12 @@ mod harness;
 use std::ops::ControlFlow;
 use std::time::{Duration, Instant};
 
-use bvhc::aabb::Aabb;
-use bvhc::build::Builder;
-use bvhc::cost::{SahConstants, SahCost, sah_of_build_tree, sah_of_nodes};
+use bvhc::builders::Builder;
+use bvhc::cost::{SahConstants, SahCost, sah_of_nodes};
+use bvhc::geometry::Aabb;
 use bvhc::import::{ImportOptions, import};
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, cost_of, merge_leaves, optimize};
+use bvhc::layout::merge_leaves;
+use bvhc::optimize::{OptTree, OptimizeParams, Preset, cost_of, optimize};
 use obvhs::BvhBuildParams;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -82,7 +83,7 @@ fn run_bvhc(
         trace.push((build_time + p.elapsed, p.best_cost));
         ControlFlow::Continue(())
     });
-    let merged = sah_of_build_tree(&merge_leaves(&tree, constants, MAX_LEAF_SIZE), constants).cost;
+    let merged = merge_leaves(&tree, constants, MAX_LEAF_SIZE).sah_cost(constants).cost;
     let method = match params.algorithm {
         bvhc::optimize::Algorithm::Parallel | bvhc::optimize::Algorithm::Alternating => {
             format!("bvhc {} + {}", builder.name(), preset.name())

@@ -17,10 +17,11 @@ mod rays;
 
 use std::ops::ControlFlow;
 
-use bvhc::build::Builder;
+use bvhc::builders::Builder;
+use bvhc::layout::merge_leaves;
+use bvhc::layout::{WideChild, WideCosts, collapse};
 use bvhc::loader::{KernelPath, PackedTriangle, Ray, WideTracer};
-use bvhc::optimize::{OptTree, OptimizeParams, merge_leaves, optimize};
-use bvhc::wide::{WideChild, WideCosts, collapse};
+use bvhc::optimize::{OptTree, OptimizeParams, optimize};
 
 /// Bytes per N-wide node in structure-of-arrays order: 6 f32 bounds and one u32 reference per child.
 fn wide_node_bytes(width: usize) -> usize {
@@ -99,15 +100,15 @@ fn main() {
 
 /// Mrays/s (median of 3, one thread) of the binary and the wide kernels: (query, binary, portable, AVX2).
 fn kernel_speeds(
-    merged: &bvhc::build::BuildTree,
+    merged: &bvhc::build_tree::BuildTree,
     triangles: &[[[f32; 3]; 3]],
-    wide: &bvhc::wide::WideTree,
+    wide: &bvhc::layout::WideTree,
 ) -> Vec<(&'static str, f64, f64, f64)> {
     let packed_tree = bvhc::pack::pack(merged, triangles);
     let file = bvhc::loader::BvhWriter::new(&packed_tree.nodes, &packed_tree.triangles).build().unwrap();
     let binary = file.view().tracer();
     let soup: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
-    let bvh = bvhc::wide::pack_wide(wide, &soup, &mut Some, false).unwrap();
+    let bvh = bvhc::pack::pack_wide(wide, &soup, &mut Some, false).unwrap();
     let portable = WideTracer::new(&bvh, None, KernelPath::Portable);
     let avx2 = WideTracer::new(&bvh, None, KernelPath::Avx2);
     let root = &file.view().nodes()[0];

@@ -18,7 +18,7 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use crate::build::Builder;
+use crate::builders::Builder;
 use crate::convert::{ConvertError, ConvertOptions, ConvertReport, Event, convert_with};
 use crate::import::{ImportLimits, SceneSelector};
 use crate::optimize::{Preset, Selection};
@@ -110,14 +110,14 @@ impl Conversion {
     }
 
     /// Whether to write the wide sections of format 1.1 (on by default), collapsed with the default
-    /// [`crate::wide::WideCosts`]; without them the file is version 1.0 and traced by the binary kernel.
+    /// [`crate::layout::WideCosts`]; without them the file is version 1.0 and traced by the binary kernel.
     pub fn write_wide(mut self, write: bool) -> Self {
-        self.options.wide = write.then(crate::wide::WideCosts::default);
+        self.options.wide = write.then(crate::layout::WideCosts::default);
         self
     }
 
     /// Split references: `Some(budget)` cuts triangles into at most `budget * triangles` extra references
-    /// (see [`crate::split`]), by the method set with [`Conversion::split_method`] (the SBVH unless told);
+    /// (see [`crate::builders::presplit`]), by the method set with [`Conversion::split_method`] (the SBVH unless told);
     /// `None` keeps one a triangle. Without this call the preset decides (the SBVH within
     /// [`crate::convert::DEFAULT_SPLIT_BUDGET`] except for `fast`).
     pub fn splits(mut self, budget: Option<f64>) -> Self {

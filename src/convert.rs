@@ -11,18 +11,18 @@ use bvhc_loader::format::MAX_DEPTH;
 use bvhc_loader::{AtomicOutput, BvhFile, BvhWriter};
 use serde::Serialize;
 
-use crate::build::{BuildTree, Builder};
-use crate::cost::{SahCost, sah_of_build_tree};
+use crate::build_tree::BuildTree;
+use crate::builders::sbvh::{SbvhParams, build_sbvh};
+use crate::builders::{Builder, split_triangles_with};
+use crate::cost::SahCost;
 use crate::import::{ImportOptions, ImportReport, TriangleSoup, import};
+use crate::layout::{WideCosts, WideTree, cluster_roots};
 use crate::optimize::{
-    DEFAULT_CLUSTER_SIZE, OptTree, OptimizeParams, OptimizeReport, Preset, Progress, StopReason, merge_leaves,
-    merge_leaves_of_references, optimize, optimize_over_clusters,
+    DEFAULT_CLUSTER_SIZE, OptTree, OptimizeParams, OptimizeReport, Preset, Progress, StopReason, optimize,
+    optimize_over_clusters,
 };
-use crate::pack::pack;
-use crate::split::sbvh::{SbvhParams, build_sbvh};
-use crate::split::{records, split_triangles_with};
+use crate::pack::{pack, pack_wide};
 use crate::up_to_date::input_entries;
-use crate::wide::{WideCosts, WideTree, collapse, collapse_references, pack_wide};
 
 /// Largest leaf the merger makes by default (the reference table's M = 3 uses 8).
 pub const DEFAULT_MAX_LEAF_SIZE: usize = 8;
@@ -49,7 +49,7 @@ pub struct ConvertOptions {
     /// Write the wide sections of format 1.1 (`wide_nodes`, `triangle_packets`), collapsed from the optimized
     /// tree with these constants; `None` writes a 1.0 file without them.
     pub wide: Option<WideCosts>,
-    /// Cut triangles into split references ([`crate::split`]); `None`: one reference a triangle. Recorded only
+    /// Cut triangles into split references ([`crate::builders::presplit`]); `None`: one reference a triangle. Recorded only
     /// when on, so files converted without splits keep the bytes they had before splits existed.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub splits: Option<SplitOptions>,
@@ -154,7 +154,7 @@ impl SplitOptions {
 #[serde(rename_all = "snake_case")]
 pub enum SplitTriangles {
     /// Only triangles whose pieces could remove a large part of their box's area (at least
-    /// [`crate::split::sbvh::MIN_WASTE_RATIO`], [`crate::split::MIN_WASTE_RATIO`] for pre-splitting).
+    /// [`crate::builders::sbvh::MIN_WASTE_RATIO`], [`crate::builders::presplit::MIN_WASTE_RATIO`] for pre-splitting).
     #[default]
     Wasteful,
     /// Any triangle the method finds worth cutting (no waste threshold).
@@ -190,11 +190,11 @@ pub const DEFAULT_SPLIT_BUDGET: f64 = 0.3;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SplitMethod {
-    /// During the top-down build, where a node's children would overlap ([`crate::split::sbvh`], Stich et
+    /// During the top-down build, where a node's children would overlap ([`crate::builders::sbvh`], Stich et
     /// al. 2009): the better trees in every scene measured (`docs/evaluation.md`).
     #[default]
     Sbvh,
-    /// Before the build, large triangles at grid planes ([`crate::split::split_triangles`], Karras and Aila
+    /// Before the build, large triangles at grid planes ([`crate::builders::split_triangles`], Karras and Aila
     /// 2013).
     PreSplit,
 }
@@ -283,7 +283,7 @@ pub struct WideSummary {
     pub node_count: usize,
     /// Elements of `triangle_packets`.
     pub packet_count: usize,
-    /// The wide tree's cost under the collapse's constants ([`crate::wide::WideTree::cost`]).
+    /// The wide tree's cost under the collapse's constants ([`crate::layout::WideTree::cost`]).
     pub cost: f64,
 }
 
@@ -401,7 +401,7 @@ pub fn convert_with(
     let over_references = reference_count > triangles.len();
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
-    let cost = sah_of_build_tree(&final_tree, options.optimize.constants);
+    let cost = final_tree.sah_cost(options.optimize.constants);
     let packed = pack(&final_tree, &triangles);
     drop(final_tree);
     let triangle_count = triangles.len();
@@ -494,7 +494,7 @@ impl Candidate {
     fn score(&self, options: &ConvertOptions) -> f64 {
         match &self.wide_tree {
             Some((wide, costs)) => wide.cost(costs),
-            None => sah_of_build_tree(&self.final_tree, options.optimize.constants).cost,
+            None => self.final_tree.sah_cost(options.optimize.constants).cost,
         }
     }
 }
@@ -577,13 +577,13 @@ fn build_stage(
     let too_large = |count: usize| ConvertError::TooLarge { path: input.to_path_buf(), count };
     let (build, reference_count) = match options.splits {
         Some(SplitOptions { budget, method: SplitMethod::PreSplit, .. }) => {
-            let ratio = if any_triangle { 0.0 } else { crate::split::MIN_WASTE_RATIO };
+            let ratio = if any_triangle { 0.0 } else { crate::builders::presplit::MIN_WASTE_RATIO };
             let references = split_triangles_with(triangles, budget, ratio);
             u32::try_from(references.len()).map_err(|_| too_large(references.len()))?;
             (options.builder.build_references(&references), references.len())
         }
         Some(SplitOptions { budget, method: SplitMethod::Sbvh, .. }) => {
-            let ratio = if any_triangle { 0.0 } else { crate::split::sbvh::MIN_WASTE_RATIO };
+            let ratio = if any_triangle { 0.0 } else { crate::builders::sbvh::MIN_WASTE_RATIO };
             let params = SbvhParams { min_waste_ratio: ratio, ..SbvhParams::with_budget(budget) };
             let build = build_sbvh(triangles, &params);
             let reference_count = build.triangle_order.len();
@@ -612,7 +612,10 @@ fn optimize_and_merge(
     let clock = Instant::now();
     let mut progress = |p: &Progress| observer(Event::Batch(p));
     let optimization = (!options.skip_optimization).then(|| match clusters {
-        true => optimize_over_clusters(&mut tree, &options.optimize, DEFAULT_CLUSTER_SIZE, &mut progress),
+        true => {
+            let roots = cluster_roots(&tree, options.optimize.constants, DEFAULT_CLUSTER_SIZE);
+            optimize_over_clusters(&mut tree, &options.optimize, &roots, &mut progress)
+        }
         false => optimize(&mut tree, &options.optimize, &mut progress),
     });
     timings.optimize += lap(clock);
@@ -628,7 +631,7 @@ fn optimize_and_merge(
 /// How a conversion chose among candidate trees ([`SplitTriangles::Choose`], [`OptimizeOver::Choose`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Choice {
-    /// What was compared: `wide_cost` (the wide collapse's cost, [`crate::wide::WideTree::cost`]) or `sah_cost`
+    /// What was compared: `wide_cost` (the wide collapse's cost, [`crate::layout::WideTree::cost`]) or `sah_cost`
     /// (the binary tree's, for files without wide sections).
     pub measure: &'static str,
     /// Every candidate made, in the order made.
@@ -648,13 +651,8 @@ pub struct CandidateCost {
     pub cost: f64,
 }
 
-/// The merge stage of a conversion: the leaf merging (up to `options.max_leaf_size` when leaves are merged) and
-/// the wide collapse (when `options.wide` asks for it) of an optimized tree with one reference a leaf. Both
-/// start from that tree (the collapse's dynamic program chooses its own leaves) and run side by side. With
-/// `repeats` (some triangle lies in several leaves: split references) both count a triangle once a leaf, and
-/// leaves that gathered several pieces of a triangle then hold it once, with the two trees' record counts kept
-/// equal (where the wide leaves have no room for that, both keep every piece); without repeats that is the
-/// plain count, which the plain programs get faster.
+/// The merge stage of a conversion: [`crate::layout::merge_and_collapse`] with the options' leaf size and
+/// wide costs.
 pub fn merge_and_collapse(
     tree: &OptTree,
     options: &ConvertOptions,
@@ -662,28 +660,14 @@ pub fn merge_and_collapse(
     repeats: bool,
 ) -> (BuildTree, Option<(WideTree, WideCosts)>) {
     let leaf_size = if options.merge_leaves { options.max_leaf_size.max(1) } else { 1 };
-    let constants = options.optimize.constants;
-    let (mut wide_tree, mut final_tree) = rayon::join(
-        || {
-            options.wide.map(|costs| match repeats {
-                true => (collapse_references(tree, &costs), costs),
-                false => (collapse(tree, &costs), costs),
-            })
-        },
-        || match repeats {
-            true => merge_leaves_of_references(tree, constants, leaf_size),
-            false => merge_leaves(tree, constants, leaf_size),
-        },
-    );
-    if repeats {
-        match &mut wide_tree {
-            Some((wide, _)) => {
-                records::remove_repeats_and_balance(&mut final_tree, wide, triangle_count);
-            }
-            None => records::remove_binary_repeats(&mut final_tree, triangle_count),
-        }
-    }
-    (final_tree, wide_tree)
+    crate::layout::merge_and_collapse(
+        tree,
+        options.optimize.constants,
+        leaf_size,
+        options.wide,
+        triangle_count,
+        repeats,
+    )
 }
 
 /// Fails when `output` is (the same file as) one of `inputs`.

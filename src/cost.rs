@@ -9,8 +9,7 @@
 use bvhc_loader::PackedNode;
 use serde::Serialize;
 
-use crate::aabb::Aabb;
-use crate::build::{BuildNode, BuildTree};
+use crate::geometry::Aabb;
 
 /// The SAH constants.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -66,19 +65,6 @@ impl Sums {
             SahCost::from_parts(0.0, 0.0, constants)
         }
     }
-}
-
-/// The cost of a build tree (empty tree: 0).
-pub fn sah_of_build_tree(tree: &BuildTree, constants: SahConstants) -> SahCost {
-    let mut sums = Sums::default();
-    for node in &tree.nodes {
-        match node {
-            BuildNode::Inner { aabb, .. } => sums.inner += aabb.surface_area(),
-            BuildNode::Leaf { aabb, count, .. } => sums.leaf += aabb.surface_area() * f64::from(*count),
-        }
-    }
-    let root_area = tree.nodes.first().map_or(0.0, |n| n.aabb().surface_area());
-    sums.finish(root_area, constants)
 }
 
 /// The cost of a packed tree, as stored in a `.bvh` file (node 0 the root).

@@ -19,10 +19,10 @@
 
 use rayon::prelude::*;
 
-use crate::aabb::Aabb;
-use crate::build::{BuildNode, BuildTree};
+use crate::build_tree::{BuildNode, BuildTree};
 use crate::cost::SahConstants;
-use crate::split::clip::sub;
+use crate::geometry::Aabb;
+use crate::geometry::clip::sub;
 
 /// The end-point overlap of `tree` over `triangles` (0 for an empty tree or a scene without area).
 pub fn end_point_overlap(tree: &BuildTree, triangles: &[[[f32; 3]; 3]], constants: SahConstants) -> f64 {
@@ -248,7 +248,7 @@ pub fn polygon_area(corners: &[[f64; 3]]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::Builder;
+    use crate::builders::Builder;
 
     /// The definition summed over every node and every triangle, no pruning: each triangle's area inside the
     /// node's box outside the boxes of the subtree's leaves that hold it.
@@ -323,7 +323,7 @@ mod tests {
     fn over_split_references_the_pruned_walk_equals_the_definition_too() {
         let constants = SahConstants::default();
         let triangles = random_triangles(150, 9);
-        let references = crate::split::split_triangles(&triangles, 1.0);
+        let references = crate::builders::split_triangles(&triangles, 1.0);
         assert!(references.len() > 200);
         let tree = Builder::BinnedSah.build_references(&references);
         let fast = end_point_overlap(&tree, &triangles, constants);

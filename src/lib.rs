@@ -2,18 +2,18 @@
 //! `bvhc-loader` crate maps at run time.
 #![forbid(unsafe_code)]
 
-pub mod aabb;
-pub mod build;
+pub mod build_tree;
+pub mod builders;
 pub mod conversion;
 pub mod convert;
 pub mod cost;
 pub mod epo;
+pub mod geometry;
 pub mod import;
+pub mod layout;
 pub mod optimize;
 pub mod pack;
-pub mod split;
 pub mod up_to_date;
-pub mod wide;
 
 pub use conversion::{Conversion, ConversionOutcome};
 pub use optimize::Preset;

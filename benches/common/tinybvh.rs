@@ -9,8 +9,8 @@
 //! references as they are, so that bvhc's cost, EPO and kernel measure it like every other tree.
 #![allow(unsafe_code)] // One read past the wrapper's index slice; its bound is proved beside it.
 
-use bvhc::aabb::Aabb;
-use bvhc::build::{BuildNode, BuildTree};
+use bvhc::build_tree::{BuildNode, BuildTree};
+use bvhc::geometry::Aabb;
 
 /// The name of the method in the tables.
 pub const NAME: &str = "tinybvh 1.6.8 BuildHQ (SBVH)";

@@ -178,7 +178,7 @@ fn parse_seconds(text: &str) -> Result<std::time::Duration, String> {
 
 fn parse_split_budget(text: &str) -> Result<f64, String> {
     let budget: f64 = text.trim().parse().map_err(|_| format!("'{text}' is not a number"))?;
-    if !(0.0..=bvhc::split::MAX_BUDGET).contains(&budget) {
+    if !(0.0..=bvhc::builders::MAX_BUDGET).contains(&budget) {
         return Err(format!("'{text}': expected a fraction from 0 to 4 (at most five references a triangle)"));
     }
     Ok(budget)

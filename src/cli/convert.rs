@@ -5,7 +5,7 @@ use std::ops::ControlFlow;
 use std::time::Duration;
 
 use bvhc::Conversion;
-use bvhc::build::Builder;
+use bvhc::builders::Builder;
 use bvhc::convert::{ConvertError, Event, OptimizeOver, SplitMethod, SplitTriangles, Stage};
 use bvhc::import::{ErrorKind, ImportLimits, SceneSelector};
 use bvhc::optimize::{Preset, Selection};

@@ -6,6 +6,7 @@
 //! written); 4 internal error.
 
 mod args;
+mod camera;
 mod convert;
 mod info;
 mod legend;

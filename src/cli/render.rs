@@ -3,38 +3,16 @@
 //! heat map of traversal steps per pixel.
 
 use bvhc::loader::{PackedTriangle, TraversalStats};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use super::args::RenderArgs;
+use super::camera::Camera;
 use super::info::read_verified;
 use super::legend::{Canvas, draw_heat_legend};
 use super::output::print;
 use super::view;
 use super::{Exit, fail};
-
-pub type Vec3 = [f32; 3];
-
-/// A pinhole camera: where it is, what it looks at, and its vertical field of view.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    pub eye: Vec3,
-    pub target: Vec3,
-    pub fov_degrees: f32,
-}
-
-pub fn sub(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-pub fn dot(a: Vec3, b: Vec3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-pub fn normalize(a: Vec3) -> Vec3 {
-    let length = dot(a, a).sqrt();
-    if length > 0.0 { a.map(|c| c / length) } else { [0.0, 0.0, 1.0] }
-}
 
 /// The camera given by `--camera ex,ey,ez,tx,ty,tz`, if any.
 fn camera_argument(args: &RenderArgs) -> Result<Option<Camera>, String> {
@@ -50,26 +28,26 @@ fn camera_argument(args: &RenderArgs) -> Result<Option<Camera>, String> {
     if !values.iter().all(|v| v.is_finite()) || [ex, ey, ez] == [tx, ty, tz] {
         return Err(format!("--camera '{text}': the eye and the target must be finite and different points"));
     }
-    Ok(Some(Camera { eye: [ex, ey, ez], target: [tx, ty, tz], fov_degrees: 45.0 }))
+    Ok(Some(Camera { eye: Vec3::new(ex, ey, ez), target: Vec3::new(tx, ty, tz), fov_degrees: 45.0 }))
 }
 
 /// A color ramp for the heat map: blue, cyan, green, yellow, red.
-pub fn heat(t: f32) -> Vec3 {
+pub fn heat(t: f32) -> [f32; 3] {
     let t = t.clamp(0.0, 1.0) * 4.0;
-    let stops: [Vec3; 5] = [[0.1, 0.1, 0.6], [0.0, 0.7, 0.9], [0.1, 0.8, 0.2], [1.0, 0.9, 0.1], [0.9, 0.1, 0.1]];
+    let stops =
+        [[0.1, 0.1, 0.6], [0.0, 0.7, 0.9], [0.1, 0.8, 0.2], [1.0, 0.9, 0.1], [0.9, 0.1, 0.1]].map(Vec3::from_array);
     let i = (t as usize).min(3);
-    let f = t - i as f32;
-    std::array::from_fn(|c| stops[i][c] * (1.0 - f) + stops[i + 1][c] * f)
+    stops[i].lerp(stops[i + 1], t - i as f32).to_array()
 }
 
-fn shade(triangle: &PackedTriangle, direction: Vec3) -> Vec3 {
-    let [v0, v1, v2] = triangle.vertices;
-    let mut normal = normalize(cross(sub(v1, v0), sub(v2, v0)));
-    if dot(normal, direction) > 0.0 {
-        normal = normal.map(|c| -c);
+/// The geometric normal as a color, lit from the eye.
+fn shade(triangle: &PackedTriangle, direction: Vec3) -> [f32; 3] {
+    let mut normal = view::geometric_normal(triangle).normalize_or(Vec3::Z);
+    if normal.dot(direction) > 0.0 {
+        normal = -normal;
     }
-    let light = 0.25 + 0.75 * -dot(normal, direction);
-    std::array::from_fn(|c| (0.5 + 0.5 * normal[c]) * light)
+    let light = 0.25 + 0.75 * -normal.dot(direction);
+    ((0.5 + 0.5 * normal) * light).to_array()
 }
 
 /// Renders and writes the PNG.
@@ -86,7 +64,7 @@ pub fn render(args: &RenderArgs) -> Exit {
     };
     let view = file.view();
     let (width, height) = (args.width.clamp(1, 16384) as usize, args.height.clamp(1, 16384) as usize);
-    let (min, max) = view.nodes().first().map_or(([0.0; 3], [1.0; 3]), |root| (root.min, root.max));
+    let (min, max) = view.nodes().first().map_or((Vec3::ZERO, Vec3::ONE), |root| (root.min.into(), root.max.into()));
     let tracer = view.tracer();
     let (camera, inside) = match camera_argument(args) {
         Ok(Some(camera)) => (camera, false),
@@ -102,7 +80,7 @@ pub fn render(args: &RenderArgs) -> Exit {
             let hit = tracer.closest_hit_counted(&ray, &mut stats);
             row_steps[x] = stats.node_visits as u32;
             let color = match hit {
-                Some(hit) => shade(&view.triangles()[hit.triangle_index as usize], ray.direction),
+                Some(hit) => shade(&view.triangles()[hit.triangle_index as usize], Vec3::from_array(ray.direction)),
                 None => [0.12, 0.12, 0.14],
             };
             for c in 0..3 {
@@ -139,8 +117,8 @@ pub fn render(args: &RenderArgs) -> Exit {
     }
     let mean = steps.iter().map(|&s| u64::from(s)).sum::<u64>() as f64 / steps.len() as f64;
     let where_from = if inside { "from inside the scene's box" } else { "from outside" };
-    let [ex, ey, ez] = camera.eye;
-    let [tx, ty, tz] = camera.target;
+    let [ex, ey, ez] = camera.eye.to_array();
+    let [tx, ty, tz] = camera.target.to_array();
     let summary = format!(
         "{}: {width} x {height}, {mean:.1} traversal steps per pixel on average; camera {where_from}: --camera {ex},{ey},{ez},{tx},{ty},{tz}{legend}\n",
         args.output.display()

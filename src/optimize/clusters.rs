@@ -13,10 +13,8 @@
 
 use std::ops::ControlFlow;
 
-use super::merge::merged_nodes;
 use super::tree::{NONE, OptNode, OptTree};
 use super::{OptimizeParams, OptimizeReport, Progress, cost_of, optimize};
-use crate::cost::SahConstants;
 
 /// Cluster size used by conversions: subtrees of up to 4 references (measured on the wide cost, SBVH 0.3,
 /// balanced, against 2, 3, 6 and 8: kitchen 10.29 against 10.67, 10.64, 10.35, 10.35; 2CylinderEngine 25.63
@@ -24,45 +22,23 @@ use crate::cost::SahConstants;
 /// `c_I` = 1 or 0 instead of the optimizer's 2: kitchen 10.39 and 10.40, engine 25.87 and 25.88).
 pub const DEFAULT_CLUSTER_SIZE: usize = 4;
 
-/// Optimizes `tree` (with one reference a leaf) by reinsertion over its clusters of up to `max_cluster`
-/// references, in place; the report's costs are those of the whole tree before and after, and its batches
-/// those of the tree over clusters. Deterministic for any number of threads, as [`optimize`] is.
+/// Optimizes `tree` (with one reference a leaf) by reinsertion over the clusters at `roots`, in place: the
+/// roots of disjoint subtrees that together hold every leaf, in depth-first order (the leaf layout's
+/// [`crate::layout::cluster_roots`]). The report's costs are those of the whole tree before and after, and its
+/// batches those of the tree over clusters. Deterministic for any number of threads, as [`optimize`] is.
 pub fn optimize_over_clusters(
     tree: &mut OptTree,
     params: &OptimizeParams,
-    max_cluster: usize,
+    roots: &[u32],
     progress: &mut dyn FnMut(&Progress) -> ControlFlow<()>,
 ) -> OptimizeReport {
     let initial = cost_of(tree, params.constants);
-    let roots = cluster_roots(tree, params.constants, max_cluster);
-    let (mut upper, slots) = tree_over(tree, &roots);
+    let (mut upper, slots) = tree_over(tree, roots);
     let mut report = optimize(&mut upper, params, progress);
-    put_back(&upper, &slots, &roots, tree);
+    put_back(&upper, &slots, roots, tree);
     report.initial = initial;
     report.best = cost_of(tree, params.constants);
     report
-}
-
-/// The roots of the clusters, depth first: the topmost nodes whose subtree the leaf merge
-/// ([`super::merge_leaves`], counting references) would make one leaf of at most `max_cluster` references, and
-/// the leaves no such node holds.
-fn cluster_roots(tree: &OptTree, constants: SahConstants, max_cluster: usize) -> Vec<u32> {
-    let merged = merged_nodes(tree, constants, max_cluster, false);
-    let mut roots = Vec::new();
-    if tree.root == NONE {
-        return roots;
-    }
-    let mut stack = vec![tree.root];
-    while let Some(i) = stack.pop() {
-        let node = &tree.nodes[i as usize];
-        if node.left == NONE || merged[i as usize] {
-            roots.push(i);
-        } else {
-            stack.push(node.right);
-            stack.push(node.left);
-        }
-    }
-    roots
 }
 
 /// The part of `tree` above `roots`: the same inner nodes, and one leaf per cluster with the cluster's box,
@@ -129,76 +105,5 @@ fn link(tree: &mut OptTree, parent: u32, child: u32, is_left: bool) {
         parent.left = child;
     } else {
         parent.right = child;
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{cluster_roots, optimize_over_clusters};
-    use crate::build::Builder;
-    use crate::optimize::tree::{NONE, OptTree};
-    use crate::optimize::{OptimizeParams, Preset, cost_of};
-
-    /// Triangles scattered in a cube, from a fixed linear congruential sequence.
-    fn scattered(count: usize) -> Vec<[[f32; 3]; 3]> {
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
-        (0..count)
-            .map(|_| {
-                let c = [next() * 10.0, next() * 10.0, next() * 10.0];
-                std::array::from_fn(|_| std::array::from_fn(|a| c[a] + next() * 0.6))
-            })
-            .collect()
-    }
-
-    /// A subtree's shape and contents, depth first: each node as its box's bits and, for a leaf, its reference.
-    fn subtree(tree: &OptTree, root: u32) -> Vec<(Vec<u32>, u32)> {
-        let mut out = Vec::new();
-        let mut stack = vec![root];
-        while let Some(i) = stack.pop() {
-            let node = &tree.nodes[i as usize];
-            let bits = node.aabb.min.iter().chain(&node.aabb.max).map(|c| c.to_bits()).collect();
-            out.push((bits, if node.left == NONE { node.right } else { NONE }));
-            if node.left != NONE {
-                stack.push(node.right);
-                stack.push(node.left);
-            }
-        }
-        out
-    }
-
-    /// Every cluster of the built tree is found whole, node for node, in the optimized tree; the tree keeps
-    /// its invariants and every reference; its cost is not above the built tree's and is what the report says;
-    /// and the result does not depend on the thread count.
-    #[test]
-    fn clusters_stay_as_built_and_the_tree_above_them_is_optimized() {
-        let triangles = scattered(3000);
-        let built = OptTree::from_build(Builder::BinnedSah.build(&triangles, 1), &triangles);
-        let params = OptimizeParams::preset(Preset::Balanced);
-        let roots = cluster_roots(&built, params.constants, 4);
-        assert!(roots.len() < 2900, "hardly any cluster holds several references: {}", roots.len());
-        let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| {
-                let mut tree = built.clone();
-                let report =
-                    optimize_over_clusters(&mut tree, &params, 4, &mut |_| std::ops::ControlFlow::Continue(()));
-                (tree, report)
-            })
-        };
-        let (tree, report) = run(2);
-        tree.check_invariants(&triangles).unwrap();
-        assert!(report.best.cost < report.initial.cost);
-        assert_eq!(report.initial.cost, cost_of(&built, params.constants).cost);
-        assert_eq!(report.best.cost, cost_of(&tree, params.constants).cost);
-        let all: std::collections::HashSet<Vec<(Vec<u32>, u32)>> =
-            (0..tree.nodes.len() as u32).map(|i| subtree(&tree, i)).collect();
-        for &root in &roots {
-            assert!(all.contains(&subtree(&built, root)), "cluster at {root} was changed");
-        }
-        assert_eq!(run(1).0, tree, "1 and 2 threads differ");
     }
 }

@@ -15,13 +15,13 @@
 //! made, which the loops fix, so it is the same for any number of threads; it drifts from a fresh sum by
 //! rounding only (about 1e-15 relative an edit), and the loops take a fresh sum of the tree they return.
 
-use super::tree::{NONE, OptNode, OptTree};
-use crate::aabb::Aabb;
+use super::tree::{NONE, OptNode, OptTree, TreeEdits};
+use crate::geometry::Aabb;
 
 /// The undo log and the area change since the start; see the module documentation.
 #[derive(Debug)]
 pub struct EditLog {
-    /// Bit `i` is set when node `i`'s value at the mark is in `saved`. Empty for a log that records nothing.
+    /// Bit `i` is set when node `i`'s value at the mark is in `saved`. Empty only for an empty tree.
     is_saved: Vec<u64>,
     saved: Vec<(u32, OptNode)>,
     /// Bit `i` is set when node `i` is in `touched`.
@@ -44,19 +44,6 @@ impl EditLog {
             root_at_mark: tree.root,
             inner_area_at_mark: inner_area,
             inner_area,
-        }
-    }
-
-    /// A log that saves nothing and only sums areas (for edits that will not be undone).
-    pub fn unrecorded() -> EditLog {
-        EditLog {
-            is_saved: Vec::new(),
-            saved: Vec::new(),
-            is_touched: Vec::new(),
-            touched: Vec::new(),
-            root_at_mark: NONE,
-            inner_area_at_mark: 0.0,
-            inner_area: 0.0,
         }
     }
 
@@ -123,5 +110,17 @@ impl EditLog {
         self.saved.clear();
         tree.root = self.root_at_mark;
         self.inner_area = self.inner_area_at_mark;
+    }
+}
+
+impl TreeEdits for EditLog {
+    #[inline(always)]
+    fn before_write(&mut self, tree: &OptTree, i: u32) {
+        self.save(tree, i);
+    }
+
+    #[inline(always)]
+    fn box_changed(&mut self, old: &Aabb, new: &Aabb) {
+        EditLog::box_changed(self, old, new);
     }
 }

@@ -1,8 +1,8 @@
 //! The optimizer tree's invariants, checked in one pass: for tests, the property test that runs every preset
 //! after every batch, and debugging.
 
-use crate::aabb::Aabb;
-use crate::split::References;
+use crate::builders::References;
+use crate::geometry::Aabb;
 
 use super::tree::{NONE, OptTree};
 

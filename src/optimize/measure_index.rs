@@ -15,7 +15,7 @@
 
 use rayon::prelude::*;
 
-use super::select::{Selection, is_eligible, measure};
+use super::measure::{Selection, is_eligible, measure};
 use super::tree::{NONE, OptTree, area};
 
 /// Bits of a key that pick its histogram bucket: the top 16.

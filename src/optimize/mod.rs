@@ -1,4 +1,4 @@
-//! BVH optimization by reinsertion, and leaf merging.
+//! The optimize stage: BVH optimization by reinsertion.
 //!
 //! References: J. Bittner, M. Hapala, V. Havran, "Fast Insertion-Based Optimization of Bounding Volume
 //! Hierarchies", Computer Graphics Forum 32(1):85-100, 2013 (the sequential reference loop); D. Meister,
@@ -15,8 +15,8 @@
 mod clusters;
 mod edit_log;
 mod invariants;
+mod measure;
 mod measure_index;
-mod merge;
 mod parallel;
 mod params;
 mod search;
@@ -33,12 +33,12 @@ use serde::Serialize;
 
 pub use clusters::{DEFAULT_CLUSTER_SIZE, optimize_over_clusters};
 pub use edit_log::EditLog;
+pub use measure::{Selection, is_eligible};
 pub use measure_index::MeasureIndex;
-pub use merge::{merge_leaves, merge_leaves_of_references};
 pub use params::{Algorithm, OptimizeParams, Preset};
 pub use search::{Move, SearchQueue, best_in_subtree, best_insertion, best_move};
-pub use select::{Selection, is_eligible, select_batch, select_batch_with};
-pub use tree::{ChildrenFirst, NONE, OptNode, OptTree, area};
+pub use select::{select_batch, select_batch_with};
+pub use tree::{ChildrenFirst, NONE, OptNode, OptTree, TreeEdits, area};
 
 use crate::cost::{SahConstants, SahCost, sah_of_sums};
 

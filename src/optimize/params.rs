@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use super::select::Selection;
+use super::measure::Selection;
 use crate::cost::SahConstants;
 
 /// Which optimization loop runs.

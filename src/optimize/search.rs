@@ -12,7 +12,7 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
 use super::tree::{NONE, OptTree, area};
-use crate::aabb::Aabb;
+use crate::geometry::Aabb;
 
 /// A heap entry: a candidate and its induced cost, ordered so that `BinaryHeap` pops the smallest cost first
 /// (then the smallest node index).

@@ -7,8 +7,8 @@
 //! Deviation from the paper: none in the loop; the search breaks ties deterministically (see `search`).
 
 use super::edit_log::EditLog;
+use super::measure::is_eligible;
 use super::search::{SearchQueue, best_insertion};
-use super::select::is_eligible;
 use super::tree::{OptNode, OptTree};
 
 /// Runs one batch over `batch` (nodes skipped when they became ineligible); returns the reinsertions made.

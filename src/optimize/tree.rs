@@ -6,9 +6,9 @@
 
 use rayon::prelude::*;
 
-use super::edit_log::EditLog;
-use crate::aabb::Aabb;
-use crate::build::{BuildNode, BuildTree, build_binned_sah};
+use crate::build_tree::{BuildNode, BuildTree};
+use crate::builders::build_binned_sah;
+use crate::geometry::Aabb;
 
 /// Nodes per chunk of the deterministic parallel area sums.
 const AREA_SUM_CHUNK: usize = 16 * 1024;
@@ -49,6 +49,23 @@ fn has_single_triangle_leaves(build: &BuildTree) -> bool {
 }
 
 const _: () = assert!(size_of::<OptNode>() == size_of::<BuildNode>(), "the in-place conversion needs equal sizes");
+
+/// Receives the edits of an [`OptTree`] made by its `*_logged` methods: the optimizer's undo log
+/// (`EditLog`) saves each node before its first write and sums the change of the inner nodes' areas; `()`
+/// records nothing.
+pub trait TreeEdits {
+    /// Node `i` of `tree` is about to be written (`i` may be [`NONE`]).
+    fn before_write(&mut self, tree: &OptTree, i: u32);
+    /// An inner node's box changes from `old` to `new`.
+    fn box_changed(&mut self, old: &Aabb, new: &Aabb);
+}
+
+impl TreeEdits for () {
+    #[inline(always)]
+    fn before_write(&mut self, _: &OptTree, _: u32) {}
+    #[inline(always)]
+    fn box_changed(&mut self, _: &Aabb, _: &Aabb) {}
+}
 
 /// A binary BVH with one triangle per leaf, as the optimizer needs.
 #[derive(Clone, Debug, PartialEq)]
@@ -183,13 +200,13 @@ impl OptTree {
 
     /// Replaces `old` by `new` among the children of `parent` (or as the root when `parent` is `NONE`).
     pub fn replace_child(&mut self, parent: u32, old: u32, new: u32) {
-        self.replace_child_logged(parent, old, new, &mut EditLog::unrecorded());
+        self.replace_child_logged(parent, old, new, &mut ());
     }
 
     /// [`OptTree::replace_child`], saving what it changes in `log`.
-    pub fn replace_child_logged(&mut self, parent: u32, old: u32, new: u32, log: &mut EditLog) {
-        log.save(self, parent);
-        log.save(self, new);
+    pub fn replace_child_logged(&mut self, parent: u32, old: u32, new: u32, log: &mut impl TreeEdits) {
+        log.before_write(self, parent);
+        log.before_write(self, new);
         if parent == NONE {
             self.root = new;
         } else {
@@ -205,18 +222,18 @@ impl OptTree {
 
     /// Recomputes boxes from `i` up to the root, stopping where a box does not change.
     pub fn refit_from(&mut self, i: u32) {
-        self.refit_from_logged(i, &mut EditLog::unrecorded());
+        self.refit_from_logged(i, &mut ());
     }
 
     /// [`OptTree::refit_from`], saving what it changes in `log` and adding the area change.
-    pub fn refit_from_logged(&mut self, mut i: u32, log: &mut EditLog) {
+    pub fn refit_from_logged(&mut self, mut i: u32, log: &mut impl TreeEdits) {
         while i != NONE {
             let node = self.nodes[i as usize];
             let aabb = self.nodes[node.left as usize].aabb.union(&self.nodes[node.right as usize].aabb);
             if aabb == node.aabb {
                 return;
             }
-            log.save(self, i);
+            log.before_write(self, i);
             log.box_changed(&node.aabb, &aabb);
             self.nodes[i as usize].aabb = aabb;
             i = node.parent;
@@ -224,15 +241,15 @@ impl OptTree {
     }
 
     /// Writes `node` into inner node `i` (inner before and after), saving it in `log` and adding the area change.
-    pub fn set_inner_logged(&mut self, i: u32, node: OptNode, log: &mut EditLog) {
-        log.save(self, i);
+    pub fn set_inner_logged(&mut self, i: u32, node: OptNode, log: &mut impl TreeEdits) {
+        log.before_write(self, i);
         log.box_changed(&self.nodes[i as usize].aabb, &node.aabb);
         self.nodes[i as usize] = node;
     }
 
     /// Sets the parent link of node `i`, saving it in `log`.
-    pub fn set_parent_logged(&mut self, i: u32, parent: u32, log: &mut EditLog) {
-        log.save(self, i);
+    pub fn set_parent_logged(&mut self, i: u32, parent: u32, log: &mut impl TreeEdits) {
+        log.before_write(self, i);
         self.nodes[i as usize].parent = parent;
     }
 
@@ -255,7 +272,7 @@ impl OptTree {
     /// Moves `c` (not the root, with its subtree) to be the sibling of `x` (not `c`'s parent, not in `c`'s
     /// subtree), reusing `c`'s parent as their new parent; every change saved in `log`. The parallel loop's
     /// move.
-    pub fn move_beside_logged(&mut self, c: u32, x: u32, log: &mut EditLog) {
+    pub fn move_beside_logged(&mut self, c: u32, x: u32, log: &mut impl TreeEdits) {
         let p = self.nodes[c as usize].parent;
         let s = self.sibling(c);
         let g = self.nodes[p as usize].parent;

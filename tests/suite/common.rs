@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use bvhc::build::build_binned_sah;
+use bvhc::builders::build_binned_sah;
 use bvhc::loader::{BvhFile, BvhWriter, Hit, PreparedRay, Ray, SourceRange, Tracer};
 use bvhc::pack::{PackedTree, pack};
 use rand::{RngExt, SeedableRng};
@@ -107,9 +107,9 @@ pub fn write_wide_file(triangles: &[Triangle], max_leaf_size: usize) -> BvhFile 
 /// The wide sections over a packed tree's triangles section (`tree.triangle_ids` are indices into `triangles`).
 pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
     let opt = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
-    let collapsed = bvhc::wide::collapse(&opt, &bvhc::wide::WideCosts::default());
+    let collapsed = bvhc::layout::collapse(&opt, &bvhc::layout::WideCosts::default());
     let file_index_of = tree.file_index_of(triangles.len());
-    bvhc::wide::pack_wide(&collapsed, &tree.triangles, &mut |t| file_index_of.get(t as usize).copied(), false)
+    bvhc::pack::pack_wide(&collapsed, &tree.triangles, &mut |t| file_index_of.get(t as usize).copied(), false)
         .expect("a collapsed tree packs")
 }
 
@@ -276,10 +276,10 @@ pub fn wide_bvh(triangles: &[Triangle]) -> bvhc::loader::WideBvh {
 
 /// [`wide_bvh`] from a given binary optimizer tree.
 pub fn wide_bvh_of(tree: &bvhc::optimize::OptTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
-    let wide = bvhc::wide::collapse(tree, &bvhc::wide::WideCosts::default());
+    let wide = bvhc::layout::collapse(tree, &bvhc::layout::WideCosts::default());
     let packed: Vec<bvhc::loader::PackedTriangle> =
         triangles.iter().map(|&vertices| bvhc::loader::PackedTriangle { vertices }).collect();
-    bvhc::wide::pack_wide(&wide, &packed, &mut Some, false).expect("a collapsed tree packs")
+    bvhc::pack::pack_wide(&wide, &packed, &mut Some, false).expect("a collapsed tree packs")
 }
 
 /// Every kernel a view can trace with: the binary one, then the wide one on each path this machine runs

@@ -3,6 +3,7 @@
 mod box_test;
 mod cli;
 mod cli_hardening;
+mod clusters;
 mod common;
 mod compat;
 mod convert;
@@ -18,9 +19,9 @@ mod mutation;
 mod optimize;
 mod optimize_property;
 mod roundtrip;
-mod same_bytes;
 mod rules;
 mod rules_wide;
+mod same_bytes;
 mod sbvh;
 mod scenes;
 mod spec;

@@ -5,7 +5,7 @@
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 
-use bvhc::build::Builder;
+use bvhc::builders::Builder;
 use bvhc::convert::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles, convert_with};
 use bvhc::import::SceneSelector;
 use bvhc::loader::BvhFile;

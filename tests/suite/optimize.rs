@@ -3,12 +3,14 @@
 
 use std::ops::ControlFlow;
 
-use bvhc::aabb::Aabb;
-use bvhc::build::{BuildNode, BuildTree, Builder};
-use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::build_tree::{BuildNode, BuildTree};
+use bvhc::builders::Builder;
+use bvhc::cost::SahConstants;
+use bvhc::geometry::Aabb;
+use bvhc::layout::merge_leaves;
 use bvhc::optimize::{
     Algorithm, NONE, OptTree, OptimizeParams, Preset, SearchQueue, Selection, area, best_insertion, best_move, cost_of,
-    merge_leaves, optimize,
+    optimize,
 };
 
 use crate::common::random_triangles;
@@ -289,7 +291,7 @@ fn leaf_merging_never_raises_the_cost_and_respects_the_leaf_size() {
         let single = cost_of(&tree, constants).cost;
         for max_leaf_size in [1, 2, 4, 8] {
             let merged: BuildTree = merge_leaves(&tree, constants, max_leaf_size);
-            let cost = sah_of_build_tree(&merged, constants).cost;
+            let cost = merged.sah_cost(constants).cost;
             assert!(cost <= single * (1.0 + 1e-9), "seed {seed}: merged {cost} > {single}");
             let mut order = merged.triangle_order.clone();
             order.sort_unstable();
@@ -331,7 +333,7 @@ fn degenerate_inputs_run_through_every_preset() {
                 assert!(report.best.cost.is_finite() && report.initial.cost.is_finite(), "{report:?}");
                 check_invariants(&tree, triangles);
                 let merged = merge_leaves(&tree, SahConstants::default(), 8);
-                assert!(sah_of_build_tree(&merged, SahConstants::default()).cost.is_finite());
+                assert!(merged.sah_cost(SahConstants::default()).cost.is_finite());
                 assert!(tree.max_depth() <= bvhc::loader::format::MAX_DEPTH);
             }
         }

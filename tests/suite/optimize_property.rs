@@ -4,7 +4,7 @@
 
 use std::ops::ControlFlow;
 
-use bvhc::build::Builder;
+use bvhc::builders::Builder;
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize_inspected};
 use rand::RngExt;
 

@@ -1,14 +1,15 @@
-//! The SBVH builder (`bvhc::split::sbvh`): one reference a leaf, within the budget, every leaf box inside its
+//! The SBVH builder (`bvhc::builders::sbvh`): one reference a leaf, within the budget, every leaf box inside its
 //! triangle's box, every point of every triangle inside a leaf box that references it (checked by sampling
 //! points of the triangle, an oracle that does not share the clipping code), the same tree for any thread
 //! count, lower SAH than the plain binned start where triangles are long, and no panic on degenerate input.
 
-use bvhc::aabb::Aabb;
-use bvhc::build::{BuildNode, BuildTree, Builder};
-use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::build_tree::{BuildNode, BuildTree};
+use bvhc::builders::Builder;
+use bvhc::builders::References;
+use bvhc::builders::sbvh::{SbvhParams, build_sbvh};
+use bvhc::cost::SahConstants;
+use bvhc::geometry::Aabb;
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
-use bvhc::split::References;
-use bvhc::split::sbvh::{SbvhParams, build_sbvh};
 use rand::RngExt;
 
 use crate::common::{in_pool, random_triangles, rng};
@@ -98,8 +99,7 @@ fn sbvh_lowers_the_sah_of_long_triangles_and_the_optimizer_keeps_its_references(
     triangles.extend(random_triangles(27, 4000, 10.0));
     let binned = Builder::BinnedSah.build(&triangles, 1);
     let sbvh = build_sbvh(&triangles, &SbvhParams::with_budget(0.3));
-    let (binned_cost, sbvh_cost) =
-        (sah_of_build_tree(&binned, constants).cost, sah_of_build_tree(&sbvh, constants).cost);
+    let (binned_cost, sbvh_cost) = (binned.sah_cost(constants).cost, sbvh.sah_cost(constants).cost);
     assert!(sbvh_cost < 0.9 * binned_cost, "SBVH {sbvh_cost} against binned {binned_cost}");
     let references = leaves(&sbvh);
     let mut tree = OptTree::from_build(sbvh, &triangles);

@@ -6,12 +6,12 @@
 use std::io::Write;
 use std::path::Path;
 
-use bvhc::aabb::Aabb;
+use bvhc::builders::{References, split_triangles};
 use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles, convert_with};
 use bvhc::epo::polygon_area;
+use bvhc::geometry::Aabb;
+use bvhc::geometry::clip::{Piece, triangle_area};
 use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
-use bvhc::split::clip::{Piece, triangle_area};
-use bvhc::split::{References, split_triangles};
 use rand::RngExt;
 
 use crate::common::{in_pool, random_point, random_triangles, rng};
@@ -106,7 +106,7 @@ fn references_stay_in_budget_and_inside_their_triangles_and_do_not_depend_on_thr
     // Budgets out of range: NaN and negative split nothing, a huge one stops at five references a triangle.
     assert_eq!(split_triangles(&triangles, f64::NAN).len(), triangles.len());
     assert_eq!(split_triangles(&triangles, -1.0).len(), triangles.len());
-    check_references(&triangles, &split_triangles(&triangles, 1e12), bvhc::split::MAX_BUDGET);
+    check_references(&triangles, &split_triangles(&triangles, 1e12), bvhc::builders::MAX_BUDGET);
     // Degenerate input: no triangles, one point-like triangle.
     assert!(split_triangles(&[], 0.3).is_empty());
     let point = [[1.0f32, 1.0, 1.0]; 3];
@@ -117,7 +117,7 @@ fn references_stay_in_budget_and_inside_their_triangles_and_do_not_depend_on_thr
 fn the_optimizer_keeps_every_reference_in_one_leaf() {
     let triangles = long_triangles(12, 1500);
     let references = split_triangles(&triangles, 0.5);
-    let mut tree = OptTree::from_build(bvhc::build::Builder::BinnedSah.build_references(&references), &triangles);
+    let mut tree = OptTree::from_build(bvhc::builders::Builder::BinnedSah.build_references(&references), &triangles);
     tree.check_reference_invariants(&references).unwrap();
     optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
     tree.check_reference_invariants(&references).unwrap();
@@ -426,9 +426,9 @@ fn the_cli_splits_on_request_and_info_counts_references() {
 /// where the wide leaves have no room, nothing changes.
 #[test]
 fn repeats_are_removed_and_both_trees_keep_equal_record_counts() {
-    use bvhc::build::{BuildNode, BuildTree};
-    use bvhc::split::records::remove_repeats_and_balance;
-    use bvhc::wide::{WideChild, WideNode, WideTree};
+    use bvhc::build_tree::{BuildNode, BuildTree};
+    use bvhc::layout::records::remove_repeats_and_balance;
+    use bvhc::layout::{WideChild, WideNode, WideTree};
     let b = Aabb { min: [0.0; 3], max: [1.0; 3] };
     // Binary: leaves [0 0 1] and [2 1]; wide: leaves [0] and [0 1 2 2].
     let mut binary = BuildTree {
@@ -493,10 +493,11 @@ fn repeats_are_removed_and_both_trees_keep_equal_record_counts() {
 /// options), and no leaf holds more distinct triangles than the limit.
 #[test]
 fn merging_over_references_counts_each_triangle_once_a_leaf() {
-    use bvhc::build::{BuildNode, Builder};
-    use bvhc::cost::{SahConstants, sah_of_build_tree};
-    use bvhc::optimize::{merge_leaves, merge_leaves_of_references};
-    use bvhc::split::records::remove_binary_repeats;
+    use bvhc::build_tree::BuildNode;
+    use bvhc::builders::Builder;
+    use bvhc::cost::SahConstants;
+    use bvhc::layout::records::remove_binary_repeats;
+    use bvhc::layout::{merge_leaves, merge_leaves_of_references};
     let constants = SahConstants::default();
     let plain = random_triangles(5, 800, 10.0);
     let tree = OptTree::from_build(Builder::BinnedSah.build(&plain, 1), &plain);
@@ -513,8 +514,7 @@ fn merging_over_references_counts_each_triangle_once_a_leaf() {
         let mut naive = merge_leaves(&tree, constants, limit);
         remove_binary_repeats(&mut aware, triangles.len());
         remove_binary_repeats(&mut naive, triangles.len());
-        let (aware_cost, naive_cost) =
-            (sah_of_build_tree(&aware, constants).cost, sah_of_build_tree(&naive, constants).cost);
+        let (aware_cost, naive_cost) = (aware.sah_cost(constants).cost, naive.sah_cost(constants).cost);
         assert!(aware_cost <= naive_cost * (1.0 + 1e-12), "limit {limit}: {aware_cost} > {naive_cost}");
         assert!(aware_cost < naive_cost, "limit {limit}: no leaf gained from counting distinct triangles");
         for node in &aware.nodes {
@@ -531,8 +531,8 @@ fn merging_over_references_counts_each_triangle_once_a_leaf() {
 /// of its options), and no leaf holds more distinct triangles than the limit.
 #[test]
 fn the_wide_collapse_over_references_counts_each_triangle_once_a_leaf() {
-    use bvhc::build::Builder;
-    use bvhc::wide::{WideChild, WideCosts, WideTree, collapse, collapse_references};
+    use bvhc::builders::Builder;
+    use bvhc::layout::{WideChild, WideCosts, WideTree, collapse, collapse_references};
     let costs = WideCosts::default();
     let plain = random_triangles(6, 800, 10.0);
     let tree = OptTree::from_build(Builder::BinnedSah.build(&plain, 1), &plain);

@@ -18,10 +18,11 @@
 
 use std::ops::ControlFlow;
 
-use bvhc::build::Builder;
-use bvhc::cost::{SahConstants, sah_of_build_tree};
+use bvhc::builders::Builder;
+use bvhc::cost::SahConstants;
+use bvhc::layout::merge_leaves;
 use bvhc::loader::{BvhWriter, Ray};
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, merge_leaves, optimize};
+use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
 use bvhc::pack::pack;
 use rand::RngExt;
 
@@ -256,7 +257,7 @@ fn run_case(case: &Case) -> Counts {
     assert!(report.initial.cost.is_finite() && report.best.cost.is_finite(), "{}", case.name);
     opt.limit_depth(bvhc::loader::format::MAX_DEPTH);
     let merged = merge_leaves(&opt, SahConstants::default(), 8);
-    assert!(sah_of_build_tree(&merged, SahConstants::default()).cost.is_finite());
+    assert!(merged.sah_cost(SahConstants::default()).cost.is_finite());
     let packed = pack(&merged, &case.triangles);
     let file =
         BvhWriter::new(&packed.nodes, &packed.triangles).triangle_ids(&packed.triangle_ids).build().expect("verifies");

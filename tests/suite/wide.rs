@@ -2,10 +2,10 @@
 //! the binary tree itself at width 2 with single-triangle leaves, and the minimum over every possible collapse
 //! of small trees, enumerated exhaustively and priced independently.
 
-use bvhc::aabb::Aabb;
-use bvhc::build::Builder;
+use bvhc::builders::Builder;
+use bvhc::geometry::Aabb;
+use bvhc::layout::{WideChild, WideCosts, WideTree, collapse};
 use bvhc::optimize::{NONE, OptTree};
-use bvhc::wide::{WideChild, WideCosts, WideTree, collapse};
 
 use crate::common::{Triangle, random_triangles};
 
@@ -210,7 +210,7 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
         let rays = crate::common::random_rays(seed + 50, 4000, extent * 1.5);
         for (width, max_leaf_size) in [(8, 8), (4, 4), (8, 1)] {
             let wide = collapse(&tree, &WideCosts { width, max_leaf_size, ..WideCosts::default() });
-            let bvh = bvhc::wide::pack_wide(&wide, &packed, &mut Some, false).unwrap();
+            let bvh = bvhc::pack::pack_wide(&wide, &packed, &mut Some, false).unwrap();
             for path in [KernelPath::Portable, KernelPath::Avx2] {
                 if !path.is_supported() {
                     eprintln!("SKIPPED (part): {path:?} is not supported on this machine");

@@ -19,8 +19,8 @@
 
 use rayon::prelude::*;
 
-use super::{BuildNode, BuildTree};
-use crate::aabb::Aabb;
+use crate::build_tree::{BuildNode, BuildTree};
+use crate::geometry::Aabb;
 
 /// Most bins per axis.
 pub const BIN_COUNT: usize = 16;

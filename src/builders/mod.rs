@@ -1,60 +1,26 @@
-//! Initial BVH builders and the mutable build tree they produce.
+//! The build stage: initial BVHs over a scene's triangles, as [`BuildTree`]s with one triangle (or reference)
+//! a leaf for the optimizer.
 //!
 //! * [`build_spatial_median`]: split the node's box in the middle, axes round robin from the longest at the
 //!   root (the reference table's M = 1 start).
 //! * [`build_binned_sah`]: binned SAH (Wald 2007), the default start of the optimizer.
+//! * [`sbvh`]: spatial splits during the build (Stich et al. 2009), cutting triangles into split references.
+//! * [`presplit`]: large triangles cut into references before the build (Karras and Aila 2013).
 //!
-//! Both are deterministic and bound the depth (median splits deep in the tree), and both make one triangle per
+//! All are deterministic and bound the depth (median splits deep in the tree), and all make one triangle per
 //! leaf when asked for `max_leaf_size = 1`, as the optimizer needs.
 
 mod binned_sah;
+pub mod presplit;
+pub mod sbvh;
 mod spatial_median;
 
 pub use binned_sah::{BIN_COUNT, MEDIAN_FALLBACK_DEPTH, build_binned_sah, build_binned_sah_boxes};
+pub use presplit::{MAX_BUDGET, References, split_triangles, split_triangles_with};
 pub use spatial_median::{build_spatial_median, build_spatial_median_boxes};
 
-use crate::aabb::Aabb;
-
-/// A node of the mutable build tree.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum BuildNode {
-    /// Two children, indices into [`BuildTree::nodes`].
-    Inner {
-        /// The node's box.
-        aabb: Aabb,
-        /// Left child.
-        left: u32,
-        /// Right child.
-        right: u32,
-    },
-    /// Triangles `triangle_order[first .. first + count]`.
-    Leaf {
-        /// The node's box.
-        aabb: Aabb,
-        /// First position in [`BuildTree::triangle_order`].
-        first: u32,
-        /// Number of triangles, at least 1.
-        count: u32,
-    },
-}
-
-impl BuildNode {
-    /// The node's box.
-    pub fn aabb(&self) -> &Aabb {
-        match self {
-            BuildNode::Inner { aabb, .. } | BuildNode::Leaf { aabb, .. } => aabb,
-        }
-    }
-}
-
-/// A BVH over a triangle array; the root is node 0 (no nodes for no triangles).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct BuildTree {
-    /// The nodes.
-    pub nodes: Vec<BuildNode>,
-    /// Triangle indices in leaf order.
-    pub triangle_order: Vec<u32>,
-}
+use crate::build_tree::BuildTree;
+use crate::geometry::Aabb;
 
 /// Which initial builder to use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -87,7 +53,7 @@ impl Builder {
     /// Builds a one-reference-per-leaf tree over `references` whose leaves hold the references' *triangles*
     /// (a triangle may then sit in several leaves, each leaf's box being its reference's box), as the optimizer
     /// takes it.
-    pub fn build_references(self, references: &crate::split::References) -> BuildTree {
+    pub fn build_references(self, references: &References) -> BuildTree {
         let mut tree = self.build_boxes(&references.aabb, 1);
         for r in &mut tree.triangle_order {
             *r = references.triangle[*r as usize];

@@ -58,7 +58,7 @@ impl LeafCounts {
 #[cfg(test)]
 mod tests {
     use super::LeafCounts;
-    use crate::aabb::Aabb;
+    use crate::geometry::Aabb;
     use crate::optimize::{NONE, OptNode, OptTree};
 
     /// A random tree over `leaves` (triangle ids, some repeated), split at random points of the list.

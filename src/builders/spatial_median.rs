@@ -2,8 +2,9 @@
 //! then round robin (x, y, z, x, ...), triangles going to the side of their centroid. When one side would be
 //! empty, or below `MEDIAN_FALLBACK_DEPTH`, the node is split at the median triangle instead.
 
-use super::{BuildNode, BuildTree, MEDIAN_FALLBACK_DEPTH};
-use crate::aabb::Aabb;
+use super::MEDIAN_FALLBACK_DEPTH;
+use crate::build_tree::{BuildNode, BuildTree};
+use crate::geometry::Aabb;
 
 /// Builds a spatial-median tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
 pub fn build_spatial_median(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {

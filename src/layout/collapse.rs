@@ -15,47 +15,10 @@
 //! kernel's unit of work) rather than per triangle; no quantization (the CPU layout stores f32 boxes). O(n N^2)
 //! time; O(n N) bytes of decisions, the costs only along the current path.
 
-use crate::aabb::Aabb;
+use super::leaf_counts::LeafCounts;
+use super::wide_tree::{WideChild, WideCosts, WideNode, WideTree};
+use crate::geometry::Aabb;
 use crate::optimize::{NONE, OptTree};
-use crate::split::distinct::LeafCounts;
-
-use super::{WideChild, WideNode, WideTree};
-
-/// The collapse's parameters: the width, the leaf limit, and the two costs of the kernel.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct WideCosts {
-    /// Children per wide node (2 to 16; 4 and 8 are what SIMD kernels use).
-    pub width: usize,
-    /// Triangles tested together in one packet (`W`).
-    pub packet_width: usize,
-    /// Most triangles in one leaf.
-    pub max_leaf_size: usize,
-    /// Cost of visiting one wide node (testing all its child boxes).
-    pub node_visit: f64,
-    /// Cost of testing one packet of triangles.
-    pub packet_test: f64,
-}
-
-impl Default for WideCosts {
-    /// 8-wide nodes, packets of 4, leaves of up to 8 triangles, and a packet test priced like a node visit.
-    /// `cargo bench --bench calibrate` fits the two costs on this kernel from trees of widths 4 and 8 and leaf
-    /// limits 1-8: a packet test at 1.9-4.4 node visits (2026-12-01), and 1.04 (kitchen), 2.71 (engine), 6.44
-    /// (dragon res2) on 2026-12-02, an ill-conditioned fit since the packet count barely varies; trees collapsed
-    /// with the fitted median ratio traced no faster than with 1 : 1 (kitchen 28.5 / 28.8 ms, engine 59.4 /
-    /// 57.7, dragon res2 92.8 / 90.2 for 200k rays, fitted / 1 : 1), so 1 : 1 stays. Width 8 against width 4 (the
-    /// same leaves, both in 8-wide nodes): 1.3x faster on all three (kitchen 28.8 / 37.2 ms, engine 58.7 / 77.0,
-    /// dragon res2 89.8 / 120.9). The values used are recorded in the metadata (`build.wide`).
-    fn default() -> Self {
-        WideCosts { width: 8, packet_width: 4, max_leaf_size: 8, node_visit: 1.0, packet_test: 1.0 }
-    }
-}
-
-impl WideCosts {
-    /// The cost factor of a leaf of `count` triangles (times its area).
-    pub fn leaf(&self, count: usize) -> f64 {
-        self.packet_test * count.div_ceil(self.packet_width.max(1)) as f64
-    }
-}
 
 /// Per binary node: how each `C(n, i)` was reached, as `width` decisions of 4 bits (two a byte; every decision
 /// is below 16): the table takes `width / 2` bytes a node. The costs themselves are kept only while they are
@@ -108,7 +71,7 @@ pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
 }
 
 /// [`collapse`] for a tree over split references, where several leaves may hold pieces of one triangle: a wide
-/// leaf holds each triangle once (see [`crate::split::records`]), so `t(n)` counts the distinct triangles of
+/// leaf holds each triangle once (see [`super::records`]), so `t(n)` counts the distinct triangles of
 /// `n`'s subtree. The same tree as [`collapse`] where no triangle repeats.
 pub fn collapse_references(tree: &OptTree, costs: &WideCosts) -> WideTree {
     collapse_with(tree, costs, true)

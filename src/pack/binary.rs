@@ -7,7 +7,7 @@
 
 use bvhc_loader::{PackedNode, PackedTriangle};
 
-use crate::build::{BuildNode, BuildTree};
+use crate::build_tree::{BuildNode, BuildTree};
 
 /// The packed form the writer sees: nodes, triangles in leaf order, and each triangle's source index.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -33,7 +33,7 @@ impl PackedTree {
         file_index_of
     }
 
-    /// Every input triangle's records, in file order (for [`crate::wide::pack_wide`] over split references).
+    /// Every input triangle's records, in file order (for [`super::pack_wide`] over split references).
     pub fn record_cursor(&self, input_triangle_count: usize) -> RecordCursor {
         let n = input_triangle_count;
         let mut start = vec![0u32; n + 1];

@@ -7,8 +7,8 @@
 //! It then repeats it inside a leaf that already holds it, on the side with fewer, until both
 //! trees hold it equally often: coverage (V25, V35) is untouched, since no leaf box changes.
 
-use crate::build::{BuildNode, BuildTree};
-use crate::wide::{WideChild, WideTree};
+use super::wide_tree::{WideChild, WideTree};
+use crate::build_tree::{BuildNode, BuildTree};
 
 /// Most triangles a wide leaf may hold (8 packets of 4).
 const WIDE_LEAF_LIMIT: usize = 32;

@@ -1,4 +1,4 @@
-//! Split references: large triangles cut into pieces before the build, each piece a *reference* (the triangle's
+//! Pre-splitting: large triangles cut into pieces before the build, each piece a *reference* (the triangle's
 //! index and a box that contains the piece), so that the tree bounds long and diagonal triangles by several
 //! small boxes instead of one large one.
 //!
@@ -17,25 +17,18 @@
 //!   the largest `lambda` that fits (found by bisection); a triangle's splits are spent recursively, each
 //!   piece at its own coarsest plane, the rest shared between the two sides in proportion to their box areas.
 //!
-//! Pieces are exact (see [`clip`]): every piece's box contains it, and a triangle's pieces together are the
-//! triangle, which is what makes a tree over references safe to trace (the format's rule V25). Deterministic:
-//! every triangle is split on its own, and the budget's bisection sums whole numbers.
+//! Pieces are exact (see [`crate::geometry::clip`]): every piece's box contains it, and a triangle's pieces
+//! together are the triangle, which is what makes a tree over references safe to trace (the format's rule V25).
+//! Deterministic: every triangle is split on its own, and the budget's bisection sums whole numbers.
 //!
 //! A leaf that gathers several pieces of one triangle holds it once, with the two trees' record counts kept
-//! equal ([`records`]).
-//!
-//! Conversions cut during the build instead by default ([`sbvh`]): it gave better trees at fewer references on
-//! every scene measured (`docs/evaluation.md`); pre-splitting remains as `--split-method pre-split`.
-
-pub mod clip;
-pub(crate) mod distinct;
-pub mod records;
-pub mod sbvh;
+//! equal ([`crate::layout::records`]). Conversions cut during the build by default ([`super::sbvh`]);
+//! pre-splitting is `--split-method pre-split`.
 
 use rayon::prelude::*;
 
-use crate::aabb::Aabb;
-use clip::{Piece, ideal_box_area};
+use crate::geometry::Aabb;
+use crate::geometry::clip::{Piece, ideal_box_area};
 
 /// Most splits one triangle gets, whatever its priority (so one huge triangle cannot take the whole budget).
 pub const MAX_SPLITS_PER_TRIANGLE: u32 = 64;

@@ -5,12 +5,12 @@
 
 use bvhc_loader::{Error, PACKET_LANES, PackedTriangle, TrianglePacket4, WIDE, WideBvh, WideNode8};
 
-use super::{WideChild, WideTree};
+use crate::layout::{WideChild, WideTree};
 
 /// Packs `tree` (width at most 8, leaves of at most 32 triangles) into a checked [`WideBvh`] over
 /// `file_triangles`, the triangles section. The tree numbers triangles by their index in the soup it was built
 /// over; `record_of(soup index)` gives the index in `file_triangles` of the record for the next lane that holds
-/// that triangle (see [`crate::pack::PackedTree::record_cursor`]), `None` when there is none.
+/// that triangle (see [`super::PackedTree::record_cursor`]), `None` when there is none.
 ///
 /// Fails with [`Error::Unwritable`] when the tree does not fit the layout (too wide, a leaf of more than 32
 /// triangles, more than 2^28 packets) and with [`Error::Invalid`] when the result breaks a rule of V29-V35.

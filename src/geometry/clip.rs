@@ -7,7 +7,7 @@
 //! the plane (an f32 value), so the two sides' boxes meet there without overlapping. Every box is also clipped
 //! to the box of the piece it was cut from, which contains it too.
 
-use crate::aabb::Aabb;
+use super::Aabb;
 
 /// A convex polygon in f64: a triangle, or a piece of one.
 #[derive(Clone, Debug, PartialEq)]

@@ -5,10 +5,10 @@
 //! all trees obtainable by collapsing subtrees, so merging never raises the cost (keeping every node is one of
 //! the options).
 
-use super::tree::{NONE, OptTree};
-use crate::build::BuildTree;
+use super::leaf_counts::LeafCounts;
+use crate::build_tree::BuildTree;
 use crate::cost::SahConstants;
-use crate::split::distinct::LeafCounts;
+use crate::optimize::{NONE, OptTree};
 
 /// The tree with leaves merged; `max_leaf_size` >= 1.
 pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
@@ -16,7 +16,7 @@ pub fn merge_leaves(tree: &OptTree, constants: SahConstants, max_leaf_size: usiz
 }
 
 /// [`merge_leaves`] for a tree over split references, where several leaves may hold pieces of one triangle: a
-/// merged leaf holds each triangle once (see [`crate::split::records`]), so `t_N` counts the distinct triangles
+/// merged leaf holds each triangle once (see [`super::records`]), so `t_N` counts the distinct triangles
 /// of `N`'s subtree. The same tree as [`merge_leaves`] where no triangle repeats.
 pub fn merge_leaves_of_references(tree: &OptTree, constants: SahConstants, max_leaf_size: usize) -> BuildTree {
     merge(tree, constants, max_leaf_size, true)
@@ -29,7 +29,7 @@ fn merge(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct
 
 /// For every node, whether the merge makes its whole subtree one leaf (true for the nodes below such a node
 /// too): the dynamic program above, with `distinct` counting a triangle once a leaf.
-pub(super) fn merged_nodes(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct: bool) -> Vec<bool> {
+pub fn merged_nodes(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct: bool) -> Vec<bool> {
     // Children first: the subtrees' (cost, triangle count) pairs wait on a stack, the left child's on top, so
     // only those of nodes whose parent is not done yet are held (at most the depth plus one), not 12 bytes a node.
     let mut collapse = vec![false; tree.nodes.len()];
@@ -57,4 +57,26 @@ pub(super) fn merged_nodes(tree: &OptTree, constants: SahConstants, max_leaf_siz
         }
     }
     collapse
+}
+
+/// The roots of the clusters, depth first: the topmost nodes whose subtree the leaf merge
+/// ([`merge_leaves`], counting references) would make one leaf of at most `max_cluster` references, and
+/// the leaves no such node holds.
+pub fn cluster_roots(tree: &OptTree, constants: SahConstants, max_cluster: usize) -> Vec<u32> {
+    let merged = merged_nodes(tree, constants, max_cluster, false);
+    let mut roots = Vec::new();
+    if tree.root == NONE {
+        return roots;
+    }
+    let mut stack = vec![tree.root];
+    while let Some(i) = stack.pop() {
+        let node = &tree.nodes[i as usize];
+        if node.left == NONE || merged[i as usize] {
+            roots.push(i);
+        } else {
+            stack.push(node.right);
+            stack.push(node.left);
+        }
+    }
+    roots
 }

@@ -1,14 +1,8 @@
-//! Wide (N-ary) BVHs collapsed from the optimizer's binary tree: the in-memory form from which a wide node
-//! section will be packed (issue 10). `collapse` is Ylitie, Karras and Laine's SAH-optimal dynamic program;
-//! `WideTree` keeps each child's box and either a child node or a leaf's triangle range.
+//! Wide (N-ary) BVHs collapsed from the optimizer's binary tree ([`super::collapse`]): the in-memory form that
+//! [`crate::pack::pack_wide`] lays out as the file's wide sections. Each child slot keeps its box and either a
+//! child node or a leaf's triangle range.
 
-mod collapse;
-mod pack;
-
-pub use collapse::{WideCosts, collapse, collapse_references};
-pub use pack::pack_wide;
-
-use crate::aabb::Aabb;
+use crate::geometry::Aabb;
 
 /// A child slot of a wide node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,5 +60,41 @@ impl WideTree {
             }
         }
         total / root_area
+    }
+}
+
+/// The collapse's parameters: the width, the leaf limit, and the two costs of the kernel.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct WideCosts {
+    /// Children per wide node (2 to 16; 4 and 8 are what SIMD kernels use).
+    pub width: usize,
+    /// Triangles tested together in one packet (`W`).
+    pub packet_width: usize,
+    /// Most triangles in one leaf.
+    pub max_leaf_size: usize,
+    /// Cost of visiting one wide node (testing all its child boxes).
+    pub node_visit: f64,
+    /// Cost of testing one packet of triangles.
+    pub packet_test: f64,
+}
+
+impl Default for WideCosts {
+    /// 8-wide nodes, packets of 4, leaves of up to 8 triangles, and a packet test priced like a node visit.
+    /// `cargo bench --bench calibrate` fits the two costs on this kernel from trees of widths 4 and 8 and leaf
+    /// limits 1-8: a packet test at 1.9-4.4 node visits (2026-12-01), and 1.04 (kitchen), 2.71 (engine), 6.44
+    /// (dragon res2) on 2026-12-02, an ill-conditioned fit since the packet count barely varies; trees collapsed
+    /// with the fitted median ratio traced no faster than with 1 : 1 (kitchen 28.5 / 28.8 ms, engine 59.4 /
+    /// 57.7, dragon res2 92.8 / 90.2 for 200k rays, fitted / 1 : 1), so 1 : 1 stays. Width 8 against width 4 (the
+    /// same leaves, both in 8-wide nodes): 1.3x faster on all three (kitchen 28.8 / 37.2 ms, engine 58.7 / 77.0,
+    /// dragon res2 89.8 / 120.9). The values used are recorded in the metadata (`build.wide`).
+    fn default() -> Self {
+        WideCosts { width: 8, packet_width: 4, max_leaf_size: 8, node_visit: 1.0, packet_test: 1.0 }
+    }
+}
+
+impl WideCosts {
+    /// The cost factor of a leaf of `count` triangles (times its area).
+    pub fn leaf(&self, count: usize) -> f64 {
+        self.packet_test * count.div_ceil(self.packet_width.max(1)) as f64
     }
 }

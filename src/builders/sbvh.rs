@@ -3,7 +3,7 @@
 //!
 //! Each node weighs the best binned *object* split (centroids of its references' boxes, [`BINS`] bins an axis)
 //! against the best *spatial* split: [`BINS`] equal slabs of the node's box an axis, each reference's piece
-//! of its triangle chopped exactly at the slab planes it crosses (see [`clip`](super::clip)), a plane's cost
+//! of its triangle chopped exactly at the slab planes it crosses (see [`clip`](crate::geometry::clip)), a plane's cost
 //! `A_left n_left + A_right n_right` with the references that cross it counted on both sides. Spatial splits are
 //! tried only where the object split's children overlap by more than `alpha` times the root's surface area
 //! (the paper's overlap threshold), and a crossing reference is kept whole on one side where that is cheaper
@@ -23,10 +23,11 @@ use std::borrow::Cow;
 
 use rayon::prelude::*;
 
-use super::clip::Piece;
-use super::worth_cutting;
-use crate::aabb::Aabb;
-use crate::build::{BuildNode, BuildTree, MEDIAN_FALLBACK_DEPTH, build_binned_sah_boxes};
+use super::presplit::worth_cutting;
+use super::{MEDIAN_FALLBACK_DEPTH, build_binned_sah_boxes};
+use crate::build_tree::{BuildNode, BuildTree};
+use crate::geometry::Aabb;
+use crate::geometry::clip::Piece;
 
 /// Bins (object splits) and slabs (spatial splits) an axis.
 pub const BINS: usize = 16;
@@ -37,7 +38,7 @@ pub const BINS: usize = 16;
 /// 9.342 at 10^-3; SBVH build of the 871k-triangle dragon 3.1 s against 1.06 s, binned SAH 0.24 s).
 pub const DEFAULT_ALPHA: f64 = 1e-3;
 /// By default only triangles whose pieces could remove at least this fraction of their box's area are cut (the
-/// area [`ideal_box_area`](super::clip::ideal_box_area) says splitting can remove, as in [`super::MIN_WASTE_RATIO`] for pre-splitting).
+/// area [`ideal_box_area`](crate::geometry::clip::ideal_box_area) says splitting can remove, as in [`super::presplit::MIN_WASTE_RATIO`] for pre-splitting).
 /// Flat triangles that fill half of their box's face (the two halves of an axis-aligned rectangle: floors,
 /// walls, tiles) are at exactly 0.5, and cutting them lowers the binary tree's SAH but raises the cost of the
 /// wide tree that default files are traced by. Measured at `alpha` 10^-5 (balanced preset, budget 0.1, the
@@ -81,7 +82,7 @@ impl Reference {
 
 /// Builds an SBVH over `triangles` with one reference a leaf; the tree's `triangle_order` holds each leaf's
 /// triangle (a triangle may lie in several leaves, each with its own box), as
-/// [`Builder::build_references`](crate::build::Builder::build_references) returns for pre-split references.
+/// [`Builder::build_references`](super::Builder::build_references) returns for pre-split references.
 pub fn build_sbvh(triangles: &[[[f32; 3]; 3]], params: &SbvhParams) -> BuildTree {
     let references: Vec<Reference> = triangles
         .par_iter()

@@ -1,0 +1,56 @@
+//! The leaf layout stage: the optimized binary tree (one reference a leaf) becomes the file's two trees. The
+//! binary tree's leaves are merged bottom-up by SAH ([`merge`]), and the 8-wide tree is collapsed from the same
+//! tree by Ylitie et al.'s dynamic program ([`collapse`]); over split references both count a triangle once a
+//! leaf ([`leaf_counts`]) and [`records`] makes them hold each triangle equally often.
+
+pub mod collapse;
+pub mod leaf_counts;
+pub mod merge;
+pub mod records;
+pub mod wide_tree;
+
+pub use collapse::{collapse, collapse_references};
+pub use merge::{cluster_roots, merge_leaves, merge_leaves_of_references, merged_nodes};
+pub use wide_tree::{WideChild, WideCosts, WideNode, WideTree};
+
+use crate::build_tree::BuildTree;
+use crate::cost::SahConstants;
+use crate::optimize::OptTree;
+
+/// The leaf merging (leaves of up to `max_leaf_size` triangles; 1 keeps every leaf) and, with `wide`, the wide
+/// collapse of an optimized tree with one reference a leaf. Both start from that tree (the collapse's dynamic
+/// program chooses its own leaves) and run side by side. With `repeats` (some triangle lies in several leaves:
+/// split references) both count a triangle once a leaf, and leaves that gathered several pieces of a triangle
+/// then hold it once, with the two trees' record counts kept equal (where the wide leaves have no room for
+/// that, both keep every piece); without repeats that is the plain count, which the plain programs get faster.
+pub fn merge_and_collapse(
+    tree: &OptTree,
+    constants: SahConstants,
+    max_leaf_size: usize,
+    wide: Option<WideCosts>,
+    triangle_count: usize,
+    repeats: bool,
+) -> (BuildTree, Option<(WideTree, WideCosts)>) {
+    let leaf_size = max_leaf_size.max(1);
+    let (mut wide_tree, mut final_tree) = rayon::join(
+        || {
+            wide.map(|costs| match repeats {
+                true => (collapse_references(tree, &costs), costs),
+                false => (collapse(tree, &costs), costs),
+            })
+        },
+        || match repeats {
+            true => merge_leaves_of_references(tree, constants, leaf_size),
+            false => merge_leaves(tree, constants, leaf_size),
+        },
+    );
+    if repeats {
+        match &mut wide_tree {
+            Some((wide, _)) => {
+                records::remove_repeats_and_balance(&mut final_tree, wide, triangle_count);
+            }
+            None => records::remove_binary_repeats(&mut final_tree, triangle_count),
+        }
+    }
+    (final_tree, wide_tree)
+}
