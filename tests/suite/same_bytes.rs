@@ -12,7 +12,7 @@ use xxhash_rust::xxh3::xxh3_64;
 use crate::common::scenes_dir;
 
 /// Rows recorded as taking longer than this (seconds on 2 cores) run only with `BVHC_SAME_BYTES=all`.
-const QUICK_SECONDS: f64 = 3.0;
+const QUICK_SECONDS: f64 = 1.0;
 
 /// One row: the input (repository-relative under `fixtures/`, else relative to the shared scenes), the options,
 /// the expected hash (or `exitN` for an input that is refused with exit code N), and the recorded seconds.

@@ -1,7 +1,7 @@
 //! Atomic replacement of an output file, and the temporary files it uses.
 //!
 //! Bytes go to a temporary file `.bvhc-<pid>-<random>.tmp` in the output's directory, are flushed to disk, and
-//! the file is renamed over the output. So a reader (or a memory map, see [`crate::MappedBvh`]) sees either the
+//! the file is renamed over the output. So a reader (or a memory map, see `MappedBvh`) sees either the
 //! old file or the new one, never a mix; a failed or interrupted write leaves the old file untouched.
 //!
 //! Rules: the output, when it exists, must be a regular file (a FIFO, device or directory is refused, never
@@ -12,7 +12,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::{Error, UncachedWriter};
+use crate::error::Error;
+use crate::uncached::UncachedWriter;
 
 /// The prefix of every temporary file name.
 pub const TEMPORARY_PREFIX: &str = ".bvhc-";

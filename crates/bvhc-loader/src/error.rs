@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 /// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
 ///
-/// V1-V10 are structural and checked by every open; V11-V35 are checked by [`crate::BvhView::verify`]
+/// V1-V10 are structural and checked by every open; V11-V35 are checked by `BvhView::verify`
 /// (V29-V35, the wide sections of 1.1, only when a file has them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -129,7 +129,7 @@ impl Rule {
         Rule::ALL.iter().position(|&r| r == self).map_or(0, |i| i as u32 + 1)
     }
 
-    /// Whether every open checks this rule (V1-V10), rather than only [`crate::BvhView::verify`].
+    /// Whether every open checks this rule (V1-V10), rather than only `BvhView::verify`.
     pub fn is_structural(self) -> bool {
         self.number() <= 10
     }

@@ -4,7 +4,7 @@
 //! types to and from bytes with bytemuck, so they cannot drift. Field names equal the spec's field names. Every
 //! struct is plain data (`u32`, `u64`, `f32`, arrays of them), every padding byte is a named `reserved*` field,
 //! and the sizes are asserted at compile time. The file is little-endian; the zero-copy casts are only valid on
-//! little-endian hosts, which [`crate::BvhView::open`] checks.
+//! little-endian hosts, which `BvhView::open` checks.
 
 use bytemuck::{Pod, Zeroable};
 

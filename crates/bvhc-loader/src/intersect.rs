@@ -7,20 +7,22 @@
 //!   distance `(plane - origin) * exit_inverse` then carries four roundings, as Ize's `((plane - origin) *
 //!   (1 / direction)) * (1 + 2 gamma(3))` does, each at most a factor `1 - eps` away, and `(1 - eps)^4 (1 + 6
 //!   eps) > 1`, so it is still never below the exact distance; one multiplication a slab fewer.
-//! * Triangle: S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013. The ray
-//!   is sheared so that it runs along +z of a ray space whose z axis is the direction's largest component
-//!   (`kz`); the 2D edge functions U, V, W are recomputed in f64 when any is exactly 0, so a ray through a
-//!   shared edge or vertex hits at least one of the triangles that share it.
+//! * Triangle: S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013
+//!   ([`crate::watertight`], written once for every lane width; here its one-lane form). The 2D edge functions
+//!   U, V, W are recomputed in f64 when any is exactly 0, so a ray through a shared edge or vertex hits at
+//!   least one of the triangles that share it.
 //!
 //! Direction components of +0 and -0 give infinite reciprocals. The slab distances are then `+-inf`, or NaN
 //! when the origin lies exactly on a slab plane (`0 * inf`); the slab bounds are accumulated with comparisons
 //! that ignore a NaN operand, which treats the origin on the plane as inside the closed slab, as the exact test
 //! would.
-//!
-//! Symbols (Woop et al.): `kx, ky, kz` the permuted axes; `sx, sy, sz` the shear; `U, V, W` the edge functions,
-//! which are the barycentric weights of v0, v1, v2 times the determinant `det = U + V + W`.
 
 use crate::format::{PackedNode, PackedTriangle, WIDE};
+use crate::simd::SlabRay;
+use crate::watertight::{
+    RelativeTriangle, barycentrics, determinant, distance, edge_functions, edge_functions_f64, has_zero_edge, outside,
+    sheared,
+};
 
 /// Machine epsilon for f32 rounding, 2^-24.
 const EPSILON: f32 = f32::EPSILON * 0.5;
@@ -90,8 +92,8 @@ pub struct PreparedRay {
     pub(crate) negative: [bool; 3],
     /// Per axis: where a wide node's entry and exit planes of the axis start, in `f32`s from the start of the
     /// node (its three `min` rows, then its three `max` rows, `WIDE` lanes a row): `axis * WIDE`, plus
-    /// `3 * WIDE` for the `max` row.
-    pub(crate) wide_plane_offsets: ([usize; 3], [usize; 3]),
+    /// `3 * WIDE` for the `max` row. Only [`PreparedRay::new`] writes them, so they are always such offsets.
+    wide_plane_offsets: ([usize; 3], [usize; 3]),
     pub(crate) t_min: f32,
     kx: usize,
     ky: usize,
@@ -138,6 +140,18 @@ impl PreparedRay {
         }
     }
 
+    /// What the slab test of a wide node's eight boxes needs of this ray.
+    #[inline(always)]
+    pub(crate) fn slab_ray(&self) -> SlabRay<'_> {
+        SlabRay {
+            origin: &self.origin,
+            inverse_direction: &self.inverse_direction,
+            exit_inverse: &self.exit_inverse,
+            plane_offsets: &self.wide_plane_offsets,
+            t_min: self.t_min,
+        }
+    }
+
     /// The permuted axes `[kx, ky, kz]` and the shear `[sx, sy, sz]` of Woop et al.'s test.
     pub(crate) fn shear(&self) -> ([usize; 3], [f32; 3]) {
         ([self.kx, self.ky, self.kz], [self.sx, self.sy, self.sz])
@@ -157,47 +171,39 @@ impl PreparedRay {
         (t_near <= t_far).then_some(t_near)
     }
 
-    /// The watertight test: a hit with `t_min <= t <= t_max`, from either side of the triangle.
+    /// The triangle's vertices relative to the origin, in the ray's permuted axes.
     #[inline(always)]
-    pub fn intersect_triangle(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
-        let [v0, v1, v2] = &triangle.vertices;
+    pub(crate) fn relative(&self, triangle: &PackedTriangle) -> RelativeTriangle<f32> {
         let o = &self.origin;
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let [v0, v1, v2] = &triangle.vertices;
         let a = [v0[0] - o[0], v0[1] - o[1], v0[2] - o[2]];
         let b = [v1[0] - o[0], v1[1] - o[1], v1[2] - o[2]];
         let c = [v2[0] - o[0], v2[1] - o[1], v2[2] - o[2]];
-        let ax = a[kx] - self.sx * a[kz];
-        let ay = a[ky] - self.sy * a[kz];
-        let bx = b[kx] - self.sx * b[kz];
-        let by = b[ky] - self.sy * b[kz];
-        let cx = c[kx] - self.sx * c[kz];
-        let cy = c[ky] - self.sy * c[kz];
-        let mut u = cx * by - cy * bx;
-        let mut v = ax * cy - ay * cx;
-        let mut w = bx * ay - by * ax;
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            let edge = |px: f32, py: f32, qx: f32, qy: f32| {
-                (f64::from(px) * f64::from(qy) - f64::from(py) * f64::from(qx)) as f32
-            };
-            u = edge(cx, cy, bx, by);
-            v = edge(ax, ay, cx, cy);
-            w = edge(bx, by, ax, ay);
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        RelativeTriangle { a: [a[kx], a[ky], a[kz]], b: [b[kx], b[ky], b[kz]], c: [c[kx], c[ky], c[kz]] }
+    }
+
+    /// The watertight test: a hit with `t_min <= t <= t_max`, from either side of the triangle.
+    #[inline(always)]
+    pub fn intersect_triangle(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
+        let r = self.relative(triangle);
+        let p = sheared(&r, self.sx, self.sy);
+        let mut e = edge_functions(p);
+        if has_zero_edge(e, 0.0) {
+            e = edge_functions_f64(p);
         }
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        if outside(e, 0.0) {
             return None;
         }
-        let det = u + v + w;
+        let det = determinant(e);
         if det == 0.0 {
             return None;
         }
-        let az = self.sz * a[kz];
-        let bz = self.sz * b[kz];
-        let cz = self.sz * c[kz];
-        let t = (u * az + v * bz + w * cz) / det;
+        let t = distance(e, &r, self.sz, det);
         if !(t >= self.t_min && t <= t_max) {
             return None;
         }
-        let inverse_det = 1.0 / det;
-        Some(TriangleHit { t, u: v * inverse_det, v: w * inverse_det })
+        let (u, v) = barycentrics(e, det, 1.0);
+        Some(TriangleHit { t, u, v })
     }
 }

@@ -26,7 +26,9 @@ mod checksum;
 mod error;
 mod file;
 pub mod format;
+mod hit;
 mod intersect;
+mod simd;
 mod traverse;
 mod uncached;
 mod verify;
@@ -34,6 +36,7 @@ mod verify_metadata;
 mod verify_references;
 mod verify_wide;
 mod view;
+mod watertight;
 mod wide;
 mod wide_coherent;
 mod wide_packets;
@@ -51,10 +54,12 @@ pub use format::{
     EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, SectionKind, SourceRange, TrianglePacket4, WIDE,
     WideNode8,
 };
+pub use hit::{Hit, TraversalCounter, TraversalStats};
 pub use intersect::{PreparedRay, Ray, TriangleHit};
-pub use traverse::{Hit, Kernel, Tracer, TraversalCounter, TraversalStats};
+pub use simd::KernelPath;
+pub use traverse::{Kernel, Tracer};
 pub use uncached::UncachedWriter;
 pub use verify::{PARALLEL_VERIFY_BYTES, verify_tree};
 pub use view::{BvhView, SectionInfo, WideSections};
-pub use wide::{KernelPath, WideBvh, WideTracer};
+pub use wide::{WideBvh, WideTracer};
 pub use writer::BvhWriter;

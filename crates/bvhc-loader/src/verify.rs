@@ -62,7 +62,12 @@ impl BvhView<'_> {
         verify_tree(self.nodes(), self.triangles(), self.has_split_references())?;
         verify_sources(self)?;
         crate::verify_metadata::verify_metadata(self)?;
-        crate::verify_references::verify_references(self)
+        crate::verify_references::verify_references(
+            self.nodes(),
+            self.triangles(),
+            self.triangle_ids(),
+            self.has_split_references(),
+        )
     }
 
     /// What the wide sections are checked against.

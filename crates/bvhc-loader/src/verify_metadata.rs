@@ -4,8 +4,8 @@
 
 use serde_json::{Map, Value};
 
-use crate::BvhView;
 use crate::error::{Rule, Violation, violation};
+use crate::view::BvhView;
 
 /// V23, V26, V27, V28. Without a metadata section only V26 applies (every `file_index` must then be 0).
 pub(crate) fn verify_metadata(view: &BvhView<'_>) -> Result<(), Violation> {

@@ -11,18 +11,24 @@
 //! `2^-40` of the triangle's, a margin far above f64 rounding of the clip points and far below any gap a ray
 //! could pass (a zero-area triangle must have each vertex in one of the boxes).
 
-use crate::BvhView;
 use crate::error::{Rule, Violation, violation};
 use crate::format::{PackedNode, PackedTriangle};
 
 /// The leftover area, relative to the triangle's, under which a triangle counts as covered.
 const COVERAGE_TOLERANCE: f64 = 1.0 / (1u64 << 40) as f64;
 
-pub(crate) fn verify_references(view: &BvhView<'_>) -> Result<(), Violation> {
-    if view.has_split_references() {
-        verify_split_coverage(view.nodes(), view.triangles(), view.triangle_ids())
+/// V24 and V25 over a file's nodes, triangles and triangle ids: distinct records without split references,
+/// every triangle covered by its records' leaves with them.
+pub(crate) fn verify_references(
+    nodes: &[PackedNode],
+    triangles: &[PackedTriangle],
+    triangle_ids: Option<&[u32]>,
+    split_references: bool,
+) -> Result<(), Violation> {
+    if split_references {
+        verify_split_coverage(nodes, triangles, triangle_ids)
     } else {
-        verify_distinct_ids(view.triangle_ids().unwrap_or(&[]))
+        verify_distinct_ids(triangle_ids.unwrap_or(&[]))
     }
 }
 

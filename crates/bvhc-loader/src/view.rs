@@ -9,8 +9,9 @@ use crate::format::{
     SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind,
     SourceRange, TrianglePacket4, VERSION_MAJOR, WideNode8, is_known_minor,
 };
+use crate::simd::KernelPath;
 use crate::traverse::Tracer;
-use crate::wide::{KernelPath, WideTracer};
+use crate::wide::WideTracer;
 
 /// A structurally checked `.bvh` file borrowed from bytes: typed zero-copy slices of its sections.
 ///
@@ -52,7 +53,7 @@ pub struct SectionInfo {
 impl<'a> BvhView<'a> {
     /// Opens `bytes` as a `.bvh` file, checking rules V1-V10 (O(number of sections)).
     ///
-    /// `bytes` must start at a 4-byte-aligned address (a [`crate::BvhFile`] or a memory map always does);
+    /// `bytes` must start at a 4-byte-aligned address (a [`crate::file::BvhFile`] or a memory map always does);
     /// otherwise [`Error::Misaligned`] is returned. Call [`BvhView::verify`] before trusting the contents.
     pub fn open(bytes: &'a [u8]) -> Result<BvhView<'a>, Error> {
         if cfg!(target_endian = "big") {

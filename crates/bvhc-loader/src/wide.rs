@@ -1,15 +1,17 @@
-//! The wide kernel's public face: [`WideBvh`] (wide sections in memory, checked by V29-V35), [`KernelPath`]
-//! (which implementation runs, chosen at run time) and [`WideTracer`] (closest hit, any hit, one ray or a
-//! stream of rays). The traversal itself is `wide_walk` (wide nodes, box tests) and `wide_packets` (triangle
-//! packets); layout: `format::WideNode8`, `format::TrianglePacket4`.
+//! The wide kernel's public face: [`WideBvh`] (wide sections in memory, checked by V29-V35) and [`WideTracer`]
+//! (closest hit, any hit, one ray, a stream of rays or packets of coherent rays). The traversal itself is
+//! `wide_walk` (wide nodes, box tests), `wide_packets` (triangle packets) and `wide_coherent` (ray packets);
+//! layout: `format::WideNode8`, `format::TrianglePacket4`.
 //!
-//! Paths: AVX2 box tests and SSE2 packets in one `target_feature(enable = "avx2")` function per entry point, so
-//! everything inlines into it, or the portable loops, which give the same hits bit for bit.
+//! Each entry point is a [`Kernel`] written once over an instruction set and run by [`crate::simd::run`]: on
+//! AVX2 (box tests in AVX2, triangle packets in SSE2) inside one `target_feature` function, so everything
+//! inlines into it, or on the portable path, which gives the same hits bit for bit.
 
 use crate::error::Violation;
 use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
+use crate::hit::{Hit, TraversalCounter};
 use crate::intersect::{Ray, TriangleHit};
-use crate::traverse::{Hit, TraversalCounter};
+use crate::simd::{Avx2, Isa, Kernel, KernelPath};
 use crate::verify_wide::{WideContext, verify_wide};
 use crate::wide_coherent::{PACKET_RAYS, trace_packet};
 use crate::wide_walk::{Sections, Walk, new_stack};
@@ -71,39 +73,13 @@ impl WideBvh {
     }
 }
 
-/// Which implementation of the box test runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum KernelPath {
-    /// Plain Rust, any machine.
-    Portable,
-    /// AVX2 box tests and SSE2 triangle packets (x86-64), chosen at run time.
-    Avx2,
-}
-
-impl KernelPath {
-    /// The fastest path this machine supports.
-    pub fn best() -> KernelPath {
-        if KernelPath::Avx2.is_supported() { KernelPath::Avx2 } else { KernelPath::Portable }
-    }
-
-    /// Whether this machine can run the path.
-    pub fn is_supported(self) -> bool {
-        match self {
-            KernelPath::Portable => true,
-            #[cfg(target_arch = "x86_64")]
-            KernelPath::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
-            #[cfg(not(target_arch = "x86_64"))]
-            KernelPath::Avx2 => false,
-        }
-    }
-}
-
 /// Closest-hit and any-hit queries over wide sections (a file's, or a [`WideBvh`]).
 #[derive(Clone, Copy, Debug)]
 pub struct WideTracer<'a> {
     sections: Sections<'a>,
     triangle_ids: Option<&'a [u32]>,
-    path: KernelPath,
+    /// The AVX2 token when the tracer runs the AVX2 path.
+    avx2: Option<Avx2>,
     interleave: bool,
 }
 
@@ -124,7 +100,7 @@ impl<'a> WideTracer<'a> {
         WideTracer::over(&bvh.nodes, &bvh.packets, (bvh.root.min, bvh.root.max), triangle_ids, path)
     }
 
-    /// A tracer over borrowed wide sections (a [`crate::BvhView`]'s) inside `root_box`, the binary root's box.
+    /// A tracer over borrowed wide sections (a `BvhView`'s) inside `root_box`, the binary root's box.
     /// Safe on any contents; the hits are those of the binary kernel when the sections pass V29-V35.
     pub fn over(
         nodes: &'a [WideNode8],
@@ -133,15 +109,18 @@ impl<'a> WideTracer<'a> {
         triangle_ids: Option<&'a [u32]>,
         path: KernelPath,
     ) -> WideTracer<'a> {
-        let path = if path.is_supported() { path } else { KernelPath::Portable };
+        let avx2 = match path {
+            KernelPath::Avx2 => Avx2::detect(),
+            KernelPath::Portable => None,
+        };
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
         let interleave = size_of_val(nodes) + size_of_val(packets) > INTERLEAVE_ABOVE_BYTES;
-        WideTracer { sections: Sections { nodes, packets, root }, triangle_ids, path, interleave }
+        WideTracer { sections: Sections { nodes, packets, root }, triangle_ids, avx2, interleave }
     }
 
     /// The path this tracer runs.
     pub fn path(&self) -> KernelPath {
-        self.path
+        if self.avx2.is_some() { KernelPath::Avx2 } else { KernelPath::Portable }
     }
 
     /// The closest hit.
@@ -149,7 +128,7 @@ impl<'a> WideTracer<'a> {
         self.closest_hit_counted(ray, &mut ())
     }
 
-    /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (on the SIMD path, packets of
+    /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (packets of
     /// four count as one test each) into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
         let (triangle_index, hit) = self.dispatch::<false>(ray, counter)?;
@@ -197,91 +176,18 @@ impl<'a> WideTracer<'a> {
     }
 
     /// Packets of consecutive rays on the tracer's path; `done(i, found)` receives ray `i`'s result.
-    #[allow(unsafe_code)] // the AVX2 entry, under the runtime check of `WideTracer::over`
     fn packets<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
-        match self.path {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::over`).
-            KernelPath::Avx2 => unsafe { self.packets_avx2::<ANY_HIT>(rays, done) },
-            _ => self.packets_on::<ANY_HIT, false>(rays, done),
-        }
+        crate::simd::run(self.avx2, Packets::<_, ANY_HIT> { sections: &self.sections, rays, done });
     }
 
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[allow(unsafe_code)]
-    unsafe fn packets_avx2<const ANY_HIT: bool>(
-        &self,
-        rays: &[Ray],
-        done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
-    ) {
-        self.packets_on::<ANY_HIT, true>(rays, done)
-    }
-
+    /// One ray's walk to its end on the tracer's path.
     #[inline(always)]
-    fn packets_on<const ANY_HIT: bool, const SIMD: bool>(
-        &self,
-        rays: &[Ray],
-        done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
-    ) {
-        for (p, chunk) in rays.chunks(PACKET_RAYS).enumerate() {
-            trace_packet::<ANY_HIT, SIMD>(&self.sections, chunk, &mut |l, found| done(p * PACKET_RAYS + l, found));
-        }
-    }
-
-    /// One ray's walk to its end on the tracer's path: for AVX2 the whole loop is one `target_feature`
-    /// function, so the box test and the packets inline into it instead of being called per node.
-    #[inline(always)]
-    #[allow(unsafe_code)] // the AVX2 entry, under the runtime check of `WideTracer::over`
     fn dispatch<const ANY_HIT: bool>(
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
     ) -> Option<(u32, TriangleHit)> {
-        match self.path {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::over`).
-            KernelPath::Avx2 => unsafe { self.walk_avx2::<ANY_HIT>(ray, counter) },
-            _ => self.walk_portable::<ANY_HIT>(ray, counter),
-        }
-    }
-
-    /// The portable walk, kept out of line like the AVX2 one, so that callers that inline `dispatch` (such as
-    /// `Tracer`, next to the binary kernel) stay small.
-    #[inline(never)]
-    fn walk_portable<const ANY_HIT: bool>(
-        &self,
-        ray: &Ray,
-        counter: &mut impl TraversalCounter,
-    ) -> Option<(u32, TriangleHit)> {
-        self.walk::<ANY_HIT, false>(ray, counter)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[allow(unsafe_code)]
-    unsafe fn walk_avx2<const ANY_HIT: bool>(
-        &self,
-        ray: &Ray,
-        counter: &mut impl TraversalCounter,
-    ) -> Option<(u32, TriangleHit)> {
-        self.walk::<ANY_HIT, true>(ray, counter)
-    }
-
-    #[inline(always)]
-    fn walk<const ANY_HIT: bool, const SIMD: bool>(
-        &self,
-        ray: &Ray,
-        counter: &mut impl TraversalCounter,
-    ) -> Option<(u32, TriangleHit)> {
-        let mut walk = Walk::start(&self.sections, ray)?;
-        let mut stack = new_stack();
-        while walk.step::<ANY_HIT, SIMD>(&self.sections, &mut stack, counter) {}
-        walk.found()
+        crate::simd::run(self.avx2, SingleRay::<_, ANY_HIT> { sections: &self.sections, ray, counter })
     }
 
     /// Whether streams interleave rays: by default when the wide sections exceed 32 MiB, where it measured
@@ -297,7 +203,6 @@ impl<'a> WideTracer<'a> {
     }
 
     /// The stream on the tracer's path; `done(i, found)` receives ray `i`'s result.
-    #[allow(unsafe_code)] // the AVX2 entry, under the runtime check of `WideTracer::over`
     fn stream<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
         if !self.interleaves_streams() {
             for (i, ray) in rays.iter().enumerate() {
@@ -305,35 +210,43 @@ impl<'a> WideTracer<'a> {
             }
             return;
         }
-        match self.path {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `path` is Avx2 only when `is_x86_feature_detected!("avx2")` said so (`WideTracer::over`).
-            KernelPath::Avx2 => unsafe { self.stream_avx2::<ANY_HIT>(rays, done) },
-            _ => self.interleave::<ANY_HIT, false>(rays, done),
-        }
+        crate::simd::run(self.avx2, Stream::<_, ANY_HIT> { sections: &self.sections, rays, done });
     }
+}
 
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[allow(unsafe_code)]
-    unsafe fn stream_avx2<const ANY_HIT: bool>(
-        &self,
-        rays: &[Ray],
-        done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
-    ) {
-        self.interleave::<ANY_HIT, true>(rays, done)
-    }
+/// One ray's walk, to its end.
+struct SingleRay<'s, 'r, C, const ANY_HIT: bool> {
+    sections: &'s Sections<'s>,
+    ray: &'r Ray,
+    counter: &'r mut C,
+}
 
-    /// Keeps up to `STREAM_WIDTH` walks in flight, one step of each in turn; a finished walk's slot takes the
-    /// next ray.
+impl<C: TraversalCounter, const ANY_HIT: bool> Kernel for SingleRay<'_, '_, C, ANY_HIT> {
+    type Output = Option<(u32, TriangleHit)>;
+
     #[inline(always)]
-    fn interleave<const ANY_HIT: bool, const SIMD: bool>(
-        &self,
-        rays: &[Ray],
-        done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
-    ) {
+    fn run<I: Isa>(self, isa: I) -> Self::Output {
+        let mut walk = Walk::start(self.sections, self.ray)?;
+        let mut stack = new_stack();
+        while walk.step::<ANY_HIT, I>(isa, self.sections, &mut stack, self.counter) {}
+        walk.found()
+    }
+}
+
+/// A stream of rays, up to [`STREAM_WIDTH`] walks in flight, one step of each in turn; a finished walk's slot
+/// takes the next ray.
+struct Stream<'s, 'r, D, const ANY_HIT: bool> {
+    sections: &'s Sections<'s>,
+    rays: &'r [Ray],
+    done: &'r mut D,
+}
+
+impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel for Stream<'_, '_, D, ANY_HIT> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) {
+        let Stream { sections, rays, done } = self;
         let mut stacks = [const { new_stack() }; STREAM_WIDTH];
         let mut walks: [Option<(usize, Walk)>; STREAM_WIDTH] = [const { None }; STREAM_WIDTH];
         let mut next = 0;
@@ -343,7 +256,7 @@ impl<'a> WideTracer<'a> {
                 if slot.is_none() {
                     // Start the next ray that enters the root's box; the others miss at once.
                     while next < rays.len() && slot.is_none() {
-                        match Walk::start(&self.sections, &rays[next]) {
+                        match Walk::start(sections, &rays[next]) {
                             Some(walk) => {
                                 *slot = Some((next, walk));
                                 in_flight += 1;
@@ -354,7 +267,7 @@ impl<'a> WideTracer<'a> {
                     }
                 }
                 if let Some((i, walk)) = slot
-                    && !walk.step::<ANY_HIT, SIMD>(&self.sections, stack, &mut ())
+                    && !walk.step::<ANY_HIT, I>(isa, sections, stack, &mut ())
                 {
                     done(*i, walk.found());
                     *slot = None;
@@ -364,6 +277,26 @@ impl<'a> WideTracer<'a> {
             if in_flight == 0 && next >= rays.len() {
                 return;
             }
+        }
+    }
+}
+
+/// Packets of [`PACKET_RAYS`] consecutive rays, one traversal each.
+struct Packets<'s, 'r, D, const ANY_HIT: bool> {
+    sections: &'s Sections<'s>,
+    rays: &'r [Ray],
+    done: &'r mut D,
+}
+
+impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel for Packets<'_, '_, D, ANY_HIT> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) {
+        for (p, chunk) in self.rays.chunks(PACKET_RAYS).enumerate() {
+            trace_packet::<ANY_HIT, I>(isa, self.sections, chunk, &mut |l, found| {
+                (self.done)(p * PACKET_RAYS + l, found)
+            });
         }
     }
 }

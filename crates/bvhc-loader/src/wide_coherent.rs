@@ -1,12 +1,13 @@
 //! Packets of up to eight coherent rays (camera rays of neighbouring pixels) traced through the wide sections
 //! together: one traversal, its stack entries carrying a mask of the rays that go there (after Wald, Slusallek,
 //! Benthin, Wagner, "Interactive Rendering with Coherent Ray Tracing", Eurographics 2001, on an 8-wide BVH).
-//! At a wide node each occupied slot's box is tested against all the packet's rays at once, one ray a lane
-//! (AVX2, or a portable loop with the same operations in the same order), with the single-ray kernel's robust
-//! slab test per lane (Ize 2013; entry and exit planes picked per lane by the sign of that ray's direction).
-//! Children are visited in the order of the packet's first active ray; each stack entry keeps every lane's
-//! entry distance, so on pop the rays whose closest hit is already nearer leave the packet. Leaves test their
-//! triangle packets for each active ray with the single-ray packet test (`wide_packets`).
+//! At a wide node each occupied slot's box is tested against all the packet's rays at once, one ray a lane of
+//! the instruction set's eight lanes, with the single-ray kernel's robust slab test per lane (Ize 2013; entry
+//! and exit planes picked per lane by the sign of that ray's direction). Children are visited in the order of
+//! the packet's first active ray; each stack entry keeps every lane's entry distance, so on pop the rays whose
+//! closest hit is already nearer leave the packet. At a leaf, when the rays share their shear axes, each
+//! triangle is tested against all active rays in lanes ([`crate::watertight`]); otherwise each ray tests the
+//! leaf's packets with the single-ray packet test (`wide_packets`).
 //!
 //! Each ray's closest `t` (and any-hit answer) is the single-ray kernel's: the box test is the same arithmetic,
 //! conservative for each ray, and culling uses the same padding; on a tie at that `t` the triangle reported may
@@ -15,9 +16,14 @@
 
 use std::mem::MaybeUninit;
 
-use crate::format::{EMPTY_SLOT, LEAF_BIT, WIDE, WideNode8};
-use crate::intersect::{PreparedRay, Ray, TriangleHit, slab};
-use crate::traverse::CULL_PADDING;
+use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
+use crate::hit::CULL_PADDING;
+use crate::intersect::{PreparedRay, Ray, TriangleHit};
+use crate::simd::{Isa, LaneMask, Lanes};
+use crate::watertight::{
+    RelativeTriangle, barycentrics, determinant, distance, edge_functions, has_zero_edge, hits, outside, sheared,
+};
+use crate::wide_packets::closest_in_packet;
 use crate::wide_walk::{STACK_LEN, Sections};
 
 /// Rays in one packet.
@@ -32,12 +38,12 @@ struct Entry {
 }
 
 /// The per-lane ray data of a packet, structure of arrays.
-struct Lanes {
+struct RayLanes {
     origin: [[f32; PACKET_RAYS]; 3],
     inverse_direction: [[f32; PACKET_RAYS]; 3],
     exit_inverse: [[f32; PACKET_RAYS]; 3],
-    /// Per axis, bit `l`: ray `l`'s direction has its sign bit set (enters through `max`).
-    negative: [u8; 3],
+    /// Per axis and lane: -1 where the ray's direction has its sign bit set (it enters through `max`), else 1.
+    sign: [[f32; PACKET_RAYS]; 3],
     t_min: [f32; PACKET_RAYS],
     /// Woop et al.'s shear per lane, and whether every ray of the packet has the same axes `[kx, ky, kz]`
     /// (those of the first ray), so that a triangle can be tested against all of them in lanes.
@@ -45,36 +51,41 @@ struct Lanes {
     shared_axes: Option<[usize; 3]>,
 }
 
+/// Each ray's search: its closest hit so far (any hit, for any-hit packets) and the distance limit.
+struct Found {
+    t_max: [f32; PACKET_RAYS],
+    hit: [Option<(u32, TriangleHit)>; PACKET_RAYS],
+}
+
 /// Traces `rays` (at most [`PACKET_RAYS`]) as one packet; `done(l, found)` receives ray `l`'s result.
 #[inline(always)]
-#[allow(unsafe_code)] // the AVX2 leaf test, see the SAFETY note
-pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
+pub(crate) fn trace_packet<const ANY_HIT: bool, I: Isa>(
+    isa: I,
     sections: &Sections<'_>,
     rays: &[Ray],
     done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
 ) {
     let rays = &rays[..rays.len().min(PACKET_RAYS)];
     let prepared: [Option<PreparedRay>; PACKET_RAYS] = std::array::from_fn(|l| rays.get(l).map(PreparedRay::new));
-    let mut t_max = [0f32; PACKET_RAYS];
-    let mut found: [Option<(u32, TriangleHit)>; PACKET_RAYS] = [None; PACKET_RAYS];
+    let mut found = Found { t_max: [0.0; PACKET_RAYS], hit: [None; PACKET_RAYS] };
     let mut root = Entry { child: 0, rays: 0, t_near: [0.0; PACKET_RAYS] };
-    let mut lanes = Lanes {
+    let mut lanes = RayLanes {
         origin: [[0.0; PACKET_RAYS]; 3],
         inverse_direction: [[0.0; PACKET_RAYS]; 3],
         exit_inverse: [[0.0; PACKET_RAYS]; 3],
-        negative: [0; 3],
+        sign: [[1.0; PACKET_RAYS]; 3],
         t_min: [0.0; PACKET_RAYS],
         shear: [[0.0; PACKET_RAYS]; 3],
         shared_axes: prepared[0].map(|p| p.shear().0),
     };
     for (l, ray) in rays.iter().enumerate() {
         let Some(p) = &prepared[l] else { continue };
-        t_max[l] = ray.t_max;
+        found.t_max[l] = ray.t_max;
         for axis in 0..3 {
             lanes.origin[axis][l] = p.origin[axis];
             lanes.inverse_direction[axis][l] = p.inverse_direction[axis];
             lanes.exit_inverse[axis][l] = p.exit_inverse[axis];
-            lanes.negative[axis] |= u8::from(p.negative[axis]) << l;
+            lanes.sign[axis][l] = if p.negative[axis] { -1.0 } else { 1.0 };
         }
         lanes.t_min[l] = p.t_min;
         let (axes, shear) = p.shear();
@@ -103,37 +114,18 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
             if entry.child & LEAF_BIT != 0 {
                 let (first, count) = WideNode8::leaf_packets(entry.child);
                 let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
-                #[cfg(target_arch = "x86_64")]
-                if SIMD && let Some(axes) = lanes.shared_axes {
-                    // SAFETY: SIMD is true only inside the tracer's `target_feature(enable = "avx2")` entries,
-                    // which run only after the AVX2 check of `WideTracer::over`.
-                    let hit = unsafe {
-                        avx2::leaf_test::<ANY_HIT>(packets, &lanes, axes, active, &prepared, &mut t_max, &mut found)
-                    };
-                    if ANY_HIT {
-                        pending &= !hit;
+                let hit = match lanes.shared_axes {
+                    Some(axes) => {
+                        leaf_in_lanes::<ANY_HIT, I>(isa, packets, &lanes, axes, active, &prepared, &mut found)
                     }
-                    next = pop(&mut stack, &mut stack_len, &t_max, pending);
-                    continue;
-                }
-                for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
-                    let Some(ray) = &prepared[l] else { continue };
-                    for packet in packets {
-                        if let Some((lane, hit)) =
-                            crate::wide_packets::closest_in_packet::<ANY_HIT, SIMD>(packet, ray, t_max[l])
-                        {
-                            t_max[l] = hit.t;
-                            found[l] = Some((packet.triangle_index[lane], hit));
-                            if ANY_HIT {
-                                pending &= !(1 << l);
-                                break;
-                            }
-                        }
-                    }
+                    None => leaf_ray_by_ray::<ANY_HIT, I>(isa, packets, active, &prepared, &mut found),
+                };
+                if ANY_HIT {
+                    pending &= !hit;
                 }
             } else if let Some(node) = sections.nodes.get(entry.child as usize).filter(|_| visits_left > 0) {
                 visits_left -= 1;
-                let t_far: [f32; PACKET_RAYS] = std::array::from_fn(|l| t_max[l] * CULL_PADDING);
+                let t_far: [f32; PACKET_RAYS] = std::array::from_fn(|l| found.t_max[l] * CULL_PADDING);
                 let leader = active.trailing_zeros() as usize & (PACKET_RAYS - 1);
                 // The hit slots, nearest first for the leader (the first active ray), ties in slot order.
                 let mut order = [Entry { child: 0, rays: 0, t_near: [0.0; PACKET_RAYS] }; WIDE];
@@ -143,7 +135,7 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
                     if child == EMPTY_SLOT {
                         break;
                     }
-                    let (hit, t_near) = slot_test::<SIMD>(node, slot, &lanes, &t_far);
+                    let (hit, t_near) = slot_test(isa, node, slot, &lanes, &t_far);
                     let hit = hit & active;
                     if hit == 0 {
                         continue;
@@ -170,9 +162,9 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, const SIMD: bool>(
                 }
             }
         }
-        next = pop(&mut stack, &mut stack_len, &t_max, pending);
+        next = pop(&mut stack, &mut stack_len, &found.t_max, pending);
     }
-    for (l, hit) in found.iter().enumerate().take(rays.len()) {
+    for (l, hit) in found.hit.iter().enumerate().take(rays.len()) {
         done(l, *hit);
     }
 }
@@ -204,181 +196,136 @@ fn pop(
 }
 
 /// Slot `slot` of `node` against every lane: (bit mask of the lanes whose ray enters the box within
-/// `[t_min, t_far]`, entry distances). The single-ray slab test per lane, on the SIMD path in AVX2.
+/// `[t_min, t_far]`, entry distances). The single-ray slab test per lane.
 #[inline(always)]
-#[allow(unsafe_code)] // the AVX2 call, only reached on the SIMD path
-fn slot_test<const SIMD: bool>(
+fn slot_test<I: Isa>(
+    isa: I,
     node: &WideNode8,
     slot: usize,
-    lanes: &Lanes,
+    lanes: &RayLanes,
     t_far: &[f32; PACKET_RAYS],
 ) -> (u8, [f32; PACKET_RAYS]) {
-    #[cfg(target_arch = "x86_64")]
-    if SIMD {
-        // SAFETY: SIMD is true only inside the tracer's `target_feature(enable = "avx2")` entries, which run only
-        // after the AVX2 check of `WideTracer::over`.
-        return unsafe { avx2::slot_test(node, slot, lanes, t_far) };
-    }
-    let mut near = lanes.t_min;
-    let mut far = *t_far;
+    let mut near = isa.f8(&lanes.t_min);
+    let mut far = isa.f8(t_far);
     for axis in 0..3 {
-        let (lo, hi) = (node.min[axis][slot], node.max[axis][slot]);
-        for l in 0..PACKET_RAYS {
-            let negative = lanes.negative[axis] & (1 << l) != 0;
-            let (entry, exit) = if negative { (hi, lo) } else { (lo, hi) };
-            let inverses = (lanes.inverse_direction[axis][l], lanes.exit_inverse[axis][l]);
-            (near[l], far[l]) = slab(entry, exit, lanes.origin[axis][l], inverses, near[l], far[l]);
-        }
+        let (low, high) = (isa.f8_splat(node.min[axis][slot]), isa.f8_splat(node.max[axis][slot]));
+        let negative = isa.f8(&lanes.sign[axis]).is_sign_negative();
+        let entry = I::F8::select(negative, high, low);
+        let exit = I::F8::select(negative, low, high);
+        let origin = isa.f8(&lanes.origin[axis]);
+        let t_entry = entry.sub(origin).mul(isa.f8(&lanes.inverse_direction[axis]));
+        let t_exit = exit.sub(origin).mul(isa.f8(&lanes.exit_inverse[axis]));
+        near = t_entry.max_or(near);
+        far = t_exit.min_or(far);
     }
-    let mask = (0..PACKET_RAYS).fold(0u8, |m, l| if near[l] <= far[l] { m | 1 << l } else { m });
-    (mask, near)
+    (near.le(far).bits() as u8, near.to_array())
 }
 
-#[cfg(target_arch = "x86_64")]
-#[allow(unsafe_code)] // intrinsics: every block states what it relies on
-mod avx2 {
-    use std::arch::x86_64::*;
-
-    use super::{Lanes, PACKET_RAYS};
-    use crate::format::{TrianglePacket4, WideNode8};
-    use crate::intersect::{PreparedRay, TriangleHit};
-
-    /// The triangles of `packets`, one after the other, against the `active` rays in lanes, when every ray has
-    /// the shear axes `axes`: per (ray, triangle) the scalar watertight test's operations in its order, a lane
-    /// with an edge function exactly 0 redone by the scalar test, and hits accepted in triangle order at
-    /// `t <= t_max` of the ray, so each ray ends with what the single-ray packet test gives. Returns the rays
-    /// that were hit.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub(super) unsafe fn leaf_test<const ANY_HIT: bool>(
-        packets: &[TrianglePacket4],
-        lanes: &Lanes,
-        [kx, ky, kz]: [usize; 3],
-        mut active: u8,
-        prepared: &[Option<PreparedRay>; PACKET_RAYS],
-        t_max: &mut [f32; PACKET_RAYS],
-        found: &mut [Option<(u32, TriangleHit)>; PACKET_RAYS],
-    ) -> u8 {
-        let mut hit_rays = 0u8;
-        // SAFETY: every load and store touches an `[f32; 8]`, 32 bytes; unaligned accesses need no more.
-        unsafe {
-            let load = |values: &[f32; PACKET_RAYS]| _mm256_loadu_ps(values.as_ptr());
-            let origin = [load(&lanes.origin[0]), load(&lanes.origin[1]), load(&lanes.origin[2])];
-            let (sx, sy, sz) = (load(&lanes.shear[0]), load(&lanes.shear[1]), load(&lanes.shear[2]));
-            let t_min = load(&lanes.t_min);
-            let z = _mm256_setzero_ps();
-            for packet in packets {
-                for tri in 0..packet.used_lanes() {
-                    let at = |vertex: usize, axis: usize| {
-                        _mm256_sub_ps(_mm256_set1_ps(packet.vertices[vertex][axis][tri]), origin[axis])
-                    };
-                    let (akz, bkz, ckz) = (at(0, kz), at(1, kz), at(2, kz));
-                    let ax = _mm256_sub_ps(at(0, kx), _mm256_mul_ps(sx, akz));
-                    let ay = _mm256_sub_ps(at(0, ky), _mm256_mul_ps(sy, akz));
-                    let bx = _mm256_sub_ps(at(1, kx), _mm256_mul_ps(sx, bkz));
-                    let by = _mm256_sub_ps(at(1, ky), _mm256_mul_ps(sy, bkz));
-                    let cx = _mm256_sub_ps(at(2, kx), _mm256_mul_ps(sx, ckz));
-                    let cy = _mm256_sub_ps(at(2, ky), _mm256_mul_ps(sy, ckz));
-                    let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
-                    let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
-                    let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
-                    let eq = |a| _mm256_cmp_ps::<_CMP_EQ_OQ>(a, z);
-                    let lt = |a| _mm256_cmp_ps::<_CMP_LT_OQ>(a, z);
-                    let gt = |a| _mm256_cmp_ps::<_CMP_GT_OQ>(a, z);
-                    let zero = _mm256_or_ps(_mm256_or_ps(eq(u), eq(v)), eq(w));
-                    let negative = _mm256_or_ps(_mm256_or_ps(lt(u), lt(v)), lt(w));
-                    let positive = _mm256_or_ps(_mm256_or_ps(gt(u), gt(v)), gt(w));
-                    let outside = _mm256_and_ps(negative, positive);
-                    let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
-                    let (az, bz, cz) = (_mm256_mul_ps(sz, akz), _mm256_mul_ps(sz, bkz), _mm256_mul_ps(sz, ckz));
-                    let sum =
-                        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(u, az), _mm256_mul_ps(v, bz)), _mm256_mul_ps(w, cz));
-                    let t = _mm256_div_ps(sum, det);
-                    let limit = load(t_max);
-                    let in_range =
-                        _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(t, t_min), _mm256_cmp_ps::<_CMP_LE_OQ>(t, limit));
-                    let valid = _mm256_andnot_ps(_mm256_or_ps(outside, eq(det)), in_range);
-                    let zero_rays = _mm256_movemask_ps(zero) as u8 & active;
-                    let valid_rays = _mm256_movemask_ps(valid) as u8 & active & !zero_rays;
-                    if valid_rays != 0 {
-                        let inverse_det = _mm256_div_ps(_mm256_set1_ps(1.0), det);
-                        let mut out = [[0f32; PACKET_RAYS]; 3];
-                        _mm256_storeu_ps(out[0].as_mut_ptr(), t);
-                        _mm256_storeu_ps(out[1].as_mut_ptr(), _mm256_mul_ps(v, inverse_det));
-                        _mm256_storeu_ps(out[2].as_mut_ptr(), _mm256_mul_ps(w, inverse_det));
-                        let mut rays = valid_rays;
-                        while rays != 0 {
-                            let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
-                            rays &= rays - 1;
-                            t_max[l] = out[0][l];
-                            let hit = TriangleHit { t: out[0][l], u: out[1][l], v: out[2][l] };
-                            found[l] = Some((packet.triangle_index[tri], hit));
-                        }
-                        hit_rays |= valid_rays;
-                    }
-                    let mut rays = zero_rays;
-                    while rays != 0 {
-                        let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
-                        rays &= rays - 1;
-                        let Some(ray) = &prepared[l] else { continue };
-                        if let Some(hit) = ray.intersect_triangle(&packet.triangle(tri), t_max[l]) {
-                            t_max[l] = hit.t;
-                            found[l] = Some((packet.triangle_index[tri], hit));
-                            hit_rays |= 1 << l;
-                        }
-                    }
+/// The triangles of `packets`, one after the other, against the `active` rays in lanes, when every ray has the
+/// shear axes `axes`: per (ray, triangle) the scalar watertight test's operations in its order, a lane with an
+/// edge function exactly 0 redone by the scalar test, and hits accepted in triangle order at `t <= t_max` of
+/// the ray, so each ray ends with what the single-ray packet test gives. Returns the rays that were hit.
+#[inline(always)]
+fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
+    isa: I,
+    packets: &[TrianglePacket4],
+    lanes: &RayLanes,
+    [kx, ky, kz]: [usize; 3],
+    mut active: u8,
+    prepared: &[Option<PreparedRay>; PACKET_RAYS],
+    found: &mut Found,
+) -> u8 {
+    let mut hit_rays = 0u8;
+    let origin = [isa.f8(&lanes.origin[kx]), isa.f8(&lanes.origin[ky]), isa.f8(&lanes.origin[kz])];
+    let (sx, sy, sz) = (isa.f8(&lanes.shear[0]), isa.f8(&lanes.shear[1]), isa.f8(&lanes.shear[2]));
+    let (t_min, zero, one) = (isa.f8(&lanes.t_min), isa.f8_splat(0.0), isa.f8_splat(1.0));
+    for packet in packets {
+        for tri in 0..packet.used_lanes() {
+            let r = RelativeTriangle {
+                a: relative_vertex(isa, &packet.vertices[0], tri, [kx, ky, kz], &origin),
+                b: relative_vertex(isa, &packet.vertices[1], tri, [kx, ky, kz], &origin),
+                c: relative_vertex(isa, &packet.vertices[2], tri, [kx, ky, kz], &origin),
+            };
+            let e = edge_functions(sheared(&r, sx, sy));
+            let det = determinant(e);
+            let t = distance(e, &r, sz, det);
+            let valid = hits(outside(e, zero), det, t, zero, t_min, isa.f8(&found.t_max));
+            let zero_rays = has_zero_edge(e, zero).bits() as u8 & active;
+            let valid_rays = valid.bits() as u8 & active & !zero_rays;
+            if valid_rays != 0 {
+                let (u, v) = barycentrics(e, det, one);
+                let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+                let mut rays = valid_rays;
+                while rays != 0 {
+                    let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                    rays &= rays - 1;
+                    found.t_max[l] = t[l];
+                    found.hit[l] = Some((packet.triangle_index[tri], TriangleHit { t: t[l], u: u[l], v: v[l] }));
                 }
+                hit_rays |= valid_rays;
+            }
+            let mut rays = zero_rays;
+            while rays != 0 {
+                let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                rays &= rays - 1;
+                let Some(ray) = &prepared[l] else { continue };
+                if let Some(hit) = ray.intersect_triangle(&packet.triangle(tri), found.t_max[l]) {
+                    found.t_max[l] = hit.t;
+                    found.hit[l] = Some((packet.triangle_index[tri], hit));
+                    hit_rays |= 1 << l;
+                }
+            }
+        }
+        if ANY_HIT {
+            active &= !hit_rays;
+            if active == 0 {
+                break;
+            }
+        }
+    }
+    hit_rays
+}
+
+/// Vertex `vertex` of the packet's triangle in lane `tri` minus each ray's origin (`origin`, in the permuted
+/// axes), in the rays' permuted axes `[kx, ky, kz]`.
+#[inline(always)]
+fn relative_vertex<I: Isa>(
+    isa: I,
+    vertex: &[[f32; 4]; 3],
+    tri: usize,
+    [kx, ky, kz]: [usize; 3],
+    origin: &[I::F8; 3],
+) -> [I::F8; 3] {
+    [
+        isa.f8_splat(vertex[kx][tri]).sub(origin[0]),
+        isa.f8_splat(vertex[ky][tri]).sub(origin[1]),
+        isa.f8_splat(vertex[kz][tri]).sub(origin[2]),
+    ]
+}
+
+/// The leaf's packets for each `active` ray in turn, with the single-ray packet test (rays whose shear axes
+/// differ cannot share lanes). Returns the rays that were hit.
+#[inline(always)]
+fn leaf_ray_by_ray<const ANY_HIT: bool, I: Isa>(
+    isa: I,
+    packets: &[TrianglePacket4],
+    active: u8,
+    prepared: &[Option<PreparedRay>; PACKET_RAYS],
+    found: &mut Found,
+) -> u8 {
+    let mut hit_rays = 0u8;
+    for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
+        let Some(ray) = &prepared[l] else { continue };
+        for packet in packets {
+            if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I>(isa, packet, ray, found.t_max[l]) {
+                found.t_max[l] = hit.t;
+                found.hit[l] = Some((packet.triangle_index[lane], hit));
+                hit_rays |= 1 << l;
                 if ANY_HIT {
-                    active &= !hit_rays;
-                    if active == 0 {
-                        break;
-                    }
+                    break;
                 }
             }
         }
-        hit_rays
     }
-
-    /// The portable `slot_test`'s operations in AVX2 lanes, one ray a lane.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub(super) unsafe fn slot_test(
-        node: &WideNode8,
-        slot: usize,
-        lanes: &Lanes,
-        t_far: &[f32; PACKET_RAYS],
-    ) -> (u8, [f32; PACKET_RAYS]) {
-        // SAFETY: every load and the store touch an `[f32; 8]`, 32 bytes; unaligned accesses need no more.
-        unsafe {
-            let mut near = _mm256_loadu_ps(lanes.t_min.as_ptr());
-            let mut far = _mm256_loadu_ps(t_far.as_ptr());
-            let bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-            for axis in 0..3 {
-                let lo = _mm256_set1_ps(node.min[axis][slot]);
-                let hi = _mm256_set1_ps(node.max[axis][slot]);
-                let signs = _mm256_set1_epi32(i32::from(lanes.negative[axis]));
-                let negative = _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(signs, bit), bit));
-                let entry = _mm256_blendv_ps(lo, hi, negative);
-                let exit = _mm256_blendv_ps(hi, lo, negative);
-                let o = _mm256_loadu_ps(lanes.origin[axis].as_ptr());
-                let inv = _mm256_loadu_ps(lanes.inverse_direction[axis].as_ptr());
-                let exit_inv = _mm256_loadu_ps(lanes.exit_inverse[axis].as_ptr());
-                let t_entry = _mm256_mul_ps(_mm256_sub_ps(entry, o), inv);
-                let t_exit = _mm256_mul_ps(_mm256_sub_ps(exit, o), exit_inv);
-                // max_ps(a, b) = a > b ? a : b and min_ps(a, b) = a < b ? a : b: the portable compare-selects.
-                near = _mm256_max_ps(t_entry, near);
-                far = _mm256_min_ps(t_exit, far);
-            }
-            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u8;
-            let mut out = [0f32; PACKET_RAYS];
-            _mm256_storeu_ps(out.as_mut_ptr(), near);
-            (mask, out)
-        }
-    }
+    hit_rays
 }

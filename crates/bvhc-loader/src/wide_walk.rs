@@ -2,15 +2,15 @@
 //! a single ray runs it to the end and a stream of rays interleaves several (each ray's steps, and so its hits,
 //! are the same either way; interleaving lets one ray's cache misses overlap with another's work).
 //!
-//! A step at a wide node tests the ray against the eight child boxes at once (AVX2, or a portable loop with the
-//! same operations in the same order, so both give the same lanes bit for bit) with the binary kernel's robust
-//! slab test (Ize 2013: exit distances padded by `1 + 2 gamma(3)` through the ray's padded reciprocal,
-//! compare-selects that ignore the NaN of an origin on the slab plane of a zero direction component; nothing
-//! fused). For a closest hit the hit children go nearest first: one or two without a sort, more by insertion
+//! A step at a wide node tests the ray against the eight child boxes at once, in the instruction set's eight
+//! lanes (AVX2, or portable arrays with the same operations, so both give the same lanes bit for bit), with the
+//! binary kernel's robust slab test (Ize 2013: exit distances padded by `1 + 2 gamma(3)` through the ray's
+//! padded reciprocal, compare-selects that ignore the NaN of an origin on the slab plane of a zero direction
+//! component; nothing fused). For a closest hit the hit children go nearest first: one or two without a sort, more by insertion
 //! sort; the others are pushed with their entry distance and skipped on pop when a closer hit was found (with
 //! the binary kernel's cull padding). For any hit the order does not matter: the hit children are pushed in
 //! slot order and the walk goes on with the last, with no distance compared (Embree's occlusion traversal does
-//! the same), and a leaf ends the walk at its first hit. On the SIMD path pushed children are prefetched, so
+//! the same), and a leaf ends the walk at its first hit. On the AVX2 path pushed children are prefetched, so
 //! their misses overlap with the work on the nearer ones. A step at a leaf tests its packets four triangles at
 //! a time (`wide_packets`).
 //!
@@ -20,9 +20,11 @@
 
 use std::mem::MaybeUninit;
 
-use crate::format::{EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
-use crate::intersect::{PreparedRay, Ray, TriangleHit, slab};
-use crate::traverse::{CULL_PADDING, TraversalCounter};
+use crate::format::{LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
+use crate::hit::{CULL_PADDING, TraversalCounter};
+use crate::intersect::{PreparedRay, Ray, TriangleHit};
+use crate::simd::Isa;
+use crate::wide_packets::closest_in_packet;
 
 /// Stack entries: each visited node pushes at most 7, and a verified file is at most `MAX_DEPTH` deep.
 pub(crate) const STACK_LEN: usize = (WIDE - 1) * MAX_DEPTH + 1;
@@ -82,8 +84,9 @@ impl Walk {
     /// Processes the current wide node or leaf and moves to the next; `false` when the walk has ended.
     /// `stack` must be the one this walk has used since it started.
     #[inline(always)]
-    pub(crate) fn step<const ANY_HIT: bool, const SIMD: bool>(
+    pub(crate) fn step<const ANY_HIT: bool, I: Isa>(
         &mut self,
+        isa: I,
         sections: &Sections<'_>,
         stack: &mut Stack,
         counter: &mut impl TraversalCounter,
@@ -92,7 +95,7 @@ impl Walk {
         if current & LEAF_BIT != 0 {
             let (first, count) = WideNode8::leaf_packets(current);
             if let Some(hit) =
-                leaf_hit::<ANY_HIT, SIMD>(sections, &self.ray, first as usize, count as usize, self.t_max, counter)
+                leaf_hit::<ANY_HIT, I>(isa, sections, &self.ray, first as usize, count as usize, self.t_max, counter)
             {
                 self.found = Some(hit);
                 if ANY_HIT {
@@ -103,7 +106,7 @@ impl Walk {
         } else if let Some(node) = sections.nodes.get(current as usize).filter(|_| self.visits_left > 0) {
             self.visits_left -= 1;
             counter.node_visited();
-            let (mask, t_near) = box_test::<SIMD>(node, &self.ray, self.t_max * CULL_PADDING);
+            let (mask, t_near) = isa.box_test(node, &self.ray.slab_ray(), self.t_max * CULL_PADDING);
             let first = mask.trailing_zeros() as usize;
             let rest = mask & mask.wrapping_sub(1);
             if rest == 0 {
@@ -119,16 +122,16 @@ impl Walk {
                     let lane = lanes.trailing_zeros() as usize & (WIDE - 1);
                     lanes &= lanes - 1;
                     if lanes == 0 {
-                        self.descend::<SIMD>(sections, node.child[lane]);
+                        self.descend::<I>(sections, node.child[lane]);
                         return true;
                     }
-                    self.push::<SIMD>(sections, stack, (node.child[lane], t_near[lane]));
+                    self.push::<I>(sections, stack, (node.child[lane], t_near[lane]));
                 }
             } else if rest & (rest - 1) == 0 {
                 let second = rest.trailing_zeros() as usize & (WIDE - 1);
                 let (near, far) = if t_near[second] < t_near[first] { (second, first) } else { (first, second) };
-                self.push::<SIMD>(sections, stack, (node.child[far], t_near[far]));
-                self.descend::<SIMD>(sections, node.child[near]);
+                self.push::<I>(sections, stack, (node.child[far], t_near[far]));
+                self.descend::<I>(sections, node.child[near]);
                 return true;
             } else {
                 let mut order = [(0u32, 0f32); WIDE];
@@ -147,29 +150,29 @@ impl Walk {
                     n += 1;
                 }
                 for &entry in order[1..n].iter().rev() {
-                    self.push::<SIMD>(sections, stack, entry);
+                    self.push::<I>(sections, stack, entry);
                 }
-                self.descend::<SIMD>(sections, order[0].0);
+                self.descend::<I>(sections, order[0].0);
                 return true;
             }
         }
         self.pop(stack)
     }
 
-    /// Continues with `child`, prefetched on the SIMD path (its loads then start together).
+    /// Continues with `child`, prefetched on the AVX2 path (its loads then start together).
     #[inline(always)]
-    fn descend<const SIMD: bool>(&mut self, sections: &Sections<'_>, child: u32) {
-        if SIMD {
+    fn descend<I: Isa>(&mut self, sections: &Sections<'_>, child: u32) {
+        if I::PREFETCH {
             prefetch(sections, child);
         }
         self.current = child;
     }
 
     /// Pushes `entry` (dropped when the stack is full, which only a file that breaks V30 can cause) and, on
-    /// the SIMD path, prefetches what it references.
+    /// the AVX2 path, prefetches what it references.
     #[inline(always)]
-    fn push<const SIMD: bool>(&mut self, sections: &Sections<'_>, stack: &mut Stack, entry: (u32, f32)) {
-        if SIMD {
+    fn push<I: Isa>(&mut self, sections: &Sections<'_>, stack: &mut Stack, entry: (u32, f32)) {
+        if I::PREFETCH {
             prefetch(sections, entry.0);
         }
         if let Some(slot) = stack.get_mut(self.stack_len) {
@@ -199,7 +202,8 @@ impl Walk {
 /// The closest hit in packets `first .. first + count`, within `t_max`, as (triangle index, hit); for
 /// `ANY_HIT`, the first packet's hit.
 #[inline(always)]
-fn leaf_hit<const ANY_HIT: bool, const SIMD: bool>(
+fn leaf_hit<const ANY_HIT: bool, I: Isa>(
+    isa: I,
     sections: &Sections<'_>,
     ray: &PreparedRay,
     first: usize,
@@ -212,7 +216,7 @@ fn leaf_hit<const ANY_HIT: bool, const SIMD: bool>(
     let mut limit = t_max;
     for packet in packets {
         counter.triangle_tested();
-        if let Some((lane, hit)) = crate::wide_packets::closest_in_packet::<ANY_HIT, SIMD>(packet, ray, limit) {
+        if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I>(isa, packet, ray, limit) {
             limit = hit.t;
             best = Some((packet.triangle_index[lane], hit));
             if ANY_HIT {
@@ -243,18 +247,6 @@ fn prefetch(sections: &Sections<'_>, child: u32) {
     }
 }
 
-#[inline(always)]
-#[allow(unsafe_code)] // the AVX2 call, only reached on the SIMD path
-fn box_test<const SIMD: bool>(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
-    #[cfg(target_arch = "x86_64")]
-    if SIMD {
-        // SAFETY: SIMD is true only inside the tracer's `target_feature(enable = "avx2")` entries, which run only
-        // after the AVX2 check of `WideTracer::over`.
-        return unsafe { avx2::box_test(node, ray, t_far) };
-    }
-    portable_box_test(node, ray, t_far)
-}
-
 /// Prefetches the cache lines of the first `LINES * 64` bytes of `value` (at most its size) into all cache
 /// levels (x86-64; elsewhere nothing).
 #[inline(always)]
@@ -273,75 +265,4 @@ fn prefetch_lines<const LINES: usize>(value: &[impl Sized]) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = value;
-}
-
-/// The slab test of all eight lanes, in plain Rust: the binary kernel's `enter_box` per lane.
-fn portable_box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
-    let mut near = [ray.t_min; WIDE];
-    let mut far = [t_far; WIDE];
-    for axis in 0..3 {
-        let (entry, exit) =
-            if ray.negative[axis] { (&node.max[axis], &node.min[axis]) } else { (&node.min[axis], &node.max[axis]) };
-        let inverses = (ray.inverse_direction[axis], ray.exit_inverse[axis]);
-        for lane in 0..WIDE {
-            (near[lane], far[lane]) = slab(entry[lane], exit[lane], ray.origin[axis], inverses, near[lane], far[lane]);
-        }
-    }
-    let mask = near
-        .iter()
-        .zip(&far)
-        .zip(&node.child)
-        .enumerate()
-        .fold(0u8, |m, (lane, ((n, f), &child))| if n <= f && child != EMPTY_SLOT { m | 1 << lane } else { m });
-    (mask, near)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[allow(unsafe_code)] // intrinsics: every block states what it relies on
-mod avx2 {
-    use std::arch::x86_64::*;
-
-    use crate::format::{WIDE, WideNode8};
-    use crate::intersect::PreparedRay;
-
-    /// The slab test of all eight lanes in AVX2; the same operations, in the same order, as the portable one.
-    /// The entry and exit rows are found through the ray's precomputed plane offsets, without a branch.
-    /// Empty slots are left out of the mask (they never hit a finite ray, but a NaN origin makes every
-    /// comparison fail and so every slot look hit).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub(super) unsafe fn box_test(node: &WideNode8, ray: &PreparedRay, t_far: f32) -> (u8, [f32; WIDE]) {
-        let mut near = _mm256_set1_ps(ray.t_min);
-        let mut far = _mm256_set1_ps(t_far);
-        let rows = (node as *const WideNode8).cast::<f32>();
-        let (entry_offsets, exit_offsets) = ray.wide_plane_offsets;
-        for axis in 0..3 {
-            let o = _mm256_set1_ps(ray.origin[axis]);
-            let inv = _mm256_set1_ps(ray.inverse_direction[axis]);
-            let exit_inv = _mm256_set1_ps(ray.exit_inverse[axis]);
-            // SAFETY: the offsets are `axis * WIDE` or `(axis + 3) * WIDE` with axis < 3 (`PreparedRay::new`), so
-            // each row `offset .. offset + WIDE` lies in the node's `min` and `max` arrays (its first `6 * WIDE`
-            // f32s, at offsets 0 and 96 bytes as `format.rs` asserts); unaligned loads need no more.
-            let (entry, exit) = unsafe {
-                (_mm256_loadu_ps(rows.add(entry_offsets[axis])), _mm256_loadu_ps(rows.add(exit_offsets[axis])))
-            };
-            let t_entry = _mm256_mul_ps(_mm256_sub_ps(entry, o), inv);
-            let t_exit = _mm256_mul_ps(_mm256_sub_ps(exit, o), exit_inv);
-            // max_ps(a, b) = a > b ? a : b and min_ps(a, b) = a < b ? a : b: the portable compare-selects.
-            near = _mm256_max_ps(t_entry, near);
-            far = _mm256_min_ps(t_exit, far);
-        }
-        let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u8;
-        // SAFETY: `node.child` is `[u32; 8]`, 32 readable bytes.
-        let children = unsafe { _mm256_loadu_si256(node.child.as_ptr().cast()) };
-        let empty = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(children, _mm256_set1_epi32(-1))));
-        let mask = hit & !(empty as u8);
-        let mut out = [0f32; WIDE];
-        // SAFETY: `out` has room for 8 f32.
-        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), near) };
-        (mask, out)
-    }
 }

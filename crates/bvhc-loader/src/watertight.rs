@@ -1,0 +1,91 @@
+//! The watertight ray-triangle test of S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection",
+//! JCGT 2(1), 2013, written once for any number of lanes ([`Lanes`]): one triangle and one ray (`f32`, the
+//! scalar test of `PreparedRay::intersect_triangle`), four triangles and one ray (a triangle packet),
+//! or one triangle and eight rays (a coherent ray packet). Every caller runs these steps in this order, so every
+//! lane width gives the scalar test's `t`, `u`, `v` bit for bit; lanes whose edge function is exactly 0 are
+//! redone by the scalar test, whose f64 recomputation decides them.
+//!
+//! Symbols: the ray is sheared so that it runs along +z of a ray space whose z axis (`kz`) is the direction's
+//! largest component; `sx, sy, sz` the shear; `U, V, W` the 2D edge functions, which are the barycentric
+//! weights of v0, v1, v2 times the determinant `det = U + V + W`.
+
+use crate::simd::{LaneMask, Lanes};
+
+/// A triangle's vertices relative to the ray origin, in the ray's permuted axes `[kx, ky, kz]`, in lanes.
+#[derive(Clone, Copy)]
+pub(crate) struct RelativeTriangle<L> {
+    /// `v0 - origin`.
+    pub a: [L; 3],
+    /// `v1 - origin`.
+    pub b: [L; 3],
+    /// `v2 - origin`.
+    pub c: [L; 3],
+}
+
+/// The triangle's vertices sheared into the ray's 2D space: `[a, b, c]`, each `[x, y]`, with `x = k_x - sx k_z`
+/// and `y = k_y - sy k_z`.
+#[inline(always)]
+pub(crate) fn sheared<L: Lanes>(r: &RelativeTriangle<L>, sx: L, sy: L) -> [[L; 2]; 3] {
+    [
+        [r.a[0].sub(sx.mul(r.a[2])), r.a[1].sub(sy.mul(r.a[2]))],
+        [r.b[0].sub(sx.mul(r.b[2])), r.b[1].sub(sy.mul(r.b[2]))],
+        [r.c[0].sub(sx.mul(r.c[2])), r.c[1].sub(sy.mul(r.c[2]))],
+    ]
+}
+
+/// The edge functions `[U, V, W]` of the sheared triangle: `U = c_x b_y - c_y b_x`, `V = a_x c_y - a_y c_x`,
+/// `W = b_x a_y - b_y a_x`.
+#[inline(always)]
+pub(crate) fn edge_functions<L: Lanes>([[ax, ay], [bx, by], [cx, cy]]: [[L; 2]; 3]) -> [L; 3] {
+    [cx.mul(by).sub(cy.mul(bx)), ax.mul(cy).sub(ay.mul(cx)), bx.mul(ay).sub(by.mul(ax))]
+}
+
+/// The lanes where an edge function is exactly 0 (the scalar test redoes them in f64).
+#[inline(always)]
+pub(crate) fn has_zero_edge<L: Lanes>([u, v, w]: [L; 3], zero: L) -> L::Mask {
+    u.eq(zero).or(v.eq(zero)).or(w.eq(zero))
+}
+
+/// The lanes where the edge functions have mixed signs: the ray passes outside the triangle.
+#[inline(always)]
+pub(crate) fn outside<L: Lanes>([u, v, w]: [L; 3], zero: L) -> L::Mask {
+    let negative = u.lt(zero).or(v.lt(zero)).or(w.lt(zero));
+    let positive = u.gt(zero).or(v.gt(zero)).or(w.gt(zero));
+    negative.and(positive)
+}
+
+/// `det = (U + V) + W`.
+#[inline(always)]
+pub(crate) fn determinant<L: Lanes>([u, v, w]: [L; 3]) -> L {
+    u.add(v).add(w)
+}
+
+/// The hit distance `t = (U (sz a_z) + V (sz b_z) + W (sz c_z)) / det`.
+#[inline(always)]
+pub(crate) fn distance<L: Lanes>([u, v, w]: [L; 3], r: &RelativeTriangle<L>, sz: L, det: L) -> L {
+    let (az, bz, cz) = (sz.mul(r.a[2]), sz.mul(r.b[2]), sz.mul(r.c[2]));
+    u.mul(az).add(v.mul(bz)).add(w.mul(cz)).div(det)
+}
+
+/// The lanes that hit within `[t_min, t_max]`: inside, a non-zero determinant, `t` in range.
+#[inline(always)]
+pub(crate) fn hits<L: Lanes>(outside: L::Mask, det: L, t: L, zero: L, t_min: L, t_max: L) -> L::Mask {
+    t.ge(t_min).and(t.le(t_max)).and_not(outside.or(det.eq(zero)))
+}
+
+/// The barycentric weights `(u, v)` of v1 and v2: `V / det` and `W / det`, through one reciprocal.
+#[inline(always)]
+pub(crate) fn barycentrics<L: Lanes>([_, v, w]: [L; 3], det: L, one: L) -> (L, L) {
+    let inverse_det = one.div(det);
+    (v.mul(inverse_det), w.mul(inverse_det))
+}
+
+/// [`edge_functions`] recomputed in f64 and rounded back to f32 (each product exact, one rounding), for a ray
+/// through an edge or vertex of the triangle: the sign then decides which of the triangles sharing it is hit,
+/// so at least one is.
+#[inline(always)]
+pub(crate) fn edge_functions_f64([[ax, ay], [bx, by], [cx, cy]]: [[f32; 2]; 3]) -> [f32; 3] {
+    let edge =
+        |px: f32, py: f32, qx: f32, qy: f32| (f64::from(px) * f64::from(qy) - f64::from(py) * f64::from(qx)) as f32;
+    [edge(cx, cy, bx, by), edge(ax, ay, cx, cy), edge(bx, by, ax, ay)]
+}
