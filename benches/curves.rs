@@ -20,7 +20,8 @@ use bvhc::cost::SahConstants;
 use bvhc::import::{ImportOptions, import};
 use bvhc::layout::merge_leaves;
 use bvhc::loader::{Ray, Tracer};
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, Selection, optimize};
+use bvhc::optimize::{OptTree, OptimizeParams, Selection, optimize};
+use bvhc::options::Preset;
 use bvhc::pack::pack;
 use plotters::prelude::*;
 use rayon::prelude::*;
@@ -145,11 +146,7 @@ fn main() {
             .map(|&p| {
                 (
                     format!("preset {}", p.name()),
-                    trace(
-                        &triangles,
-                        Builder::BinnedSah,
-                        &OptimizeParams { time_budget: cap, ..OptimizeParams::preset(p) },
-                    ),
+                    trace(&triangles, Builder::BinnedSah, &OptimizeParams { time_budget: cap, ..p.optimize_params() }),
                 )
             })
             .collect();
@@ -177,7 +174,7 @@ fn main() {
         // Render time against cost: snapshots along a max-quality run.
         let mut tree = OptTree::from_build_tree(&Builder::SpatialMedian.build(&triangles, 1), &triangles);
         let mut snapshots = vec![tree.clone()];
-        let params = OptimizeParams { time_budget: cap, ..OptimizeParams::preset(Preset::MaxQuality) };
+        let params = OptimizeParams { time_budget: cap, ..Preset::MaxQuality.optimize_params() };
         // Snapshots: the start, after one batch, after every 4 more batches (6 times), and converged.
         optimize(&mut tree, &OptimizeParams { max_batches: 1, ..params.clone() }, &mut |_| ControlFlow::Continue(()));
         snapshots.push(tree.clone());

@@ -36,9 +36,7 @@ use bvhc::build_tree::{BuildNode, BuildTree};
 use bvhc::builders::Builder;
 use bvhc::builders::sbvh::{SbvhParams, build_sbvh};
 use bvhc::builders::split_triangles;
-use bvhc::convert::{
-    ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles, convert_with, merge_and_collapse,
-};
+use bvhc::convert::{convert_with, merge_and_collapse};
 use bvhc::cost::{SahConstants, sah_of_packed};
 use bvhc::epo::end_point_overlap;
 use bvhc::geometry::Aabb;
@@ -46,7 +44,10 @@ use bvhc::import::{ImportOptions, import};
 use bvhc::layout::{cluster_roots, records};
 use bvhc::layout::{merge_leaves, merge_leaves_of_references};
 use bvhc::loader::{BvhFile, BvhWriter, Ray, Tracer, TraversalStats};
-use bvhc::optimize::{DEFAULT_CLUSTER_SIZE, OptTree, OptimizeParams, Preset, optimize, optimize_over_clusters};
+use bvhc::optimize::{OptTree, optimize, optimize_over_clusters};
+use bvhc::options::Preset;
+use bvhc::options::preset::CLUSTER_SIZE;
+use bvhc::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};
 use bvhc::pack::pack;
 use bvhc::pack::pack_wide;
 use obvhs::BvhBuildParams;
@@ -87,7 +88,7 @@ fn ours(triangles: &[Triangle]) -> Vec<Method> {
     methods.push(Method { name: "binned SAH start".into(), build, optimize: None, tree: sah.clone() });
     for preset in [Preset::Balanced, Preset::MaxQuality] {
         let mut tree = OptTree::from_build_tree(&sah, triangles);
-        let report = optimize(&mut tree, &OptimizeParams::preset(preset), &mut |_| std::ops::ControlFlow::Continue(()));
+        let report = optimize(&mut tree, &preset.optimize_params(), &mut |_| std::ops::ControlFlow::Continue(()));
         let (merged, merge_time) = timed(|| merge_leaves(&tree, constants, 8));
         let single = merge_leaves(&tree, constants, 1);
         methods.push(Method {
@@ -121,11 +122,11 @@ fn ours(triangles: &[Triangle]) -> Vec<Method> {
     ];
     for (split_name, (build, build_time), clusters) in builds {
         let mut tree = OptTree::from_build(build, triangles);
-        let params = OptimizeParams::preset(Preset::Balanced);
+        let params = Preset::Balanced.optimize_params();
         let mut go = |_: &bvhc::optimize::Progress| std::ops::ControlFlow::Continue(());
         let report = match clusters {
             true => {
-                let roots = cluster_roots(&tree, params.constants, DEFAULT_CLUSTER_SIZE);
+                let roots = cluster_roots(&tree, params.constants, CLUSTER_SIZE);
                 optimize_over_clusters(&mut tree, &params, &roots, &mut go)
             }
             false => optimize(&mut tree, &params, &mut go),
@@ -511,8 +512,8 @@ fn other_files(triangles: &[Triangle]) -> Vec<(String, BvhFile, f64)> {
 /// conversions use. A lower `c_I / c_T` merges more (fewer node visits, more triangle tests).
 fn merge_constants_table(triangles: &[Triangle], rays: &RaySet) {
     let mut tree = OptTree::from_build(build_sbvh(triangles, &SbvhParams::with_budget(0.3)), triangles);
-    let params = OptimizeParams::preset(Preset::Balanced);
-    let roots = cluster_roots(&tree, params.constants, DEFAULT_CLUSTER_SIZE);
+    let params = Preset::Balanced.optimize_params();
+    let roots = cluster_roots(&tree, params.constants, CLUSTER_SIZE);
     optimize_over_clusters(&mut tree, &params, &roots, &mut |_| std::ops::ControlFlow::Continue(()));
     let variants = [(3.0, 2.0, 8), (3.0, 3.0, 8), (3.0, 1.5, 8), (3.0, 1.0, 8), (3.0, 0.75, 8), (3.0, 1.0, 16)];
     let packed: Vec<_> = variants
@@ -592,7 +593,7 @@ fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhF
     );
     let sbvh = |budget| Some(SplitOptions::with_budget(budget));
     let cut = |triangles| Some(SplitOptions { triangles, ..SplitOptions::with_budget(0.3) });
-    let default_splits = SplitOptions::for_preset(Preset::Balanced);
+    let default_splits = Preset::Balanced.splits();
     let settings = [
         (None, OptimizeOver::References),
         (
@@ -610,7 +611,8 @@ fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhF
     let mut files = Vec::new();
     for (i, (splits, optimize_over)) in settings.iter().enumerate() {
         let output = dir.path().join(format!("scene-{i}.bvh"));
-        let options = ConvertOptions { splits: *splits, optimize_over: *optimize_over, ..ConvertOptions::default() };
+        let options =
+            ConvertOptions { splits: *splits, reinsertion: Some(*optimize_over), ..ConvertOptions::default() };
         let report = convert_with(scene, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
         files.push((report, BvhFile::read(&output).unwrap()));
     }

@@ -18,7 +18,8 @@ use bvhc::cost::{SahConstants, SahCost, sah_of_nodes};
 use bvhc::geometry::Aabb;
 use bvhc::import::{ImportOptions, import};
 use bvhc::layout::merge_leaves;
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, cost_of, optimize};
+use bvhc::optimize::{OptTree, OptimizeParams, cost_of, optimize};
+use bvhc::options::Preset;
 use obvhs::BvhBuildParams;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
@@ -218,7 +219,7 @@ fn main() {
             (Builder::BinnedSah, &[Preset::Fast, Preset::Balanced, Preset::MaxQuality][..]),
         ] {
             for &preset in presets {
-                let (row, trace) = run_bvhc(&triangles, builder, preset, &OptimizeParams::preset(preset));
+                let (row, trace) = run_bvhc(&triangles, builder, preset, &preset.optimize_params());
                 if builder == Builder::BinnedSah && preset == Preset::Balanced {
                     balanced_trace = trace;
                 }

@@ -22,7 +22,8 @@ use std::ops::ControlFlow;
 use std::path::Path;
 use std::process::Command;
 
-use bvhc::convert::{ConvertOptions, convert_with};
+use bvhc::convert::convert_with;
+use bvhc::options::ConvertOptions;
 
 const CHILD_FLAG: &str = "--scale-child";
 

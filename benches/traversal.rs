@@ -29,8 +29,9 @@ mod embree;
 
 use std::time::Duration;
 
-use bvhc::convert::{ConvertOptions, convert_with};
+use bvhc::convert::convert_with;
 use bvhc::loader::{BvhFile, Ray, Tracer};
+use bvhc::options::ConvertOptions;
 use obvhs::BvhBuildParams;
 use obvhs::ray::RayHit;
 use rayon::prelude::*;

@@ -1,21 +1,30 @@
 //! bvhc: an offline BVH compiler. Import a scene, build and optimize a BVH, write a `.bvh` file that the
 //! `bvhc-loader` crate maps at run time.
+//!
+//! The modules in the order the data flows through them: [`import`] (scene files to triangles), [`builders`]
+//! (initial trees, split references), [`optimize`] (reinsertion), [`layout`] (leaf merging, the wide collapse),
+//! [`pack`] (the file's arrays), [`convert`] (the pipeline, metadata, the build-script API), with [`options`]
+//! (presets and overrides, resolved in one place). Shared below them: [`geometry`] (boxes, clipping), [`cost`]
+//! (the one SAH definition), [`build_tree`] (the flat binary tree); [`epo`] measures trees for the evaluation.
 #![forbid(unsafe_code)]
 
-pub mod build_tree;
-pub mod builders;
-pub mod conversion;
-pub mod convert;
-pub mod cost;
-pub mod epo;
+// Shared below every stage.
 pub mod geometry;
+pub mod cost;
+pub mod build_tree;
+// The stages, in flow order.
 pub mod import;
-pub mod layout;
+pub mod builders;
 pub mod optimize;
+pub mod layout;
 pub mod pack;
-pub mod up_to_date;
+// Options and the pipeline over the stages.
+pub mod options;
+pub mod convert;
+// Tree quality for the evaluation.
+pub mod epo;
 
-pub use conversion::{Conversion, ConversionOutcome};
-pub use optimize::Preset;
+pub use convert::{Conversion, ConversionOutcome};
+pub use options::Preset;
 
 pub use bvhc_loader as loader;

@@ -20,10 +20,20 @@ pub use presplit::{MAX_BUDGET, References, split_triangles, split_triangles_with
 pub use spatial_median::{build_spatial_median, build_spatial_median_boxes};
 
 use crate::build_tree::BuildTree;
+
+/// Split references cut only *wasteful* triangles by default: those whose pieces could remove at least this share
+/// of their box's area ([`crate::geometry::clip::ideal_box_area`]). Flat triangles that fill half of their box's
+/// face (the two halves of an axis-aligned rectangle: floors, walls, tiles) are at exactly 0.5; cutting them
+/// lowers the binary tree's SAH but raises the cost of the wide tree that files are traced by on some scenes
+/// (`docs/evaluation.md`). The SBVH's threshold; 0 cuts any triangle.
+pub const WASTEFUL_RATIO_SBVH: f64 = 0.55;
+/// [`WASTEFUL_RATIO_SBVH`] for pre-splitting, whose grid cuts are coarser.
+pub const WASTEFUL_RATIO_PRE_SPLIT: f64 = 0.6;
 use crate::geometry::Aabb;
 
 /// Which initial builder to use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Builder {
     /// Spatial median, round-robin axes.

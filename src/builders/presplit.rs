@@ -8,7 +8,8 @@
 //!   plane of the coarsest level that crosses it (ties: the axis along which the box is longest), because the
 //!   top of a top-down tree splits near those planes, and a triangle straddling one lands high in the tree;
 //! - a triangle's priority is `((A_box - A_ideal) / A_scene)^(1/3)` (0 unless `A_box - A_ideal` is at least
-//!   [`MIN_WASTE_RATIO`] of `A_box`: a measured choice, not the paper's), `A_box` the surface area of its box and
+//!   the method's wasteful ratio of `A_box`, [`super::WASTEFUL_RATIO_PRE_SPLIT`] by default: a measured choice,
+//!   not the paper's), `A_box` the surface area of its box and
 //!   `A_ideal` the limit of its pieces' summed box areas (twice its area projected onto the three axis planes):
 //!   the area splitting can remove. (Karras and Aila also weight by `2^-k`, `k` the level of the triangle's
 //!   plane; on the kitchen that gave a worse start tree than no weight: one-reference-a-leaf SAH 151.44
@@ -32,13 +33,6 @@ use crate::geometry::clip::{Piece, ideal_box_area};
 
 /// Most splits one triangle gets, whatever its priority (so one huge triangle cannot take the whole budget).
 pub const MAX_SPLITS_PER_TRIANGLE: u32 = 64;
-/// Only triangles whose pieces could remove more than this fraction of their box's area are split. A right
-/// triangle with axis-aligned legs (the walls and floors of architectural scenes) is at exactly 0.5: splitting
-/// those made the kitchen's trees worse (balanced preset, budget 0.1: wide cost 12.27 against 11.08 unsplit,
-/// merged SAH 102.34 against 96.54); from 0.6 up they are left whole (10.98, 96.41), while long diagonal
-/// triangles (ratios near 1) keep their splits (2CylinderEngine 26.50 against 26.96 unsplit, toy car 9.42
-/// against 9.59; at 0: 26.07 and 9.41).
-pub const MIN_WASTE_RATIO: f64 = 0.6;
 /// Finest grid level a plane is taken from: below it boxes are too small for a split to matter in f32.
 const FINEST_LEVEL: u32 = 20;
 
@@ -70,10 +64,10 @@ pub const MAX_BUDGET: f64 = 4.0;
 /// Splits the triangles into at most `(1 + budget) * n` references (`budget` from 0 to [`MAX_BUDGET`], e.g. 0.3
 /// for 30% more; larger budgets are taken as `MAX_BUDGET`, negative or NaN ones as 0).
 pub fn split_triangles(triangles: &[[[f32; 3]; 3]], budget: f64) -> References {
-    split_triangles_with(triangles, budget, MIN_WASTE_RATIO)
+    split_triangles_with(triangles, budget, super::WASTEFUL_RATIO_PRE_SPLIT)
 }
 
-/// [`split_triangles`] with another waste threshold than [`MIN_WASTE_RATIO`]: only triangles whose pieces could
+/// [`split_triangles`] with another waste threshold than [`super::WASTEFUL_RATIO_PRE_SPLIT`]: only triangles whose pieces could
 /// remove at least `min_waste_ratio` of their box's area are cut (0: any triangle a grid plane crosses).
 pub fn split_triangles_with(triangles: &[[[f32; 3]; 3]], budget: f64, min_waste_ratio: f64) -> References {
     let budget = if budget.is_nan() { 0.0 } else { budget.clamp(0.0, MAX_BUDGET) };

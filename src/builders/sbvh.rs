@@ -37,15 +37,6 @@ pub const BINS: usize = 16;
 /// 0.1, wide cost of kitchen / 2CylinderEngine / toy car 10.843 / 26.333 / 9.357 at 10^-5, 10.844 / 26.262 /
 /// 9.342 at 10^-3; SBVH build of the 871k-triangle dragon 3.1 s against 1.06 s, binned SAH 0.24 s).
 pub const DEFAULT_ALPHA: f64 = 1e-3;
-/// By default only triangles whose pieces could remove at least this fraction of their box's area are cut (the
-/// area [`ideal_box_area`](crate::geometry::clip::ideal_box_area) says splitting can remove, as in [`super::presplit::MIN_WASTE_RATIO`] for pre-splitting).
-/// Flat triangles that fill half of their box's face (the two halves of an axis-aligned rectangle: floors,
-/// walls, tiles) are at exactly 0.5, and cutting them lowers the binary tree's SAH but raises the cost of the
-/// wide tree that default files are traced by. Measured at `alpha` 10^-5 (balanced preset, budget 0.1, the
-/// wide collapse's cost against the unsplit tree's, as `cargo bench --bench evaluate` reports it for files):
-/// with no threshold kitchen +3.7%, 2CylinderEngine -4.2%, toy car -3.8%, milk truck +2.5%; at 0.501 -0.7%,
-/// -3.0%, -3.4%, +0.8%; at 0.55 -2.1%, -2.3%, -2.4%, +0.7%; at 0.6 -2.1%, -2.0%, -1.5%, +0.8%.
-pub const MIN_WASTE_RATIO: f64 = 0.55;
 /// Subtrees with more references than this are built in parallel.
 const PARALLEL_THRESHOLD: usize = 4096;
 
@@ -63,7 +54,7 @@ pub struct SbvhParams {
 impl SbvhParams {
     /// `budget` with the default thresholds.
     pub fn with_budget(budget: f64) -> SbvhParams {
-        SbvhParams { budget, alpha: DEFAULT_ALPHA, min_waste_ratio: MIN_WASTE_RATIO }
+        SbvhParams { budget, alpha: DEFAULT_ALPHA, min_waste_ratio: super::WASTEFUL_RATIO_SBVH }
     }
 }
 
@@ -200,7 +191,7 @@ fn squeeze_unused(mut nodes: Vec<BuildNode>, mut order: Vec<u32>) -> BuildTree {
 
 struct Sbvh<'a> {
     triangles: &'a [[[f32; 3]; 3]],
-    /// Per triangle: whether its references may be cut ([`MIN_WASTE_RATIO`]).
+    /// Per triangle: whether its references may be cut (`min_waste_ratio`).
     splittable: Vec<bool>,
     /// `alpha` times the root's surface area.
     min_overlap: f64,

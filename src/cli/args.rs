@@ -2,8 +2,11 @@
 
 use std::path::PathBuf;
 
-use bvhc::import::ImportLimits;
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use bvhc::builders::Builder;
+use bvhc::import::{ImportLimits, SceneSelector};
+use bvhc::optimize::Selection;
+use bvhc::options::{OptimizeOver, Overrides, Preset, SplitMethod, SplitTriangles};
+use clap::{Args, Parser, Subcommand};
 
 /// bvhc: an offline BVH compiler. Converts a scene into an optimized, memory-mappable .bvh file.
 #[derive(Debug, Parser)]
@@ -12,7 +15,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true,
     after_help = "Examples:\n  bvhc scene.gltf -o scene.bvh\n  bvhc scan.ply.gz -o scan.bvh --preset max-quality --json\n  \
-bvhc verify scene.bvh\n  bvhc info scene.bvh --json\n  bvhc render scene.bvh -o scene.png --width 1024 --height 768\n\n\
+bvhc options --preset max-quality --no-splits\n  bvhc verify scene.bvh\n  bvhc info scene.bvh --json\n  bvhc render scene.bvh -o scene.png --width 1024 --height 768\n\n\
 Exit codes: 0 success (also when the output is up to date), 1 invalid input, 2 usage error,\n\
 3 a file cannot be read or written, 4 internal error."
 )]
@@ -48,6 +51,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Trace a binary ray file through a .bvh file; write the hits and report rays per second.
     Trace(TraceArgs),
+    /// Print the options a conversion would use (a preset and flags, resolved) as JSON, without converting.
+    Options(OptionsArgs),
 }
 
 /// `bvhc trace`'s arguments (record layouts: `format-spec/rays-and-hits.md`).
@@ -79,91 +84,140 @@ pub struct ConvertArgs {
     /// The scene: .gltf, .glb, .obj, .ply, .obj.gz or .ply.gz.
     #[arg(required = true)]
     pub input: Option<PathBuf>,
+    /// The conversion's options.
+    #[command(flatten)]
+    pub options: OptionArgs,
     /// The .bvh file to write (atomically).
-    #[arg(short, long, required = true, value_name = "OUTPUT.bvh")]
+    #[arg(short, long, required = true, value_name = "OUTPUT.bvh", help_heading = "Output")]
     pub output: Option<PathBuf>,
-    /// Optimizer preset.
-    #[arg(long, value_enum, default_value_t = PresetArg::Balanced)]
-    pub preset: PresetArg,
-    /// Initial builder.
-    #[arg(long, value_enum, default_value_t = BuilderArg::BinnedSah)]
-    pub builder: BuilderArg,
-    /// How the optimizer ranks nodes.
-    #[arg(long, value_enum, default_value_t = SelectionArg::Comb)]
-    pub selection: SelectionArg,
-    /// Largest merged leaf.
-    #[arg(long, default_value_t = 8, value_name = "N")]
-    pub max_leaf_size: usize,
-    /// Keep one triangle per leaf (no leaf merging).
-    #[arg(long)]
-    pub no_merge: bool,
-    /// Skip the optimizer (initial build only).
-    #[arg(long)]
-    pub no_optimize: bool,
-    /// Stop optimizing after this many seconds (the result then depends on the machine's speed).
-    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
-    pub time_budget: Option<std::time::Duration>,
-    /// Keep degenerate triangles instead of dropping them.
-    #[arg(long)]
-    pub keep_degenerate: bool,
-    /// Omit the optional triangle_ids and source_table sections.
-    #[arg(long)]
-    pub no_ids: bool,
-    /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
-    #[arg(long)]
-    pub no_wide: bool,
-    /// Cut triangles into split references where that makes the tree cheaper, at most this fraction of the
-    /// triangles more (default 0.3 with the balanced and max-quality presets; fast does not split unless given
-    /// this). Measured in docs/evaluation.md.
-    #[arg(long, value_name = "FRACTION", value_parser = parse_split_budget, conflicts_with = "no_splits")]
-    pub split_budget: Option<f64>,
-    /// One reference a triangle: no split references, whatever the preset.
-    #[arg(long)]
-    pub no_splits: bool,
-    /// Where split references are cut: during the build where children overlap (SBVH), or before it.
-    #[arg(long, value_enum, default_value_t = SplitMethodArg::Sbvh)]
-    pub split_method: SplitMethodArg,
-    /// Which triangles split references are cut from: only those that waste much of their box (the balanced
-    /// preset's), any the method finds worth cutting, or choose by converting both and keeping the tree whose
-    /// wide cost is lower (the max-quality preset's; about twice the time). Default: the preset's.
-    #[arg(long, value_enum, conflicts_with = "no_splits")]
-    pub split_triangles: Option<SplitTrianglesArg>,
-    /// What reinsertion optimizes over: one reference a leaf, the built tree's subtrees of up to 4 references
-    /// kept as built (the fast and balanced presets'), or choose by converting with both and keeping the tree
-    /// whose wide cost is lower (the max-quality preset's). Default: the preset's.
-    #[arg(long, value_enum)]
-    pub optimize_over: Option<OptimizeOverArg>,
-    /// The glTF scene to convert, by index or name.
-    #[arg(long, value_name = "N|NAME")]
-    pub scene: Option<String>,
     /// Convert even when the output is up to date.
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub force: bool,
     /// Print nothing but errors.
-    #[arg(long, short)]
+    #[arg(long, short, help_heading = "Output")]
     pub quiet: bool,
     /// Print a JSON report on stdout.
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub json: bool,
+}
+
+/// `bvhc options`: the options a conversion would use, as JSON.
+#[derive(Debug, Args)]
+pub struct OptionsArgs {
+    /// The conversion's options.
+    #[command(flatten)]
+    pub options: OptionArgs,
+}
+
+/// The options of a conversion, by stage: a preset, and overrides that take effect or are refused (exit 2) when
+/// another setting would make them do nothing. `bvhc options --preset NAME [flags]` prints the result.
+#[derive(Debug, Args)]
+pub struct OptionArgs {
+    /// The preset: the option set each stage starts from (`bvhc options --preset NAME` shows it).
+    #[arg(long, value_enum, default_value_t = Preset::Balanced, help_heading = "Preset")]
+    pub preset: Preset,
+    /// The glTF scene to convert, by index or name.
+    #[arg(long, value_name = "N|NAME", help_heading = "Import")]
+    pub scene: Option<String>,
+    /// Keep degenerate triangles instead of dropping them.
+    #[arg(long, help_heading = "Import")]
+    pub keep_degenerate: bool,
     /// Import limit: bytes of any one file read, after gunzip.
-    #[arg(long, value_name = "BYTES", default_value_t = ImportLimits::default().max_input_bytes)]
+    #[arg(long, value_name = "BYTES", default_value_t = ImportLimits::default().max_input_bytes, help_heading = "Import")]
     pub max_input_bytes: u64,
     /// Import limit: triangles placed (instancing multiplies), degenerate ones included.
-    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_triangles)]
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_triangles, help_heading = "Import")]
     pub max_triangles: u64,
     /// Import limit: scalar values decoded (glTF accessors, OBJ and PLY vertex coordinates).
-    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_decoded_values)]
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_decoded_values, help_heading = "Import")]
     pub max_decoded_values: u64,
     /// Import limit: glTF mesh placements (nodes with a mesh times their GPU instances).
-    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_placements)]
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_placements, help_heading = "Import")]
     pub max_placements: u64,
     /// Import limit: vertices of one OBJ or PLY polygon.
-    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_polygon_vertices)]
+    #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_polygon_vertices, help_heading = "Import")]
     pub max_polygon_vertices: u64,
     /// Follow glTF buffer URIs that leave the input's folder (`../`, absolute paths); off by default so that an
     /// untrusted asset cannot copy other files into the output.
-    #[arg(long)]
+    #[arg(long, help_heading = "Import")]
     pub allow_outside_buffers: bool,
+    /// Initial builder (without split references or with --split-method pre-split) [default: binned-sah].
+    #[arg(long, value_enum, help_heading = "Build")]
+    pub builder: Option<Builder>,
+    /// Cut triangles into split references where that makes the tree cheaper, at most this fraction of the
+    /// triangles more [default: the preset's: 0.3 with balanced and max-quality; fast makes none].
+    #[arg(long, value_name = "FRACTION", value_parser = parse_split_budget, conflicts_with = "no_splits", help_heading = "Splits")]
+    pub split_budget: Option<f64>,
+    /// One reference a triangle: no split references, whatever the preset.
+    #[arg(long, help_heading = "Splits")]
+    pub no_splits: bool,
+    /// Where split references are cut: during the build where children overlap, or before it [default: sbvh].
+    #[arg(long, value_enum, help_heading = "Splits")]
+    pub split_method: Option<SplitMethod>,
+    /// Which triangles split references are cut from [default: the preset's: wasteful with balanced, choose
+    /// with max-quality].
+    #[arg(long, value_enum, help_heading = "Splits")]
+    pub split_triangles: Option<SplitTriangles>,
+    /// Skip the optimizer (the built tree is written as built).
+    #[arg(long, help_heading = "Optimize")]
+    pub no_optimize: bool,
+    /// How the optimizer ranks nodes for reinsertion [default: comb].
+    #[arg(long, value_enum, help_heading = "Optimize")]
+    pub selection: Option<Selection>,
+    /// Stop optimizing after this many seconds (the result then depends on the machine's speed).
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, help_heading = "Optimize")]
+    pub time_budget: Option<std::time::Duration>,
+    /// What reinsertion optimizes over [default: the preset's: clusters with fast and balanced, choose with
+    /// max-quality].
+    #[arg(long, value_enum, help_heading = "Optimize")]
+    pub optimize_over: Option<OptimizeOver>,
+    /// Largest merged leaf of the binary tree [default: 8].
+    #[arg(long, value_name = "N", help_heading = "Leaf layout")]
+    pub max_leaf_size: Option<usize>,
+    /// Keep one triangle per leaf in the binary tree (no leaf merging).
+    #[arg(long, help_heading = "Leaf layout")]
+    pub no_merge: bool,
+    /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
+    #[arg(long, help_heading = "Leaf layout")]
+    pub no_wide: bool,
+    /// Omit the optional triangle_ids and source_table sections.
+    #[arg(long, help_heading = "Output")]
+    pub no_ids: bool,
+}
+
+impl OptionArgs {
+    /// The flags as overrides of the preset: a flag not given leaves the preset's choice.
+    pub fn overrides(&self) -> Overrides {
+        let given = |flag: bool| flag.then_some(false);
+        Overrides {
+            scene: self.scene.as_ref().map(|scene| match scene.parse::<usize>() {
+                Ok(index) => SceneSelector::Index(index),
+                Err(_) => SceneSelector::Name(scene.clone()),
+            }),
+            keep_degenerate: self.keep_degenerate.then_some(true),
+            limits: Some(ImportLimits {
+                max_input_bytes: self.max_input_bytes,
+                max_triangles: self.max_triangles,
+                max_decoded_values: self.max_decoded_values,
+                max_placements: self.max_placements,
+                max_polygon_vertices: self.max_polygon_vertices,
+            }),
+            allow_buffers_outside_input_folder: self.allow_outside_buffers.then_some(true),
+            builder: self.builder,
+            splits: given(self.no_splits),
+            split_budget: self.split_budget,
+            split_method: self.split_method,
+            split_triangles: self.split_triangles,
+            optimize: given(self.no_optimize),
+            selection: self.selection,
+            time_budget: self.time_budget,
+            optimize_over: self.optimize_over,
+            merge_leaves: given(self.no_merge),
+            max_leaf_size: self.max_leaf_size,
+            wide: given(self.no_wide),
+            write_ids: given(self.no_ids),
+        }
+    }
 }
 
 /// `--time-budget`: a finite, non-negative number of seconds, at most a year.
@@ -204,70 +258,4 @@ pub struct RenderArgs {
     /// Color pixels by traversal steps instead of shading.
     #[arg(long)]
     pub heatmap: bool,
-}
-
-/// `--preset`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum PresetArg {
-    /// One sequence of parallel rounds.
-    Fast,
-    /// The default.
-    Balanced,
-    /// The lowest cost.
-    MaxQuality,
-}
-
-/// `--builder`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum BuilderArg {
-    /// Binned SAH.
-    BinnedSah,
-    /// Spatial median.
-    SpatialMedian,
-}
-
-/// `--split-method`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SplitMethodArg {
-    /// Spatial splits during the build (Stich et al. 2009).
-    Sbvh,
-    /// Large triangles cut at grid planes before the build (Karras and Aila 2013).
-    PreSplit,
-}
-
-/// `--split-triangles`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SplitTrianglesArg {
-    /// Only triangles whose pieces could remove a large part of their box's area.
-    Wasteful,
-    /// Any triangle the method finds worth cutting.
-    Any,
-    /// Convert with both and keep the tree whose wide cost is lower.
-    Choose,
-}
-
-/// `--optimize-over`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum OptimizeOverArg {
-    /// One reference a leaf.
-    References,
-    /// The built tree's subtrees of up to 4 references, kept as built.
-    Clusters,
-    /// Convert with both and keep the tree whose wide cost is lower.
-    Choose,
-}
-
-/// `--selection`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SelectionArg {
-    /// M_COMB.
-    Comb,
-    /// M_SUM.
-    Sum,
-    /// M_MIN.
-    Min,
-    /// M_AREA.
-    Area,
-    /// Random.
-    Random,
 }

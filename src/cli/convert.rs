@@ -5,101 +5,23 @@ use std::ops::ControlFlow;
 use std::time::Duration;
 
 use bvhc::Conversion;
-use bvhc::builders::Builder;
-use bvhc::convert::{ConvertError, Event, OptimizeOver, SplitMethod, SplitTriangles, Stage};
-use bvhc::import::{ErrorKind, ImportLimits, SceneSelector};
-use bvhc::optimize::{Preset, Selection};
+use bvhc::convert::{ConvertError, Event, Stage};
+use bvhc::import::ErrorKind;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::args::{
-    BuilderArg, ConvertArgs, OptimizeOverArg, PresetArg, SelectionArg, SplitMethodArg, SplitTrianglesArg,
-};
+use super::args::ConvertArgs;
 use super::output::{outln, print};
 use super::{Exit, fail, loader_exit};
 
-fn conversion(args: &ConvertArgs) -> Result<Conversion, String> {
-    let (Some(input), Some(output)) = (&args.input, &args.output) else {
-        return Err("INPUT and -o OUTPUT are required".to_string());
-    };
-    let preset = match args.preset {
-        PresetArg::Fast => Preset::Fast,
-        PresetArg::Balanced => Preset::Balanced,
-        PresetArg::MaxQuality => Preset::MaxQuality,
-    };
-    let builder = match args.builder {
-        BuilderArg::BinnedSah => Builder::BinnedSah,
-        BuilderArg::SpatialMedian => Builder::SpatialMedian,
-    };
-    let selection = match args.selection {
-        SelectionArg::Comb => Selection::Comb,
-        SelectionArg::Sum => Selection::Sum,
-        SelectionArg::Min => Selection::Min,
-        SelectionArg::Area => Selection::Area,
-        SelectionArg::Random => Selection::Random,
-    };
-    let mut conversion = Conversion::new(input, output)
-        .preset(preset)
-        .builder(builder)
-        .selection(selection)
-        .max_leaf_size(args.max_leaf_size)
-        .merge_leaves(!args.no_merge)
-        .keep_degenerate(args.keep_degenerate)
-        .write_ids(!args.no_ids)
-        .write_wide(!args.no_wide)
-        .force(args.force);
-    if args.no_splits {
-        conversion = conversion.splits(None);
-    } else if let Some(budget) = args.split_budget {
-        conversion = conversion.splits(Some(budget));
-    }
-    conversion = conversion.split_method(match args.split_method {
-        SplitMethodArg::Sbvh => SplitMethod::Sbvh,
-        SplitMethodArg::PreSplit => SplitMethod::PreSplit,
-    });
-    if let Some(triangles) = args.split_triangles {
-        conversion = conversion.split_triangles(match triangles {
-            SplitTrianglesArg::Wasteful => SplitTriangles::Wasteful,
-            SplitTrianglesArg::Any => SplitTriangles::Any,
-            SplitTrianglesArg::Choose => SplitTriangles::Choose,
-        });
-    }
-    if let Some(over) = args.optimize_over {
-        conversion = conversion.optimize_over(match over {
-            OptimizeOverArg::References => OptimizeOver::References,
-            OptimizeOverArg::Clusters => OptimizeOver::Clusters,
-            OptimizeOverArg::Choose => OptimizeOver::Choose,
-        });
-    }
-    if let Some(budget) = args.time_budget {
-        conversion = conversion.time_budget(budget);
-    }
-    if let Some(scene) = &args.scene {
-        conversion = conversion.scene(match scene.parse::<usize>() {
-            Ok(index) => SceneSelector::Index(index),
-            Err(_) => SceneSelector::Name(scene.clone()),
-        });
-    }
-    conversion = conversion
-        .import_limits(ImportLimits {
-            max_input_bytes: args.max_input_bytes,
-            max_triangles: args.max_triangles,
-            max_decoded_values: args.max_decoded_values,
-            max_placements: args.max_placements,
-            max_polygon_vertices: args.max_polygon_vertices,
-        })
-        .allow_buffers_outside_input_folder(args.allow_outside_buffers);
-    let mut options = conversion.current_options().clone();
-    options.skip_optimization = args.no_optimize;
-    conversion = conversion.options(options);
-    Ok(conversion)
-}
-
 /// Runs the conversion; prints a summary (or JSON) on stdout unless `--quiet`.
 pub fn convert(args: &ConvertArgs) -> Exit {
-    let conversion = match conversion(args) {
-        Ok(conversion) => conversion,
-        Err(message) => return fail(Exit::Usage, message),
+    let (Some(input), Some(output)) = (&args.input, &args.output) else {
+        return fail(Exit::Usage, "INPUT and -o OUTPUT are required");
     };
+    let conversion = Conversion::new(input, output)
+        .preset(args.options.preset)
+        .overrides(args.options.overrides())
+        .force(args.force);
     let bar = (std::io::stderr().is_terminal() && !args.quiet).then(|| {
         let bar = ProgressBar::new_spinner();
         bar.set_style(
@@ -130,6 +52,7 @@ pub fn convert(args: &ConvertArgs) -> Exit {
     }
     let outcome = match result {
         Ok(outcome) => outcome,
+        Err(ConvertError::Options(error)) => return fail(Exit::Usage, error),
         Err(ConvertError::Import(error)) => {
             let exit = if error.kind == ErrorKind::Unreadable { Exit::Io } else { Exit::InvalidInput };
             return fail(exit, error);
@@ -158,7 +81,7 @@ pub fn convert(args: &ConvertArgs) -> Exit {
             }
             Some(r) => {
                 let degenerate = r.import.degenerate();
-                let verdict = if args.keep_degenerate { "kept" } else { "dropped" };
+                let verdict = if args.options.keep_degenerate { "kept" } else { "dropped" };
                 let optimized = r.optimization.as_ref().map_or(String::new(), |o| {
                     format!(", optimized {:.2} -> {:.2} in {} batches", o.initial.cost, o.best.cost, o.batches)
                 });

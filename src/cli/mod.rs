@@ -10,6 +10,7 @@ mod camera;
 mod convert;
 mod info;
 mod legend;
+mod options;
 mod output;
 mod render;
 mod signals;
@@ -79,6 +80,7 @@ pub fn run() -> ExitCode {
         Some(Command::Info { file, json }) => info::info(&file, json),
         Some(Command::Render(args)) => render::render(&args),
         Some(Command::Trace(args)) => trace::trace(&args),
+        Some(Command::Options(args)) => options::options(&args),
         None => convert::convert(&cli.convert),
     };
     exit.into()

@@ -52,7 +52,7 @@ fn shade(triangle: &PackedTriangle, direction: Vec3) -> [f32; 3] {
 
 /// Renders and writes the PNG.
 pub fn render(args: &RenderArgs) -> Exit {
-    if bvhc::convert::is_same_file(&args.output, &args.file) {
+    if bvhc::convert::files::is_same_file(&args.output, &args.file) {
         return fail(
             Exit::Io,
             format!("{}: the output is the input .bvh file; choose another output path", args.output.display()),

@@ -67,7 +67,7 @@ pub fn hit_record(hit: Option<&Hit>) -> [u8; HIT_RECORD_BYTE_LEN] {
 /// Runs `bvhc trace`.
 pub fn trace(args: &TraceArgs) -> Exit {
     if let Some(output) = &args.output
-        && [&args.file, &args.rays].iter().any(|input| bvhc::convert::is_same_file(output, input))
+        && [&args.file, &args.rays].iter().any(|input| bvhc::convert::files::is_same_file(output, input))
     {
         return fail(Exit::Io, format!("{}: the output is one of the inputs; choose another path", output.display()));
     }

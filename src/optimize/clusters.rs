@@ -16,12 +16,6 @@ use std::ops::ControlFlow;
 use super::tree::{NONE, OptNode, OptTree};
 use super::{OptimizeParams, OptimizeReport, Progress, cost_of, optimize};
 
-/// Cluster size used by conversions: subtrees of up to 4 references (measured on the wide cost, SBVH 0.3,
-/// balanced, against 2, 3, 6 and 8: kitchen 10.29 against 10.67, 10.64, 10.35, 10.35; 2CylinderEngine 25.63
-/// against 26.08, 25.91, 25.64, 25.65; the scanned meshes within 0.5%; and against rules that merge more,
-/// `c_I` = 1 or 0 instead of the optimizer's 2: kitchen 10.39 and 10.40, engine 25.87 and 25.88).
-pub const DEFAULT_CLUSTER_SIZE: usize = 4;
-
 /// Optimizes `tree` (with one reference a leaf) by reinsertion over the clusters at `roots`, in place: the
 /// roots of disjoint subtrees that together hold every leaf, in depth-first order (the leaf layout's
 /// [`crate::layout::cluster_roots`]). The report's costs are those of the whole tree before and after, and its

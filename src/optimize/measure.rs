@@ -12,6 +12,7 @@ use super::tree::{NONE, OptTree};
 
 /// How a batch's nodes are chosen.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Selection {
     /// `M_COMB`: fewest batches to converge (Bittner et al.).

@@ -31,11 +31,11 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 
-pub use clusters::{DEFAULT_CLUSTER_SIZE, optimize_over_clusters};
+pub use clusters::optimize_over_clusters;
 pub use edit_log::EditLog;
 pub use measure::{Selection, is_eligible};
 pub use measure_index::MeasureIndex;
-pub use params::{Algorithm, OptimizeParams, Preset};
+pub use params::{Algorithm, OptimizeParams};
 pub use search::{Move, SearchQueue, best_in_subtree, best_insertion, best_move};
 pub use select::{select_batch, select_batch_with};
 pub use tree::{ChildrenFirst, NONE, OptNode, OptTree, TreeEdits, area};
@@ -133,7 +133,9 @@ pub fn optimize_inspected(
         Algorithm::Alternating => loop {
             let cycle_start = run.report.best.cost;
             let parallel = OptimizeParams { algorithm: Algorithm::Parallel, ..params.clone() };
+            // The published loop with this run's selection, so that a chosen measure steers every phase.
             let reference = OptimizeParams {
+                selection: params.selection,
                 time_budget: params.time_budget,
                 seed: params.seed,
                 constants: params.constants,

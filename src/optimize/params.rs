@@ -1,4 +1,4 @@
-//! Optimizer parameters, their defaults and the presets.
+//! Optimizer parameters and their defaults.
 
 use std::time::Duration;
 
@@ -25,7 +25,7 @@ pub enum Algorithm {
     Alternating,
 }
 
-/// Everything the optimizer can be told. `Default` is the `balanced` preset.
+/// Everything the optimizer can be told; the defaults are the `balanced` preset's.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct OptimizeParams {
     /// The loop.
@@ -65,44 +65,11 @@ fn serialize_seconds<S: serde::Serializer>(budget: &Option<Duration>, s: S) -> R
 }
 
 impl Default for OptimizeParams {
+    /// The parallel loop with full rounds (every eligible node a candidate: on this CPU that converges in far
+    /// fewer rounds, and less time, than 1% batches), until a sequence gains less than 0.1%. The presets of
+    /// [`crate::options::Preset`] vary how long it persists.
     fn default() -> Self {
-        OptimizeParams::preset(Preset::Balanced)
-    }
-}
-
-/// Named parameter sets.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Preset {
-    /// One sequence of 16 parallel rounds: most of the gain in a fraction of the time.
-    Fast,
-    /// The default: parallel sequences until one gains less than 0.1%.
-    #[default]
-    Balanced,
-    /// Parallel and sequential phases alternated until a cycle gains less than 0.02%: the lowest cost.
-    MaxQuality,
-}
-
-impl Preset {
-    /// Every preset.
-    pub const ALL: [Preset; 3] = [Preset::Fast, Preset::Balanced, Preset::MaxQuality];
-
-    /// The name used in options and reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            Preset::Fast => "fast",
-            Preset::Balanced => "balanced",
-            Preset::MaxQuality => "max-quality",
-        }
-    }
-}
-
-impl OptimizeParams {
-    /// The parameters of a preset. All use the parallel loop with full rounds (every eligible node a
-    /// candidate: on this CPU that converges in far fewer rounds, and less time, than 1% batches); they differ
-    /// in how long they persist.
-    pub fn preset(preset: Preset) -> OptimizeParams {
-        let base = OptimizeParams {
+        OptimizeParams {
             algorithm: Algorithm::Parallel,
             selection: Selection::Comb,
             batch_fraction: 1.0,
@@ -114,16 +81,11 @@ impl OptimizeParams {
             time_budget: None,
             seed: 0x6276_6863,
             constants: SahConstants::default(),
-        };
-        match preset {
-            Preset::Fast => OptimizeParams { min_relative_improvement: 1.0, ..base },
-            Preset::Balanced => base,
-            Preset::MaxQuality => {
-                OptimizeParams { algorithm: Algorithm::Alternating, min_relative_improvement: 2e-4, ..base }
-            }
         }
     }
+}
 
+impl OptimizeParams {
     /// The sequential reference with the published constants of Bittner et al. 2013: `k = 1%`, `p_R = 5`,
     /// `p_T = 10`, selection by `M_COMB`.
     pub fn bittner_2013() -> OptimizeParams {
@@ -134,7 +96,7 @@ impl OptimizeParams {
             random_after: 5,
             stop_after: 10,
             min_relative_improvement: 0.0,
-            ..OptimizeParams::preset(Preset::Balanced)
+            ..OptimizeParams::default()
         }
     }
 }

@@ -3,7 +3,8 @@
 
 use bvhc::builders::Builder;
 use bvhc::layout::cluster_roots;
-use bvhc::optimize::{NONE, OptTree, OptimizeParams, Preset, cost_of, optimize_over_clusters};
+use bvhc::optimize::{NONE, OptTree, cost_of, optimize_over_clusters};
+use bvhc::options::Preset;
 
 /// Triangles scattered in a cube, from a fixed linear congruential sequence.
 fn scattered_triangles(count: usize) -> Vec<[[f32; 3]; 3]> {
@@ -43,7 +44,7 @@ fn subtree_contents(tree: &OptTree, root: u32) -> Vec<(Vec<u32>, u32)> {
 fn clusters_stay_as_built_and_the_tree_above_them_is_optimized() {
     let triangles = scattered_triangles(3000);
     let built = OptTree::from_build(Builder::BinnedSah.build(&triangles, 1), &triangles);
-    let params = OptimizeParams::preset(Preset::Balanced);
+    let params = Preset::Balanced.optimize_params();
     let roots = cluster_roots(&built, params.constants, 4);
     assert!(roots.len() < 2900, "hardly any cluster holds several references: {}", roots.len());
     let run = |threads: usize| {

@@ -3,10 +3,11 @@
 
 use std::path::{Path, PathBuf};
 
-use bvhc::convert::{ConvertOptions, convert_with};
+use bvhc::convert::convert_with;
 use bvhc::import::{ImportOptions, import};
 use bvhc::loader::BvhFile;
-use bvhc::optimize::Preset;
+use bvhc::options::ConvertOptions;
+use bvhc::options::Preset;
 
 use crate::common::{assert_matches_brute_force, every_kernel, random_rays, scene};
 

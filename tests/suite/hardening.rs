@@ -148,7 +148,7 @@ fn buffer_uris_stay_under_the_input_folder() {
         std::fs::write(&gltf, format!(r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":{uri:?},"byteLength":36}}],"bufferViews":[{{"buffer":0,"byteLength":36}}],"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3"}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}]}}"#)).unwrap();
         let error = import_error(&gltf, &ImportOptions::default());
         assert!(error.message.contains("--allow-outside-buffers"), "{uri}: {error}");
-        let mut options = bvhc::convert::ConvertOptions::default();
+        let mut options = bvhc::options::ConvertOptions::default();
         options.import.allow_buffers_outside_input_folder = true;
         let output = dir.path().join("out.bvh");
         bvhc::convert::convert_with(&gltf, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
@@ -237,7 +237,7 @@ fn the_optimizer_reproducer_converts_with_every_preset() {
     let dir = tempfile::tempdir().unwrap();
     for preset in bvhc::Preset::ALL {
         let output = dir.path().join("x.bvh");
-        let options = bvhc::convert::ConvertOptions::preset(preset);
+        let options = bvhc::options::ConvertOptions::preset(preset);
         let report =
             bvhc::convert::convert_with(&repro("optimizer-sibling-of-root-9tri.obj"), &output, &options, &mut |_| {
                 std::ops::ControlFlow::Continue(())

@@ -17,6 +17,7 @@ mod import_scenes;
 mod metadata_schema;
 mod mutation;
 mod optimize;
+mod options;
 mod optimize_property;
 mod roundtrip;
 mod rules;

@@ -6,10 +6,11 @@ use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use bvhc::builders::Builder;
-use bvhc::convert::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles, convert_with};
+use bvhc::convert::convert_with;
 use bvhc::import::SceneSelector;
 use bvhc::loader::BvhFile;
-use bvhc::optimize::Preset;
+use bvhc::options::Preset;
+use bvhc::options::{ConvertOptions, LeafMerge, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};
 
 use crate::common::{assert_metadata_matches_schema, scene};
 use crate::hardening::repro;
@@ -33,11 +34,11 @@ fn every_written_file_matches_the_metadata_schema() {
     }
     let mut options = ConvertOptions::preset(Preset::Fast);
     options.builder = Builder::SpatialMedian;
-    options.merge_leaves = false;
+    options.leaves = LeafMerge::Off;
     let metadata = convert_and_check(&teapot, &options);
     assert_eq!(metadata["build"]["max_leaf_size"], 1, "one triangle per leaf is recorded as such");
     options.write_ids = false;
-    options.skip_optimization = true;
+    options.reinsertion = None;
     options.optimize.time_budget = Some(std::time::Duration::from_millis(1500));
     convert_and_check(&teapot, &options);
     // Split references, by either method.
@@ -61,7 +62,7 @@ fn every_written_file_matches_the_metadata_schema() {
         ] {
             let mut options = split.clone();
             options.splits = options.splits.map(|s| SplitOptions { triangles, ..s });
-            options.optimize_over = over;
+            options.reinsertion = Some(over);
             options.wide = options.wide.filter(|_| wide);
             let metadata = convert_and_check(&teapot, &options);
             let recorded = |value: &serde_json::Value, default: &str| value.as_str().unwrap_or(default).to_string();

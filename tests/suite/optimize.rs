@@ -9,9 +9,10 @@ use bvhc::cost::SahConstants;
 use bvhc::geometry::Aabb;
 use bvhc::layout::merge_leaves;
 use bvhc::optimize::{
-    Algorithm, NONE, OptTree, OptimizeParams, Preset, SearchQueue, Selection, area, best_insertion, best_move, cost_of,
+    Algorithm, NONE, OptTree, OptimizeParams, SearchQueue, Selection, area, best_insertion, best_move, cost_of,
     optimize,
 };
+use bvhc::options::Preset;
 
 use crate::common::random_triangles;
 
@@ -148,7 +149,7 @@ fn params(algorithm: Algorithm, selection: Selection) -> OptimizeParams {
         decreasing_fractions: false,
         stop_after: 5,
         min_relative_improvement: 1e-4,
-        ..OptimizeParams::preset(Preset::Balanced)
+        ..Preset::Balanced.optimize_params()
     }
 }
 
@@ -287,7 +288,7 @@ fn leaf_merging_never_raises_the_cost_and_respects_the_leaf_size() {
     for seed in 20..26u64 {
         let triangles = random_triangles(seed, 1500, 10.0);
         let mut tree = tree_for(&triangles, Builder::BinnedSah);
-        optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| ControlFlow::Continue(()));
+        optimize(&mut tree, &Preset::Fast.optimize_params(), &mut |_| ControlFlow::Continue(()));
         let single = cost_of(&tree, constants).cost;
         for max_leaf_size in [1, 2, 4, 8] {
             let merged: BuildTree = merge_leaves(&tree, constants, max_leaf_size);
@@ -329,7 +330,7 @@ fn degenerate_inputs_run_through_every_preset() {
                     assert!(tree.nodes.is_empty());
                     continue;
                 }
-                let report = optimize(&mut tree, &OptimizeParams::preset(preset), &mut |_| ControlFlow::Continue(()));
+                let report = optimize(&mut tree, &preset.optimize_params(), &mut |_| ControlFlow::Continue(()));
                 assert!(report.best.cost.is_finite() && report.initial.cost.is_finite(), "{report:?}");
                 check_invariants(&tree, triangles);
                 let merged = merge_leaves(&tree, SahConstants::default(), 8);

@@ -5,7 +5,8 @@
 use std::ops::ControlFlow;
 
 use bvhc::builders::Builder;
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize_inspected};
+use bvhc::optimize::{OptTree, optimize_inspected};
+use bvhc::options::Preset;
 use rand::RngExt;
 
 use crate::common::{Triangle, random_point, random_triangles, rng};
@@ -55,7 +56,7 @@ fn every_preset_keeps_the_invariants_after_every_batch_on_thousands_of_small_sce
             let initial = bvhc::optimize::cost_of(&tree, Default::default()).cost;
             let report = optimize_inspected(
                 &mut tree,
-                &OptimizeParams::preset(preset),
+                &preset.optimize_params(),
                 &mut |_| ControlFlow::Continue(()),
                 &mut |tree| {
                     batches_checked += 1;

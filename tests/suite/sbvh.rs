@@ -9,7 +9,8 @@ use bvhc::builders::References;
 use bvhc::builders::sbvh::{SbvhParams, build_sbvh};
 use bvhc::cost::SahConstants;
 use bvhc::geometry::Aabb;
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
+use bvhc::optimize::{OptTree, optimize};
+use bvhc::options::Preset;
 use rand::RngExt;
 
 use crate::common::{in_pool, random_triangles, rng};
@@ -104,7 +105,7 @@ fn sbvh_lowers_the_sah_of_long_triangles_and_the_optimizer_keeps_its_references(
     let references = leaves(&sbvh);
     let mut tree = OptTree::from_build(sbvh, &triangles);
     tree.check_reference_invariants(&references).unwrap();
-    optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
+    optimize(&mut tree, &Preset::Fast.optimize_params(), &mut |_| std::ops::ControlFlow::Continue(()));
     tree.check_reference_invariants(&references).unwrap();
 }
 

@@ -7,11 +7,13 @@ use std::io::Write;
 use std::path::Path;
 
 use bvhc::builders::{References, split_triangles};
-use bvhc::convert::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles, convert_with};
+use bvhc::convert::convert_with;
 use bvhc::epo::polygon_area;
 use bvhc::geometry::Aabb;
 use bvhc::geometry::clip::{Piece, triangle_area};
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
+use bvhc::optimize::{OptTree, optimize};
+use bvhc::options::Preset;
+use bvhc::options::{ConvertOptions, SplitMethod, SplitOptions, SplitTriangles};
 use rand::RngExt;
 
 use crate::common::{in_pool, random_point, random_triangles, rng};
@@ -119,7 +121,7 @@ fn the_optimizer_keeps_every_reference_in_one_leaf() {
     let references = split_triangles(&triangles, 0.5);
     let mut tree = OptTree::from_build(bvhc::builders::Builder::BinnedSah.build_references(&references), &triangles);
     tree.check_reference_invariants(&references).unwrap();
-    optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
+    optimize(&mut tree, &Preset::Fast.optimize_params(), &mut |_| std::ops::ControlFlow::Continue(()));
     tree.check_reference_invariants(&references).unwrap();
     // And the check notices a reference lost.
     let fewer = References { triangle: references.triangle[1..].to_vec(), aabb: references.aabb[1..].to_vec() };
@@ -227,7 +229,7 @@ fn choosing_which_triangles_to_cut_keeps_the_cheaper_of_both_conversions() {
             let options = ConvertOptions {
                 splits: Some(SplitOptions { triangles, ..SplitOptions::with_budget(0.3) }),
                 // One reference a leaf, for which the expected choices below were found.
-                optimize_over: bvhc::convert::OptimizeOver::References,
+                reinsertion: Some(bvhc::options::OptimizeOver::References),
                 ..ConvertOptions::default()
             };
             let output = dir.path().join(format!("{}.bvh", triangles.name()));
@@ -275,7 +277,7 @@ fn choosing_which_triangles_to_cut_keeps_the_cheaper_of_both_conversions() {
 /// references, verify, trace like brute force and give the same bytes on 1 and 2 threads.
 #[test]
 fn conversions_over_clusters_trace_like_brute_force_and_do_not_depend_on_threads() {
-    use bvhc::convert::OptimizeOver;
+    use bvhc::options::OptimizeOver;
     let dir = tempfile::tempdir().unwrap();
     let mixed = dir.path().join("mixed.obj");
     let mut triangles = rectangles(31, 300);
@@ -283,11 +285,11 @@ fn conversions_over_clusters_trace_like_brute_force_and_do_not_depend_on_threads
     write_obj(&mixed, &triangles);
     for input in [teapot(), mixed] {
         for (over, splits) in [
-            (OptimizeOver::Clusters, SplitOptions::for_preset(Preset::Balanced)),
+            (OptimizeOver::Clusters, Preset::Balanced.splits()),
             (OptimizeOver::Clusters, None),
-            (OptimizeOver::Choose, SplitOptions::for_preset(Preset::Balanced)),
+            (OptimizeOver::Choose, Preset::Balanced.splits()),
         ] {
-            let options = ConvertOptions { optimize_over: over, splits, ..ConvertOptions::default() };
+            let options = ConvertOptions { reinsertion: Some(over), splits, ..ConvertOptions::default() };
             let (report, _) = check_conversion_against_brute_force(&input, &options);
             assert_eq!(report.choice.is_some(), over == OptimizeOver::Choose);
             let one = convert_in_pool(1, &input, &dir.path().join("one.bvh"), &options);
@@ -295,11 +297,7 @@ fn conversions_over_clusters_trace_like_brute_force_and_do_not_depend_on_threads
             assert!(one == two, "{input:?} {over:?}: 1 and 2 threads differ");
         }
         // Without optimization there is nothing to choose between.
-        let options = ConvertOptions {
-            optimize_over: OptimizeOver::Choose,
-            skip_optimization: true,
-            ..ConvertOptions::default()
-        };
+        let options = ConvertOptions { reinsertion: None, ..ConvertOptions::default() };
         let output = dir.path().join("unoptimized.bvh");
         let report = convert_with(&input, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
         assert!(report.choice.is_none() && report.optimization.is_none());
@@ -508,7 +506,7 @@ fn merging_over_references_counts_each_triangle_once_a_leaf() {
     let references = split_triangles(&triangles, 1.0);
     assert!(references.len() > 2500);
     let mut tree = OptTree::from_build(Builder::BinnedSah.build_references(&references), &triangles);
-    optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
+    optimize(&mut tree, &Preset::Fast.optimize_params(), &mut |_| std::ops::ControlFlow::Continue(()));
     for limit in [2, 4, 8] {
         let mut aware = merge_leaves_of_references(&tree, constants, limit);
         let mut naive = merge_leaves(&tree, constants, limit);
@@ -554,7 +552,7 @@ fn the_wide_collapse_over_references_counts_each_triangle_once_a_leaf() {
     let triangles = long_triangles(14, 1500);
     let references = split_triangles(&triangles, 1.0);
     let mut tree = OptTree::from_build(Builder::BinnedSah.build_references(&references), &triangles);
-    optimize(&mut tree, &OptimizeParams::preset(Preset::Fast), &mut |_| std::ops::ControlFlow::Continue(()));
+    optimize(&mut tree, &Preset::Fast.optimize_params(), &mut |_| std::ops::ControlFlow::Continue(()));
     for max_leaf_size in [4, 8] {
         let costs = WideCosts { max_leaf_size, ..WideCosts::default() };
         let aware = distinct_cost(&collapse_references(&tree, &costs));

@@ -22,7 +22,8 @@ use bvhc::builders::Builder;
 use bvhc::cost::SahConstants;
 use bvhc::layout::merge_leaves;
 use bvhc::loader::{BvhWriter, Ray};
-use bvhc::optimize::{OptTree, OptimizeParams, Preset, optimize};
+use bvhc::optimize::{OptTree, optimize};
+use bvhc::options::Preset;
 use bvhc::pack::pack;
 use rand::RngExt;
 
@@ -250,7 +251,7 @@ fn run_case(case: &Case) -> Counts {
     // The whole pipeline: build, optimize, merge, pack, and the writer's full verification.
     let tree = Builder::BinnedSah.build(&case.triangles, 1);
     let mut opt = OptTree::from_build_tree(&tree, &case.triangles);
-    let report = optimize(&mut opt, &OptimizeParams::preset(Preset::Balanced), &mut |p| {
+    let report = optimize(&mut opt, &Preset::Balanced.optimize_params(), &mut |p| {
         assert!(p.cost.is_finite(), "{}: cost {}", case.name, p.cost);
         ControlFlow::Continue(())
     });

@@ -1,4 +1,5 @@
-//! The build-script API: a builder-style conversion of one input into one output.
+//! The build-script API: one conversion request (an input, an output, a preset and overrides), run with
+//! [`Conversion::run`].
 //!
 //! ```no_run
 //! // build.rs
@@ -12,24 +13,29 @@
 //!
 //! It never prints; it skips the work when the output is up to date (same inputs by content, same options,
 //! same format version) unless forced; the output is written atomically and is byte-identical for identical
-//! inputs and options, whatever the number of threads.
+//! inputs and options, whatever the number of threads. The setters record overrides; [`Conversion::run`]
+//! resolves them with the preset ([`crate::options::resolve`]) and refuses a setting that would do nothing.
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use super::files::{is_up_to_date, recorded_inputs, refuse_output_among};
+use super::metadata::BuildRecord;
+use super::pipeline::convert_with;
+use super::report::{ConvertError, ConvertReport, Event};
 use crate::builders::Builder;
-use crate::convert::{ConvertError, ConvertOptions, ConvertReport, Event, convert_with};
 use crate::import::{ImportLimits, SceneSelector};
-use crate::optimize::{Preset, Selection};
-use crate::up_to_date::is_up_to_date;
+use crate::optimize::Selection;
+use crate::options::{ConvertOptions, OptimizeOver, Overrides, Preset, SplitMethod, SplitTriangles, resolve};
 
-/// One input, one output, options; [`Conversion::run`] does the work.
+/// One input, one output, a preset and overrides; [`Conversion::run`] does the work.
 #[derive(Clone, Debug)]
 pub struct Conversion {
     input: PathBuf,
     output: PathBuf,
-    options: ConvertOptions,
+    preset: Preset,
+    overrides: Overrides,
     force: bool,
 }
 
@@ -50,122 +56,121 @@ impl Conversion {
         Conversion {
             input: input.as_ref().to_path_buf(),
             output: output.as_ref().to_path_buf(),
-            options: ConvertOptions::default(),
+            preset: Preset::Balanced,
+            overrides: Overrides::default(),
             force: false,
         }
     }
 
-    /// Uses a preset's optimizer parameters and splits (other options are kept; call [`Conversion::splits`]
-    /// after this to override the splits).
+    /// The preset the overrides apply to.
     pub fn preset(mut self, preset: Preset) -> Self {
-        let constants = self.options.optimize.constants;
-        self.options.preset = preset;
-        self.options.splits = crate::convert::SplitOptions::for_preset(preset);
-        self.options.optimize_over = crate::convert::OptimizeOver::for_preset(preset);
-        self.options.optimize =
-            crate::optimize::OptimizeParams { constants, ..crate::optimize::OptimizeParams::preset(preset) };
+        self.preset = preset;
+        self
+    }
+
+    /// All overrides at once (what the command line's flags set).
+    pub fn overrides(mut self, overrides: Overrides) -> Self {
+        self.overrides = overrides;
         self
     }
 
     /// The initial builder.
     pub fn builder(mut self, builder: Builder) -> Self {
-        self.options.builder = builder;
+        self.overrides.builder = Some(builder);
         self
     }
 
-    /// The optimizer's node selection.
+    /// The optimizer's node selection (every phase of the preset's loop).
     pub fn selection(mut self, selection: Selection) -> Self {
-        self.options.optimize.selection = selection;
+        self.overrides.selection = Some(selection);
         self
     }
 
-    /// Largest merged leaf (1 disables merging in effect).
+    /// Whether to optimize the built tree.
+    pub fn optimize(mut self, optimize: bool) -> Self {
+        self.overrides.optimize = Some(optimize);
+        self
+    }
+
+    /// Largest merged leaf (at least 1).
     pub fn max_leaf_size(mut self, max_leaf_size: usize) -> Self {
-        self.options.max_leaf_size = max_leaf_size.max(1);
+        self.overrides.max_leaf_size = Some(max_leaf_size);
         self
     }
 
     /// Whether to merge leaves.
     pub fn merge_leaves(mut self, merge: bool) -> Self {
-        self.options.merge_leaves = merge;
+        self.overrides.merge_leaves = Some(merge);
         self
     }
 
     /// A wall-clock budget for the optimizer. Note: the result then depends on the machine's speed.
     pub fn time_budget(mut self, budget: Duration) -> Self {
-        self.options.optimize.time_budget = Some(budget);
+        self.overrides.time_budget = Some(budget);
         self
     }
 
     /// Keep degenerate triangles.
     pub fn keep_degenerate(mut self, keep: bool) -> Self {
-        self.options.import.keep_degenerate = keep;
+        self.overrides.keep_degenerate = Some(keep);
         self
     }
 
     /// Whether to write the triangle_ids and source_table sections.
     pub fn write_ids(mut self, write: bool) -> Self {
-        self.options.write_ids = write;
+        self.overrides.write_ids = Some(write);
         self
     }
 
-    /// Whether to write the wide sections of format 1.1 (on by default), collapsed with the default
-    /// [`crate::layout::WideCosts`]; without them the file is version 1.0 and traced by the binary kernel.
+    /// Whether to write the wide sections of format 1.1 (on by default); without them the file is version 1.0
+    /// and traced by the binary kernel.
     pub fn write_wide(mut self, write: bool) -> Self {
-        self.options.wide = write.then(crate::layout::WideCosts::default);
+        self.overrides.wide = Some(write);
         self
     }
 
-    /// Split references: `Some(budget)` cuts triangles into at most `budget * triangles` extra references
-    /// (see [`crate::builders::presplit`]), by the method set with [`Conversion::split_method`] (the SBVH unless told);
-    /// `None` keeps one a triangle. Without this call the preset decides (the SBVH within
-    /// [`crate::convert::DEFAULT_SPLIT_BUDGET`] except for `fast`).
+    /// Split references: `Some(budget)` cuts triangles into at most `budget * triangles` extra references;
+    /// `None` keeps one a triangle, whatever the preset.
     pub fn splits(mut self, budget: Option<f64>) -> Self {
-        let (method, triangles) = self.options.splits.map(|s| (s.method, s.triangles)).unwrap_or_default();
-        self.options.splits = budget.map(|budget| crate::convert::SplitOptions { budget, method, triangles });
+        self.overrides.splits = Some(budget.is_some());
+        self.overrides.split_budget = budget;
         self
     }
 
-    /// Where split references are cut (used when [`Conversion::splits`] turns them on).
-    pub fn split_method(mut self, method: crate::convert::SplitMethod) -> Self {
-        if let Some(splits) = &mut self.options.splits {
-            splits.method = method;
-        }
+    /// Where split references are cut.
+    pub fn split_method(mut self, method: SplitMethod) -> Self {
+        self.overrides.split_method = Some(method);
         self
     }
 
-    /// Which triangles split references are cut from (used when splits are on; the preset decides otherwise:
-    /// [`crate::convert::SplitTriangles::Choose`] for `max-quality`, `Wasteful` for `balanced`).
-    pub fn split_triangles(mut self, triangles: crate::convert::SplitTriangles) -> Self {
-        if let Some(splits) = &mut self.options.splits {
-            splits.triangles = triangles;
-        }
+    /// Which triangles split references are cut from.
+    pub fn split_triangles(mut self, triangles: SplitTriangles) -> Self {
+        self.overrides.split_triangles = Some(triangles);
         self
     }
 
-    /// What reinsertion optimizes over (the preset decides otherwise, see
-    /// [`crate::convert::OptimizeOver::for_preset`]).
-    pub fn optimize_over(mut self, over: crate::convert::OptimizeOver) -> Self {
-        self.options.optimize_over = over;
+    /// What reinsertion optimizes over.
+    pub fn optimize_over(mut self, over: OptimizeOver) -> Self {
+        self.overrides.optimize_over = Some(over);
         self
     }
 
     /// The glTF scene to convert.
     pub fn scene(mut self, scene: SceneSelector) -> Self {
-        self.options.import.scene = Some(scene);
+        self.overrides.scene = Some(scene);
         self
     }
 
     /// The import's resource budget (see [`ImportLimits`]; the defaults bound an import to a few GiB).
     pub fn import_limits(mut self, limits: ImportLimits) -> Self {
-        self.options.import.limits = limits;
+        self.overrides.limits = Some(limits);
         self
     }
 
     /// Follow glTF buffer URIs that leave the scene's folder (off by default: an untrusted asset must not copy
     /// other files into the output).
     pub fn allow_buffers_outside_input_folder(mut self, allow: bool) -> Self {
-        self.options.import.allow_buffers_outside_input_folder = allow;
+        self.overrides.allow_buffers_outside_input_folder = Some(allow);
         self
     }
 
@@ -175,15 +180,9 @@ impl Conversion {
         self
     }
 
-    /// Replaces all options.
-    pub fn options(mut self, options: ConvertOptions) -> Self {
-        self.options = options;
-        self
-    }
-
-    /// The options in effect.
-    pub fn current_options(&self) -> &ConvertOptions {
-        &self.options
+    /// The options the conversion will use: the preset with the overrides, checked.
+    pub fn resolved_options(&self) -> Result<ConvertOptions, ConvertError> {
+        Ok(resolve(self.preset, &self.overrides)?)
     }
 
     /// Runs the conversion (or recognizes that the output is up to date).
@@ -196,15 +195,16 @@ impl Conversion {
         &self,
         observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     ) -> Result<ConversionOutcome, ConvertError> {
+        let options = self.resolved_options()?;
         // Before the up-to-date check opens the output: a FIFO there would block it, and the output must never be
         // the input.
         bvhc_loader::check_replaceable(&self.output)?;
-        crate::convert::refuse_output_among(&self.output, std::slice::from_ref(&self.input))?;
-        if !self.force && is_up_to_date(&self.output, &self.input, &self.options.recorded()) {
-            let files_read = crate::convert::recorded_inputs(&self.output, &self.input);
+        refuse_output_among(&self.output, std::slice::from_ref(&self.input))?;
+        if !self.force && is_up_to_date(&self.output, &self.input, &BuildRecord::of(&options)) {
+            let files_read = recorded_inputs(&self.output, &self.input);
             return Ok(ConversionOutcome { files_read, up_to_date: true, report: None });
         }
-        let report = convert_with(&self.input, &self.output, &self.options, observer)?;
+        let report = convert_with(&self.input, &self.output, &options, observer)?;
         Ok(ConversionOutcome { files_read: report.files_read.clone(), up_to_date: false, report: Some(report) })
     }
 }

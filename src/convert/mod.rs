@@ -1,0 +1,15 @@
+//! The conversion of one scene into one `.bvh` file: the pipeline of stages ([`pipeline`]), the candidate trees
+//! it chooses among ([`candidates`]), the metadata it writes ([`metadata`]), what it reports ([`report`]), the
+//! files it reads and writes ([`files`]), and the build-script API over all of it ([`Conversion`]).
+
+pub mod candidates;
+pub mod files;
+pub mod metadata;
+pub mod pipeline;
+pub mod report;
+mod request;
+
+pub use candidates::merge_and_collapse;
+pub use pipeline::{convert, convert_with};
+pub use report::{CandidateCost, Choice, ConvertError, ConvertReport, Event, Stage, Timings, WideSummary};
+pub use request::{Conversion, ConversionOutcome};

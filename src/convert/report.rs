@@ -1,0 +1,158 @@
+//! What a conversion reports: its result and measurements ([`ConvertReport`]), the events its observer sees, and
+//! why it failed ([`ConvertError`]).
+
+use std::path::PathBuf;
+
+use serde::Serialize;
+
+use crate::cost::SahCost;
+use crate::import::ImportReport;
+use crate::optimize::{OptimizeReport, Progress};
+use crate::options::{OptimizeOver, OptionsError, SplitTriangles};
+
+/// What a conversion produced and measured.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ConvertReport {
+    /// The output file.
+    pub output: PathBuf,
+    /// Every input file read.
+    pub files_read: Vec<PathBuf>,
+    /// What the import read and skipped.
+    pub import: ImportReport,
+    /// The optimizer's report (absent when skipped).
+    pub optimization: Option<OptimizeReport>,
+    /// Cost of the written tree.
+    pub cost: SahCost,
+    /// Triangles written (distinct; with split references some are stored more than once).
+    pub triangle_count: usize,
+    /// The references the tree was built over (`triangle_count` without splits).
+    pub reference_count: usize,
+    /// Triangle records written (more than `triangle_count` when leaves repeat split triangles).
+    pub stored_triangle_count: usize,
+    /// Nodes written.
+    pub node_count: usize,
+    /// Wide nodes and triangle packets written (absent without wide sections).
+    pub wide: Option<WideSummary>,
+    /// Bytes written.
+    pub file_byte_len: usize,
+    /// Seconds per stage: import, build, optimize, merge, pack, write.
+    pub timings: Timings,
+    /// With [`SplitTriangles::Choose`] or [`OptimizeOver::Choose`]: the candidates' costs and the one written
+    /// (absent when a cancelled optimization ended the search at the first).
+    pub choice: Option<Choice>,
+}
+
+/// The wide sections of a conversion: their sizes and the collapsed tree's cost.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct WideSummary {
+    /// Elements of `wide_nodes`.
+    pub node_count: usize,
+    /// Elements of `triangle_packets`.
+    pub packet_count: usize,
+    /// The wide tree's cost under the collapse's constants ([`crate::layout::WideTree::cost`]).
+    pub cost: f64,
+}
+
+/// Seconds spent per stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Timings {
+    /// Import.
+    pub import: f64,
+    /// Initial build.
+    pub build: f64,
+    /// Optimization by reinsertion.
+    pub optimize: f64,
+    /// Depth limiting, the wide collapse and leaf merging.
+    pub merge: f64,
+    /// Packing the binary and the wide trees into the file's arrays.
+    pub pack: f64,
+    /// Writing the file (metadata, checksums, atomic rename).
+    pub write: f64,
+}
+
+impl Timings {
+    /// All stages together.
+    pub fn total(&self) -> f64 {
+        self.import + self.build + self.optimize + self.merge + self.pack + self.write
+    }
+}
+
+/// Why a conversion failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConvertError {
+    /// The options cannot be honoured (a value out of range, or a setting another makes inert).
+    #[error(transparent)]
+    Options(#[from] OptionsError),
+    /// The input could not be imported.
+    #[error(transparent)]
+    Import(#[from] crate::import::ImportError),
+    /// The output could not be written.
+    #[error(transparent)]
+    Write(#[from] bvhc_loader::Error),
+    /// A bug in bvhc was caught before writing: please report it with the input.
+    #[error("internal error (please report with the input): {0}")]
+    Internal(String),
+    /// The output names one of the files the conversion reads (the input, or a glTF buffer): writing it would
+    /// destroy the input.
+    #[error("{}: the output is one of the inputs ({}); choose another output path", output.display(), input.display())]
+    OutputIsInput {
+        /// The output path.
+        output: PathBuf,
+        /// The input file it names.
+        input: PathBuf,
+    },
+    /// The scene has more triangles than the format's u32 indices allow.
+    #[error("{}: {count} triangles (or split references) exceed the .bvh limit of 2^32 - 1", path.display())]
+    TooLarge {
+        /// The input.
+        path: PathBuf,
+        /// Its triangle count.
+        count: usize,
+    },
+}
+
+/// A stage of the pipeline, as reported to the observer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Reading the scene.
+    Import,
+    /// The initial build.
+    Build,
+    /// Optimization and leaf merging.
+    Optimize,
+    /// Packing, writing and verifying.
+    Write,
+}
+
+/// What the pipeline tells its observer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Event<'a> {
+    /// A stage begins.
+    Stage(Stage),
+    /// An optimizer batch ended.
+    Batch(&'a Progress),
+}
+
+/// How a conversion chose among candidate trees ([`SplitTriangles::Choose`], [`OptimizeOver::Choose`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Choice {
+    /// What was compared: `wide_cost` (the wide collapse's cost, [`crate::layout::WideTree::cost`]) or `sah_cost`
+    /// (the binary tree's, for files without wide sections).
+    pub measure: &'static str,
+    /// Every candidate made, in the order made.
+    pub candidates: Vec<CandidateCost>,
+    /// The index in `candidates` of the one written.
+    pub kept: usize,
+}
+
+/// One candidate of a [`Choice`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CandidateCost {
+    /// Which triangles it could cut: [`SplitTriangles::Wasteful`] or [`SplitTriangles::Any`].
+    pub split_triangles: SplitTriangles,
+    /// What its optimizer's leaves were: [`OptimizeOver::References`] or [`OptimizeOver::Clusters`].
+    pub optimize_over: OptimizeOver,
+    /// Its cost under the choice's measure.
+    pub cost: f64,
+}

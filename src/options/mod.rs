@@ -1,0 +1,218 @@
+//! Conversion options: one place turns a preset and the user's overrides into the complete, validated
+//! [`ConvertOptions`] ([`resolve`]), for the command line and the build-script API alike. A setting that would do
+//! nothing with the others (a leaf size without leaf merging, a node selection without optimization, a split
+//! method without splits, ...) is refused there with an error that names both, never ignored. What each preset
+//! sets is in [`preset`]; `bvhc options --preset NAME [flags]` prints the result without converting.
+
+pub mod preset;
+mod resolve;
+
+pub use preset::Preset;
+pub use resolve::{OptionsError, Overrides, resolve};
+
+use crate::builders::Builder;
+use crate::builders::{MAX_BUDGET, WASTEFUL_RATIO_PRE_SPLIT, WASTEFUL_RATIO_SBVH};
+use crate::import::ImportOptions;
+use crate::layout::WideCosts;
+use crate::optimize::OptimizeParams;
+
+/// Everything a conversion does, resolved and checked; [`ConvertOptions::preset`] (or [`resolve`] with
+/// overrides) makes one, and `Default` is the balanced preset.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvertOptions {
+    /// The preset these options started from (recorded in the metadata for reference).
+    pub preset: Preset,
+    /// Import options (glTF scene, degenerate triangles, resource limits).
+    pub import: ImportOptions,
+    /// The initial builder (without split references, or with pre-splitting; the SBVH builds its own tree).
+    pub builder: Builder,
+    /// Cut triangles into split references; `None`: one reference a triangle.
+    pub splits: Option<SplitOptions>,
+    /// The optimizer's parameters; their SAH constants also price leaf merging, so they are set without
+    /// optimization too.
+    pub optimize: OptimizeParams,
+    /// What reinsertion optimizes over; `None`: the built tree is not optimized.
+    pub reinsertion: Option<OptimizeOver>,
+    /// The binary tree's leaves.
+    pub leaves: LeafMerge,
+    /// Write the wide sections of format 1.1, collapsed with these constants; `None` writes a 1.0 file.
+    pub wide: Option<WideCosts>,
+    /// Write the triangle_ids and source_table sections.
+    pub write_ids: bool,
+}
+
+impl Default for ConvertOptions {
+    fn default() -> Self {
+        ConvertOptions::preset(Preset::Balanced)
+    }
+}
+
+impl ConvertOptions {
+    /// The options of a preset, with nothing overridden.
+    pub fn preset(preset: Preset) -> ConvertOptions {
+        preset.options()
+    }
+
+    /// Checks the values: a leaf size of at least 1, a split budget from 0 to [`MAX_BUDGET`], wide constants the
+    /// layout can hold, and no builder that the SBVH would ignore. [`resolve`] only returns options that pass.
+    pub fn validate(&self) -> Result<(), OptionsError> {
+        if let LeafMerge::UpTo(0) = self.leaves {
+            return Err(OptionsError::invalid("--max-leaf-size", "a leaf holds at least 1 triangle"));
+        }
+        if let Some(splits) = self.splits {
+            if !(0.0..=MAX_BUDGET).contains(&splits.budget) {
+                let why = format!("{} is not a fraction from 0 to {MAX_BUDGET}", splits.budget);
+                return Err(OptionsError::invalid("--split-budget", why));
+            }
+            if splits.method == SplitMethod::Sbvh && self.builder != Builder::BinnedSah {
+                return Err(OptionsError::inert(
+                    "--builder spatial-median",
+                    "--split-method sbvh",
+                    "the SBVH builds its own tree; add --no-splits or --split-method pre-split",
+                ));
+            }
+        }
+        if let Some(wide) = self.wide {
+            let fits = (2..=8).contains(&wide.width)
+                && (1..=8).contains(&wide.packet_width)
+                && (1..=32).contains(&wide.max_leaf_size)
+                && wide.node_visit > 0.0
+                && wide.packet_test > 0.0;
+            if !fits {
+                return Err(OptionsError::invalid("wide", format!("{wide:?} does not fit the 8-wide layout")));
+            }
+        }
+        Ok(())
+    }
+
+    /// The largest binary leaf: `n` for [`LeafMerge::UpTo`], 1 without merging.
+    pub fn max_leaf_size(&self) -> usize {
+        match self.leaves {
+            LeafMerge::Off => 1,
+            LeafMerge::UpTo(n) => n.max(1),
+        }
+    }
+}
+
+/// The binary tree's leaves after optimization.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeafMerge {
+    /// One triangle (reference) a leaf, as optimized.
+    Off,
+    /// Merged bottom-up by SAH into leaves of up to this many triangles (at least 1).
+    UpTo(usize),
+}
+
+/// What reinsertion optimizes over.
+///
+/// With one reference a leaf (Bittner et al.'s setting) the optimizer lowers the binary tree's inner areas but
+/// breaks up the small subtrees the builder made, which become the file's leaves; over the builder's subtrees of
+/// up to [`preset::CLUSTER_SIZE`] references ([`crate::optimize::optimize_over_clusters`]) those stay as built.
+/// Which wins depends on the scene (`docs/evaluation.md`), hence `Choose`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum OptimizeOver {
+    /// One reference a leaf.
+    #[default]
+    References,
+    /// The built tree's subtrees of up to 4 references, kept as built.
+    Clusters,
+    /// Both, each optimized and merged; the tree whose wide cost is lower is written.
+    Choose,
+}
+
+/// How a conversion splits references, and how many it may add.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct SplitOptions {
+    /// At most `budget * triangles` references beyond one a triangle (0.3: 30% more).
+    pub budget: f64,
+    /// Where the cuts are made.
+    pub method: SplitMethod,
+    /// Which triangles may be cut.
+    #[serde(skip_serializing_if = "SplitTriangles::is_default")]
+    pub triangles: SplitTriangles,
+}
+
+impl SplitOptions {
+    /// The default method and triangles with `budget`.
+    pub fn with_budget(budget: f64) -> SplitOptions {
+        SplitOptions { budget, method: SplitMethod::default(), triangles: SplitTriangles::default() }
+    }
+}
+
+/// Where triangles are cut into split references.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum SplitMethod {
+    /// During the build, where a node's children would overlap (Stich et al. 2009).
+    #[default]
+    Sbvh,
+    /// Before the build, large triangles at grid planes (Karras and Aila 2013).
+    PreSplit,
+}
+
+impl SplitMethod {
+    /// The name used in options and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            SplitMethod::Sbvh => "sbvh",
+            SplitMethod::PreSplit => "pre-split",
+        }
+    }
+
+    /// The share of its box's area that cutting a triangle must be able to remove for it to count as
+    /// wasteful ([`SplitTriangles::Wasteful`]) with this method.
+    pub fn wasteful_ratio(self) -> f64 {
+        match self {
+            SplitMethod::Sbvh => WASTEFUL_RATIO_SBVH,
+            SplitMethod::PreSplit => WASTEFUL_RATIO_PRE_SPLIT,
+        }
+    }
+}
+
+/// Which triangles a conversion may cut into split references.
+///
+/// Triangles that fill half of their box's face (the two halves of an axis-aligned rectangle) are the case that
+/// matters: cutting them lowers the binary tree's SAH everywhere, but the wide tree that files are traced by
+/// gets cheaper on some scenes and dearer on others, and no per-triangle threshold separates the two
+/// (`docs/evaluation.md`). So `Choose` measures both trees.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum SplitTriangles {
+    /// Only triangles whose pieces could remove a large part of their box's area.
+    #[default]
+    Wasteful,
+    /// Any triangle the method finds worth cutting.
+    Any,
+    /// Both, each built, optimized and merged; the tree whose wide cost is lower is written.
+    Choose,
+}
+
+impl SplitTriangles {
+    /// The name used in options.
+    pub fn name(self) -> &'static str {
+        match self {
+            SplitTriangles::Wasteful => "wasteful",
+            SplitTriangles::Any => "any",
+            SplitTriangles::Choose => "choose",
+        }
+    }
+
+    fn is_default(&self) -> bool {
+        *self == SplitTriangles::Wasteful
+    }
+}
+
+impl OptimizeOver {
+    /// The name used in options.
+    pub fn name(self) -> &'static str {
+        match self {
+            OptimizeOver::References => "references",
+            OptimizeOver::Clusters => "clusters",
+            OptimizeOver::Choose => "choose",
+        }
+    }
+}
