@@ -261,13 +261,13 @@ fn ray_set(tracer: &Tracer<'_>, min: [f32; 3], max: [f32; 3]) -> RaySet {
     let size = (0..3).map(|a| max[a] - min[a]).fold(0.0f32, f32::max);
     let dir = [0.55f32, 0.37, 0.75];
     let eye: [f32; 3] = std::array::from_fn(|a| center[a] + dir[a] * size * 1.6);
-    let forward = dir.map(|c| -c);
-    let right = normalize([forward[2], 0.0, -forward[0]]);
-    let up = cross(right, forward);
+    let forward = -glam::Vec3::from(dir);
+    let right = glam::Vec3::new(forward.z, 0.0, -forward.x).normalize();
+    let up = right.cross(forward);
     let primary: Vec<Ray> = (0..width * height)
         .map(|i| {
             let (x, y) = ((i % width) as f32 / width as f32 - 0.5, 0.5 - (i / width) as f32 / height as f32);
-            Ray::new(eye, std::array::from_fn(|a| forward[a] + 0.8 * x * right[a] + 0.6 * y * up[a]))
+            Ray::new(eye, (forward + 0.8 * x * right + 0.6 * y * up).to_array())
         })
         .collect();
     let mut ao = Vec::new();
@@ -297,15 +297,6 @@ fn ray_set(tracer: &Tracer<'_>, min: [f32; 3], max: [f32; 3]) -> RaySet {
 fn unit_cube_point(i: u64) -> [f32; 3] {
     let h = i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
     std::array::from_fn(|a| ((h >> (a * 16)) & 0xFFFF) as f32 / 65536.0)
-}
-
-fn normalize(a: [f32; 3]) -> [f32; 3] {
-    let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-    a.map(|c| c / l)
-}
-
-fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 /// Render seconds (median of 5, all threads), steps and triangle tests per ray.

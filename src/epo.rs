@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use crate::build_tree::{BuildNode, BuildTree};
 use crate::cost::SahConstants;
 use crate::geometry::Aabb;
-use crate::geometry::clip::sub;
+use crate::geometry::clip::{clip_to_box, polygon_area, split_polygon};
 
 /// The end-point overlap of `tree` over `triangles` (0 for an empty tree or a scene without area).
 pub fn end_point_overlap(tree: &BuildTree, triangles: &[[[f32; 3]; 3]], constants: SahConstants) -> f64 {
@@ -183,11 +183,12 @@ fn area_outside(corners: Vec<[f64; 3]>, boxes: &[Aabb]) -> f64 {
             if !remaining.iter().any(beyond) {
                 continue;
             }
-            let outside = clip_to_half_space(&remaining, axis, bound, outside_below);
+            let (below, above) = split_polygon(&remaining, axis, bound);
+            let (outside, inside) = if outside_below { (below, above) } else { (above, below) };
             if polygon_area(&outside) > 0.0 {
                 sum += area_outside(outside, rest);
             }
-            remaining = clip_to_half_space(&remaining, axis, bound, !outside_below);
+            remaining = inside;
         }
     }
     sum
@@ -195,54 +196,6 @@ fn area_outside(corners: Vec<[f64; 3]>, boxes: &[Aabb]) -> f64 {
 
 fn boxes_meet(a: &Aabb, b: &Aabb) -> bool {
     (0..3).all(|i| a.min[i] <= b.max[i] && b.min[i] <= a.max[i])
-}
-
-/// The part of the convex polygon `corners` inside `aabb` (Sutherland and Hodgman, one box side at a time).
-pub fn clip_to_box(mut corners: Vec<[f64; 3]>, aabb: &Aabb) -> Vec<[f64; 3]> {
-    for axis in 0..3 {
-        for (bound, keep_below) in [(f64::from(aabb.min[axis]), false), (f64::from(aabb.max[axis]), true)] {
-            if corners.is_empty() {
-                return corners;
-            }
-            corners = clip_to_half_space(&corners, axis, bound, keep_below);
-        }
-    }
-    corners
-}
-
-/// The part of `corners` with `x[axis] <= bound` (`keep_below`) or `>= bound`.
-fn clip_to_half_space(corners: &[[f64; 3]], axis: usize, bound: f64, keep_below: bool) -> Vec<[f64; 3]> {
-    let inside = |p: &[f64; 3]| if keep_below { p[axis] <= bound } else { p[axis] >= bound };
-    let mut out = Vec::with_capacity(corners.len() + 1);
-    for i in 0..corners.len() {
-        let (p, q) = (corners[i], corners[(i + 1) % corners.len()]);
-        if inside(&p) {
-            out.push(p);
-        }
-        if inside(&p) != inside(&q) {
-            let s = (bound - p[axis]) / (q[axis] - p[axis]);
-            let mut x: [f64; 3] = std::array::from_fn(|a| p[a] + s * (q[a] - p[a]));
-            x[axis] = bound;
-            out.push(x);
-        }
-    }
-    out
-}
-
-/// The area of a planar convex polygon (half the length of the summed cross products of a fan).
-pub fn polygon_area(corners: &[[f64; 3]]) -> f64 {
-    if corners.len() < 3 {
-        return 0.0;
-    }
-    let origin = corners[0];
-    let mut normal = [0.0f64; 3];
-    for pair in corners[1..].windows(2) {
-        let (u, v) = (sub(pair[0], origin), sub(pair[1], origin));
-        normal[0] += u[1] * v[2] - u[2] * v[1];
-        normal[1] += u[2] * v[0] - u[0] * v[2];
-        normal[2] += u[0] * v[1] - u[1] * v[0];
-    }
-    0.5 * (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt()
 }
 
 #[cfg(test)]

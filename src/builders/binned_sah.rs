@@ -19,6 +19,8 @@
 
 use rayon::prelude::*;
 
+use super::reference::{Box4, CHUNK, Reference, UNUSED_NODE, median, squeeze_unused_nodes, union_of};
+use super::sweep::best_plane as sweep;
 use crate::build_tree::{BuildNode, BuildTree};
 use crate::geometry::Aabb;
 
@@ -28,72 +30,10 @@ pub const BIN_COUNT: usize = 16;
 pub const MEDIAN_FALLBACK_DEPTH: usize = 160;
 /// Subtrees with more triangles than this are built in parallel.
 const PARALLEL_THRESHOLD: usize = 4096;
-/// Nodes with more triangles than this are binned in parallel chunks of this size.
-const BINNING_CHUNK: usize = 64 * 1024;
 /// Cost of a traversal step in the split decisions (the reference convention's c_T).
 const TRAVERSAL_COST: f64 = 3.0;
 /// Cost of a triangle test in the split decisions (the reference convention's c_I).
 const INTERSECTION_COST: f64 = 2.0;
-
-/// A box in four lanes (the fourth lane unused by the geometry), so that a union is one `minps` and one `maxps`.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(16))]
-struct Box4 {
-    min: [f32; 4],
-    max: [f32; 4],
-}
-
-impl Box4 {
-    const EMPTY: Box4 = Box4 { min: [f32::INFINITY; 4], max: [f32::NEG_INFINITY; 4] };
-
-    #[inline(always)]
-    fn union(&self, other: &Box4) -> Box4 {
-        Box4 {
-            min: std::array::from_fn(|a| if other.min[a] < self.min[a] { other.min[a] } else { self.min[a] }),
-            max: std::array::from_fn(|a| if other.max[a] > self.max[a] { other.max[a] } else { self.max[a] }),
-        }
-    }
-
-    /// The box as a point: `min == max == p` (lane 3 of `p` is copied as well).
-    fn point(p: [f32; 4]) -> Box4 {
-        Box4 { min: p, max: p }
-    }
-
-    fn to_aabb(self) -> Aabb {
-        Aabb { min: [self.min[0], self.min[1], self.min[2]], max: [self.max[0], self.max[1], self.max[2]] }
-    }
-}
-
-/// A triangle's box and its index: 32 bytes that the builder moves around. The index is kept in lane 3 as two
-/// small whole numbers, its low 16 bits in `min` and its high 16 bits in `max`: exact in f32 and never
-/// subnormal (the index's bits as a float would be, and arithmetic on subnormals is many times slower).
-#[derive(Clone, Copy, Debug)]
-struct Reference {
-    bounds: Box4,
-}
-
-impl Reference {
-    fn new(aabb: &Aabb, triangle: u32) -> Reference {
-        let [x, y, z] = aabb.min;
-        let [u, v, w] = aabb.max;
-        let (low, high) = ((triangle & 0xFFFF) as f32, (triangle >> 16) as f32);
-        Reference { bounds: Box4 { min: [x, y, z, low], max: [u, v, w, high] } }
-    }
-
-    fn triangle(&self) -> u32 {
-        self.bounds.min[3] as u32 | (self.bounds.max[3] as u32) << 16
-    }
-
-    /// Twice the box center (`min + max`): the builder bins and splits on these, so halving would only cost.
-    #[inline(always)]
-    fn centroid2(&self) -> [f32; 4] {
-        std::array::from_fn(|a| self.bounds.min[a] + self.bounds.max[a])
-    }
-
-    fn centroid_box(&self) -> Box4 {
-        Box4::point(self.centroid2())
-    }
-}
 
 /// Builds a binned SAH tree over `triangles` with at most `max_leaf_size` (>= 1) triangles per leaf.
 pub fn build_binned_sah(triangles: &[[[f32; 3]; 3]], max_leaf_size: usize) -> BuildTree {
@@ -121,15 +61,12 @@ fn build_binned_sah_over(count: usize, box_of: impl Fn(usize) -> Aabb + Sync, ma
     };
     // Filled in parallel: 565 MB of new pages at 7.8M triangles (0.22-0.25 s on one thread, 0.15-0.17 s on two).
     let mut nodes = Vec::with_capacity(2 * references.len() - 1);
-    nodes.par_extend(rayon::iter::repeat_n(UNUSED, 2 * references.len() - 1));
+    nodes.par_extend(rayon::iter::repeat_n(UNUSED_NODE, 2 * references.len() - 1));
     let builder = Builder { max_leaf_size: max_leaf_size.max(1) };
     builder.build(&mut references, &mut nodes, node);
     let triangle_order = references.par_iter().map(Reference::triangle).collect();
-    BuildTree { nodes: squeeze_unused(nodes), triangle_order }
+    BuildTree { nodes: squeeze_unused_nodes(nodes, None), triangle_order }
 }
-
-/// A slot no node was written to (leaves of several triangles leave some).
-const UNUSED: BuildNode = BuildNode::Leaf { aabb: Aabb::EMPTY, first: 0, count: 0 };
 
 /// What a node knows before it is split: where its references and its slot are, its box and the box of its
 /// references' doubled centroids.
@@ -256,33 +193,18 @@ fn best_plane<const N: usize>(references: &[Reference], centroids: &Box4) -> (f3
         bins
     };
     // Unions and counts do not depend on the order of reduction, so the parallel form is exact.
-    let bins = if count > BINNING_CHUNK {
-        references.par_chunks(BINNING_CHUNK).map(fill).reduce(|| Bins::EMPTY, Bins::merge)
+    let bins = if count > CHUNK {
+        references.par_chunks(CHUNK).map(fill).reduce(|| Bins::EMPTY, Bins::merge)
     } else {
         fill(references)
     };
     let mut best = (f32::INFINITY, SplitChoice::Median);
     for axis in (0..3).filter(|&axis| binning.spreads(axis)) {
-        let (bounds, counts) = (&bins.bounds[axis], &bins.counts[axis]);
-        // Sweep from the right to get the right sides, then from the left.
-        let mut right_sides = [(Box4::EMPTY, 0u32); N];
-        let mut acc = (Box4::EMPTY, 0u32);
-        for b in (1..N).rev() {
-            acc = (acc.0.union(&bounds[b]), acc.1 + counts[b]);
-            right_sides[b] = acc;
-        }
-        let mut left = (Box4::EMPTY, 0u32);
-        for b in 1..N {
-            left = (left.0.union(&bounds[b - 1]), left.1 + counts[b - 1]);
-            if left.1 == 0 || left.1 as usize == count {
-                continue;
-            }
-            let right = &right_sides[b];
-            let cost = half_area(&left.0) * left.1 as f32 + half_area(&right.0) * right.1 as f32;
-            if cost < best.0 {
-                let (left_bounds, right_bounds) = (left.0, right.0);
-                best = (cost, SplitChoice::Plane { axis, bin: b, binning, left_bounds, right_bounds });
-            }
+        let counts = &bins.counts[axis];
+        let half_areas = |l: &Box4, nl: u32, r: &Box4, nr: u32| half_area(l) * nl as f32 + half_area(r) * nr as f32;
+        if let Some(plane) = sweep(&bins.bounds[axis], counts, counts, best.0, half_areas) {
+            let (left_bounds, right_bounds) = (plane.left, plane.right);
+            best = (plane.cost, SplitChoice::Plane { axis, bin: plane.bin, binning, left_bounds, right_bounds });
         }
     }
     best
@@ -347,24 +269,10 @@ struct Sides {
     centroids: [Box4; 2],
 }
 
-/// The union of `item(r)` over `references` (in parallel chunks for large ranges; exact either way).
-fn union_of(references: &[Reference], item: impl Fn(&Reference) -> Box4 + Sync) -> Box4 {
-    let fold = |chunk: &[Reference]| chunk.iter().fold(Box4::EMPTY, |b, r| b.union(&item(r)));
-    if references.len() > BINNING_CHUNK {
-        references.par_chunks(BINNING_CHUNK).map(fold).reduce(|| Box4::EMPTY, |a, b| a.union(&b))
-    } else {
-        fold(references)
-    }
-}
-
-/// Splits at the median reference by centroid along the longest axis of the centroid box (ties by triangle
-/// index, so the result is deterministic); returns the split position and the two sides.
+/// Splits at the median reference by centroid along the longest axis of the centroid box; returns the split
+/// position and the two sides.
 fn median_split(references: &mut [Reference], centroids: &Box4) -> (usize, Sides) {
-    let axis = centroids.to_aabb().longest_axis();
-    let mid = references.len() / 2;
-    references.select_nth_unstable_by(mid, |a, b| {
-        a.centroid2()[axis].total_cmp(&b.centroid2()[axis]).then(a.triangle().cmp(&b.triangle()))
-    });
+    let mid = median(references, centroids.to_aabb().longest_axis());
     let (left, right) = references.split_at(mid);
     let sides = Sides {
         bounds: [union_of(left, |r| r.bounds), union_of(right, |r| r.bounds)],
@@ -390,29 +298,4 @@ fn partition(references: &mut [Reference], goes_left: impl Fn(&Reference) -> boo
         }
     }
     (i, left, right)
-}
-
-/// `nodes` without the unused slots, child indices renumbered. Slots are in preorder with gaps, so dropping the
-/// gaps keeps preorder.
-fn squeeze_unused(nodes: Vec<BuildNode>) -> Vec<BuildNode> {
-    let is_used = |node: &BuildNode| !matches!(node, BuildNode::Leaf { count: 0, .. });
-    if nodes.iter().all(is_used) {
-        return nodes;
-    }
-    let mut new_index = Vec::with_capacity(nodes.len());
-    let mut used = 0u32;
-    for node in &nodes {
-        new_index.push(used);
-        used += u32::from(is_used(node));
-    }
-    nodes
-        .into_iter()
-        .filter(is_used)
-        .map(|node| match node {
-            BuildNode::Inner { aabb, left, right } => {
-                BuildNode::Inner { aabb, left: new_index[left as usize], right: new_index[right as usize] }
-            }
-            leaf => leaf,
-        })
-        .collect()
 }

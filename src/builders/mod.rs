@@ -12,8 +12,10 @@
 
 mod binned_sah;
 pub mod presplit;
+mod reference;
 pub mod sbvh;
 mod spatial_median;
+mod sweep;
 
 pub use binned_sah::{BIN_COUNT, MEDIAN_FALLBACK_DEPTH, build_binned_sah, build_binned_sah_boxes};
 pub use presplit::{MAX_BUDGET, References, split_triangles, split_triangles_with};

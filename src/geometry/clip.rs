@@ -7,6 +7,8 @@
 //! the plane (an f32 value), so the two sides' boxes meet there without overlapping. Every box is also clipped
 //! to the box of the piece it was cut from, which contains it too.
 
+use glam::DVec3;
+
 use super::Aabb;
 
 /// A convex polygon in f64: a triangle, or a piece of one.
@@ -47,26 +49,7 @@ impl Piece {
     /// The two pieces on either side of the plane `x[axis] = plane`, which must lie strictly inside this piece's
     /// box along `axis` (so both sides hold part of the piece's box; a side may still be a sliver).
     pub fn cut(&self, axis: usize, plane: f32) -> (Piece, Piece) {
-        let c = f64::from(plane);
-        let (mut below, mut above) = (Vec::with_capacity(self.corners.len() + 1), Vec::with_capacity(4));
-        let n = self.corners.len();
-        for i in 0..n {
-            let (p, q) = (self.corners[i], self.corners[(i + 1) % n]);
-            let (side_p, side_q) = (p[axis] - c, q[axis] - c);
-            if side_p <= 0.0 {
-                below.push(p);
-            }
-            if side_p >= 0.0 {
-                above.push(p);
-            }
-            if (side_p < 0.0 && side_q > 0.0) || (side_p > 0.0 && side_q < 0.0) {
-                let s = side_p / (side_p - side_q);
-                let mut x: [f64; 3] = std::array::from_fn(|a| p[a] + s * (q[a] - p[a]));
-                x[axis] = c;
-                below.push(x);
-                above.push(x);
-            }
-        }
+        let (below, above) = split_polygon(&self.corners, axis, f64::from(plane));
         let below_box = self.bounds_of(&below, axis, None, Some(plane));
         let above_box = self.bounds_of(&above, axis, Some(plane), None);
         (Piece { corners: below, aabb: below_box }, Piece { corners: above, aabb: above_box })
@@ -108,24 +91,68 @@ fn round_up(x: f64) -> f32 {
     if f64::from(f) < x { f.next_up() } else { f }
 }
 
+/// The two parts of the convex polygon `corners` on either side of the plane `x[axis] = c` (Sutherland and
+/// Hodgman's clipping, both sides at once): corners on the plane belong to both, and an edge that crosses it
+/// adds its crossing point, exactly on the plane, to both.
+pub fn split_polygon(corners: &[[f64; 3]], axis: usize, c: f64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let (mut below, mut above) = (Vec::with_capacity(corners.len() + 1), Vec::with_capacity(corners.len() + 1));
+    let n = corners.len();
+    for i in 0..n {
+        let (p, q) = (corners[i], corners[(i + 1) % n]);
+        let (side_p, side_q) = (p[axis] - c, q[axis] - c);
+        if side_p <= 0.0 {
+            below.push(p);
+        }
+        if side_p >= 0.0 {
+            above.push(p);
+        }
+        if (side_p < 0.0 && side_q > 0.0) || (side_p > 0.0 && side_q < 0.0) {
+            let s = side_p / (side_p - side_q);
+            let mut x: [f64; 3] = std::array::from_fn(|a| p[a] + s * (q[a] - p[a]));
+            x[axis] = c;
+            below.push(x);
+            above.push(x);
+        }
+    }
+    (below, above)
+}
+
+/// The part of the convex polygon `corners` inside `aabb`.
+pub fn clip_to_box(mut corners: Vec<[f64; 3]>, aabb: &Aabb) -> Vec<[f64; 3]> {
+    for axis in 0..3 {
+        for (bound, keep_below) in [(f64::from(aabb.min[axis]), false), (f64::from(aabb.max[axis]), true)] {
+            if corners.is_empty() {
+                return corners;
+            }
+            let (below, above) = split_polygon(&corners, axis, bound);
+            corners = if keep_below { below } else { above };
+        }
+    }
+    corners
+}
+
+/// The area of a planar convex polygon (half the length of the summed cross products of a fan).
+pub fn polygon_area(corners: &[[f64; 3]]) -> f64 {
+    let Some(&origin) = corners.first() else { return 0.0 };
+    let origin = DVec3::from(origin);
+    let normal: DVec3 =
+        corners[1..].windows(2).map(|pair| (DVec3::from(pair[0]) - origin).cross(DVec3::from(pair[1]) - origin)).sum();
+    0.5 * normal.length()
+}
+
 /// The triangle's area (f64).
 pub fn triangle_area(vertices: &[[f32; 3]; 3]) -> f64 {
-    let [a, b, c] = vertices.map(|v| v.map(f64::from));
-    let (u, v) = (sub(b, a), sub(c, a));
-    let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-    0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+    0.5 * triangle_normal(vertices).length()
 }
 
 /// The limit of the summed surface areas of a triangle's pieces' boxes as the pieces shrink: twice the sum of
 /// its areas projected onto the three axis planes (`|n_x| + |n_y| + |n_z|`, `n` the cross product).
 pub fn ideal_box_area(vertices: &[[f32; 3]; 3]) -> f64 {
-    let [a, b, c] = vertices.map(|v| v.map(f64::from));
-    let (u, v) = (sub(b, a), sub(c, a));
-    let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-    n[0].abs() + n[1].abs() + n[2].abs()
+    triangle_normal(vertices).abs().element_sum()
 }
 
-/// `a - b`.
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| a[i] - b[i])
+/// `(v1 - v0) x (v2 - v0)` in f64.
+fn triangle_normal(vertices: &[[f32; 3]; 3]) -> DVec3 {
+    let [a, b, c] = vertices.map(|v| DVec3::from(v.map(f64::from)));
+    (b - a).cross(c - a)
 }

@@ -7,11 +7,13 @@
 //! It then repeats it inside a leaf that already holds it, on the side with fewer, until both
 //! trees hold it equally often: coverage (V25, V35) is untouched, since no leaf box changes.
 
+use bvhc_loader::format::{MAX_LEAF_PACKETS, PACKET_LANES};
+
 use super::wide_tree::{WideChild, WideTree};
 use crate::build_tree::{BuildNode, BuildTree};
 
-/// Most triangles a wide leaf may hold (8 packets of 4).
-const WIDE_LEAF_LIMIT: usize = 32;
+/// Most triangles a wide leaf may hold: the format's packets a leaf times the lanes a packet.
+const WIDE_LEAF_LIMIT: usize = MAX_LEAF_PACKETS as usize * PACKET_LANES;
 
 /// The entries of a leaf without repeats, each at its first occurrence.
 fn distinct(leaf: &[u32]) -> Vec<u32> {

@@ -8,8 +8,8 @@ use std::path::Path;
 
 use bvhc::builders::{References, split_triangles};
 use bvhc::convert::convert_with;
-use bvhc::epo::polygon_area;
 use bvhc::geometry::Aabb;
+use bvhc::geometry::clip::polygon_area;
 use bvhc::geometry::clip::{Piece, triangle_area};
 use bvhc::optimize::{OptTree, optimize};
 use bvhc::options::Preset;
