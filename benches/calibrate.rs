@@ -55,21 +55,18 @@ fn main() {
     if !harness::benchmarking("calibrate") {
         return;
     }
-    let dir = harness::scenes_dir();
     let mut ratios = Vec::new();
     let mut scenes = Vec::new();
     println!("| scene | width | max leaf | ms | visits / ray | packets / ray |");
     println!("|---|---|---|---|---|---|");
-    for (name, relative) in [
-        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
-        ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
-        ("dragon res2", "stanford-dragon/dragon_vrip_res2.ply.gz"),
-    ] {
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
+    for (name, path) in harness::scenes(
+        &[
+            ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+            ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+            ("dragon res2", "stanford-dragon/dragon_vrip_res2.ply.gz"),
+        ],
+        None,
+    ) {
         let triangles = bvhc::import::import(&path, &Default::default()).unwrap().soup.triangle_vertices();
         let mut tree = OptTree::from_build_tree(&Builder::BinnedSah.build(&triangles, 1), &triangles);
         optimize(&mut tree, &OptimizeParams::default(), &mut |_| ControlFlow::Continue(()));

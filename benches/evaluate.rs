@@ -337,23 +337,13 @@ fn main() {
     if !harness::benchmarking("evaluate") {
         return;
     }
-    let dir = harness::scenes_dir();
-    let wanted: Option<Vec<String>> = harness::wanted_scenes("BVHC_EVAL_SCENES");
     let constants = SahConstants::default();
     let files_only = std::env::var_os("BVHC_EVAL_FILES_ONLY").is_some();
     println!(
         "{} threads; SAH and EPO with (c_T, c_I) = (3, 2) by bvhc's cost module; refs: triangle records over triangles; render: 512 x 384 primary rays, 4 AO rays per hit and 512 x 384 incoherent rays through bvhc's binary kernel, median of 5; times in seconds from this run",
         rayon::current_num_threads()
     );
-    for (name, relative) in SCENES {
-        if wanted.as_ref().is_some_and(|w| !w.iter().any(|n| n == name)) {
-            continue;
-        }
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
+    for (name, path) in harness::scenes(SCENES, Some("BVHC_EVAL_SCENES")) {
         let triangles = import(&path, &ImportOptions::default()).unwrap().soup.triangle_vertices();
         if files_only {
             let start = pack(&Builder::BinnedSah.build(&triangles, 1), &triangles);

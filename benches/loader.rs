@@ -119,12 +119,7 @@ fn main() {
         ("stanford dragon", "stanford-dragon/dragon_vrip.ply.gz"),
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
     ];
-    for (name, relative) in scenes {
-        let scene = harness::scenes_dir().join(relative);
-        if !scene.is_file() {
-            eprintln!("SKIPPED: {} not found (set BVHC_SCENES)", scene.display());
-            continue;
-        }
+    for (name, scene) in harness::scenes(&scenes, None) {
         let (path, seconds) = convert(&scene, dir.path());
         eprintln!("{name}: converted in {seconds:.2} s (import + binned SAH + write)");
         rows.push(measure(name, &path, ray_count));

@@ -195,20 +195,10 @@ fn main() {
     if !harness::benchmarking("optimize") {
         return;
     }
-    let dir = harness::scenes_dir();
-    let wanted: Option<Vec<String>> = harness::wanted_scenes("BVHC_OPT_SCENES");
     let threads = rayon::current_num_threads();
     println!("threads: {threads}; costs by bvhc's cost module, (c_T, c_I) = (3, 2); times in seconds, this run");
     let mut summary = Vec::new();
-    for (name, relative) in SCENES {
-        if wanted.as_ref().is_some_and(|w| !w.iter().any(|n| n == name)) {
-            continue;
-        }
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
+    for (name, path) in harness::scenes(SCENES, Some("BVHC_OPT_SCENES")) {
         let soup = import(&path, &ImportOptions::default()).unwrap().soup;
         let triangles = soup.triangle_vertices();
         let mut rows = Vec::new();

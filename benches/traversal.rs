@@ -67,25 +67,15 @@ impl Obvhs {
     }
 }
 
-/// The scene at `relative` under `dir`, converted with the default options into `out`, and its path; `None`
-/// (reported as skipped) when the scene is not there.
-fn converted_scene(
-    dir: &std::path::Path,
-    relative: &str,
-    out: &std::path::Path,
-) -> Option<(std::path::PathBuf, BvhFile)> {
-    let path = dir.join(relative);
-    if !path.is_file() {
-        eprintln!("SKIPPED: {} not found", path.display());
-        return None;
-    }
+/// The scene at `path`, converted with the default options into `out`.
+fn converted_scene(path: &std::path::Path, out: &std::path::Path) -> BvhFile {
     let output = out.join("scene.bvh");
     let mut options = ConvertOptions::default();
     if std::env::var_os("BVHC_TRAVERSAL_NO_SPLITS").is_some() {
         options.splits = None;
     }
-    convert_with(&path, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
-    Some((path, BvhFile::read(&output).unwrap()))
+    convert_with(path, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
+    BvhFile::read(&output).unwrap()
 }
 
 /// Mrays/s of `f` over `rays`, single-threaded and on all threads (median of 3 each).
@@ -106,7 +96,6 @@ fn main() {
     }
     #[cfg(feature = "embree")]
     against_embree();
-    let dir = harness::scenes_dir();
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let out = tempfile::tempdir().unwrap();
     println!(
@@ -115,14 +104,14 @@ fn main() {
     );
     println!("| scene | query | bvhc 1 thread | obvhs 1 thread | ratio | bvhc all | obvhs all | ratio | agreement |");
     println!("|---|---|---|---|---|---|---|---|---|");
-    for (name, relative) in [
-        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
-        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
-    ] {
-        if harness::wanted_scenes("BVHC_TRAVERSAL_SCENES").is_some_and(|w| !w.iter().any(|s| s == name)) {
-            continue;
-        }
-        let Some((path, file)) = converted_scene(&dir, relative, out.path()) else { continue };
+    for (name, path) in harness::scenes(
+        &[
+            ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+            ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+        ],
+        Some("BVHC_TRAVERSAL_SCENES"),
+    ) {
+        let file = converted_scene(&path, out.path());
         let view = file.view();
         let tracer: Tracer<'_> = view.tracer();
         let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
@@ -193,7 +182,6 @@ fn packet_speed(rays: &[Ray], f: impl Fn(&[Ray]) -> usize) -> (f64, usize) {
 #[cfg(feature = "embree")]
 fn against_embree() {
     use bvhc::loader::KernelPath;
-    let dir = harness::scenes_dir();
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let out = tempfile::tempdir().unwrap();
     println!(
@@ -208,16 +196,16 @@ fn against_embree() {
         KernelPath::best()
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for (name, relative) in [
-        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
-        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
-        ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
-        ("toy car", "khr-toy-car/ToyCar.gltf"),
-    ] {
-        if harness::wanted_scenes("BVHC_TRAVERSAL_SCENES").is_some_and(|w| !w.iter().any(|s| s == name)) {
-            continue;
-        }
-        let Some((_, file)) = converted_scene(&dir, relative, out.path()) else { continue };
+    for (name, path) in harness::scenes(
+        &[
+            ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+            ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+            ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+            ("toy car", "khr-toy-car/ToyCar.gltf"),
+        ],
+        Some("BVHC_TRAVERSAL_SCENES"),
+    ) {
+        let file = converted_scene(&path, out.path());
         let view = file.view();
         let binary = view.binary_tracer();
         let portable = binary.with_wide(view.wide_tracer(KernelPath::Portable).expect("a converted file is wide"));

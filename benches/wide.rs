@@ -36,21 +36,18 @@ fn main() {
         return;
     }
     let mut speeds = Vec::new();
-    let dir = harness::scenes_dir();
     println!(
         "| scene | triangles | N | collapse ms | wide nodes | children / node | leaves | triangles / leaf | packets | wide bytes / binary bytes |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
-    for (name, relative) in [
-        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
-        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
-        ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
-    ] {
-        let path = dir.join(relative);
-        if !path.is_file() {
-            eprintln!("SKIPPED: {} not found", path.display());
-            continue;
-        }
+    for (name, path) in harness::scenes(
+        &[
+            ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+            ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+            ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+        ],
+        None,
+    ) {
         let soup = bvhc::import::import(&path, &Default::default()).unwrap().soup;
         let triangles = soup.triangle_vertices();
         let mut tree = OptTree::from_build_tree(&Builder::BinnedSah.build(&triangles, 1), &triangles);

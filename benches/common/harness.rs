@@ -40,6 +40,24 @@ pub fn wanted_scenes(variable: &str) -> Option<Vec<String>> {
     std::env::var(variable).ok().map(|s| s.split(',').map(String::from).collect())
 }
 
+/// The scenes of `list` (a name, a path under the shared scenes) that this run measures, with their paths: those
+/// named in the environment variable `filter` when it is set (comma-separated), and on this machine; a missing
+/// one is reported as SKIPPED.
+pub fn scenes<'a>(list: &[(&'a str, &str)], filter: Option<&str>) -> Vec<(&'a str, PathBuf)> {
+    let wanted = filter.and_then(wanted_scenes);
+    let dir = scenes_dir();
+    list.iter()
+        .filter(|(name, _)| wanted.as_ref().is_none_or(|w| w.iter().any(|n| n == name)))
+        .filter_map(|&(name, relative)| {
+            let path = dir.join(relative);
+            if !path.is_file() {
+                eprintln!("SKIPPED: {} not found (set BVHC_SCENES to the shared scenes folder)", path.display());
+            }
+            path.is_file().then_some((name, path))
+        })
+        .collect()
+}
+
 /// Triangles in obvhs's type, for building its trees over the same geometry.
 pub fn obvhs_triangles(triangles: &[[[f32; 3]; 3]]) -> Vec<obvhs::triangle::Triangle> {
     triangles
