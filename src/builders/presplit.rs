@@ -9,11 +9,9 @@
 //!   top of a top-down tree splits near those planes, and a triangle straddling one lands high in the tree;
 //! - a triangle's priority is `((A_box - A_ideal) / A_scene)^(1/3)` (0 unless `A_box - A_ideal` is at least
 //!   the method's wasteful ratio of `A_box`, [`super::WASTEFUL_RATIO_PRE_SPLIT`] by default: a measured choice,
-//!   not the paper's), `A_box` the surface area of its box and
-//!   `A_ideal` the limit of its pieces' summed box areas (twice its area projected onto the three axis planes):
-//!   the area splitting can remove. (Karras and Aila also weight by `2^-k`, `k` the level of the triangle's
-//!   plane; on the kitchen that gave a worse start tree than no weight: one-reference-a-leaf SAH 151.44
-//!   against 146.88 at a 30% budget, 151.64 unsplit);
+//!   not the paper's), `A_box` the surface area of its box and `A_ideal` the limit of its pieces' summed box
+//!   areas (twice its area projected onto the three axis planes): the area splitting can remove. (Karras and
+//!   Aila also weight by `2^-k`, `k` the level of the triangle's plane; that gave worse start trees here);
 //! - a budget of `budget * n` extra references is shared as `floor(lambda * priority)` splits a triangle, with
 //!   the largest `lambda` that fits (found by bisection); a triangle's splits are spent recursively, each
 //!   piece at its own coarsest plane, the rest shared between the two sides in proportion to their box areas.

@@ -79,14 +79,9 @@ pub struct WideCosts {
 }
 
 impl Default for WideCosts {
-    /// 8-wide nodes, packets of 4, leaves of up to 8 triangles, and a packet test priced like a node visit.
-    /// `cargo bench --bench calibrate` fits the two costs on this kernel from trees of widths 4 and 8 and leaf
-    /// limits 1-8: a packet test at 1.9-4.4 node visits (2026-12-01), and 1.04 (kitchen), 2.71 (engine), 6.44
-    /// (dragon res2) on 2026-12-02, an ill-conditioned fit since the packet count barely varies; trees collapsed
-    /// with the fitted median ratio traced no faster than with 1 : 1 (kitchen 28.5 / 28.8 ms, engine 59.4 /
-    /// 57.7, dragon res2 92.8 / 90.2 for 200k rays, fitted / 1 : 1), so 1 : 1 stays. Width 8 against width 4 (the
-    /// same leaves, both in 8-wide nodes): 1.3x faster on all three (kitchen 28.8 / 37.2 ms, engine 58.7 / 77.0,
-    /// dragon res2 89.8 / 120.9). The values used are recorded in the metadata (`build.wide`).
+    /// 8-wide nodes, packets of 4, leaves of up to 8 triangles, and a packet test priced like a node visit (the
+    /// fitted ratio traced no faster, and width 8 beats width 4: `docs/choices.md`). The values used are
+    /// recorded in the metadata (`build.wide`).
     fn default() -> Self {
         WideCosts { width: 8, packet_width: 4, max_leaf_size: 8, node_visit: 1.0, packet_test: 1.0 }
     }

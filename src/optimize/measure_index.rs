@@ -2,8 +2,8 @@
 //! sortable key, updated where the last rounds wrote, with a count of keys per bucket.
 //!
 //! A round of the decreasing-fraction schedule takes the `k` most inefficient eligible nodes (see `select`).
-//! Ranking every eligible node for it was an `O(n)` pass with random reads per round, whatever `k`: on the
-//! 7.8M-triangle grid 0.32-0.56 s of the first sequence's late rounds, which took 0.71-1.17 s. Here a node's key changes only when the node,
+//! Ranking every eligible node for it would be an `O(n)` pass with random reads per round, whatever `k`, which
+//! dominates the late, small rounds on large trees. Here a node's key changes only when the node,
 //! its parent, a child, or the root was written, and the edit log lists the nodes written ([`EditLog`]'s
 //! touched list), so a round recomputes the keys of those nodes and their neighbours; choosing the batch is
 //! then a scan of a 65,536-bucket histogram and one sequential pass over the keys.
@@ -88,7 +88,7 @@ impl MeasureIndex {
     pub fn update(&mut self, tree: &OptTree, touched: &[u32]) {
         if touched.len() > tree.nodes.len() / REBUILD_FRACTION {
             // After a round that wrote much of the tree, the parallel passes of a fresh index beat updating
-            // each node (on the 7.8M grid, after a full round: 0.4 s against 1.4 s).
+            // each node.
             *self = MeasureIndex::new(tree, self.selection);
             return;
         }

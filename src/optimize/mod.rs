@@ -47,8 +47,7 @@ const RUNNING_COST_TOLERANCE: f64 = 1e-12;
 
 /// The relative gain below which a round of a scheduled sequence ends the sequence (see `Run::phase`), for
 /// the parallel loop alone (`fast`, `balanced`). In the alternating loop (`max-quality`) a sequence ends only
-/// at a round that gains nothing: there the small late rounds still pay (toy car, max-quality: 79.95 against
-/// 81.15 when they are cut).
+/// at a round that gains nothing: there the small late rounds still pay (`docs/choices.md`).
 const SEQUENCE_ROUND_GAIN: f64 = 5e-5;
 
 /// What the optimizer reports after each batch.
@@ -268,10 +267,8 @@ impl<'i> Run<'i> {
             }
             // A sequence ends after its 16th round, or early at its first round that lowers the best cost by
             // less than `sequence_round_gain` (by nothing, where that is 0): the later, smaller rounds then mostly
-            // move the same few nodes back and forth and gain less than they cost (on the 7.8M-triangle grid,
-            // rounds 9-16 of the first sequence gained 0.017% in 5.5 s of its 20). The next sequence goes on
-            // from the tree as it is: restoring the best tree first was tried and gave worse trees (toy car,
-            // max-quality: 81.15 against 79.95).
+            // move the same few nodes back and forth and gain less than they cost. The next sequence goes on from
+            // the tree as it is (restoring the best tree first gave worse trees: `docs/choices.md`).
             let sequence_ends = step == 15 || !improved || round_gain < sequence_round_gain;
             if scheduled && sequence_ends {
                 round = round.next_multiple_of(16);

@@ -3,8 +3,8 @@
 //! A converted file is written once, read back once for verification, flushed to disk and renamed; passing
 //! its bytes through the page cache costs a copy each way and fills the cache with up to the file's size of
 //! pages. Filling the cache was the slowest part of writing a 1 GB file on this project's build machines
-//! (virtual machines with a balloon driver, where memory freed for a few seconds is slow to reuse): 4.7 s
-//! through the cache against 0.7 s past it, measured with `dd` and with the conversion itself.
+//! (virtual machines with a balloon driver, where memory freed for a few seconds is slow to reuse; figures in
+//! `docs/scale.md`).
 //!
 //! On Linux the file is opened a second time with `O_DIRECT` and the bytes go through a page-aligned staging
 //! buffer in whole pages; the last, partial page is written padded with zeros and the file then cut to its

@@ -87,10 +87,8 @@ pub struct WideTracer<'a> {
 const STREAM_WIDTH: usize = 8;
 
 /// Streams interleave rays only over wide sections larger than this; over smaller ones, which stay in the
-/// caches, the bookkeeping of interleaving costs more than it hides, and rays run one after the other. Measured
-/// with `cargo bench --bench traversal` (one thread, 1M incoherent rays): interleaving 8 rays traced the
-/// 871k-triangle dragon (60 MB of wide sections) 1.4x faster and the kitchen, engine and toy car (7-15 MB)
-/// 0.8-0.95x as fast as single rays.
+/// caches, the bookkeeping of interleaving costs more than it hides, and rays run one after the other (measured
+/// in `docs/evaluation.md`, traversal).
 const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
 
 impl<'a> WideTracer<'a> {

@@ -37,10 +37,8 @@ use sides::Split;
 use spatial::{best_spatial_split, spatial_partition};
 
 /// The overlap threshold: spatial splits are tried where the object split's children overlap by more than this
-/// fraction of the root's surface area. Stich et al. suggest 10^-5; here that tries spatial splits in nearly
-/// every node, and 10^-3 gives the same trees' quality at a third of the build time (balanced preset, budget
-/// 0.1, wide cost of kitchen / 2CylinderEngine / toy car 10.843 / 26.333 / 9.357 at 10^-5, 10.844 / 26.262 /
-/// 9.342 at 10^-3; SBVH build of the 871k-triangle dragon 3.1 s against 1.06 s, binned SAH 0.24 s).
+/// fraction of the root's surface area. Stich et al. suggest 10^-5; 10^-3 gives trees of the same cost at a third
+/// of the build time (`docs/choices.md`).
 pub const DEFAULT_ALPHA: f64 = 1e-3;
 /// Subtrees with more references than this are built in parallel.
 const PARALLEL_THRESHOLD: usize = 4096;
