@@ -4,7 +4,7 @@
 use bvhc::loader::{BvhFile, BvhWriter, Rule, SectionKind};
 
 use crate::common::*;
-use crate::rules::{good_bytes, refresh_checksums};
+use crate::corrupt::{good_bytes, refresh_checksums};
 
 #[test]
 fn a_higher_minor_version_is_read_and_its_reserved_fields_are_not_judged() {

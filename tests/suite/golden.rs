@@ -108,7 +108,7 @@ fn a_reader_of_1_0_reads_the_1_1_golden_file_through_its_1_0_sections() {
         let kind = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
         bytes[at..at + 4].copy_from_slice(&(0x8000_0000 | kind).to_le_bytes());
     }
-    crate::rules::refresh_checksums(&mut bytes);
+    crate::corrupt::refresh_checksums(&mut bytes);
     let file = BvhFile::from_bytes(&bytes).unwrap();
     let view = file.view();
     view.verify().unwrap();

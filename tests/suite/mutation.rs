@@ -4,7 +4,7 @@
 use bvhc::loader::{BvhFile, Ray};
 use proptest::prelude::*;
 
-use crate::rules::{good_bytes, try_refresh_checksums};
+use crate::corrupt::{good_bytes, try_refresh_checksums};
 use crate::rules_wide::good_wide_bytes;
 
 /// Opens, verifies and traces a few rays; must return normally whatever `bytes` hold.

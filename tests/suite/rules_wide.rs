@@ -4,10 +4,8 @@
 use bvhc::loader::{BvhFile, BvhWriter, EMPTY_SLOT, LEAF_BIT, Rule, TrianglePacket4, WideNode8};
 
 use crate::common::*;
-use crate::rules::refresh_checksums;
+use crate::corrupt::{broken_rule, data, entry, refresh_checksums};
 
-const TABLE: usize = 64;
-const ENTRY: usize = 48;
 /// Section table positions of the good file's wide sections (after nodes, triangles, ids, sources, metadata).
 const WIDE_NODES: usize = 5;
 const PACKETS: usize = 6;
@@ -15,14 +13,6 @@ const PACKETS: usize = 6;
 /// A good 1.1 file (every section kind) as plain bytes.
 pub fn good_wide_bytes() -> Vec<u8> {
     write_wide_file(&random_triangles(70, 160, 1.0), 2).as_bytes().to_vec()
-}
-
-fn entry(section: usize) -> usize {
-    TABLE + section * ENTRY
-}
-
-fn data(bytes: &[u8], section: usize) -> usize {
-    u64::from_le_bytes(bytes[entry(section) + 8..entry(section) + 16].try_into().unwrap()) as usize
 }
 
 fn nodes_of(bytes: &[u8]) -> Vec<WideNode8> {
@@ -43,14 +33,6 @@ fn store_node(bytes: &mut [u8], i: usize, node: &WideNode8) {
 fn store_packet(bytes: &mut [u8], p: usize, packet: &TrianglePacket4) {
     let at = data(bytes, PACKETS) + p * size_of::<TrianglePacket4>();
     bytes[at..at + size_of::<TrianglePacket4>()].copy_from_slice(bytemuck::bytes_of(packet));
-}
-
-/// Opens (aligned copy) and verifies; the broken rule.
-fn broken_rule(bytes: &[u8]) -> Option<Rule> {
-    match BvhFile::from_bytes(bytes) {
-        Ok(file) => file.view().verify().err().map(|v| v.rule),
-        Err(error) => Some(error.rule().unwrap_or_else(|| panic!("not a rule: {error}"))),
-    }
 }
 
 /// Corrupts the good file's wide nodes or packets with `corrupt`, repairs the checksums, expects `rule`.
