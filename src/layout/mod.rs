@@ -1,6 +1,6 @@
 //! The leaf layout stage: the optimized binary tree (one reference a leaf) becomes the file's two trees. The
 //! binary tree's leaves are merged bottom-up by SAH ([`merge`]), and the 8-wide tree is collapsed from the same
-//! tree by Ylitie et al.'s dynamic program ([`collapse`]); over split references both count a triangle once a
+//! tree by Ylitie et al.'s dynamic program ([`mod@collapse`]); over split references both count a triangle once a
 //! leaf ([`leaf_counts`]) and [`records`] makes them hold each triangle equally often.
 
 pub mod collapse;

@@ -1,4 +1,4 @@
-//! Wide (N-ary) BVHs collapsed from the optimizer's binary tree ([`super::collapse`]): the in-memory form that
+//! Wide (N-ary) BVHs collapsed from the optimizer's binary tree ([`mod@super::collapse`]): the in-memory form that
 //! [`crate::pack::pack_wide`] lays out as the file's wide sections. Each child slot keeps its box and either a
 //! child node or a leaf's triangle range.
 

@@ -422,7 +422,7 @@ impl OptTree {
 
     /// The tree as a build tree in depth-first order; nodes for which `collapse` holds become one leaf over all
     /// their triangles (the leaf merger's output; a triangle that several of its leaves hold as split
-    /// references appears as often, see [`crate::split`]), other leaves keep their one triangle.
+    /// references appears as often, see [`crate::builders::sbvh`]), other leaves keep their one triangle.
     pub fn to_build_tree_with_leaves(&self, collapse: &dyn Fn(u32) -> bool) -> BuildTree {
         let mut build = BuildTree::default();
         if self.root == NONE {
