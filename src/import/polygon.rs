@@ -1,6 +1,8 @@
 //! Polygon triangulation for OBJ and PLY faces: convex polygons are fanned (the usual triangle count of n - 2,
 //! in the usual order), concave ones are ear-clipped (earcutr) in the plane of their Newell normal.
 
+use glam::DVec2;
+
 /// Appends the triangles of `polygon` (vertex indices into `positions`, all in range) to `out`.
 pub(super) fn triangulate(polygon: &[u32], positions: &[[f32; 3]], out: &mut Vec<[u32; 3]>) {
     let n = polygon.len();
@@ -24,7 +26,7 @@ pub(super) fn triangulate(polygon: &[u32], positions: &[[f32; 3]], out: &mut Vec
             for t in corners.chunks_exact(3) {
                 let (a, b, c) = (t[0], t[1], t[2]);
                 // Keep the polygon's own orientation, whatever order the ear clipper returns.
-                let area = cross(flat[a], flat[b], flat[c]);
+                let area = orientation(flat[a], flat[b], flat[c]);
                 out.push(if area >= 0.0 {
                     [polygon[a], polygon[b], polygon[c]]
                 } else {
@@ -68,14 +70,16 @@ fn project(points: &[[f64; 3]]) -> Option<Vec<[f64; 2]>> {
     Some(points.iter().map(|p| if flip { [p[v], p[u]] } else { [p[u], p[v]] }).collect())
 }
 
-fn cross(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
-    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+/// Twice the signed area of the triangle `a`, `b`, `c`: positive when it turns counter-clockwise.
+fn orientation(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    let a = DVec2::from(a);
+    (DVec2::from(b) - a).perp_dot(DVec2::from(c) - a)
 }
 
 /// Whether a counter-clockwise polygon has no reflex corner.
 fn is_convex(flat: &[[f64; 2]]) -> bool {
     let n = flat.len();
-    (0..n).all(|i| cross(flat[i], flat[(i + 1) % n], flat[(i + 2) % n]) >= 0.0)
+    (0..n).all(|i| orientation(flat[i], flat[(i + 1) % n], flat[(i + 2) % n]) >= 0.0)
 }
 
 #[cfg(test)]
@@ -87,7 +91,7 @@ mod tests {
             .iter()
             .map(|t| {
                 let p = t.map(|v| positions[v as usize].map(f64::from));
-                cross([p[0][0], p[0][1]], [p[1][0], p[1][1]], [p[2][0], p[2][1]]) / 2.0
+                orientation([p[0][0], p[0][1]], [p[1][0], p[1][1]], [p[2][0], p[2][1]]) / 2.0
             })
             .sum()
     }
