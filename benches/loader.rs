@@ -130,20 +130,16 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &rows {
+        let rays = match r.closest_mrays.is_nan() {
+            true => "- | - | - | - | -".to_string(),
+            false => format!(
+                "{:.2} | {:.2} | {:.2} / {:.2} | {:.1} | {:.1}",
+                r.closest_mrays, r.any_mrays, r.closest_hit_fraction, r.occluded_fraction, r.steps, r.tests
+            ),
+        };
         println!(
-            "| {} | {} | {:.2} | {:.0} | {:.1} | {:.2} | {:.2} | {:.2} | {:.2} / {:.2} | {:.1} | {:.1} |",
-            r.name,
-            r.triangles,
-            r.file_mib,
-            r.open_ns,
-            r.map_us,
-            r.verify_gbs,
-            r.closest_mrays,
-            r.any_mrays,
-            r.closest_hit_fraction,
-            r.occluded_fraction,
-            r.steps,
-            r.tests
+            "| {} | {} | {:.2} | {:.0} | {:.1} | {:.2} | {rays} |",
+            r.name, r.triangles, r.file_mib, r.open_ns, r.map_us, r.verify_gbs
         );
     }
 }

@@ -1,11 +1,11 @@
-//! The wide collapse (Ylitie et al. 2017) on real scenes: time, node and leaf counts, fill, and the bytes a
-//! wide node section and 4-triangle packets would take against the binary nodes + triangles, for N = 4 and 8.
-//! The trees are the balanced preset's optimized binary trees; the costs are the placeholder constants of
-//! `WideCosts::default()` (node visit = packet test) until the SIMD kernel's calibration measures them.
+//! The wide collapse (Ylitie et al. 2017) on real scenes: time, node and leaf counts, fill, and the bytes the
+//! wide node section and 4-triangle packets take against the binary nodes + triangles, for N = 4 and 8. The
+//! trees are the balanced preset's optimized binary trees; the costs are `WideCosts::default()`, the ones
+//! conversions use.
 //!
-//! Then rays per second, one thread, of the 8-wide in-memory kernel (portable and AVX2 box tests, the binary
-//! kernel's watertight triangle test) against the binary kernel over the same optimized tree merged to leaves
-//! of up to 8 triangles, on 500,000 incoherent rays (`primary_rays`, closest hit; `shadow_rays`, any hit).
+//! Then rays per second, one thread, of the 8-wide kernel over packed wide sections (portable and AVX2 paths)
+//! against the binary kernel over the same optimized tree merged to leaves of up to 8 triangles, on 500,000
+//! incoherent rays (`primary_rays`, closest hit; `shadow_rays`, any hit).
 //!
 //! `cargo bench --bench wide`; `BVHC_SCENES` overrides the scenes folder.
 
