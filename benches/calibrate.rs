@@ -1,4 +1,4 @@
-//! Calibration of the wide collapse's two costs on the wide kernel itself (issue 10): the time of a wide node
+//! Calibration of the wide collapse's two costs on the wide kernel itself: the time of a wide node
 //! visit and of a 4-triangle packet test. Per scene, the same rays are traced (SIMD path, one thread, closest
 //! hit) through trees collapsed with widths 4 and 8 (both stored in 8-wide nodes, so a visit costs the same) and
 //! leaf limits 1, 2, 4, 8, so visits and packet tests vary independently; a least squares fit of
