@@ -8,6 +8,8 @@ use bvhc::optimize::Selection;
 use bvhc::options::{OptimizeOver, Overrides, Preset, SplitMethod, SplitTriangles};
 use clap::{Args, Parser, Subcommand};
 
+use super::camera::{Camera, parse_camera};
+
 /// bvhc: an offline BVH compiler. Converts a scene into an optimized, memory-mappable .bvh file.
 #[derive(Debug, Parser)]
 #[command(
@@ -253,8 +255,8 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 600)]
     pub height: u32,
     /// Camera position and target, `ex,ey,ez,tx,ty,tz` (default: framing the scene).
-    #[arg(long, value_name = "EX,EY,EZ,TX,TY,TZ")]
-    pub camera: Option<String>,
+    #[arg(long, value_name = "EX,EY,EZ,TX,TY,TZ", value_parser = parse_camera)]
+    pub camera: Option<Camera>,
     /// Color pixels by traversal steps instead of shading.
     #[arg(long)]
     pub heatmap: bool,

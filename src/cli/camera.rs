@@ -28,3 +28,16 @@ impl Camera {
         Ray::new(self.eye.to_array(), direction.to_array())
     }
 }
+
+/// Parses `--camera ex,ey,ez,tx,ty,tz`: six finite numbers, the eye and the target different points (a usage
+/// error otherwise, reported by clap before any file is read).
+pub fn parse_camera(text: &str) -> Result<Camera, String> {
+    let expected = || "expected six numbers ex,ey,ez,tx,ty,tz".to_string();
+    let values: Vec<f32> =
+        text.split(',').map(|v| v.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|_| expected())?;
+    let [ex, ey, ez, tx, ty, tz] = values[..] else { return Err(expected()) };
+    if !values.iter().all(|v| v.is_finite()) || [ex, ey, ez] == [tx, ty, tz] {
+        return Err("the eye and the target must be finite and different points".to_string());
+    }
+    Ok(Camera { eye: Vec3::new(ex, ey, ez), target: Vec3::new(tx, ty, tz), fov_degrees: 45.0 })
+}

@@ -7,29 +7,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::args::RenderArgs;
-use super::camera::Camera;
 use super::info::read_verified;
 use super::legend::{Canvas, draw_heat_legend};
 use super::output::print;
 use super::view;
 use super::{Exit, fail};
-
-/// The camera given by `--camera ex,ey,ez,tx,ty,tz`, if any.
-fn camera_argument(args: &RenderArgs) -> Result<Option<Camera>, String> {
-    let Some(text) = &args.camera else { return Ok(None) };
-    let values: Vec<f32> = text
-        .split(',')
-        .map(|v| v.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("--camera '{text}': expected six numbers ex,ey,ez,tx,ty,tz"))?;
-    let [ex, ey, ez, tx, ty, tz] = values[..] else {
-        return Err(format!("--camera '{text}': expected six numbers ex,ey,ez,tx,ty,tz"));
-    };
-    if !values.iter().all(|v| v.is_finite()) || [ex, ey, ez] == [tx, ty, tz] {
-        return Err(format!("--camera '{text}': the eye and the target must be finite and different points"));
-    }
-    Ok(Some(Camera { eye: Vec3::new(ex, ey, ez), target: Vec3::new(tx, ty, tz), fov_degrees: 45.0 }))
-}
 
 /// A color ramp for the heat map: blue, cyan, green, yellow, red.
 pub fn heat(t: f32) -> [f32; 3] {
@@ -66,10 +48,9 @@ pub fn render(args: &RenderArgs) -> Exit {
     let (width, height) = (args.width.clamp(1, 16384) as usize, args.height.clamp(1, 16384) as usize);
     let (min, max) = view.nodes().first().map_or((Vec3::ZERO, Vec3::ONE), |root| (root.min.into(), root.max.into()));
     let tracer = view.tracer();
-    let (camera, inside) = match camera_argument(args) {
-        Ok(Some(camera)) => (camera, false),
-        Ok(None) => view::default_camera(&tracer, view.triangles(), min, max),
-        Err(message) => return fail(Exit::InvalidInput, message),
+    let (camera, inside) = match args.camera {
+        Some(camera) => (camera, false),
+        None => view::default_camera(&tracer, view.triangles(), min, max),
     };
     let mut steps = vec![0u32; width * height];
     let mut pixels = vec![0u8; width * height * 3];

@@ -115,10 +115,9 @@ pub fn convert_with(
     // (see `UncachedWriter`), which was most of the write stage's time for large files.
     let mut atomic = AtomicOutput::create(output)?;
     let mut sink = atomic.uncached_writer();
-    writer.write_unverified(&mut sink)?;
-    let file_byte_len = sink
-        .finish()
-        .map_err(|source| bvhc_loader::Error::Io { path: atomic.temporary_path().to_path_buf(), source })?;
+    writer.write_unverified(&mut sink, output)?;
+    let file_byte_len =
+        sink.finish().map_err(|source| bvhc_loader::Error::Io { path: output.to_path_buf(), source })?;
     let node_count = packed.nodes.len();
     drop(writer);
     drop((packed, wide, source_ids));

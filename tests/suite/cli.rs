@@ -175,9 +175,13 @@ fn render_writes_a_png_of_the_requested_size() {
             (u32::from_be_bytes(png[16..20].try_into().unwrap()), u32::from_be_bytes(png[20..24].try_into().unwrap()));
         assert_eq!((width, height), (64, 48));
     }
-    let bad_camera = bvhc(&[&"render", &scene, &"-o", &dir.path().join("x.png"), &"--camera", &"1,2,3"]);
-    assert_eq!(bad_camera.status.code(), Some(1));
-    assert!(!dir.path().join("x.png").exists());
+    // Every invalid --camera is a usage error (exit 2), found before the file is read.
+    for camera in ["1,2,3", "nan,0,0,1,1,1", "0,0,0,0,0,0", "1,2,3,4,5,inf", "a,b,c,d,e,f", "1,2,3,4,5,6,7"] {
+        let bad_camera = bvhc(&[&"render", &scene, &"-o", &dir.path().join("x.png"), &"--camera", &camera]);
+        assert_eq!(bad_camera.status.code(), Some(2), "--camera {camera}: {}", stderr(&bad_camera));
+        assert!(stderr(&bad_camera).contains("--camera"), "{}", stderr(&bad_camera));
+        assert!(!dir.path().join("x.png").exists());
+    }
 }
 
 #[test]

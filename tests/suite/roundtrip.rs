@@ -115,9 +115,47 @@ fn the_streamed_file_has_the_bytes_of_the_laid_out_one() {
             }
             let laid_out = writer.build().unwrap();
             let mut streamed = Vec::new();
-            let byte_len = writer.write_unverified(&mut streamed).unwrap();
+            let byte_len = writer.write_unverified(&mut streamed, std::path::Path::new("memory")).unwrap();
             assert_eq!(byte_len as usize, streamed.len());
             assert!(streamed == laid_out.as_bytes(), "seed {seed}, wide {with_wide}");
         }
+    }
+}
+
+/// A sink that fails as a full disk does after `room` bytes.
+struct FullDisk {
+    room: usize,
+}
+
+impl std::io::Write for FullDisk {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        if self.room == 0 {
+            return Err(std::io::Error::from(std::io::ErrorKind::StorageFull));
+        }
+        let taken = bytes.len().min(self.room);
+        self.room -= taken;
+        Ok(taken)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_full_disk_is_an_io_error_naming_the_output() {
+    // The command line maps `Error::Io` to exit 3 (checked by hand on a 1 MiB tmpfs: exit 3, nothing left).
+    let triangles = random_triangles(5, 200, 10.0);
+    let tree = packed_tree(&triangles, 4);
+    let writer = BvhWriter::new(&tree.nodes, &tree.triangles);
+    for room in [0, 10, 300] {
+        let error = writer.write_unverified(&mut FullDisk { room }, std::path::Path::new("out/scene.bvh")).unwrap_err();
+        match &error {
+            Error::Io { path, source } => {
+                assert_eq!(path, std::path::Path::new("out/scene.bvh"));
+                assert_eq!(source.kind(), std::io::ErrorKind::StorageFull);
+            }
+            other => panic!("room {room}: expected an I/O error, got {other}"),
+        }
+        assert!(error.to_string().starts_with("out/scene.bvh: "), "{error}");
     }
 }

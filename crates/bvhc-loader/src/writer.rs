@@ -159,10 +159,10 @@ impl<'a> BvhWriter<'a> {
     /// out in memory), and returns its byte length. Unlike [`BvhWriter::build`] this does not verify: the
     /// caller reads the written file back and verifies it (`BvhFile::read` or `read_uncached`, then `verify`)
     /// before using it, after freeing what the sections were borrowed from, so that the file is in memory once
-    /// at most.
-    pub fn write_unverified(&self, out: &mut impl std::io::Write) -> Result<u64, Error> {
+    /// at most. A failed write of `out` (a full disk) is [`Error::Io`] naming `out_path`, the file `out` writes.
+    pub fn write_unverified(&self, out: &mut impl std::io::Write, out_path: &Path) -> Result<u64, Error> {
         let (head, sections) = self.plan_layout()?;
-        let io = |source| Error::Unwritable(format!("writing the file: {source}"));
+        let io = |source| Error::Io { path: out_path.to_path_buf(), source };
         out.write_all(&head).map_err(io)?;
         let mut at = head.len() as u64;
         let zeros = [0u8; 64];
