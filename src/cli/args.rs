@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use bvhc::builders::Builder;
+use bvhc::import::memory::{MemoryLimit, parse_size};
 use bvhc::import::{ImportLimits, SceneSelector};
 use bvhc::optimize::Selection;
 use bvhc::options::{OptimizeOver, Overrides, Preset, SplitMethod, SplitTriangles};
@@ -136,6 +137,11 @@ pub struct OptionArgs {
     /// Import limit: glTF mesh placements (nodes with a mesh times their GPU instances).
     #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_placements, help_heading = "Import")]
     pub max_placements: u64,
+    /// Memory the conversion may use: a size such as 8G or 512M, or `unlimited` (default: what this process
+    /// may use, the smallest of available memory, its address-space limit and its cgroup's limit). A scene
+    /// whose estimated peak exceeds it is refused before its triangles are held.
+    #[arg(long, value_name = "SIZE", value_parser = parse_size, help_heading = "Import")]
+    pub max_memory: Option<MemoryLimit>,
     /// Import limit: vertices of one OBJ or PLY polygon.
     #[arg(long, value_name = "N", default_value_t = ImportLimits::default().max_polygon_vertices, help_heading = "Import")]
     pub max_polygon_vertices: u64,
@@ -203,6 +209,7 @@ impl OptionArgs {
                 max_decoded_values: self.max_decoded_values,
                 max_placements: self.max_placements,
                 max_polygon_vertices: self.max_polygon_vertices,
+                max_memory: self.max_memory.unwrap_or(MemoryLimit::Detect),
             }),
             allow_buffers_outside_input_folder: self.allow_outside_buffers.then_some(true),
             builder: self.builder,

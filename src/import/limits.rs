@@ -6,6 +6,7 @@
 use std::io::Read;
 use std::path::Path;
 
+use super::memory::MemoryLimit;
 use super::{ErrorKind, Located};
 
 /// Limits on what one import may read and hold. With the defaults, the largest allocations are about 1 GiB per
@@ -24,6 +25,9 @@ pub struct ImportLimits {
     pub max_placements: u64,
     /// Vertices of one OBJ or PLY polygon (the ear clipper's cost grows with the square of it).
     pub max_polygon_vertices: u64,
+    /// The memory the whole conversion may use; placed triangles are counted against it at
+    /// [`super::memory::BYTES_PER_TRIANGLE`] each before they are held.
+    pub max_memory: MemoryLimit,
 }
 
 impl Default for ImportLimits {
@@ -34,6 +38,7 @@ impl Default for ImportLimits {
             max_decoded_values: 1 << 27,
             max_placements: 1 << 24,
             max_polygon_vertices: 1 << 13,
+            max_memory: MemoryLimit::Detect,
         }
     }
 }
@@ -47,6 +52,7 @@ impl ImportLimits {
             max_decoded_values: u64::MAX,
             max_placements: u64::MAX,
             max_polygon_vertices: u64::MAX,
+            max_memory: MemoryLimit::Unlimited,
         }
     }
 }

@@ -12,6 +12,7 @@
 
 mod gltf;
 mod limits;
+pub mod memory;
 mod obj;
 mod obj_text;
 mod ply;

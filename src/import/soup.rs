@@ -10,6 +10,7 @@
 //! * copies only the vertices that kept triangles use, so unreferenced vertices cost nothing downstream.
 
 use crate::import::limits::Meter;
+use crate::import::memory::{BYTES_PER_TRIANGLE, MemoryLimit, usable_memory};
 use crate::import::{ErrorKind, ImportLimits};
 use bvhc_loader::SourceRange;
 use bvhc_loader::format::NO_INDEX;
@@ -99,6 +100,8 @@ pub struct SoupBuilder {
     triangle_budget: Meter,
     /// Mesh placements so far against [`ImportLimits::max_placements`].
     pub(crate) placement_budget: Meter,
+    /// The conversion's memory budget, resolved once ([`MemoryLimit::Detect`] read at the start).
+    memory: MemoryLimit,
 }
 
 impl SoupBuilder {
@@ -112,7 +115,16 @@ impl SoupBuilder {
             report: ImportReport::default(),
             triangle_budget: Meter::new(limits.max_triangles, "triangles", "--max-triangles"),
             placement_budget: Meter::new(limits.max_placements, "mesh placements", "--max-placements"),
+            memory: match limits.max_memory {
+                MemoryLimit::Detect => usable_memory().map_or(MemoryLimit::Unlimited, MemoryLimit::Detected),
+                other => other,
+            },
         }
+    }
+
+    /// Refuses a scene of `triangles` placed triangles whose conversion would need more memory than the budget.
+    pub fn check_memory(&self, triangles: u64) -> Result<(), String> {
+        self.memory.check(triangles, BYTES_PER_TRIANGLE)
     }
 
     /// Adds one primitive instance. Fails when the scene outgrows the triangle budget or u32 ids or indices,
@@ -133,6 +145,8 @@ impl SoupBuilder {
             return Err((ErrorKind::Invalid, message));
         }
         self.triangle_budget.take(count as u64).map_err(|e| (ErrorKind::Limit, e))?;
+        self.check_memory(self.report.source_triangles.saturating_add(count as u64))
+            .map_err(|e| (ErrorKind::Limit, e))?;
         let soup = &mut self.soup;
         let reserved = soup.triangles.try_reserve(count).and_then(|()| soup.source_ids.try_reserve(count));
         reserved.map_err(|_| (ErrorKind::Limit, format!("out of memory adding {count} triangles")))?;

@@ -15,6 +15,7 @@ mod import_formats;
 mod import_gltf;
 mod import_mutation;
 mod import_scenes;
+mod memory_budget;
 mod metadata_schema;
 mod mutation;
 mod optimize;

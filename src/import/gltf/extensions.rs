@@ -56,6 +56,15 @@ pub(super) fn check_required(root: &Root) -> Result<(), Located> {
     Ok(())
 }
 
+/// The instance count a node's `EXT_mesh_gpu_instancing` declares (its first attribute accessor's count),
+/// `None` without the extension or a readable count.
+pub(super) fn declared_instances(root: &gltf::json::Root, node: &gltf::json::Node) -> Option<u64> {
+    let extension = node.extensions.as_ref()?.others.get("EXT_mesh_gpu_instancing")?;
+    let attributes = extension.get("attributes")?.as_object()?;
+    let index = ["TRANSLATION", "ROTATION", "SCALE"].iter().find_map(|name| attributes.get(*name)?.as_u64())?;
+    Some(root.accessors.get(usize::try_from(index).ok()?)?.count.0)
+}
+
 /// The per-instance transforms of a node with `EXT_mesh_gpu_instancing`, `None` without it.
 /// The instance count (the first attribute's declared accessor count) is taken from `placements` before any
 /// accessor is decoded.

@@ -38,6 +38,10 @@ pub(super) fn read(
     extensions::check_required(&root)?;
     let roots = scene_roots(&root, scene)?;
     builder.report.file_mesh_triangles = primitive::file_mesh_triangles(&root);
+    // The whole scene's triangles, counted from the JSON before any accessor is decoded, against the memory
+    // budget: a small file that places a large mesh many times is refused here, in a moment.
+    let placed = placed_triangles(&root, &roots);
+    builder.check_memory(placed).map_err(|e| Located::of_kind(ErrorKind::Limit, "scene", e))?;
     let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
     let mut walker = Walker { root: &root, buffers: &mut buffers, builder, placed: HashSet::new() };
     walker.walk(&roots)?;
@@ -75,6 +79,27 @@ fn scene_roots(root: &Root, selector: Option<&SceneSelector>) -> Result<Vec<usiz
             Ok((0..root.nodes.len()).filter(|i| !children.contains(i)).collect())
         }
     }
+}
+
+/// The triangles the scene under `roots` places: each reachable node's mesh triangles times its instances
+/// (`EXT_mesh_gpu_instancing`'s declared count), from declared counts only. Nodes reached twice or missing
+/// are skipped here; the walk reports them.
+fn placed_triangles(root: &Root, roots: &[usize]) -> u64 {
+    let mut visited = vec![false; root.nodes.len()];
+    let mut stack = roots.to_vec();
+    let mut total = 0u64;
+    while let Some(index) = stack.pop() {
+        let Some(node) = root.nodes.get(index) else { continue };
+        if std::mem::replace(&mut visited[index], true) {
+            continue;
+        }
+        if let Some(mesh) = node.mesh.and_then(|m| root.meshes.get(m.value())) {
+            let instances = extensions::declared_instances(root, node).unwrap_or(1);
+            total = total.saturating_add(primitive::mesh_triangles(root, mesh).saturating_mul(instances));
+        }
+        stack.extend(node.children.iter().flatten().map(|c| c.value()));
+    }
+    total
 }
 
 struct Walker<'r, 'b> {

@@ -85,10 +85,14 @@ fn assemble(mode: Mode, indices: &[u32]) -> Result<Vec<[u32; 3]>, String> {
 
 /// Triangles of every mesh in the file, from the accessors' counts alone (nothing is decoded).
 pub(super) fn file_mesh_triangles(root: &gltf::json::Root) -> u64 {
+    root.meshes.iter().map(|mesh| mesh_triangles(root, mesh)).fold(0, u64::saturating_add)
+}
+
+/// The triangles one placement of `mesh` adds, from the accessors' declared counts (nothing is decoded).
+pub(super) fn mesh_triangles(root: &gltf::json::Root, mesh: &gltf::json::Mesh) -> u64 {
     let count_of = |accessor: usize| root.accessors.get(accessor).map_or(0, |a| a.count.0);
-    root.meshes
+    mesh.primitives
         .iter()
-        .flat_map(|mesh| &mesh.primitives)
         .map(|primitive| {
             let positions = primitive.attributes.get(&Checked::Valid(Semantic::Positions));
             let n = match (primitive.indices, positions) {
@@ -102,5 +106,5 @@ pub(super) fn file_mesh_triangles(root: &gltf::json::Root) -> u64 {
                 _ => 0,
             }
         })
-        .sum()
+        .fold(0, u64::saturating_add)
 }
