@@ -6,7 +6,8 @@
 //! The estimate is [`BASE_BYTES`] plus bytes a triangle, fitted to the peak resident memory of default
 //! conversions (`/usr/bin/time -f %M`, 2 threads): the 871k-triangle dragon 292 MB, the 7.8M-triangle dragon
 //! grid 1,848 MB (`docs/scale.md`), the 232k-triangle kitchen 137 MB.
-//! Conversions that compare candidate trees (`choose`) hold two at once: 2.45 GB against 1.79 GB on the grid.
+//! Conversions that compare candidate trees (`choose`) hold two at once and peak higher (2.45 GB against
+//! 1.79 GB on the grid); the estimate does not count that yet.
 
 use serde::Serialize;
 
@@ -16,9 +17,6 @@ pub const BASE_BYTES: u64 = 100 << 20;
 /// Bytes a placed triangle needs at the peak of a conversion that builds one tree: the soup, the build's
 /// references, the optimizer's tree, the packed arrays (the file is streamed).
 pub const BYTES_PER_TRIANGLE: u64 = 240;
-
-/// Bytes a placed triangle needs when the conversion compares candidate trees (`choose`).
-pub const BYTES_PER_TRIANGLE_WITH_CANDIDATES: u64 = 340;
 
 /// How much memory a conversion may use ([`super::ImportLimits::max_memory`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
