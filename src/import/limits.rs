@@ -11,7 +11,7 @@ use super::{ErrorKind, Located};
 
 /// Limits on what one import may read and hold. With the defaults, the largest allocations are about 1 GiB per
 /// file read, 1 GiB of decoded glTF accessor values (f64), and 64 Mi triangles (about 2.5 GiB in the soup); the
-/// optimizer then needs about 80 bytes per triangle more.
+/// whole conversion's estimated peak ([`super::memory`]) is held to [`ImportLimits::max_memory`].
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct ImportLimits {
     /// Bytes of any one file read (the input, after gunzip; each external glTF buffer; a decoded data URI).

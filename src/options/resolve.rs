@@ -123,30 +123,30 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     Ok(options)
 }
 
+/// Refuses the first given setting of `settings` (given, name): `because` makes it inert.
+fn refuse_any(settings: &[(bool, &str)], because: &str, advice: &str) -> Result<(), OptionsError> {
+    match settings.iter().find(|(given, _)| *given) {
+        Some((_, setting)) => Err(OptionsError::inert(setting, because, advice)),
+        None => Ok(()),
+    }
+}
+
 /// The split references: the preset's, turned off by `splits: Some(false)`, on with a budget given.
 fn resolve_splits(preset: Preset, o: &Overrides) -> Result<Option<SplitOptions>, OptionsError> {
     if o.splits == Some(false) {
-        for (given, setting) in [
+        let given = [
             (o.split_budget.is_some(), "--split-budget"),
             (o.split_method.is_some(), "--split-method"),
             (o.split_triangles.is_some(), "--split-triangles"),
-        ] {
-            if given {
-                return Err(OptionsError::inert(setting, "--no-splits", "drop one of them"));
-            }
-        }
+        ];
+        refuse_any(&given, "--no-splits", "drop one of them")?;
         return Ok(None);
     }
     let from_preset = preset.splits();
     let Some(budget) = o.split_budget.or(from_preset.map(|s| s.budget)) else {
-        for (given, setting) in
-            [(o.split_method.is_some(), "--split-method"), (o.split_triangles.is_some(), "--split-triangles")]
-        {
-            if given {
-                let because = format!("the {} preset, which makes no split references", preset.name());
-                return Err(OptionsError::inert(setting, &because, "add --split-budget FRACTION"));
-            }
-        }
+        let given = [(o.split_method.is_some(), "--split-method"), (o.split_triangles.is_some(), "--split-triangles")];
+        let because = format!("the {} preset, which makes no split references", preset.name());
+        refuse_any(&given, &because, "add --split-budget FRACTION")?;
         if o.splits == Some(true) {
             return Err(OptionsError::invalid(
                 "splits",
@@ -166,15 +166,12 @@ fn resolve_splits(preset: Preset, o: &Overrides) -> Result<Option<SplitOptions>,
 /// What reinsertion optimizes over, or `None` when optimization is off (then no optimizer setting may be given).
 fn resolve_reinsertion(preset: Preset, o: &Overrides) -> Result<Option<OptimizeOver>, OptionsError> {
     if o.optimize == Some(false) {
-        for (given, setting) in [
+        let given = [
             (o.selection.is_some(), "--selection"),
             (o.time_budget.is_some(), "--time-budget"),
             (o.optimize_over.is_some(), "--optimize-over"),
-        ] {
-            if given {
-                return Err(OptionsError::inert(setting, "--no-optimize", "drop one of them"));
-            }
-        }
+        ];
+        refuse_any(&given, "--no-optimize", "drop one of them")?;
         return Ok(None);
     }
     Ok(Some(o.optimize_over.unwrap_or(preset.reinsertion())))
