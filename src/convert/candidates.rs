@@ -59,7 +59,8 @@ pub(super) fn best_candidate(
         Some(OptimizeOver::Choose) => &[false, true],
     };
     let mut shared = options.clone();
-    let count = (cut_any.len() * over_clusters.len()) as u32;
+    let count = options.candidate_count() as u32;
+    debug_assert_eq!(count as usize, cut_any.len() * over_clusters.len());
     shared.optimize.time_budget = options.optimize.time_budget.map(|t| t / count);
     // (candidate, its score, its index in `costs`)
     let mut best: Option<(Candidate, f64, usize)> = None;

@@ -13,7 +13,8 @@ use super::candidates::{Candidate, best_candidate, lap};
 use super::files::{input_entries, refuse_output_among};
 use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord};
 use super::report::{ConvertError, ConvertReport, Event, Stage, Timings, WideSummary};
-use crate::import::{TriangleSoup, import};
+use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES};
+use crate::import::{TriangleSoup, import_for_peak};
 use crate::options::ConvertOptions;
 use crate::pack::{pack, pack_wide};
 
@@ -36,7 +37,9 @@ pub fn convert_with(
     refuse_output_among(output, std::slice::from_ref(&input.to_path_buf()))?;
     let _ = observer(Event::Stage(Stage::Import));
     let clock = Instant::now();
-    let imported = import(input, &options.import)?;
+    let peak_bytes_per_triangle =
+        if options.candidate_count() > 1 { BYTES_PER_TRIANGLE_WITH_CANDIDATES } else { BYTES_PER_TRIANGLE };
+    let imported = import_for_peak(input, &options.import, peak_bytes_per_triangle)?;
     timings.import = lap(clock);
     refuse_output_among(output, &imported.files_read)?;
     let soup = imported.soup;

@@ -201,8 +201,20 @@ impl Located {
     }
 }
 
-/// Imports the scene at `path` (format from the extension).
+/// Imports the scene at `path` (format from the extension), refusing a scene whose conversion would exceed the
+/// memory budget at [`memory::BYTES_PER_TRIANGLE`].
 pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportError> {
+    import_for_peak(path, options, memory::BYTES_PER_TRIANGLE)
+}
+
+/// [`import`] for a conversion whose peak is estimated at `peak_bytes_per_triangle` bytes a placed triangle
+/// (more when it compares candidate trees): the scene is refused before its triangles are held when that peak
+/// would exceed [`ImportLimits::max_memory`].
+pub fn import_for_peak(
+    path: &Path,
+    options: &ImportOptions,
+    peak_bytes_per_triangle: u64,
+) -> Result<Import, ImportError> {
     let error =
         |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -213,7 +225,7 @@ pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportErro
         ))
     })?;
     let bytes = limits::read_regular_file(path, gzipped, options.limits.max_input_bytes).map_err(error)?;
-    let mut builder = SoupBuilder::new(options.keep_degenerate, &options.limits);
+    let mut builder = SoupBuilder::new(options.keep_degenerate, &options.limits, peak_bytes_per_triangle);
     let mut files_read = vec![path.to_path_buf()];
     let result = match format {
         SceneFormat::Gltf | SceneFormat::Glb => {

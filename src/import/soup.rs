@@ -10,7 +10,7 @@
 //! * copies only the vertices that kept triangles use, so unreferenced vertices cost nothing downstream.
 
 use crate::import::limits::Meter;
-use crate::import::memory::{BYTES_PER_TRIANGLE, MemoryLimit, usable_memory};
+use crate::import::memory::{MemoryLimit, usable_memory};
 use crate::import::{ErrorKind, ImportLimits};
 use bvhc_loader::SourceRange;
 use bvhc_loader::format::NO_INDEX;
@@ -102,11 +102,13 @@ pub struct SoupBuilder {
     pub(crate) placement_budget: Meter,
     /// The conversion's memory budget, resolved once ([`MemoryLimit::Detect`] read at the start).
     memory: MemoryLimit,
+    /// The conversion's estimated peak bytes a placed triangle.
+    peak_bytes_per_triangle: u64,
 }
 
 impl SoupBuilder {
     /// An empty builder.
-    pub fn new(keep_degenerate: bool, limits: &ImportLimits) -> SoupBuilder {
+    pub fn new(keep_degenerate: bool, limits: &ImportLimits, peak_bytes_per_triangle: u64) -> SoupBuilder {
         SoupBuilder {
             soup: TriangleSoup::default(),
             keep_degenerate,
@@ -119,12 +121,13 @@ impl SoupBuilder {
                 MemoryLimit::Detect => usable_memory().map_or(MemoryLimit::Unlimited, MemoryLimit::Detected),
                 other => other,
             },
+            peak_bytes_per_triangle,
         }
     }
 
     /// Refuses a scene of `triangles` placed triangles whose conversion would need more memory than the budget.
     pub fn check_memory(&self, triangles: u64) -> Result<(), String> {
-        self.memory.check(triangles, BYTES_PER_TRIANGLE)
+        self.memory.check(triangles, self.peak_bytes_per_triangle)
     }
 
     /// Adds one primitive instance. Fails when the scene outgrows the triangle budget or u32 ids or indices,

@@ -53,6 +53,14 @@ impl ConvertOptions {
         preset.options()
     }
 
+    /// How many candidate trees the conversion builds and compares: two for each `choose` setting in use
+    /// (split triangles: wasteful or any; reinsertion: over references or clusters), else one.
+    pub fn candidate_count(&self) -> usize {
+        let cut_choices = if self.splits.is_some_and(|s| s.triangles == SplitTriangles::Choose) { 2 } else { 1 };
+        let over_choices = if self.reinsertion == Some(OptimizeOver::Choose) { 2 } else { 1 };
+        cut_choices * over_choices
+    }
+
     /// Checks the values: a leaf size of at least 1, a split budget from 0 to [`MAX_BUDGET`], wide constants the
     /// layout can hold, and no builder that the SBVH would ignore. [`resolve`] only returns options that pass.
     pub fn validate(&self) -> Result<(), OptionsError> {
