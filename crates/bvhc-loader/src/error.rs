@@ -24,7 +24,8 @@ pub enum Rule {
     SectionSize,
     /// V7: no unknown section kind is marked required.
     UnknownRequiredSection,
-    /// V8: each known kind at most once; nodes and triangles exactly once.
+    /// V8: each known kind at most once; nodes and triangles exactly once; the wide sections together, and
+    /// only in files of 1.1 or later.
     SectionMultiplicity,
     /// V9: known kinds have their element size and flags.
     SectionKindLayout,

@@ -92,6 +92,15 @@ impl<'a> BvhView<'a> {
             )
             .into());
         }
+        if header.version_minor == 0 && sections.get(SectionKind::WideNodes).is_some() {
+            return Err(violation(
+                Rule::SectionMultiplicity,
+                "a 1.0 file has wide_nodes and triangle_packets sections, which came with 1.1: its version_minor \
+                 must be 1"
+                    .to_string(),
+            )
+            .into());
+        }
         check_counts(&sections)?;
         Ok(BvhView {
             bytes,
