@@ -67,9 +67,11 @@ impl Sums {
     }
 }
 
-/// The cost of a packed tree, as stored in a `.bvh` file (node 0 the root).
+/// The cost of a packed tree, as stored in a `.bvh` file (node 0 the root): the format's definition
+/// ([`bvhc_loader::cost::binary_cost`]), which the verifier checks the metadata against.
 pub fn sah_of_packed(nodes: &[PackedNode], constants: SahConstants) -> SahCost {
-    sah_of_nodes(nodes.iter().map(|n| (Aabb { min: n.min, max: n.max }, n.count)), constants)
+    let cost = bvhc_loader::cost::binary_cost(nodes, constants.traversal, constants.intersection);
+    SahCost { cost: cost.sah_cost, inner_area_ratio: cost.inner_area_ratio, leaf_area_ratio: cost.leaf_area_ratio }
 }
 
 /// The cost of any tree given as `(box, triangle count)` per node, 0 for inner nodes, the root first (for

@@ -103,7 +103,13 @@ pub fn info(path: &Path, json: bool) -> Exit {
             })
         })
         .collect();
-    let unique_triangles = unique_triangle_count(&view);
+    let unique_triangles = unique_triangle_count(&view, &metadata);
+    let wide_constants = &metadata["build"]["wide"];
+    let wide_cost = view.wide_sections().map(|wide| {
+        let node_visit = wide_constants["node_visit"].as_f64().unwrap_or(1.0);
+        let packet_test = wide_constants["packet_test"].as_f64().unwrap_or(1.0);
+        bvhc::loader::cost::wide_cost(view.nodes().first(), wide.nodes, node_visit, packet_test)
+    });
     if json {
         let report = serde_json::json!({
             "file": path,
@@ -126,6 +132,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "c_i": constants.intersection,
             "inner_area_ratio": cost.inner_area_ratio,
             "leaf_area_ratio": cost.leaf_area_ratio,
+            "wide_cost": wide_cost,
             "metadata": metadata,
         });
         return print(&format!("{report:#}\n"), Exit::Success);
@@ -215,10 +222,11 @@ pub fn info(path: &Path, json: bool) -> Exit {
     print(&out, Exit::Success)
 }
 
-/// Distinct triangles in the triangles section: its records, unless `SPLIT_REFERENCES` lets one triangle be
-/// stored several times; then the distinct ids (records with one id are one triangle), or without ids the
-/// distinct vertex triples.
-fn unique_triangle_count(view: &bvhc::loader::BvhView<'_>) -> usize {
+/// Distinct source triangles in the triangles section: its records, unless `SPLIT_REFERENCES` lets one triangle
+/// be stored several times; then the distinct ids (records with one id are one triangle), or without ids the
+/// metadata's `triangles.stored_count` (rule V36 keeps it between the distinct vertex triples and the records:
+/// two source triangles may have the same vertices), and only without that the distinct vertex triples.
+fn unique_triangle_count(view: &bvhc::loader::BvhView<'_>, metadata: &serde_json::Value) -> usize {
     if !view.has_split_references() {
         return view.triangles().len();
     }
@@ -229,12 +237,18 @@ fn unique_triangle_count(view: &bvhc::loader::BvhView<'_>) -> usize {
             ids.dedup();
             ids.len()
         }
-        None => {
-            let mut keys: Vec<[u32; 9]> =
-                view.triangles().iter().map(|t| std::array::from_fn(|k| t.vertices[k / 3][k % 3].to_bits())).collect();
-            keys.sort_unstable();
-            keys.dedup();
-            keys.len()
-        }
+        None => match metadata["triangles"]["stored_count"].as_u64() {
+            Some(stored) => stored as usize,
+            None => {
+                let mut keys: Vec<[u32; 9]> = view
+                    .triangles()
+                    .iter()
+                    .map(|t| std::array::from_fn(|k| t.vertices[k / 3][k % 3].to_bits()))
+                    .collect();
+                keys.sort_unstable();
+                keys.dedup();
+                keys.len()
+            }
+        },
     }
 }

@@ -21,6 +21,9 @@ pub const HIT_RECORD_BYTE_LEN: usize = 24;
 pub const NO_INDEX: u32 = u32::MAX;
 /// Rays per parallel chunk.
 const CHUNK: usize = 4096;
+/// The smallest magnitude of a ray's largest direction component (`format-spec/rays-and-hits.md`): `2^-64`,
+/// which keeps the hit test's `1 / d_kz` at most `2^64`.
+const MIN_DIRECTION_COMPONENT: f32 = 1.0 / (1u128 << 64) as f32;
 
 /// Parses ray records; the error names the first bad ray and the rule it breaks.
 pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
@@ -40,6 +43,13 @@ pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
         }
         if ray.direction == [0.0; 3] {
             return Err(format!("ray {i}: the direction is zero"));
+        }
+        let longest = ray.direction.iter().fold(0.0f32, |m, c| m.max(c.abs()));
+        if longest < MIN_DIRECTION_COMPONENT {
+            return Err(format!(
+                "ray {i}: the direction's largest component {longest:e} is below 2^-64 in magnitude (the hit \
+                 test's shear would overflow); scale the direction up"
+            ));
         }
         if !(0.0 <= ray.t_min && ray.t_min <= ray.t_max) {
             return Err(format!("ray {i}: needs 0 <= t_min <= t_max (t_min {}, t_max {})", ray.t_min, ray.t_max));

@@ -49,8 +49,7 @@ impl Aabb {
     /// `f64(max) - f64(min)` (so boxes near `f32::MAX` give finite areas), clamped below at 0 (the empty box and
     /// points have area 0). This is the area the format spec's cost definition uses.
     pub fn surface_area(&self) -> f64 {
-        let e: [f64; 3] = std::array::from_fn(|a| (f64::from(self.max[a]) - f64::from(self.min[a])).max(0.0));
-        2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0])
+        bvhc_loader::cost::box_area(&self.min, &self.max)
     }
 
     /// The center of the box.

@@ -1,6 +1,7 @@
 //! The integration test suite: one binary, one module per subject.
 
 mod box_test;
+mod c_header;
 mod cli;
 mod cli_hardening;
 mod clusters;
@@ -23,6 +24,7 @@ mod options;
 mod optimize_property;
 mod roundtrip;
 mod rules;
+mod rules_metadata;
 mod rules_tree;
 mod rules_wide;
 mod same_bytes;

@@ -6,7 +6,7 @@ use std::path::Path;
 use bvhc::loader::{BvhFile, Ray};
 
 use crate::cli::{bvhc, stderr, stdout, teapot};
-use crate::common::random_rays;
+use crate::common::{every_kernel, random_rays};
 
 fn ray_bytes(rays: &[Ray]) -> Vec<u8> {
     rays.iter()
@@ -95,6 +95,8 @@ fn bad_ray_files_are_refused_naming_the_ray() {
         (ray_bytes(&[good])[..31].to_vec(), "not a whole number"),
         (ray_bytes(&[good, Ray { direction: [f32::NAN, 0.0, 0.0], ..good }]), "ray 1: origin, direction"),
         (ray_bytes(&[Ray { direction: [0.0; 3], ..good }]), "ray 0: the direction is zero"),
+        (ray_bytes(&[good, Ray { direction: [0.0, 0.0, 1e-45], ..good }]), "ray 1: the direction's largest component"),
+        (ray_bytes(&[Ray { direction: [1e-20, -1e-20, 0.0], ..good }]), "is below 2^-64"),
         (ray_bytes(&[good, good, Ray { t_min: 2.0, ..good }]), "ray 2: needs 0 <= t_min <= t_max"),
     ];
     for (bytes, message) in cases {
@@ -106,4 +108,21 @@ fn bad_ray_files_are_refused_naming_the_ray() {
     }
     let run = bvhc(&[&"trace", &bvh, &"--rays", &dir.path().join("missing.bin")]);
     assert_eq!(run.status.code(), Some(3));
+}
+
+#[test]
+fn the_shortest_valid_direction_still_hits() {
+    // rays-and-hits.md allows directions down to 2^-64 in their largest component: the hit test stays finite.
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = teapot_bvh(dir.path());
+    let file = BvhFile::read(&bvh).unwrap();
+    let shortest = 1.0 / (1u128 << 64) as f32;
+    let unit = Ray { origin: [0.0, 1.5, 10.0], direction: [0.0, 0.0, -1.0], t_min: 0.0, t_max: f32::INFINITY };
+    let short = Ray { direction: [0.0, 0.0, -shortest], ..unit };
+    for tracer in every_kernel(&file.view()) {
+        let unit_hit = tracer.closest_hit(&unit).expect("the teapot is below");
+        let short_hit = tracer.closest_hit(&short).expect("the same ray with a 2^-64 direction");
+        assert_eq!(short_hit.triangle_index, unit_hit.triangle_index);
+        assert_eq!(short_hit.t, unit_hit.t / shortest, "t in units of the direction");
+    }
 }

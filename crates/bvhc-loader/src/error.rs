@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 /// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
 ///
-/// V1-V10 are structural and checked by every open; V11-V35 are checked by `BvhView::verify`
+/// V1-V10 are structural and checked by every open; V11-V39 are checked by `BvhView::verify`
 /// (V29-V35, the wide sections of 1.1, only when a file has them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -83,11 +83,19 @@ pub enum Rule {
     /// V35: a lane's triangle lies inside its leaf slot's box (with `SPLIT_REFERENCES`: overlaps it, and the
     /// wide leaves of a triangle's references cover it).
     LaneInLeaf,
+    /// V36: the metadata's counts (`wide`, `triangles`) are the file's.
+    MetadataCounts,
+    /// V37: the metadata's costs (`cost`, `wide.cost`) are the file's, recomputed.
+    MetadataCost,
+    /// V38: the metadata's `build` object agrees with the sections and the leaves.
+    MetadataBuild,
+    /// V39: the metadata's `choice` kept the first candidate of lowest cost, and that is the file's cost.
+    MetadataChoice,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 35] = [
+    pub const ALL: [Rule; 39] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -123,6 +131,10 @@ impl Rule {
         Rule::PacketLanes,
         Rule::LaneCoverage,
         Rule::LaneInLeaf,
+        Rule::MetadataCounts,
+        Rule::MetadataCost,
+        Rule::MetadataBuild,
+        Rule::MetadataChoice,
     ];
 
     /// The rule's number in the spec (1 for V1).

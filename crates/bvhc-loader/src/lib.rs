@@ -23,6 +23,7 @@
 
 mod atomic;
 mod checksum;
+pub mod cost;
 mod error;
 mod file;
 pub mod format;
@@ -32,6 +33,7 @@ mod simd;
 mod traverse;
 mod uncached;
 mod verify;
+mod verify_consistency;
 mod verify_metadata;
 mod verify_references;
 mod verify_wide;

@@ -1,6 +1,7 @@
-//! The full verifier: rules V11-V35 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! The full verifier: rules V11-V39 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
 //! V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
-//! (the wide sections of 1.1) in `verify_wide`.
+//! (the wide sections of 1.1) in `verify_wide`, V36-V39 (the metadata against the file) in
+//! `verify_consistency`.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
@@ -17,17 +18,29 @@ use crate::view::{BvhView, section_bytes};
 pub const PARALLEL_VERIFY_BYTES: usize = 64 << 20;
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V35; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V39; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke. A file of
     /// [`PARALLEL_VERIFY_BYTES`] or more has its wide sections (V29-V35, the last rules checked) checked on a
     /// second, scoped thread beside the other rules, and the first broken rule in the same order is returned;
-    /// where no thread can be started, everything runs on the caller's.
+    /// where no thread can be started, everything runs on the caller's. The metadata's consistency with the
+    /// file (V36-V39) is checked last, on a file whose structure every other rule has proven.
     pub fn verify(&self) -> Result<(), Violation> {
         if self.bytes().len() < PARALLEL_VERIFY_BYTES {
-            return self.verify_all_but_wide().and_then(|()| self.verify_wide_sections());
+            return self
+                .verify_all_but_wide()
+                .and_then(|()| self.verify_wide_sections())
+                .and_then(|()| self.verify_consistency());
         }
         self.verify_in_parallel()
+    }
+
+    /// Rules V36-V39: the metadata against the file.
+    fn verify_consistency(&self) -> Result<(), Violation> {
+        match crate::verify_metadata::parsed_metadata(self)? {
+            Some(metadata) => crate::verify_consistency::verify_consistency(self, &metadata),
+            None => Ok(()),
+        }
     }
 
     /// [`BvhView::verify`] with the wide sections checked on a second thread whatever the file's size: the
@@ -35,7 +48,7 @@ impl BvhView<'_> {
     /// be started, everything runs on the caller's thread.
     pub fn verify_in_parallel(&self) -> Result<(), Violation> {
         if self.wide_sections().is_none() {
-            return self.verify_all_but_wide();
+            return self.verify_all_but_wide().and_then(|()| self.verify_consistency());
         }
         std::thread::scope(|scope| {
             let Ok(wide_check) = std::thread::Builder::new().spawn_scoped(scope, || self.verify_wide_sections()) else {
@@ -45,6 +58,7 @@ impl BvhView<'_> {
             let wide_result = wide_check.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
             rest.and(wide_result)
         })
+        .and_then(|()| self.verify_consistency())
     }
 
     /// Rules V29-V35: the wide sections, where the file has them.

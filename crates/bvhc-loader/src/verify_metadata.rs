@@ -9,10 +9,7 @@ use crate::view::BvhView;
 
 /// V23, V26, V27, V28. Without a metadata section only V26 applies (every `file_index` must then be 0).
 pub(crate) fn verify_metadata(view: &BvhView<'_>) -> Result<(), Violation> {
-    let metadata = match view.metadata_str() {
-        None => None,
-        Some(text) => Some(parse(text?)?),
-    };
+    let metadata = parsed_metadata(view)?;
     let inputs = metadata.as_ref().and_then(|m| m.get("inputs")).and_then(Value::as_array);
     verify_file_indices(view, inputs.map_or(0, Vec::len), inputs.is_some())?;
     let Some(metadata) = &metadata else { return Ok(()) };
@@ -36,6 +33,14 @@ pub(crate) fn verify_metadata(view: &BvhView<'_>) -> Result<(), Violation> {
         }
     }
     Ok(())
+}
+
+/// The metadata section as a JSON object, `None` without one; V23 broken otherwise.
+pub(crate) fn parsed_metadata(view: &BvhView<'_>) -> Result<Option<Map<String, Value>>, Violation> {
+    match view.metadata_str() {
+        None => Ok(None),
+        Some(text) => parse(text?).map(Some),
+    }
 }
 
 /// V23: one JSON object, no BOM, no NUL byte.

@@ -1,0 +1,271 @@
+//! Rules V36-V39 of `format-spec/bvh-1.md`: what the metadata says about the file agrees with the file. Each
+//! applies only to the keys a file has (metadata is optional, and so is every key), so a writer that records
+//! less is never judged by what it left out.
+//!
+//! * V36 counts: `wide.node_count`, `wide.packet_count`, `wide: null`, and the `triangles` object;
+//! * V37 costs: `cost` (section 5.6) and `wide.cost` (section 6.1), recomputed from the file;
+//! * V38 build: `build.wide` and `build.write_ids` against the sections, leaf sizes against `max_leaf_size`;
+//! * V39 choice: `choice.kept` is the first candidate of lowest cost, and that cost is the file's.
+
+use serde_json::{Map, Value};
+
+use crate::cost::{binary_cost, wide_cost};
+use crate::error::{Rule, Violation, violation};
+use crate::format::{EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedTriangle, UNUSED_LANE, WIDE, WideNode8};
+use crate::view::BvhView;
+
+/// Largest relative difference accepted between a cost in the metadata and the cost recomputed from the file
+/// (V37): summing in another order than the spec's changes the last bits, never the ninth digit.
+pub const COST_TOLERANCE: f64 = 1e-9;
+
+/// V36-V39 on `metadata`, the parsed metadata section (V23 held).
+pub(crate) fn verify_consistency(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+    verify_wide_counts(view, metadata)?;
+    verify_triangle_counts(view, metadata)?;
+    verify_costs(view, metadata)?;
+    verify_build(view, metadata)?;
+    verify_choice(metadata)
+}
+
+fn object<'m>(metadata: &'m Map<String, Value>, key: &str) -> Option<&'m Map<String, Value>> {
+    metadata.get(key).and_then(Value::as_object)
+}
+
+/// V36, the `wide` object: present exactly as the sections are, with their element counts.
+fn verify_wide_counts(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+    let fail = |detail: String| Err(violation(Rule::MetadataCounts, format!("metadata wide: {detail}")));
+    let sections = view.wide_sections();
+    match (metadata.get("wide"), sections) {
+        (None, _) => Ok(()),
+        (Some(Value::Null), None) => Ok(()),
+        (Some(Value::Null), Some(_)) => fail("null, but the file has wide sections".into()),
+        (Some(Value::Object(_)), None) => fail("an object, but the file has no wide sections".into()),
+        (Some(Value::Object(wide)), Some(sections)) => {
+            for (key, count) in [("node_count", sections.nodes.len()), ("packet_count", sections.packets.len())] {
+                if let Some(stated) = wide.get(key)
+                    && stated.as_u64() != Some(count as u64)
+                {
+                    return fail(format!("{key} {stated}, but the section holds {count}"));
+                }
+            }
+            Ok(())
+        }
+        (Some(other), _) => fail(format!("{other} is neither an object nor null")),
+    }
+}
+
+/// V36, the `triangles` object: ids below `source_triangle_count`; stored plus dropped is the source count;
+/// `stored_count` is the number of distinct source triangles the file holds.
+fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+    let Some(record) = object(metadata, "triangles") else { return Ok(()) };
+    let fail = |detail: String| Err(violation(Rule::MetadataCounts, format!("metadata triangles: {detail}")));
+    let count = |key: &str| record.get(key).and_then(Value::as_u64);
+    let dropped: Option<u64> = object(record, "dropped").and_then(|d| {
+        ["repeated_index", "zero_area", "zero_area_after_placement"]
+            .iter()
+            .map(|k| d.get(*k).and_then(Value::as_u64))
+            .try_fold(0u64, |sum, n| sum.checked_add(n?))
+    });
+    let (source, stored) = (count("source_triangle_count"), count("stored_count"));
+    if let (Some(source), Some(stored), Some(dropped)) = (source, stored, dropped)
+        && stored.checked_add(dropped) != Some(source)
+    {
+        return fail(format!("stored_count {stored} + dropped {dropped} is not source_triangle_count {source}"));
+    }
+    if let (Some(kept), Some(stored)) = (count("degenerate_kept"), stored)
+        && kept > stored
+    {
+        return fail(format!("degenerate_kept {kept} is more than stored_count {stored}"));
+    }
+    let ids = view.triangle_ids();
+    if let (Some(source), Some(ids)) = (source, ids)
+        && let Some(i) = ids.iter().position(|&id| u64::from(id) >= source)
+    {
+        return fail(format!("triangle {i} has source id {}, not below source_triangle_count {source}", ids[i]));
+    }
+    let Some(stored) = stored else { return Ok(()) };
+    let records = view.triangles().len() as u64;
+    let distinct = match ids {
+        Some(ids) => distinct_count(ids.to_vec()),
+        None if !view.has_split_references() => records,
+        None => distinct_count(view.triangles().iter().map(record_key).collect()),
+    };
+    // Without ids a split file cannot tell a repeated reference from two source triangles with the same
+    // vertices, so the distinct records bound the count from below and the records from above.
+    let holds = if ids.is_none() && view.has_split_references() {
+        (distinct..=records).contains(&stored)
+    } else {
+        stored == distinct
+    };
+    if !holds {
+        let what = match ids {
+            Some(_) => format!("the file holds {distinct} distinct source ids"),
+            None if view.has_split_references() => {
+                format!("the file holds {records} records of {distinct} distinct vertex triples")
+            }
+            None => format!("the file holds {records} triangles"),
+        };
+        return fail(format!("stored_count {stored}, but {what}"));
+    }
+    Ok(())
+}
+
+/// A triangle record's nine coordinates as bits: records are the same triangle exactly when these are equal.
+pub(crate) fn record_key(triangle: &PackedTriangle) -> [u32; 9] {
+    std::array::from_fn(|k| triangle.vertices[k / 3][k % 3].to_bits())
+}
+
+fn distinct_count<T: Ord>(mut keys: Vec<T>) -> u64 {
+    keys.sort_unstable();
+    keys.dedup();
+    keys.len() as u64
+}
+
+fn number(record: &Map<String, Value>, key: &str) -> Option<f64> {
+    record.get(key).and_then(Value::as_f64)
+}
+
+/// Whether `stated` is `computed` within [`COST_TOLERANCE`] relative to `computed`.
+fn close(stated: f64, computed: f64) -> bool {
+    (stated - computed).abs() <= COST_TOLERANCE * computed.abs()
+}
+
+/// V37: `cost` and `wide.cost` equal the costs recomputed from the file.
+fn verify_costs(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+    if let Some(record) = object(metadata, "cost") {
+        let (c_t, c_i) = (number(record, "c_t").unwrap_or(3.0), number(record, "c_i").unwrap_or(2.0));
+        let cost = binary_cost(view.nodes(), c_t, c_i);
+        for (key, computed) in [
+            ("sah_cost", cost.sah_cost),
+            ("inner_area_ratio", cost.inner_area_ratio),
+            ("leaf_area_ratio", cost.leaf_area_ratio),
+        ] {
+            if let Some(stated) = number(record, key)
+                && !close(stated, computed)
+            {
+                return Err(violation(
+                    Rule::MetadataCost,
+                    format!("metadata cost.{key} {stated}, but the tree's is {computed}"),
+                ));
+            }
+        }
+    }
+    let stated = object(metadata, "wide").and_then(|wide| number(wide, "cost"));
+    let constants = object(metadata, "build").and_then(|build| object(build, "wide"));
+    if let (Some(stated), Some(constants), Some(sections)) = (stated, constants, view.wide_sections()) {
+        let node_visit = number(constants, "node_visit").unwrap_or(1.0);
+        let packet_test = number(constants, "packet_test").unwrap_or(1.0);
+        let computed = wide_cost(view.nodes().first(), sections.nodes, node_visit, packet_test);
+        if !close(stated, computed) {
+            return Err(violation(
+                Rule::MetadataCost,
+                format!("metadata wide.cost {stated}, but the wide tree's is {computed}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// V38: `build.wide` and `build.write_ids` agree with the sections; leaves hold at most `max_leaf_size`
+/// distinct triangles.
+fn verify_build(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+    let Some(build) = object(metadata, "build") else { return Ok(()) };
+    let fail = |detail: String| Err(violation(Rule::MetadataBuild, format!("metadata build: {detail}")));
+    match (build.get("wide"), view.wide_sections()) {
+        (Some(Value::Null), Some(_)) => return fail("wide is null, but the file has wide sections".into()),
+        (Some(Value::Object(_)), None) => return fail("wide is an object, but the file has no wide sections".into()),
+        (Some(Value::Object(wide)), Some(_)) => {
+            for (key, layout) in [("width", WIDE), ("packet_width", PACKET_LANES)] {
+                if let Some(stated) = wide.get(key)
+                    && stated.as_u64() != Some(layout as u64)
+                {
+                    return fail(format!("wide.{key} {stated}, but the layout's is {layout}"));
+                }
+            }
+        }
+        _ => {}
+    }
+    if let Some(write_ids) = build.get("write_ids").and_then(Value::as_bool)
+        && write_ids != view.triangle_ids().is_some()
+    {
+        let has = if view.triangle_ids().is_some() { "has" } else { "has no" };
+        return fail(format!("write_ids is {write_ids}, but the file {has} triangle_ids section"));
+    }
+    let identity = TriangleIdentity { view };
+    if let Some(limit) = build.get("max_leaf_size").and_then(Value::as_u64) {
+        for (i, node) in view.nodes().iter().enumerate().filter(|(_, n)| n.count > 0) {
+            let range = node.index as usize..node.index as usize + node.count as usize;
+            let distinct = identity.distinct(range.map(|t| t as u32));
+            if distinct > limit {
+                return fail(format!("node {i} is a leaf of {distinct} distinct triangles, max_leaf_size {limit}"));
+            }
+        }
+    }
+    let wide_limit = object(build, "wide").and_then(|wide| wide.get("max_leaf_size")).and_then(Value::as_u64);
+    if let (Some(limit), Some(sections)) = (wide_limit, view.wide_sections()) {
+        for (i, node) in sections.nodes.iter().enumerate() {
+            for (slot, &child) in node.child.iter().enumerate() {
+                if child == EMPTY_SLOT || child & LEAF_BIT == 0 {
+                    continue;
+                }
+                let (first, count) = WideNode8::leaf_packets(child);
+                let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
+                let lanes = packets.iter().flat_map(|p| p.triangle_index).filter(|&t| t != UNUSED_LANE);
+                let distinct = identity.distinct(lanes);
+                if distinct > limit {
+                    return fail(format!(
+                        "wide node {i} slot {slot} is a leaf of {distinct} distinct triangles, wide.max_leaf_size \
+                         {limit}"
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Which records are the same triangle: the same source id with ids, the same vertex bits without.
+struct TriangleIdentity<'v, 'a> {
+    view: &'v BvhView<'a>,
+}
+
+impl TriangleIdentity<'_, '_> {
+    /// The number of distinct triangles among the records `records` (indices into the triangles section).
+    fn distinct(&self, records: impl Iterator<Item = u32>) -> u64 {
+        let triangles = self.view.triangles();
+        match self.view.triangle_ids() {
+            Some(ids) => distinct_count(records.filter_map(|t| ids.get(t as usize).copied()).collect()),
+            None if !self.view.has_split_references() => records.count() as u64,
+            None => distinct_count(records.filter_map(|t| triangles.get(t as usize).map(record_key)).collect()),
+        }
+    }
+}
+
+/// V39: `choice.kept` names a candidate, the first of lowest cost, and its cost is the file's under `measure`.
+fn verify_choice(metadata: &Map<String, Value>) -> Result<(), Violation> {
+    let Some(choice) = object(metadata, "choice") else { return Ok(()) };
+    let fail = |detail: String| Err(violation(Rule::MetadataChoice, format!("metadata choice: {detail}")));
+    let Some(candidates) = choice.get("candidates").and_then(Value::as_array) else { return Ok(()) };
+    let costs: Vec<Option<f64>> = candidates.iter().map(|c| c.get("cost").and_then(Value::as_f64)).collect();
+    let Some(kept) = choice.get("kept") else { return Ok(()) };
+    let Some(index) = kept.as_u64().filter(|&k| k < costs.len() as u64).map(|k| k as usize) else {
+        return fail(format!("kept {kept} does not index the {} candidates", costs.len()));
+    };
+    let Some(kept_cost) = costs[index] else { return Ok(()) };
+    if let Some(first_lowest) = costs.iter().position(|c| c.is_some_and(|c| c <= kept_cost))
+        && first_lowest != index
+    {
+        return fail(format!("kept {index} (cost {kept_cost}), but candidate {first_lowest} costs as little or less"));
+    }
+    let file_cost = match choice.get("measure").and_then(Value::as_str) {
+        Some("wide_cost") => object(metadata, "wide").and_then(|w| number(w, "cost")),
+        Some("sah_cost") => object(metadata, "cost").and_then(|c| number(c, "sah_cost")),
+        _ => None,
+    };
+    if let Some(file_cost) = file_cost
+        && !close(kept_cost, file_cost)
+    {
+        return fail(format!("the kept candidate's cost {kept_cost} is not the file's {file_cost}"));
+    }
+    Ok(())
+}

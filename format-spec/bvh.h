@@ -1,0 +1,192 @@
+/*
+ * bvh.h: C11 declarations of the on-disk types of the .bvh format, major version 1 (format-spec/bvh-1.md,
+ * revision 1.1.7). Normative together with bvh-1.md, section 15: where the two disagree, bvh-1.md is right.
+ *
+ * Every type is plain data with no padding: each byte belongs to a named field, reserved fields included, and the
+ * static assertions below pin every size and field offset. All values are little-endian; a reader on a
+ * little-endian host with a 4-byte-aligned buffer (8-byte for the header and the section table) can use the
+ * arrays of a file in place, after checking rules V1-V10 (and V11-V39 to trust the contents).
+ *
+ * Floating point: the traversal relies on IEEE 754 binary32 with infinities, NaN, signed zeros and subnormal
+ * numbers (bvh-1.md section 11.1). Do not compile code that traces these arrays with -ffast-math,
+ * -ffinite-math-only or /fp:fast, and do not run it with flush-to-zero or denormals-are-zero set.
+ *
+ * This file declares types and constants only; it has no functions and needs nothing but <stdint.h> and
+ * <assert.h>.
+ */
+#ifndef BVHC_BVH_H
+#define BVHC_BVH_H
+
+#include <assert.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Header (section 2). */
+#define BVH_MAGIC "\x89" "BVHC\r\n\x1a" /* 8 bytes, without the string's terminating zero */
+#define BVH_MAGIC_BYTE_LEN 8
+#define BVH_VERSION_MAJOR 1
+#define BVH_VERSION_MINOR 1
+#define BVH_HEADER_BYTE_LEN 64
+#define BVH_SECTION_ENTRY_BYTE_LEN 48 /* the entry's first 48 bytes; section_entry_byte_len may be larger */
+#define BVH_SECTION_ALIGNMENT 64
+#define BVH_MAX_DEPTH 256
+
+/* Section kinds (section 5) and flags (section 3). */
+#define BVH_KIND_NODES 1u
+#define BVH_KIND_TRIANGLES 2u
+#define BVH_KIND_TRIANGLE_IDS 3u
+#define BVH_KIND_SOURCE_TABLE 4u
+#define BVH_KIND_METADATA 5u
+#define BVH_KIND_WIDE_NODES 6u       /* since 1.1 */
+#define BVH_KIND_TRIANGLE_PACKETS 7u /* since 1.1 */
+#define BVH_KIND_PRIVATE_FIRST 0x80000000u
+#define BVH_SECTION_FLAG_REQUIRED (1u << 0)
+#define BVH_SECTION_FLAG_SPLIT_REFERENCES (1u << 1) /* triangles only */
+
+/* Sentinels. */
+#define BVH_NO_INDEX 0xFFFFFFFFu     /* a source_table field that does not apply */
+#define BVH_WIDE 8                   /* slots of a wide node */
+#define BVH_PACKET_LANES 4           /* lanes of a triangle packet */
+#define BVH_EMPTY_SLOT 0xFFFFFFFFu   /* wide node: no child; its box is +inf..-inf */
+#define BVH_LEAF_BIT 0x80000000u     /* wide node: the child reference is a leaf */
+#define BVH_FIRST_PACKET_MASK 0x0FFFFFFFu
+#define BVH_UNUSED_LANE 0xFFFFFFFFu  /* packet: no triangle in this lane */
+#define BVH_UNUSED_LANE_COORDINATE_BITS 0x7FC00000u /* every coordinate of an unused lane: a quiet NaN */
+#define BVH_EMPTY_SLOT_MIN_BITS 0x7F800000u         /* +inf */
+#define BVH_EMPTY_SLOT_MAX_BITS 0xFF800000u         /* -inf */
+
+/* A leaf reference's first packet and number of packets (1 to 8): leaf_packet_count in the spec. */
+#define BVH_LEAF_FIRST_PACKET(c) ((uint32_t)(c) & BVH_FIRST_PACKET_MASK)
+#define BVH_LEAF_PACKET_COUNT(c) ((((uint32_t)(c) >> 28) & 7u) + 1u)
+
+/* The first 64 bytes of the file (section 2). */
+typedef struct BvhFileHeader {
+    uint8_t magic[8];
+    uint16_t version_major;
+    uint16_t version_minor;
+    uint32_t header_flags;
+    uint64_t file_byte_len;
+    uint32_t section_count;
+    uint32_t section_entry_byte_len;
+    uint64_t header_checksum; /* XXH3-64, seed 0, of the header and table with this field taken as 0 */
+    uint64_t reserved[3];
+} BvhFileHeader;
+
+/* The first 48 bytes of a section table entry (section 3); entry i starts at 64 + i * section_entry_byte_len. */
+typedef struct BvhSectionEntry {
+    uint32_t kind;
+    uint32_t section_flags;
+    uint64_t section_byte_offset;
+    uint64_t section_byte_len;
+    uint64_t element_count;
+    uint32_t element_byte_len;
+    uint32_t reserved;
+    uint64_t section_checksum; /* XXH3-64, seed 0, of the section's section_byte_len bytes */
+} BvhSectionEntry;
+
+/* One binary node (section 5.1): count 0 for an inner node (children index, index + 1), else a leaf of
+ * triangles index .. index + count. */
+typedef struct BvhPackedNode {
+    float min[3];
+    float max[3];
+    uint32_t index;
+    uint32_t count;
+} BvhPackedNode;
+
+/* One triangle record (section 5.2): vertices[vertex][axis]. */
+typedef struct BvhPackedTriangle {
+    float vertices[3][3];
+} BvhPackedTriangle;
+
+/* Element of the triangle_ids section (section 5.3). */
+typedef uint32_t BvhTriangleId;
+
+/* One source range (section 5.4). */
+typedef struct BvhSourceRange {
+    uint32_t first_source_triangle;
+    uint32_t source_triangle_count;
+    uint32_t file_index;
+    uint32_t node_index;
+    uint32_t mesh_index;
+    uint32_t primitive_index;
+    uint32_t instance_index;
+    uint32_t reserved;
+} BvhSourceRange;
+
+/* One wide node (section 5.7, since 1.1): min[axis][slot], max[axis][slot], child[slot]. */
+typedef struct BvhWideNode8 {
+    float min[3][BVH_WIDE];
+    float max[3][BVH_WIDE];
+    uint32_t child[BVH_WIDE];
+    uint32_t reserved[BVH_WIDE];
+} BvhWideNode8;
+
+/* One triangle packet (section 5.8, since 1.1): vertices[vertex][axis][lane], triangle_index[lane]. */
+typedef struct BvhTrianglePacket4 {
+    float vertices[3][3][BVH_PACKET_LANES];
+    uint32_t triangle_index[BVH_PACKET_LANES];
+} BvhTrianglePacket4;
+
+/* The layout is the spec's byte for byte. */
+static_assert(sizeof(float) == 4, "f32 is IEEE 754 binary32");
+static_assert(sizeof(BvhFileHeader) == 64, "FileHeader is 64 bytes");
+static_assert(offsetof(BvhFileHeader, magic) == 0, "magic");
+static_assert(offsetof(BvhFileHeader, version_major) == 8, "version_major");
+static_assert(offsetof(BvhFileHeader, version_minor) == 10, "version_minor");
+static_assert(offsetof(BvhFileHeader, header_flags) == 12, "header_flags");
+static_assert(offsetof(BvhFileHeader, file_byte_len) == 16, "file_byte_len");
+static_assert(offsetof(BvhFileHeader, section_count) == 24, "section_count");
+static_assert(offsetof(BvhFileHeader, section_entry_byte_len) == 28, "section_entry_byte_len");
+static_assert(offsetof(BvhFileHeader, header_checksum) == 32, "header_checksum");
+static_assert(offsetof(BvhFileHeader, reserved) == 40, "reserved");
+
+static_assert(sizeof(BvhSectionEntry) == 48, "SectionEntry is 48 bytes");
+static_assert(offsetof(BvhSectionEntry, kind) == 0, "kind");
+static_assert(offsetof(BvhSectionEntry, section_flags) == 4, "section_flags");
+static_assert(offsetof(BvhSectionEntry, section_byte_offset) == 8, "section_byte_offset");
+static_assert(offsetof(BvhSectionEntry, section_byte_len) == 16, "section_byte_len");
+static_assert(offsetof(BvhSectionEntry, element_count) == 24, "element_count");
+static_assert(offsetof(BvhSectionEntry, element_byte_len) == 32, "element_byte_len");
+static_assert(offsetof(BvhSectionEntry, reserved) == 36, "reserved");
+static_assert(offsetof(BvhSectionEntry, section_checksum) == 40, "section_checksum");
+
+static_assert(sizeof(BvhPackedNode) == 32, "PackedNode is 32 bytes");
+static_assert(offsetof(BvhPackedNode, min) == 0, "min");
+static_assert(offsetof(BvhPackedNode, max) == 12, "max");
+static_assert(offsetof(BvhPackedNode, index) == 24, "index");
+static_assert(offsetof(BvhPackedNode, count) == 28, "count");
+
+static_assert(sizeof(BvhPackedTriangle) == 36, "PackedTriangle is 36 bytes");
+static_assert(offsetof(BvhPackedTriangle, vertices) == 0, "vertices");
+
+static_assert(sizeof(BvhTriangleId) == 4, "a triangle id is 4 bytes");
+
+static_assert(sizeof(BvhSourceRange) == 32, "SourceRange is 32 bytes");
+static_assert(offsetof(BvhSourceRange, first_source_triangle) == 0, "first_source_triangle");
+static_assert(offsetof(BvhSourceRange, source_triangle_count) == 4, "source_triangle_count");
+static_assert(offsetof(BvhSourceRange, file_index) == 8, "file_index");
+static_assert(offsetof(BvhSourceRange, node_index) == 12, "node_index");
+static_assert(offsetof(BvhSourceRange, mesh_index) == 16, "mesh_index");
+static_assert(offsetof(BvhSourceRange, primitive_index) == 20, "primitive_index");
+static_assert(offsetof(BvhSourceRange, instance_index) == 24, "instance_index");
+static_assert(offsetof(BvhSourceRange, reserved) == 28, "reserved");
+
+static_assert(sizeof(BvhWideNode8) == 256, "WideNode8 is 256 bytes");
+static_assert(offsetof(BvhWideNode8, min) == 0, "min");
+static_assert(offsetof(BvhWideNode8, max) == 96, "max");
+static_assert(offsetof(BvhWideNode8, child) == 192, "child");
+static_assert(offsetof(BvhWideNode8, reserved) == 224, "reserved");
+
+static_assert(sizeof(BvhTrianglePacket4) == 160, "TrianglePacket4 is 160 bytes");
+static_assert(offsetof(BvhTrianglePacket4, vertices) == 0, "vertices");
+static_assert(offsetof(BvhTrianglePacket4, triangle_index) == 144, "triangle_index");
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* BVHC_BVH_H */
