@@ -185,7 +185,7 @@ fn main() {
         }
         optimize(&mut tree, &params, &mut |_| ControlFlow::Continue(()));
         snapshots.push(tree);
-        let reference = pack(&merge_leaves(&snapshots[0], constants, 1), &triangles);
+        let reference = pack(&merge_leaves(&snapshots[0], constants, 1), &triangles).expect("memory");
         let ray_set = rays(
             &Tracer::new(&reference.nodes, &reference.triangles, None),
             reference.nodes[0].min,
@@ -196,7 +196,7 @@ fn main() {
         for snapshot in &snapshots {
             for (k, leaf) in [1usize, 8].into_iter().enumerate() {
                 let build = merge_leaves(snapshot, constants, leaf);
-                let packed = pack(&build, &triangles);
+                let packed = pack(&build, &triangles).expect("memory");
                 let seconds = render_seconds(&Tracer::new(&packed.nodes, &packed.triangles, None), &ray_set);
                 render[k].1.push((build.sah_cost(constants).cost, seconds * 1e3));
             }

@@ -25,7 +25,7 @@ fn convert(scene: &Path, dir: &Path) -> (PathBuf, f64) {
     let start = Instant::now();
     let soup = import(scene, &ImportOptions::default()).expect("scene imports").soup;
     let triangles = soup.triangle_vertices();
-    let packed = pack(&build_binned_sah(&triangles, 4), &triangles);
+    let packed = pack(&build_binned_sah(&triangles, 4), &triangles).expect("memory for the packed tree");
     let path = dir.join(scene.file_name().unwrap()).with_extension("bvh");
     BvhWriter::new(&packed.nodes, &packed.triangles)
         .triangle_ids(&packed.triangle_ids)

@@ -101,7 +101,7 @@ fn kernel_speeds(
     triangles: &[[[f32; 3]; 3]],
     wide: &bvhc::layout::WideTree,
 ) -> Vec<(&'static str, f64, f64, f64)> {
-    let packed_tree = bvhc::pack::pack(merged, triangles);
+    let packed_tree = bvhc::pack::pack(merged, triangles).expect("memory");
     let file = bvhc::loader::BvhWriter::new(&packed_tree.nodes, &packed_tree.triangles).build().unwrap();
     let binary = file.view().tracer();
     let soup: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();

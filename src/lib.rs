@@ -11,6 +11,7 @@
 // Shared below every stage.
 pub mod geometry;
 pub mod cost;
+pub mod fallible;
 pub mod build_tree;
 // The stages, in flow order.
 pub mod import;

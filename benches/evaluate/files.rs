@@ -49,9 +49,9 @@ fn file_of_single_leaf_tree(tree: BuildTree, triangles: &[Triangle]) -> (BvhFile
     let options = ConvertOptions::default();
     let (binary, wide) = merge_and_collapse(&opt, &options, triangles.len(), repeats);
     let (wide, costs) = wide.expect("the default options collapse a wide tree");
-    let packed = pack(&binary, triangles);
+    let packed = pack(&binary, triangles).expect("memory for the packed tree");
     let split = packed.triangles.len() > triangles.len();
-    let mut records = packed.record_cursor(triangles.len());
+    let mut records = packed.record_cursor(triangles.len()).expect("memory");
     let bvh = pack_wide(&wide, &packed.triangles, &mut |t| records.next(t), split).unwrap();
     let file = BvhWriter::new(&packed.nodes, &packed.triangles)
         .split_references(split)

@@ -110,7 +110,7 @@ pub fn merge_constants_table(triangles: &[Triangle], rays: &RaySet) {
             let constants = SahConstants { traversal, intersection };
             let mut merged = merge_leaves_of_references(&tree, constants, max_leaf_size);
             records::remove_binary_repeats(&mut merged, triangles.len());
-            pack(&merged, triangles)
+            pack(&merged, triangles).expect("memory for the packed tree")
         })
         .collect();
     let tracers: Vec<Tracer<'_>> = packed.iter().map(|p| Tracer::new(&p.nodes, &p.triangles, None)).collect();

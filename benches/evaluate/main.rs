@@ -76,7 +76,7 @@ fn main() {
     for (name, path) in harness::scenes(SCENES, Some("BVHC_EVAL_SCENES")) {
         let triangles = import(&path, &ImportOptions::default()).unwrap().soup.triangle_vertices();
         if files_only {
-            let start = pack(&Builder::BinnedSah.build(&triangles, 1), &triangles);
+            let start = pack(&Builder::BinnedSah.build(&triangles, 1), &triangles).expect("memory");
             let tracer = Tracer::new(&start.nodes, &start.triangles, None);
             let rays = ray_set(&tracer, start.nodes[0].min, start.nodes[0].max);
             println!("\n### {name} ({} triangles)", triangles.len());
@@ -89,7 +89,7 @@ fn main() {
         methods.push(peers::svenstaro(&triangles));
         #[cfg(feature = "tinybvh")]
         methods.push(peers::tinybvh_method(&triangles));
-        let packed: Vec<_> = methods.iter().map(|m| pack(&m.tree, &triangles)).collect();
+        let packed: Vec<_> = methods.iter().map(|m| pack(&m.tree, &triangles).expect("memory")).collect();
         let tree_notes = check_trees(&methods, &packed, &triangles, own_methods);
         let reference = &packed[1];
         let tracer = Tracer::new(&reference.nodes, &reference.triangles, None);

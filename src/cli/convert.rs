@@ -59,6 +59,7 @@ pub fn convert(args: &ConvertArgs) -> Exit {
         }
         Err(error @ ConvertError::OutputIsInput { .. }) => return fail(Exit::Io, error),
         Err(ConvertError::Write(error)) => return fail(loader_exit(&error).max_io(), error),
+        Err(error @ ConvertError::OutOfMemory { .. }) => return fail(Exit::InvalidInput, error),
         Err(ConvertError::TooLarge { path, count }) => {
             return fail(Exit::InvalidInput, format!("{}: {count} triangles exceed the .bvh limit", path.display()));
         }

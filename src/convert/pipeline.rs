@@ -13,10 +13,17 @@ use super::candidates::{Candidate, best_candidate, lap};
 use super::files::{input_entries, refuse_output_among};
 use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord};
 use super::report::{ConvertError, ConvertReport, Event, Stage, Timings, WideSummary};
+use crate::fallible::{collect_exact, probe};
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES};
 use crate::import::{TriangleSoup, import_for_peak};
 use crate::options::ConvertOptions;
 use crate::pack::{pack, pack_wide};
+
+/// Address space a worker thread may take when it first allocates, for the probe before the build: glibc's
+/// malloc reserves 64 MiB for each thread's arena, and a thread's stack is 8 MiB. Only reserved, never touched,
+/// so this matters only under an address-space limit (`ulimit -v`), where the probe would otherwise pass and a
+/// thread's first allocation abort the conversion (measured: `docs/scale.md`).
+const THREAD_ADDRESS_SPACE: usize = 72 << 20;
 
 /// Converts `input` into the `.bvh` file `output` with the default options.
 pub fn convert(input: &Path, output: &Path) -> Result<ConvertReport, ConvertError> {
@@ -52,30 +59,45 @@ pub fn convert_with(
     if u32::try_from(triangles.len()).is_err() {
         return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
     }
+    // The build and optimization allocate many vectors without reporting failure: make sure their estimated
+    // peak, beyond the triangles held now, can be allocated before starting (see `crate::fallible`).
+    let working_set = triangles.len().saturating_mul(peak_bytes_per_triangle as usize - size_of::<[[f32; 3]; 3]>());
+    let threads = rayon::current_num_threads().saturating_mul(THREAD_ADDRESS_SPACE);
+    probe(working_set.saturating_add(threads), "building and optimizing the tree")
+        .map_err(|e| out_of_memory(input, "building", e))?;
     let (candidate, choice) = best_candidate(input, &triangles, options, observer, &mut timings)?;
     let Candidate { final_tree, wide_tree, reference_count, optimization } = candidate;
     let over_references = reference_count > triangles.len();
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
     let cost = final_tree.sah_cost(options.optimize.constants);
-    let packed = pack(&final_tree, &triangles);
+    let packed = pack(&final_tree, &triangles).map_err(|e| out_of_memory(input, "packing", e))?;
     drop(final_tree);
     let triangle_count = triangles.len();
     drop(triangles);
     check_every_triangle_stored(&packed.triangle_ids, triangle_count, over_references)?;
     let stored_triangle_count = packed.triangles.len();
     // The packer numbers triangles by their index in the soup; the file stores their source ids.
-    let source_ids: Vec<u32> = packed.triangle_ids.iter().map(|&t| soup_source_ids[t as usize]).collect();
+    let source_ids = collect_exact(
+        packed.triangle_ids.len(),
+        packed.triangle_ids.iter().map(|&t| soup_source_ids[t as usize]),
+        "the source ids",
+    )
+    .map_err(|e| out_of_memory(input, "packing", e))?;
     drop(soup_source_ids);
     let wide = match wide_tree {
         Some((wide_tree, costs)) => {
             let split = stored_triangle_count > triangle_count;
             let bvh = if split {
-                let mut records = packed.record_cursor(triangle_count);
-                pack_wide(&wide_tree, &packed.triangles, &mut |t| records.next(t), true)?
+                let mut records =
+                    packed.record_cursor(triangle_count).map_err(|e| out_of_memory(input, "packing", e))?;
+                pack_wide(&wide_tree, &packed.triangles, &mut |t| records.next(t), true)
+                    .map_err(|e| out_of_memory(input, "packing", e))?
             } else {
-                let file_index_of = packed.file_index_of(triangle_count);
-                pack_wide(&wide_tree, &packed.triangles, &mut |t| file_index_of.get(t as usize).copied(), false)?
+                let file_index_of =
+                    packed.file_index_of(triangle_count).map_err(|e| out_of_memory(input, "packing", e))?;
+                pack_wide(&wide_tree, &packed.triangles, &mut |t| file_index_of.get(t as usize).copied(), false)
+                    .map_err(|e| out_of_memory(input, "packing", e))?
             };
             let summary = WideSummary {
                 node_count: bvh.nodes().len(),
@@ -124,7 +146,8 @@ pub fn convert_with(
     let node_count = packed.nodes.len();
     drop(writer);
     drop((packed, wide, source_ids));
-    let file = BvhFile::read_uncached(atomic.temporary_path())?;
+    let file = BvhFile::read_uncached(atomic.temporary_path())
+        .map_err(|e| out_of_memory(input, "reading the written file back", e))?;
     file.view().verify().map_err(bvhc_loader::Error::from)?;
     drop(file);
     atomic.commit()?;
@@ -165,4 +188,19 @@ fn check_every_triangle_stored(ids: &[u32], triangle_count: usize, split: bool) 
         return Err(ConvertError::Internal("the built tree holds a triangle twice without split references".into()));
     }
     Ok(())
+}
+
+/// `error` as the conversion's error: [`ConvertError::OutOfMemory`] naming `input` and `stage` when the system
+/// refused memory, otherwise a write error.
+fn out_of_memory(input: &Path, stage: &'static str, error: bvhc_loader::Error) -> ConvertError {
+    let refused = match &error {
+        bvhc_loader::Error::OutOfMemory { .. } => true,
+        bvhc_loader::Error::Io { source, .. } => source.kind() == std::io::ErrorKind::OutOfMemory,
+        _ => false,
+    };
+    if refused {
+        ConvertError::OutOfMemory { path: input.to_path_buf(), stage, source: error }
+    } else {
+        ConvertError::Write(error)
+    }
 }

@@ -90,6 +90,20 @@ pub enum ConvertError {
     /// The output could not be written.
     #[error(transparent)]
     Write(#[from] bvhc_loader::Error),
+    /// The system refused memory the conversion needs (beyond what the memory budget estimated).
+    #[error(
+        "{}: {source} while {stage}; the conversion needs more memory than this process may use (free memory, \
+         raise the address-space or cgroup limit, or convert on a larger machine)",
+        path.display()
+    )]
+    OutOfMemory {
+        /// The scene.
+        path: std::path::PathBuf,
+        /// The stage that needed the memory.
+        stage: &'static str,
+        /// The refused allocation.
+        source: bvhc_loader::Error,
+    },
     /// A bug in bvhc was caught before writing: please report it with the input.
     #[error("internal error (please report with the input): {0}")]
     Internal(String),

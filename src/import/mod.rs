@@ -207,6 +207,9 @@ pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportErro
     import_for_peak(path, options, memory::BYTES_PER_TRIANGLE)
 }
 
+/// Room the parsers need beyond the file's bytes before they start (checked by a probe, see [`import_for_peak`]).
+const PARSE_HEADROOM: usize = 64 << 20;
+
 /// [`import`] for a conversion whose peak is estimated at `peak_bytes_per_triangle` bytes a placed triangle
 /// (more when it compares candidate trees): the scene is refused before its triangles are held when that peak
 /// would exceed [`ImportLimits::max_memory`].
@@ -225,6 +228,11 @@ pub fn import_for_peak(
         ))
     })?;
     let bytes = limits::read_regular_file(path, gzipped, options.limits.max_input_bytes).map_err(error)?;
+    // Parsing allocates many small blocks that cannot report failure: stop here, with an error, when the file's
+    // bytes left too little room for them (an address-space limit just above the file's size).
+    crate::fallible::probe(PARSE_HEADROOM, "parsing").map_err(|e| {
+        error(Located::of_kind(ErrorKind::Limit, "file", format!("{e} after reading {} bytes", bytes.len())))
+    })?;
     let mut builder = SoupBuilder::new(options.keep_degenerate, &options.limits, peak_bytes_per_triangle);
     let mut files_read = vec![path.to_path_buf()];
     let result = match format {

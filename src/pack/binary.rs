@@ -5,9 +5,10 @@
 //! subtree's nodes are close together in memory. Triangles are emitted in the same depth-first leaf order,
 //! which makes the leaves partition the triangles section exactly as rule V15 requires.
 
-use bvhc_loader::{PackedNode, PackedTriangle};
+use bvhc_loader::{Error, PackedNode, PackedTriangle};
 
 use crate::build_tree::{BuildNode, BuildTree};
+use crate::fallible::{vec_of, vec_with_capacity};
 
 /// The packed form the writer sees: nodes, triangles in leaf order, and each triangle's source index.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -23,33 +24,34 @@ pub struct PackedTree {
 impl PackedTree {
     /// For each input triangle, its index in the packed triangles (the inverse of `triangle_ids`; 0 for an
     /// input triangle the tree does not hold).
-    pub fn file_index_of(&self, input_triangle_count: usize) -> Vec<u32> {
-        let mut file_index_of = vec![0u32; input_triangle_count];
+    pub fn file_index_of(&self, input_triangle_count: usize) -> Result<Vec<u32>, Error> {
+        let mut file_index_of = vec_of(0u32, input_triangle_count, "the file index of each triangle")?;
         for (file_index, &t) in self.triangle_ids.iter().enumerate() {
             if let Some(slot) = file_index_of.get_mut(t as usize) {
                 *slot = file_index as u32;
             }
         }
-        file_index_of
+        Ok(file_index_of)
     }
 
     /// Every input triangle's records, in file order (for [`super::pack_wide`] over split references).
-    pub fn record_cursor(&self, input_triangle_count: usize) -> RecordCursor {
+    pub fn record_cursor(&self, input_triangle_count: usize) -> Result<RecordCursor, Error> {
         let n = input_triangle_count;
-        let mut start = vec![0u32; n + 1];
+        let mut start = vec_of(0u32, n + 1, "the records of each triangle")?;
         for &t in self.triangle_ids.iter().filter(|&&t| (t as usize) < n) {
             start[t as usize + 1] += 1;
         }
         for t in 0..n {
             start[t + 1] += start[t];
         }
-        let mut fill = start.clone();
-        let mut records = vec![0u32; start[n] as usize];
+        let mut fill = vec_with_capacity(n + 1, "the records of each triangle")?;
+        fill.extend_from_slice(&start);
+        let mut records = vec_of(0u32, start[n] as usize, "the records of each triangle")?;
         for (record, &t) in self.triangle_ids.iter().enumerate().filter(|(_, t)| (**t as usize) < n) {
             records[fill[t as usize] as usize] = record as u32;
             fill[t as usize] += 1;
         }
-        RecordCursor { start, records, taken: vec![0; n] }
+        Ok(RecordCursor { start, records, taken: vec_of(0, n, "the records of each triangle")? })
     }
 }
 
@@ -79,15 +81,15 @@ impl RecordCursor {
     }
 }
 
-/// Packs `tree`, built over `triangles`.
-pub fn pack(tree: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> PackedTree {
+/// Packs `tree`, built over `triangles`; [`Error::OutOfMemory`] when the packed arrays do not fit.
+pub fn pack(tree: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> Result<PackedTree, Error> {
     let mut packed = PackedTree {
-        nodes: Vec::with_capacity(tree.nodes.len()),
-        triangles: Vec::with_capacity(tree.triangle_order.len()),
-        triangle_ids: Vec::with_capacity(tree.triangle_order.len()),
+        nodes: vec_with_capacity(tree.nodes.len(), "the packed nodes")?,
+        triangles: vec_with_capacity(tree.triangle_order.len(), "the packed triangles")?,
+        triangle_ids: vec_with_capacity(tree.triangle_order.len(), "the packed triangle ids")?,
     };
     if tree.nodes.is_empty() {
-        return packed;
+        return Ok(packed);
     }
     packed.nodes.push(placeholder());
     // (build node, packed slot); left children are popped first.
@@ -112,7 +114,7 @@ pub fn pack(tree: &BuildTree, triangles: &[[[f32; 3]; 3]]) -> PackedTree {
             }
         }
     }
-    packed
+    Ok(packed)
 }
 
 fn placeholder() -> PackedNode {

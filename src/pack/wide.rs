@@ -27,7 +27,7 @@ pub fn pack_wide(
     if tree.width > WIDE {
         return Err(unwritable(format!("width {} is more than the layout's {WIDE}", tree.width)));
     }
-    let mut nodes = Vec::with_capacity(tree.nodes.len());
+    let mut nodes = crate::fallible::vec_with_capacity(tree.nodes.len(), "the wide nodes")?;
     // Exactly the packets the leaves need (a guess would let the vector double, up to twice the memory).
     let packet_count: usize = tree
         .nodes
@@ -38,7 +38,7 @@ pub fn pack_wide(
             WideChild::Node(_) => 0,
         })
         .sum();
-    let mut packets = Vec::with_capacity(packet_count);
+    let mut packets = crate::fallible::vec_with_capacity(packet_count, "the triangle packets")?;
     let mut lanes = Vec::with_capacity(PACKET_LANES);
     for (i, node) in tree.nodes.iter().enumerate() {
         let mut packed = WideNode8::EMPTY;

@@ -59,7 +59,7 @@ pub fn random_rays(seed: u64, count: usize, extent: f32) -> Vec<Ray> {
 
 /// Builds and packs a binned SAH tree with at most `max_leaf_size` triangles per leaf.
 pub fn packed_tree(triangles: &[Triangle], max_leaf_size: usize) -> PackedTree {
-    pack(&build_binned_sah(triangles, max_leaf_size), triangles)
+    pack(&build_binned_sah(triangles, max_leaf_size), triangles).expect("memory for the packed tree")
 }
 
 /// One source range covering ids `0..triangle_count`.
@@ -108,7 +108,7 @@ pub fn write_wide_file(triangles: &[Triangle], max_leaf_size: usize) -> BvhFile 
 pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
     let opt = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
     let collapsed = bvhc::layout::collapse(&opt, &bvhc::layout::WideCosts::default());
-    let file_index_of = tree.file_index_of(triangles.len());
+    let file_index_of = tree.file_index_of(triangles.len()).expect("memory");
     bvhc::pack::pack_wide(&collapsed, &tree.triangles, &mut |t| file_index_of.get(t as usize).copied(), false)
         .expect("a collapsed tree packs")
 }

@@ -259,7 +259,7 @@ fn run_case(case: &Case) -> Counts {
     opt.limit_depth(bvhc::loader::format::MAX_DEPTH);
     let merged = merge_leaves(&opt, SahConstants::default(), 8);
     assert!(merged.sah_cost(SahConstants::default()).cost.is_finite());
-    let packed = pack(&merged, &case.triangles);
+    let packed = pack(&merged, &case.triangles).expect("memory for the packed tree");
     let file =
         BvhWriter::new(&packed.nodes, &packed.triangles).triangle_ids(&packed.triangle_ids).build().expect("verifies");
     let tracer = file.view().tracer();

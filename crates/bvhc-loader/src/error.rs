@@ -200,6 +200,16 @@ pub enum Error {
         /// The cause.
         source: std::io::Error,
     },
+    /// The allocator refused memory that reading or writing needs (the system's memory, or an address-space or
+    /// other limit of the process): an error the caller can report, rather than the abort of a failed
+    /// allocation.
+    #[error("out of memory: {what} needs {bytes} bytes, which the system refused")]
+    OutOfMemory {
+        /// What the memory was for, e.g. `the file's bytes`.
+        what: String,
+        /// The size asked for.
+        bytes: u64,
+    },
     /// The data handed to the writer cannot be stored (too many elements for u32 indices, and similar).
     #[error("cannot write .bvh file: {0}")]
     Unwritable(String),

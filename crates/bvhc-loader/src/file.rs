@@ -23,9 +23,15 @@ pub(crate) struct AlignedBuffer {
 }
 
 impl AlignedBuffer {
-    /// `byte_len` zero bytes.
-    pub(crate) fn zeroed(byte_len: usize) -> AlignedBuffer {
-        AlignedBuffer { blocks: bytemuck::zeroed_vec(byte_len.div_ceil(64)), byte_len }
+    /// `byte_len` zero bytes; an allocation the system refuses is [`Error::OutOfMemory`].
+    pub(crate) fn zeroed(byte_len: usize) -> Result<AlignedBuffer, Error> {
+        let block_count = byte_len.div_ceil(64);
+        let mut blocks = Vec::new();
+        blocks
+            .try_reserve_exact(block_count)
+            .map_err(|_| Error::OutOfMemory { what: "the file's bytes".to_string(), bytes: byte_len as u64 })?;
+        blocks.resize(block_count, Block::zeroed());
+        Ok(AlignedBuffer { blocks, byte_len })
     }
 
     pub(crate) fn as_bytes(&self) -> &[u8] {
@@ -46,7 +52,7 @@ impl BvhFile {
     /// Copies `bytes` into an aligned buffer and opens it (rules V1-V10). Use for `include_bytes!` data or any
     /// buffer of unknown alignment.
     pub fn from_bytes(bytes: &[u8]) -> Result<BvhFile, Error> {
-        let mut buffer = AlignedBuffer::zeroed(bytes.len());
+        let mut buffer = AlignedBuffer::zeroed(bytes.len())?;
         buffer.as_bytes_mut().copy_from_slice(bytes);
         BvhFile::from_buffer(buffer)
     }
@@ -58,7 +64,7 @@ impl BvhFile {
         let byte_len = file.metadata().map_err(io)?.len();
         let byte_len = usize::try_from(byte_len)
             .map_err(|_| io(std::io::Error::new(std::io::ErrorKind::OutOfMemory, "file too large for memory")))?;
-        let mut buffer = AlignedBuffer::zeroed(byte_len);
+        let mut buffer = AlignedBuffer::zeroed(byte_len)?;
         file.read_exact(buffer.as_bytes_mut()).map_err(io)?;
         BvhFile::from_buffer(buffer)
     }
@@ -70,7 +76,7 @@ impl BvhFile {
         let byte_len = std::fs::metadata(path).map_err(io)?.len();
         let byte_len = usize::try_from(byte_len)
             .map_err(|_| io(std::io::Error::new(std::io::ErrorKind::OutOfMemory, "file too large for memory")))?;
-        let mut buffer = AlignedBuffer::zeroed(byte_len);
+        let mut buffer = AlignedBuffer::zeroed(byte_len)?;
         crate::uncached::read_uncached(path, buffer.as_bytes_mut()).map_err(io)?;
         BvhFile::from_buffer(buffer)
     }

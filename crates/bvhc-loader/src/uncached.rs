@@ -35,8 +35,12 @@ struct Stage {
 }
 
 impl Stage {
-    fn new() -> Stage {
-        Stage { pages: bytemuck::zeroed_vec(STAGE_PAGES) }
+    /// The staging buffer, or an `OutOfMemory` error where the system refuses it.
+    fn new() -> std::io::Result<Stage> {
+        let pages = bytemuck::allocation::try_zeroed_vec(STAGE_PAGES).map_err(|_| {
+            std::io::Error::new(std::io::ErrorKind::OutOfMemory, "no memory for the direct-transfer staging buffer")
+        })?;
+        Ok(Stage { pages })
     }
 
     fn bytes(&self) -> &[u8] {
@@ -95,7 +99,10 @@ impl<'f> UncachedWriter<'f> {
     }
 
     fn with_direct(buffered: &'f mut File, direct: Option<File>) -> UncachedWriter<'f> {
-        let stage = if direct.is_some() { Stage::new() } else { Stage { pages: Vec::new() } };
+        // Without memory for the staging buffer, the writer goes through the page cache instead.
+        let stage = direct.as_ref().and_then(|_| Stage::new().ok());
+        let direct = direct.filter(|_| stage.is_some());
+        let stage = stage.unwrap_or(Stage { pages: Vec::new() });
         UncachedWriter { buffered, direct, stage, staged: 0, written: 0 }
     }
 
@@ -165,6 +172,9 @@ impl Write for UncachedWriter<'_> {
 /// the other, and each thread also copies its pages out of its staging buffer.
 const READ_THREADS: usize = 2;
 
+/// A part of the output to read: its offset in the file and its bytes, taken by whichever thread reads it.
+type Part<'a> = std::sync::Mutex<Option<(u64, &'a mut [u8])>>;
+
 /// Reads the whole file at `path`, whose length is `out.len()`, into `out`, past the page cache where it can
 /// (see the module doc).
 pub(crate) fn read_uncached(path: &Path, out: &mut [u8]) -> std::io::Result<()> {
@@ -176,19 +186,28 @@ pub(crate) fn read_uncached(path: &Path, out: &mut [u8]) -> std::io::Result<()> 
         // Each thread reads a run of whole stages, so every offset stays page-aligned.
         let stage_len = STAGE_PAGES * PAGE_BYTE_LEN;
         let per_thread = out.len().div_ceil(stage_len).div_ceil(READ_THREADS) * stage_len;
+        // Each part is taken by the thread that reads it; where no thread can be started (an address-space
+        // limit), the caller's thread takes and reads it after the others have started.
+        let parts: Vec<Part<'_>> = out
+            .chunks_mut(per_thread.max(1))
+            .enumerate()
+            .map(|(i, part)| std::sync::Mutex::new(Some(((i * per_thread) as u64, part))))
+            .collect();
+        let direct = &direct;
+        let read_part = |part: &Part<'_>| {
+            let taken = part.lock().ok().and_then(|mut slot| slot.take());
+            taken.map_or(Ok(()), |(offset, bytes)| read_direct_at(direct, offset, bytes))
+        };
         let outcome = std::thread::scope(|scope| {
-            let workers: Vec<_> = out
-                .chunks_mut(per_thread.max(1))
-                .enumerate()
-                .map(|(i, part)| {
-                    let direct = &direct;
-                    scope.spawn(move || read_direct_at(direct, (i * per_thread) as u64, part))
-                })
+            let workers: Vec<_> = parts
+                .iter()
+                .map(|part| std::thread::Builder::new().spawn_scoped(scope, move || read_part(part)))
                 .collect();
-            let joined = workers.into_iter().map(|worker| worker.join());
-            joined
-                .map(|result| result.unwrap_or_else(|_| Err(std::io::Error::other("a reader panicked"))))
-                .collect::<Vec<_>>()
+            let joined = workers.into_iter().zip(&parts).map(|(worker, part)| match worker {
+                Ok(thread) => thread.join().unwrap_or_else(|_| Err(std::io::Error::other("a reader panicked"))),
+                Err(_) => read_part(part),
+            });
+            joined.collect::<Vec<_>>()
         });
         match outcome.into_iter().find_map(Result::err) {
             None => return Ok(()),
@@ -204,7 +223,7 @@ fn read_direct_at(file: &File, offset: u64, part: &mut [u8]) -> std::io::Result<
     #[cfg(unix)]
     {
         use std::os::unix::fs::FileExt;
-        let mut stage = Stage::new();
+        let mut stage = Stage::new()?;
         let mut done = 0;
         while done < part.len() {
             let want = (part.len() - done).next_multiple_of(PAGE_BYTE_LEN).min(stage.bytes().len());

@@ -181,7 +181,7 @@ impl<'a> BvhWriter<'a> {
             sections.last().map_or(head.len() as u64, |s| s.entry.section_byte_offset + s.entry.section_byte_len);
         let file_byte_len = usize::try_from(file_byte_len)
             .map_err(|_| Error::Unwritable("the file would not fit in memory".to_string()))?;
-        let mut buffer = AlignedBuffer::zeroed(file_byte_len);
+        let mut buffer = AlignedBuffer::zeroed(file_byte_len)?;
         let bytes = buffer.as_bytes_mut();
         bytes[..head.len()].copy_from_slice(&head);
         for section in &sections {
