@@ -27,8 +27,8 @@ fn with_limits(limits: ImportLimits) -> ImportOptions {
 fn hostile_declared_counts_are_refused_before_allocating() {
     // 642 bytes declaring 44.7M instances: refused by the placement budget before any accessor is decoded (the
     // memory budget, which refuses it too on a machine with less than 11 GB free, is set aside here).
-    let placements_only = with_limits(ImportLimits { max_memory: MemoryLimit::Unlimited, ..Default::default() });
-    let error = import_error(&repro("instancing-44M-zero-translations.gltf"), &placements_only);
+    let memory_unlimited = ImportLimits { max_memory: MemoryLimit::Unlimited, ..Default::default() };
+    let error = import_error(&repro("instancing-44M-zero-translations.gltf"), &with_limits(memory_unlimited.clone()));
     assert_eq!(error.kind, ErrorKind::Limit);
     assert!(
         error.message.contains("44739242 mesh placements") && error.message.contains("--max-placements"),
@@ -36,10 +36,10 @@ fn hostile_declared_counts_are_refused_before_allocating() {
     );
     assert_eq!(error.location, "node 0");
     // Three accessors of 44.7M zero vertices each: the decoded-values budget is a total, not per accessor.
-    let error = import_error(&repro("zero-accessors-3.gltf"), &ImportOptions::default());
+    let error = import_error(&repro("zero-accessors-3.gltf"), &with_limits(memory_unlimited.clone()));
     assert_eq!(error.kind, ErrorKind::Limit);
     assert!(error.message.contains("--max-decoded-values") && error.location.contains("mesh 1"), "{error}");
-    let small = ImportLimits { max_decoded_values: 1_000_000, ..Default::default() };
+    let small = ImportLimits { max_decoded_values: 1_000_000, ..memory_unlimited };
     let error = import_error(&repro("zero-accessors-1.gltf"), &with_limits(small));
     assert!(error.message.contains("exceed the import limit of 1000000"), "{error}");
     // The triangle budget counts placed triangles, before degenerate ones are dropped.
