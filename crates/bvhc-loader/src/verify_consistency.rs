@@ -86,7 +86,7 @@ fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map<String, Value>) -> 
     let Some(stored) = stored else { return Ok(()) };
     let records = view.triangles().len() as u64;
     let distinct = match ids {
-        Some(ids) => distinct_count(ids.to_vec()),
+        Some(ids) => distinct_id_count(ids),
         None if !view.has_split_references() => records,
         None => distinct_count(view.triangles().iter().map(record_key).collect()),
     };
@@ -119,6 +119,21 @@ fn distinct_count<T: Ord>(mut keys: Vec<T>) -> u64 {
     keys.sort_unstable();
     keys.dedup();
     keys.len() as u64
+}
+
+/// The number of distinct ids: with a bitmap over `0..=max id` when it is no larger than the ids themselves
+/// (files whose ids number the scene's triangles), else on a sorted copy.
+fn distinct_id_count(ids: &[u32]) -> u64 {
+    let Some(&max_id) = ids.iter().max() else { return 0 };
+    let words = (max_id as usize + 1).div_ceil(64);
+    if words * 8 > ids.len() * 4 {
+        return distinct_count(ids.to_vec());
+    }
+    let mut seen = vec![0u64; words];
+    for &id in ids {
+        seen[id as usize / 64] |= 1 << (id % 64);
+    }
+    seen.iter().map(|w| u64::from(w.count_ones())).sum()
 }
 
 fn number(record: &Map<String, Value>, key: &str) -> Option<f64> {
@@ -191,7 +206,7 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(),
         let has = if view.triangle_ids().is_some() { "has" } else { "has no" };
         return fail(format!("write_ids is {write_ids}, but the file {has} triangle_ids section"));
     }
-    let identity = TriangleIdentity { view };
+    let mut identity = TriangleIdentity { view, ids: Vec::new(), records: Vec::new() };
     if let Some(limit) = build.get("max_leaf_size").and_then(Value::as_u64) {
         for (i, node) in view.nodes().iter().enumerate().filter(|(_, n)| n.count > 0) {
             let range = node.index as usize..node.index as usize + node.count as usize;
@@ -224,19 +239,34 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(),
     Ok(())
 }
 
-/// Which records are the same triangle: the same source id with ids, the same vertex bits without.
+/// Which records are the same triangle: the same source id with ids, the same vertex bits without; with one
+/// scratch buffer for all leaves.
 struct TriangleIdentity<'v, 'a> {
     view: &'v BvhView<'a>,
+    ids: Vec<u32>,
+    records: Vec<[u32; 9]>,
 }
 
 impl TriangleIdentity<'_, '_> {
     /// The number of distinct triangles among the records `records` (indices into the triangles section).
-    fn distinct(&self, records: impl Iterator<Item = u32>) -> u64 {
+    fn distinct(&mut self, records: impl Iterator<Item = u32>) -> u64 {
         let triangles = self.view.triangles();
         match self.view.triangle_ids() {
-            Some(ids) => distinct_count(records.filter_map(|t| ids.get(t as usize).copied()).collect()),
+            Some(ids) => {
+                self.ids.clear();
+                self.ids.extend(records.filter_map(|t| ids.get(t as usize).copied()));
+                self.ids.sort_unstable();
+                self.ids.dedup();
+                self.ids.len() as u64
+            }
             None if !self.view.has_split_references() => records.count() as u64,
-            None => distinct_count(records.filter_map(|t| triangles.get(t as usize).map(record_key)).collect()),
+            None => {
+                self.records.clear();
+                self.records.extend(records.filter_map(|t| triangles.get(t as usize).map(record_key)));
+                self.records.sort_unstable();
+                self.records.dedup();
+                self.records.len() as u64
+            }
         }
     }
 }
