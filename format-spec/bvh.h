@@ -1,6 +1,6 @@
 /*
  * bvh.h: C11 declarations of the on-disk types of the .bvh format, major version 1 (format-spec/bvh-1.md,
- * revision 1.1.7). Normative together with bvh-1.md, section 15: where the two disagree, bvh-1.md is right.
+ * version 1.1). Normative together with bvh-1.md, section 15: where the two disagree, bvh-1.md is right.
  *
  * Every type is plain data with no padding: each byte belongs to a named field, reserved fields included, and the
  * static assertions below pin every size and field offset. All values are little-endian; a reader on a

@@ -70,7 +70,7 @@ fn golden_v1_1_file_reads_verifies_and_traces_on_every_kernel() {
     if std::env::var_os("BVHC_BLESS").is_some() {
         std::fs::write(golden_1_1_path(), write_golden_1_1_scene().as_bytes()).unwrap();
     }
-    let file = BvhFile::read(&golden_1_1_path()).expect("fixtures/golden/quad-v1.1.bvh");
+    let file = BvhFile::read(golden_1_1_path()).expect("fixtures/golden/quad-v1.1.bvh");
     let view = file.view();
     view.verify().unwrap();
     assert_eq!(view.version(), (1, 1));
@@ -123,7 +123,7 @@ fn golden_v1_0_file_reads_verifies_and_traces() {
     if std::env::var_os("BVHC_BLESS").is_some() {
         std::fs::write(golden_path(), write_golden_scene().as_bytes()).unwrap();
     }
-    let file = BvhFile::read(&golden_path()).expect("fixtures/golden/quad-v1.0.bvh");
+    let file = BvhFile::read(golden_path()).expect("fixtures/golden/quad-v1.0.bvh");
     let view = file.view();
     view.verify().unwrap();
     assert_eq!(view.version(), (1, 0));
@@ -164,7 +164,7 @@ fn golden_split_file_with_every_metadata_key_reads_verifies_and_traces() {
         let source = golden_split_path().with_file_name("split.obj");
         bvhc::Conversion::new(source, golden_split_path()).preset(bvhc::Preset::MaxQuality).force(true).run().unwrap();
     }
-    let file = BvhFile::read(&golden_split_path()).expect("fixtures/golden/split-v1.1.bvh");
+    let file = BvhFile::read(golden_split_path()).expect("fixtures/golden/split-v1.1.bvh");
     let view = file.view();
     view.verify().unwrap();
     assert_eq!(view.version(), (1, 1));

@@ -29,6 +29,7 @@ mod rules_tree;
 mod rules_wide;
 mod same_bytes;
 mod sbvh;
+mod spawn;
 mod scenes;
 mod spec;
 mod split;

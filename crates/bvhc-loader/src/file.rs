@@ -58,7 +58,8 @@ impl BvhFile {
     }
 
     /// Reads the file at `path` into an aligned buffer and opens it (rules V1-V10).
-    pub fn read(path: &Path) -> Result<BvhFile, Error> {
+    pub fn read(path: impl AsRef<Path>) -> Result<BvhFile, Error> {
+        let path = path.as_ref();
         let io = |source| Error::Io { path: path.to_path_buf(), source };
         let mut file = File::open(path).map_err(io)?;
         let byte_len = file.metadata().map_err(io)?.len();
@@ -71,7 +72,8 @@ impl BvhFile {
 
     /// [`BvhFile::read`] past the page cache where the system allows it (Linux `O_DIRECT`; buffered reads
     /// elsewhere): for reading back a large file just written, whose pages nothing else will want.
-    pub fn read_uncached(path: &Path) -> Result<BvhFile, Error> {
+    pub fn read_uncached(path: impl AsRef<Path>) -> Result<BvhFile, Error> {
+        let path = path.as_ref();
         let io = |source| Error::Io { path: path.to_path_buf(), source };
         let byte_len = std::fs::metadata(path).map_err(io)?.len();
         let byte_len = usize::try_from(byte_len)
@@ -128,7 +130,8 @@ impl MappedBvh {
     /// [`crate::write_atomic`] does), never by writing in place. When that cannot be guaranteed, use
     /// [`BvhFile::read`].
     #[allow(unsafe_code)]
-    pub unsafe fn open(path: &Path) -> Result<MappedBvh, Error> {
+    pub unsafe fn open(path: impl AsRef<Path>) -> Result<MappedBvh, Error> {
+        let path = path.as_ref();
         let io = |source| Error::Io { path: path.to_path_buf(), source };
         let file = File::open(path).map_err(io)?;
         // SAFETY: the caller guarantees the file is not changed while mapped (this function's contract).

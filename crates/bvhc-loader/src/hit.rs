@@ -1,6 +1,7 @@
 //! What every kernel returns and reports: the [`Hit`] record, the traversal counters, and the cull padding all
 //! kernels share (so that they find the same closest hit).
 
+use crate::format::PackedTriangle;
 use crate::intersect::TriangleHit;
 
 /// Boxes are culled against the closest hit so far padded by this factor (`1 + 2^-18`). The triangle test's `t`
@@ -9,12 +10,16 @@ use crate::intersect::TriangleHit;
 /// triangle reports a `t` an ulp smaller. With the pad, the closest hit equals a brute-force scan exactly.
 pub(crate) const CULL_PADDING: f32 = 1.0 + 1.0 / 262_144.0;
 
-/// The closest hit of a ray.
+/// The closest hit of a ray: what shading needs of the triangle it met.
+///
+/// `v0`, `v1`, `v2` are the triangle record's vertices as the file stores them (`format-spec/bvh-1.md` 5.2 and
+/// 5.4 say which source corners they are, mirrored placements included).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     /// Distance along the ray, in units of its direction.
     pub t: f32,
-    /// Index of the triangle in the file's triangles section.
+    /// Index of the triangle record in the file's triangles section. With split references one source
+    /// triangle has several records: [`Hit::source_triangle_id`] names the triangle itself.
     pub triangle_index: u32,
     /// The triangle's source id from the triangle_ids section, when the file has one.
     pub source_triangle_id: Option<u32>,
@@ -22,19 +27,46 @@ pub struct Hit {
     pub u: f32,
     /// Barycentric weight of `v2`.
     pub v: f32,
+    /// The geometric normal `(v1 - v0) x (v2 - v0)`, not normalized ([`geometric_normal`]): it points to the
+    /// triangle's front side, from which `v0, v1, v2` appear counter-clockwise.
+    pub normal: [f32; 3],
+    /// Whether the ray arrived at the front side: `dot(direction, normal) < 0`.
+    pub front_face: bool,
 }
 
 impl Hit {
-    /// The hit on triangle `triangle_index` (of the file's triangles), its source id looked up in `triangle_ids`.
-    pub(crate) fn new(triangle_index: u32, hit: TriangleHit, triangle_ids: Option<&[u32]>) -> Hit {
+    /// The hit on record `triangle_index` of `triangles` (of the file) by a ray along `direction`, its source id
+    /// looked up in `triangle_ids`.
+    pub(crate) fn new(
+        triangle_index: u32,
+        hit: TriangleHit,
+        triangles: &[PackedTriangle],
+        triangle_ids: Option<&[u32]>,
+        direction: &[f32; 3],
+    ) -> Hit {
+        let normal = triangles.get(triangle_index as usize).map_or([0.0; 3], geometric_normal);
+        let facing = direction[0] * normal[0] + direction[1] * normal[1] + direction[2] * normal[2];
         Hit {
             t: hit.t,
             triangle_index,
             source_triangle_id: triangle_ids.and_then(|ids| ids.get(triangle_index as usize).copied()),
             u: hit.u,
             v: hit.v,
+            normal,
+            front_face: facing < 0.0,
         }
     }
+}
+
+/// The geometric normal of a triangle record, `(v1 - v0) x (v2 - v0)` in f32: `e1 = v1 - v0`, `e2 = v2 - v0`
+/// per axis, then `n_x = e1_y * e2_z - e1_z * e2_y`, `n_y = e1_z * e2_x - e1_x * e2_z`,
+/// `n_z = e1_x * e2_y - e1_y * e2_x` (each product rounded, then the difference). Not normalized; zero for a
+/// degenerate record.
+pub fn geometric_normal(triangle: &PackedTriangle) -> [f32; 3] {
+    let [v0, v1, v2] = &triangle.vertices;
+    let e1 = [v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]];
+    let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
+    [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
 }
 
 /// Receives traversal events. The default path uses `()`, whose empty methods compile away.

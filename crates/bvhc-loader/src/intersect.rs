@@ -105,6 +105,7 @@ pub struct PreparedRay {
 
 impl PreparedRay {
     /// Precomputes the reciprocal direction and the shear of `ray`.
+    #[inline(always)]
     pub fn new(ray: &Ray) -> PreparedRay {
         let d = ray.direction;
         let abs = d.map(f32::abs);

@@ -20,6 +20,16 @@
 //! aligned owned buffer; `unsafe` [`MappedBvh::open`] for a memory map; `unsafe` [`BvhView::open_unchecked`]
 //! for bytes already known to be valid. Opening checks the structural rules in O(number of sections);
 //! [`BvhView::verify`] checks every rule.
+//!
+//! Hits ([`Hit`]) carry `t`, the barycentrics `u` (weight of `v1`) and `v` (weight of `v2`), the record's
+//! index, its source id, the geometric normal and whether the ray met the front side. For secondary rays,
+//! [`Tracer::surface`] gives the hit's [`SurfacePoint`], whose `spawn` and `spawn_to` make rays with
+//! `t_min = 0` that never meet the triangle they leave, at any scale, with no epsilon to choose.
+//!
+//! Threads: [`BvhFile`], [`MappedBvh`], [`BvhView`], [`Tracer`] and [`WideTracer`] are `Send` and `Sync`;
+//! tracing takes `&self`, allocates nothing and never blocks, so one tracer is shared by every thread (for
+//! example inside a rayon loop). The batch calls (`closest_hits`, `any_hits` and their coherent forms) panic
+//! when the result slice is not as long as the ray slice, naming the call.
 
 mod atomic;
 mod checksum;
@@ -30,6 +40,7 @@ pub mod format;
 mod hit;
 mod intersect;
 mod simd;
+mod spawn;
 mod traverse;
 mod uncached;
 mod verify;
@@ -56,12 +67,25 @@ pub use format::{
     EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, SectionKind, SourceRange, TrianglePacket4, WIDE,
     WideNode8,
 };
-pub use hit::{Hit, TraversalCounter, TraversalStats};
+pub use hit::{Hit, TraversalCounter, TraversalStats, geometric_normal};
 pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use simd::KernelPath;
+pub use spawn::SurfacePoint;
 pub use traverse::{Kernel, Tracer};
 pub use uncached::UncachedWriter;
 pub use verify::{PARALLEL_VERIFY_BYTES, verify_tree};
 pub use view::{BvhView, SectionInfo, WideSections};
 pub use wide::{WideBvh, WideTracer};
 pub use writer::BvhWriter;
+
+/// The types a renderer shares between threads are `Send + Sync` (checked at compile time).
+const _: () = {
+    const fn shared<T: Send + Sync>() {}
+    shared::<BvhFile>();
+    shared::<MappedBvh>();
+    shared::<BvhView<'static>>();
+    shared::<Tracer<'static>>();
+    shared::<WideTracer<'static>>();
+    shared::<Hit>();
+    shared::<SurfacePoint>();
+};

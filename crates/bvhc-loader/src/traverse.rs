@@ -9,6 +9,7 @@ use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
 use crate::hit::{CULL_PADDING, Hit, TraversalCounter};
 use crate::intersect::{PreparedRay, Ray};
 use crate::simd::KernelPath;
+use crate::spawn::SurfacePoint;
 use crate::wide::WideTracer;
 
 /// The traversal kernel over borrowed node and triangle arrays (a `BvhView`'s, or in-memory ones),
@@ -55,6 +56,14 @@ impl<'a> Tracer<'a> {
         self.wide.map_or(Kernel::Binary, |wide| Kernel::Wide(wide.path()))
     }
 
+    /// The point of `hit` (a hit this tracer returned) on its triangle, for spawning secondary rays without an
+    /// epsilon: `tracer.surface(&hit).spawn(direction)` is a ray with `t_min = 0` that does not meet the
+    /// triangle it starts on ([`SurfacePoint`]).
+    pub fn surface(&self, hit: &Hit) -> SurfacePoint {
+        let triangle = self.triangles.get(hit.triangle_index as usize).copied();
+        SurfacePoint::new(hit, &triangle.unwrap_or(PackedTriangle { vertices: [[0.0; 3]; 3] }))
+    }
+
     /// The closest hit with `t_min <= t <= t_max`.
     pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
         self.closest_hit_counted(ray, &mut ())
@@ -67,22 +76,32 @@ impl<'a> Tracer<'a> {
             None => self.traverse::<false>(ray, counter)?,
             Some(wide) => return wide.closest_hit_counted(ray, counter),
         };
-        Some(Hit::new(triangle_index, hit, self.triangle_ids))
+        Some(Hit::new(triangle_index, hit, self.triangles, self.triangle_ids, &ray.direction))
     }
 
-    /// The closest hit of each ray into the `hits` slot of the same index (pairs up to the shorter of the two):
-    /// [`Tracer::closest_hit`] of each ray, with the wide kernel's stream when the tracer runs it
-    /// ([`WideTracer::closest_hits`]: rays interleaved over large files).
+    /// The closest hit of each ray into the `hits` slot of the same index: [`Tracer::closest_hit`] of each ray,
+    /// with the wide kernel's stream when the tracer runs it ([`WideTracer::closest_hits`]: rays interleaved
+    /// over large files).
+    ///
+    /// # Panics
+    ///
+    /// When `hits` is not as long as `rays` (a batch is never traced in part).
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        same_length("closest_hits", rays.len(), hits.len());
         match &self.wide {
             Some(wide) => wide.closest_hits(rays, hits),
             None => rays.iter().zip(hits).for_each(|(ray, hit)| *hit = self.closest_hit(ray)),
         }
     }
 
-    /// Whether each ray hits anything, into the `occluded` slot of the same index (pairs up to the shorter of
-    /// the two), as [`Tracer::closest_hits`] does for closest hits.
+    /// Whether each ray hits anything, into the `occluded` slot of the same index, as [`Tracer::closest_hits`]
+    /// does for closest hits.
+    ///
+    /// # Panics
+    ///
+    /// When `occluded` is not as long as `rays`.
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
+        same_length("any_hits", rays.len(), occluded.len());
         match &self.wide {
             Some(wide) => wide.any_hits(rays, occluded),
             None => rays.iter().zip(occluded).for_each(|(ray, hit)| *hit = self.any_hit(ray)),
@@ -92,7 +111,12 @@ impl<'a> Tracer<'a> {
     /// [`Tracer::closest_hits`] for coherent rays (camera rays of neighbouring pixels): with the wide kernel,
     /// 8 consecutive rays share a traversal ([`WideTracer::closest_hits_coherent`]: the same `t` for each ray,
     /// on a tie possibly another triangle at it); with the binary kernel, one ray after the other.
+    ///
+    /// # Panics
+    ///
+    /// When `hits` is not as long as `rays`.
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        same_length("closest_hits_coherent", rays.len(), hits.len());
         match &self.wide {
             Some(wide) => wide.closest_hits_coherent(rays, hits),
             None => self.closest_hits(rays, hits),
@@ -100,7 +124,12 @@ impl<'a> Tracer<'a> {
     }
 
     /// [`Tracer::any_hits`] for coherent rays, as [`Tracer::closest_hits_coherent`].
+    ///
+    /// # Panics
+    ///
+    /// When `occluded` is not as long as `rays`.
     pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
+        same_length("any_hits_coherent", rays.len(), occluded.len());
         match &self.wide {
             Some(wide) => wide.any_hits_coherent(rays, occluded),
             None => self.any_hits(rays, occluded),
@@ -203,4 +232,11 @@ impl<'a> Tracer<'a> {
             }
         }
     }
+}
+
+/// Panics with a message naming `call` unless a batch's rays and results are as many (Embree's rule: a batch
+/// call with mismatched buffers is a caller's bug, reported at once, never a partial trace).
+#[track_caller]
+pub(crate) fn same_length(call: &str, rays: usize, results: usize) {
+    assert!(rays == results, "Tracer::{call}: {rays} rays but {results} result slots; pass slices of the same length");
 }

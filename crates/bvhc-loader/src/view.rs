@@ -215,7 +215,7 @@ impl<'a> BvhView<'a> {
     pub fn wide_tracer(&self, path: KernelPath) -> Option<WideTracer<'a>> {
         let wide = self.wide?;
         let root = self.nodes.first()?;
-        Some(WideTracer::over(wide.nodes, wide.packets, (root.min, root.max), self.triangle_ids, path))
+        Some(WideTracer::over(wide.nodes, wide.packets, (root.min, root.max), self.triangles, self.triangle_ids, path))
     }
 
     /// Builds a view without checking any rule.

@@ -77,6 +77,8 @@ impl WideBvh {
 #[derive(Clone, Copy, Debug)]
 pub struct WideTracer<'a> {
     sections: Sections<'a>,
+    /// The file's triangles section, for the hit's normal.
+    triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
     /// The AVX2 token when the tracer runs the AVX2 path.
     avx2: Option<Avx2>,
@@ -92,10 +94,16 @@ const STREAM_WIDTH: usize = 8;
 const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
 
 impl<'a> WideTracer<'a> {
-    /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangle_ids` are
-    /// indexed by the packets' triangle indices.
-    pub fn new(bvh: &'a WideBvh, triangle_ids: Option<&'a [u32]>, path: KernelPath) -> WideTracer<'a> {
-        WideTracer::over(&bvh.nodes, &bvh.packets, (bvh.root.min, bvh.root.max), triangle_ids, path)
+    /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangles` (the
+    /// records the packets' triangle indices name: a file's triangles section) give the hits' normals, and
+    /// `triangle_ids` their source ids.
+    pub fn new(
+        bvh: &'a WideBvh,
+        triangles: &'a [PackedTriangle],
+        triangle_ids: Option<&'a [u32]>,
+        path: KernelPath,
+    ) -> WideTracer<'a> {
+        WideTracer::over(&bvh.nodes, &bvh.packets, (bvh.root.min, bvh.root.max), triangles, triangle_ids, path)
     }
 
     /// A tracer over borrowed wide sections (a `BvhView`'s) inside `root_box`, the binary root's box.
@@ -104,6 +112,7 @@ impl<'a> WideTracer<'a> {
         nodes: &'a [WideNode8],
         packets: &'a [TrianglePacket4],
         root_box: ([f32; 3], [f32; 3]),
+        triangles: &'a [PackedTriangle],
         triangle_ids: Option<&'a [u32]>,
         path: KernelPath,
     ) -> WideTracer<'a> {
@@ -113,7 +122,7 @@ impl<'a> WideTracer<'a> {
         };
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
         let interleave = size_of_val(nodes) + size_of_val(packets) > INTERLEAVE_ABOVE_BYTES;
-        WideTracer { sections: Sections { nodes, packets, root }, triangle_ids, avx2, interleave }
+        WideTracer { sections: Sections { nodes, packets, root }, triangles, triangle_ids, avx2, interleave }
     }
 
     /// The path this tracer runs.
@@ -130,7 +139,7 @@ impl<'a> WideTracer<'a> {
     /// four count as one test each) into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
         let (triangle_index, hit) = self.dispatch::<false>(ray, counter)?;
-        Some(Hit::new(triangle_index, hit, self.triangle_ids))
+        Some(Hit::new(triangle_index, hit, self.triangles, self.triangle_ids, &ray.direction))
     }
 
     /// Whether any triangle is hit.
@@ -143,33 +152,37 @@ impl<'a> WideTracer<'a> {
         self.dispatch::<true>(ray, counter).is_some()
     }
 
-    /// The closest hit of each ray into the `hits` slot of the same index (pairs up to the shorter of the two).
+    /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call).
     /// Over large sections several rays are in flight at once, their steps interleaved, so one ray's cache
     /// misses overlap with the others' work ([`WideTracer::interleaves_streams`]); each ray's hit is the one
     /// [`WideTracer::closest_hit`] returns, whichever way.
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.stream::<false>(rays, &mut hit_writer(hits, self.triangle_ids));
+        crate::traverse::same_length("closest_hits", rays.len(), hits.len());
+        self.stream::<false>(rays, &mut hit_writer(hits, rays, self.triangles, self.triangle_ids));
     }
 
-    /// Whether each ray hits anything, into the `occluded` slot of the same index (pairs up to the shorter of
-    /// the two), with rays interleaved as in [`WideTracer::closest_hits`].
+    /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
+    /// panic naming the call), with rays interleaved as in [`WideTracer::closest_hits`].
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
+        crate::traverse::same_length("any_hits", rays.len(), occluded.len());
         self.stream::<true>(rays, &mut occlusion_writer(occluded));
     }
 
-    /// The closest hit of each ray into the `hits` slot of the same index (pairs up to the shorter of the two),
+    /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call),
     /// for coherent rays such as camera rays of neighbouring pixels: each 8 consecutive rays share one
     /// traversal. Each ray's `t` is the one [`WideTracer::closest_hit`] returns; on a tie at that `t` the
     /// triangle may be another one hit at the same `t`. Slower than [`WideTracer::closest_hits`] for rays that
     /// go different ways.
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.packets::<false>(rays, &mut hit_writer(hits, self.triangle_ids));
+        crate::traverse::same_length("closest_hits_coherent", rays.len(), hits.len());
+        self.packets::<false>(rays, &mut hit_writer(hits, rays, self.triangles, self.triangle_ids));
     }
 
-    /// Whether each ray hits anything, into the `occluded` slot of the same index (pairs up to the shorter of
-    /// the two), 8 consecutive rays a traversal as in [`WideTracer::closest_hits_coherent`]; the same answers
+    /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
+    /// panic naming the call), 8 consecutive rays a traversal as in [`WideTracer::closest_hits_coherent`]; the same answers
     /// as [`WideTracer::any_hit`].
     pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
+        crate::traverse::same_length("any_hits_coherent", rays.len(), occluded.len());
         self.packets::<true>(rays, &mut occlusion_writer(occluded));
     }
 
@@ -299,15 +312,17 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
     }
 }
 
-/// The `done` callback of the batch entry points for closest hits: ray `i`'s hit into `hits[i]`, its source id
-/// from `triangle_ids`.
+/// The `done` callback of the batch entry points for closest hits: ray `i`'s hit into `hits[i]`, its normal
+/// from `triangles` and its source id from `triangle_ids`.
 fn hit_writer<'h>(
     hits: &'h mut [Option<Hit>],
+    rays: &'h [Ray],
+    triangles: &'h [PackedTriangle],
     triangle_ids: Option<&'h [u32]>,
 ) -> impl FnMut(usize, Option<(u32, TriangleHit)>) + 'h {
     move |i, found| {
-        if let Some(slot) = hits.get_mut(i) {
-            *slot = found.map(|(triangle_index, hit)| Hit::new(triangle_index, hit, triangle_ids));
+        if let (Some(slot), Some(ray)) = (hits.get_mut(i), rays.get(i)) {
+            *slot = found.map(|(t, hit)| Hit::new(t, hit, triangles, triangle_ids, &ray.direction));
         }
     }
 }

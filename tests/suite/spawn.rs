@@ -1,0 +1,237 @@
+//! Secondary rays without an epsilon ([`bvhc::loader::SurfacePoint`]): rays spawned from hit points with
+//! `t_min = 0` never meet the triangle they start on, on the teapot and on real scenes scaled from 1e-3 to 1e4
+//! and moved up to 1e6 from the origin, on every kernel; rays spawned naively (from the interpolated point
+//! itself) do, so the test can see a self-hit. A shadow ray across a thin gap still finds the occluder. The hit
+//! record's normal and front-face flag are checked against f64.
+
+use bvhc::import::{ImportOptions, import};
+use bvhc::loader::{Hit, Ray, Tracer, geometric_normal};
+use rand::RngExt;
+
+use crate::common::*;
+
+/// Counts of one scene under one placement.
+#[derive(Default, Debug)]
+struct SelfHits {
+    spawned: usize,
+    /// Spawned rays whose closest hit is their own triangle, with the helper.
+    with_helper: usize,
+    /// The same rays from the interpolated point itself.
+    naive: usize,
+}
+
+/// A unit direction in the hemisphere of `normal` (cosine-weighted: a random unit vector plus the normal).
+fn hemisphere(rng: &mut impl RngExt, normal: [f32; 3]) -> [f32; 3] {
+    loop {
+        let p: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0f32..1.0));
+        let length = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        if !(0.01..=1.0).contains(&length) {
+            continue;
+        }
+        let d: [f32; 3] = std::array::from_fn(|a| p[a] / length + normal[a]);
+        let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if length > 1e-3 {
+            return d.map(|c| c / length);
+        }
+    }
+}
+
+/// Camera rays into the scene, `per_hit` ambient-occlusion rays from each hit (to the side the camera ray came
+/// from), traced by `tracer`.
+fn count_self_hits(tracer: &Tracer<'_>, camera_rays: &[Ray], per_hit: usize, seed: u64) -> SelfHits {
+    let mut rng = rng(seed);
+    let mut counts = SelfHits::default();
+    for ray in camera_rays {
+        let Some(hit) = tracer.closest_hit(ray) else { continue };
+        let surface = tracer.surface(&hit);
+        if surface.normal == [0.0; 3] {
+            continue;
+        }
+        let outward = if hit.front_face { surface.normal } else { surface.normal.map(|c| -c) };
+        for _ in 0..per_hit {
+            let direction = hemisphere(&mut rng, outward);
+            counts.spawned += 1;
+            let own = |found: Option<Hit>| found.is_some_and(|h| h.triangle_index == hit.triangle_index);
+            let spawned = surface.spawn(direction);
+            let again = tracer.closest_hit(&spawned);
+            if own(again) && std::env::var_os("BVHC_DEBUG_SPAWN").is_some() {
+                let n = surface.normal;
+                let side: f32 = (0..3).map(|a| direction[a] * n[a]).sum();
+                eprintln!(
+                    "self-hit: t {:e} side {side:e} front {} pos {:?} origin {:?} err {:?} again {:?}",
+                    again.unwrap().t,
+                    hit.front_face,
+                    surface.position,
+                    spawned.origin,
+                    surface.error,
+                    again
+                );
+            }
+            counts.with_helper += usize::from(own(again));
+            let naive = Ray { origin: surface.position, direction, t_min: 0.0, t_max: f32::INFINITY };
+            counts.naive += usize::from(own(tracer.closest_hit(&naive)));
+        }
+    }
+    counts
+}
+
+/// `triangles` scaled by `scale` and moved by `offset` (in f64, rounded once to f32).
+fn placed(triangles: &[Triangle], scale: f64, offset: f64) -> Vec<Triangle> {
+    triangles.iter().map(|t| t.map(|v| v.map(|c| (f64::from(c) * scale + offset) as f32))).collect()
+}
+
+/// Camera rays from a sphere around the scene's box toward points inside it.
+fn camera_rays(triangles: &[Triangle], count: usize, seed: u64) -> Vec<Ray> {
+    let (mut min, mut max) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for v in triangles.iter().flatten() {
+        for a in 0..3 {
+            min[a] = min[a].min(v[a]);
+            max[a] = max[a].max(v[a]);
+        }
+    }
+    let center: [f64; 3] = std::array::from_fn(|a| 0.5 * (f64::from(min[a]) + f64::from(max[a])));
+    let radius = (0..3).map(|a| f64::from(max[a]) - f64::from(min[a])).fold(0.0, f64::max);
+    let mut rng = rng(seed);
+    (0..count)
+        .map(|_| {
+            let from: [f64; 3] = std::array::from_fn(|a| center[a] + radius * rng.random_range(-1.0..1.0));
+            let to: [f64; 3] = std::array::from_fn(|a| center[a] + 0.3 * radius * rng.random_range(-1.0..1.0));
+            Ray::new(from.map(|c| c as f32), std::array::from_fn(|a| (to[a] - from[a]) as f32))
+        })
+        .collect()
+}
+
+/// Placements of a scene: its own scale, scaled down and up, and moved far from the origin.
+const PLACEMENTS: [(f64, f64); 6] = [(1.0, 0.0), (1e-3, 0.0), (1e-3, 0.5), (1e4, 0.0), (1.0, 1e3), (1e4, 1e6)];
+
+fn check_scene(name: &str, triangles: &[Triangle], camera_count: usize, per_hit: usize) {
+    let extent = {
+        let flat: Vec<f32> = triangles.iter().flatten().flatten().copied().collect();
+        flat.iter().fold(0.0f32, |m, c| m.max(c.abs()))
+    };
+    let mut naive_total = 0;
+    for (i, &(scale, offset)) in PLACEMENTS.iter().enumerate() {
+        // Offsets are relative to the scene's own size, so that a scene scaled down is not lost in the f32
+        // spacing of a far-away offset.
+        let placed = placed(triangles, scale / f64::from(extent.max(1e-30)), offset);
+        let file = write_wide_file(&placed, 4);
+        let rays = camera_rays(&placed, camera_count, 500 + i as u64);
+        for tracer in every_kernel(&file.view()) {
+            let counts = count_self_hits(&tracer, &rays, per_hit, 900 + i as u64);
+            eprintln!("{name} x{scale:e} +{offset:e} {:?}: {counts:?}", tracer.kernel());
+            assert!(counts.spawned > camera_count, "{name}: too few hits to test ({counts:?})");
+            assert_eq!(counts.with_helper, 0, "{name} scaled {scale:e}, moved {offset:e}: self-hits {counts:?}");
+            naive_total += counts.naive;
+        }
+    }
+    assert!(naive_total > 0, "{name}: naive spawning never hit its own triangle, so the test cannot see one");
+}
+
+#[test]
+fn spawned_rays_never_meet_their_own_triangle_on_the_teapot() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let triangles = import(&path, &ImportOptions::default()).unwrap().soup.triangle_vertices();
+    check_scene("teapot", &triangles, 1500, 8);
+}
+
+#[test]
+fn spawned_rays_never_meet_their_own_triangle_on_real_scenes() {
+    for relative in [
+        "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz",
+        "stanford-dragon/dragon_vrip_res2.ply.gz",
+        "trimesh-no-indices-3storybuilding/no_indices_3storybuilding.glb",
+    ] {
+        let Some(path) = scene(relative) else { continue };
+        let triangles = import(&path, &ImportOptions::default()).unwrap().soup.triangle_vertices();
+        check_scene(relative, &triangles, 400, 8);
+    }
+}
+
+#[test]
+fn a_shadow_ray_across_a_thin_gap_finds_the_occluder() {
+    // Two parallel unit squares a gap apart (relative to the scene's scale), far from the origin or not: a
+    // shadow ray from the lower one to a light above the upper one is blocked, and an AO ray straight up
+    // meets the upper square at the gap's distance.
+    for (scale, offset) in [(1.0f64, 0.0f64), (1e-3, 0.0), (1e4, 1e6), (1.0, 1e3)] {
+        for gap in [1e-3, 1e-4] {
+            // A gap of a few ulps cannot be resolved by any offset: test gaps of 32 ulps of the coordinates or more.
+            let far = (offset + scale) as f32;
+            if ((gap * scale) as f32) < 32.0 * (far.next_up() - far) {
+                continue;
+            }
+            let at = |x: f64, y: f64, z: f64| [x, y, z].map(|c| (c * scale + offset) as f32);
+            let square = |z: f64| -> [Triangle; 2] {
+                let [a, b, c, d] = [at(0.0, 0.0, z), at(1.0, 0.0, z), at(1.0, 1.0, z), at(0.0, 1.0, z)];
+                [[a, b, c], [a, c, d]]
+            };
+            let triangles: Vec<Triangle> = square(0.0).into_iter().chain(square(gap)).collect();
+            let file = write_wide_file(&triangles, 1);
+            for tracer in every_kernel(&file.view()) {
+                let down = Ray::new(at(0.3, 0.6, -1.0), at(0.3, 0.6, 0.0).map(|_| 0.0));
+                let down = Ray { direction: [0.0, 0.0, 1.0], ..down };
+                let hit = tracer.closest_hit(&down).expect("the lower square is hit from below");
+                let surface = tracer.surface(&hit);
+                let light = at(0.5, 0.5, 2.0);
+                assert!(tracer.any_hit(&surface.spawn_to(light)), "x{scale} +{offset} gap {gap}: the upper square");
+                let up = tracer.closest_hit(&surface.spawn([0.0, 0.0, 1.0])).expect("the upper square is above");
+                // At most the gap, and the origin moved off the lower square by less than half of it.
+                let expected = (gap * scale) as f32;
+                assert!(up.t > 0.5 * expected && up.t <= 1.01 * expected, "x{scale} +{offset} gap {gap}: t {}", up.t);
+                assert_ne!(up.triangle_index, hit.triangle_index);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_hit_record_has_the_geometric_normal_and_the_side() {
+    let triangles = random_triangles(77, 300, 4.0);
+    let file = write_wide_file(&triangles, 4);
+    let view = file.view();
+    let rays = random_rays(78, 3000, 6.0);
+    let mut hits = 0;
+    for tracer in every_kernel(&view) {
+        for ray in &rays {
+            let Some(hit) = tracer.closest_hit(ray) else { continue };
+            hits += 1;
+            let record = &view.triangles()[hit.triangle_index as usize];
+            assert_eq!(hit.normal, geometric_normal(record));
+            let [v0, v1, v2] = record.vertices.map(|v| v.map(f64::from));
+            let e1: [f64; 3] = std::array::from_fn(|a| v1[a] - v0[a]);
+            let e2: [f64; 3] = std::array::from_fn(|a| v2[a] - v0[a]);
+            let exact = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+            let facing: f64 = (0..3).map(|a| f64::from(ray.direction[a]) * exact[a]).sum();
+            let size = (0..3).map(|a| exact[a].abs()).fold(0.0, f64::max);
+            for (computed, exact) in hit.normal.iter().zip(exact) {
+                assert!((f64::from(*computed) - exact).abs() <= 1e-5 * size.max(1e-30), "{hit:?}");
+            }
+            if facing.abs() > 1e-3 * size {
+                assert_eq!(hit.front_face, facing < 0.0, "{hit:?} {ray:?}");
+            }
+        }
+    }
+    assert!(hits > 500, "{hits} hits");
+    // The batch entry points give the same records.
+    let tracer = view.tracer();
+    let mut batch = vec![None; rays.len()];
+    tracer.closest_hits(&rays, &mut batch);
+    for (ray, found) in rays.iter().zip(&batch) {
+        assert_eq!(*found, tracer.closest_hit(ray));
+    }
+}
+
+#[test]
+fn batch_calls_with_unequal_slices_panic_naming_the_call() {
+    let file = write_wide_file(&random_triangles(79, 50, 1.0), 4);
+    let tracer = file.view().tracer();
+    let rays = random_rays(80, 10, 2.0);
+    let mut short = vec![None; 9];
+    let panic = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| tracer.closest_hits(&rays, &mut short)));
+    let message = panic.expect_err("unequal slices panic");
+    let text = message.downcast_ref::<String>().map(String::as_str).unwrap_or("");
+    assert!(text.contains("closest_hits") && text.contains("10 rays but 9"), "{text}");
+    let mut long = vec![false; 11];
+    assert!(std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| tracer.any_hits(&rays, &mut long))).is_err());
+    let mut exact = vec![false; 10];
+    tracer.any_hits_coherent(&rays, &mut exact);
+}
