@@ -16,6 +16,7 @@ mod import_formats;
 mod import_gltf;
 mod import_mutation;
 mod import_scenes;
+mod lean;
 mod memory_budget;
 mod metadata_schema;
 mod mutation;

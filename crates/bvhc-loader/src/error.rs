@@ -172,28 +172,19 @@ impl fmt::Display for Violation {
 impl std::error::Error for Violation {}
 
 /// Everything that can go wrong when opening, verifying or writing a `.bvh` file.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug)]
 #[non_exhaustive]
 pub enum Error {
     /// The bytes break a validity rule.
-    #[error("invalid .bvh file: {0}")]
-    Invalid(#[from] Violation),
+    Invalid(Violation),
     /// The byte buffer does not start at a 4-byte-aligned address, so sections cannot be viewed in place.
-    #[error(
-        "the byte buffer starts at address {address:#x}, which is not 4-byte aligned; \
-         copy it with BvhFile::from_bytes or align it"
-    )]
     Misaligned {
         /// The buffer's address.
         address: usize,
     },
     /// The host is big-endian: the file's little-endian arrays cannot be viewed in place.
-    #[error(
-        "this host is big-endian; .bvh files are little-endian and are only viewed in place on little-endian hosts"
-    )]
     BigEndianHost,
     /// Reading or writing a file failed.
-    #[error("{}: {source}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -203,7 +194,6 @@ pub enum Error {
     /// The allocator refused memory that reading or writing needs (the system's memory, or an address-space or
     /// other limit of the process): an error the caller can report, rather than the abort of a failed
     /// allocation.
-    #[error("out of memory: {what} needs {bytes} bytes, which the system refused")]
     OutOfMemory {
         /// What the memory was for, e.g. `the file's bytes`.
         what: String,
@@ -211,8 +201,46 @@ pub enum Error {
         bytes: u64,
     },
     /// The data handed to the writer cannot be stored (too many elements for u32 indices, and similar).
-    #[error("cannot write .bvh file: {0}")]
     Unwritable(String),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Invalid(violation) => write!(f, "invalid .bvh file: {violation}"),
+            Error::Misaligned { address } => write!(
+                f,
+                "the byte buffer starts at address {address:#x}, which is not 4-byte aligned; copy it with \
+                 BvhFile::from_bytes or align it"
+            ),
+            Error::BigEndianHost => write!(
+                f,
+                "this host is big-endian; .bvh files are little-endian and are only viewed in place on little-endian \
+                 hosts"
+            ),
+            Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            Error::OutOfMemory { what, bytes } => {
+                write!(f, "out of memory: {what} needs {bytes} bytes, which the system refused")
+            }
+            Error::Unwritable(why) => write!(f, "cannot write .bvh file: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Invalid(violation) => Some(violation),
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+impl From<Violation> for Error {
+    fn from(violation: Violation) -> Error {
+        Error::Invalid(violation)
+    }
 }
 
 impl Error {

@@ -5,16 +5,15 @@ use std::fs::File;
 use std::io::Read;
 use std::path::Path;
 
-use bytemuck::{Pod, Zeroable};
-use memmap2::Mmap;
-
 use crate::error::Error;
 use crate::view::BvhView;
 
 /// 64 bytes aligned to 64, the unit of [`AlignedBuffer`].
 #[repr(C, align(64))]
-#[derive(Clone, Copy, Pod, Zeroable)]
+#[derive(Clone, Copy)]
 struct Block([u8; 64]);
+
+crate::format::plain_data! { Block { [u8; 64] } }
 
 /// A heap buffer whose first byte is 64-byte aligned, as the sections' offsets assume.
 pub(crate) struct AlignedBuffer {
@@ -30,7 +29,7 @@ impl AlignedBuffer {
         blocks
             .try_reserve_exact(block_count)
             .map_err(|_| Error::OutOfMemory { what: "the file's bytes".to_string(), bytes: byte_len as u64 })?;
-        blocks.resize(block_count, Block::zeroed());
+        blocks.resize(block_count, <Block as bytemuck::Zeroable>::zeroed());
         Ok(AlignedBuffer { blocks, byte_len })
     }
 
@@ -72,6 +71,7 @@ impl BvhFile {
 
     /// [`BvhFile::read`] past the page cache where the system allows it (Linux `O_DIRECT`; buffered reads
     /// elsewhere): for reading back a large file just written, whose pages nothing else will want.
+    #[cfg(feature = "write")]
     pub fn read_uncached(path: impl AsRef<Path>) -> Result<BvhFile, Error> {
         let path = path.as_ref();
         let io = |source| Error::Io { path: path.to_path_buf(), source };
@@ -108,17 +108,21 @@ impl std::fmt::Debug for BvhFile {
     }
 }
 
+#[cfg(feature = "mmap")]
 impl std::fmt::Debug for MappedBvh {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("MappedBvh").field("byte_len", &self.as_bytes().len()).finish_non_exhaustive()
     }
 }
 
-/// A `.bvh` file mapped into memory: opening costs O(number of sections) whatever the file's size.
+/// A `.bvh` file mapped into memory: opening costs O(number of sections) whatever the file's size (feature
+/// `mmap`, on by default).
+#[cfg(feature = "mmap")]
 pub struct MappedBvh {
-    map: Mmap,
+    map: memmap2::Mmap,
 }
 
+#[cfg(feature = "mmap")]
 impl MappedBvh {
     /// Maps the file at `path` and opens it (rules V1-V10).
     ///
@@ -126,8 +130,8 @@ impl MappedBvh {
     ///
     /// The file must not be modified or truncated while the map lives: the view's slices point into the
     /// mapped pages, so a change is seen as changing `&[u8]` data (undefined behaviour), and truncation makes
-    /// reads past the new end raise SIGBUS. Replace files by renaming a new file over them (as
-    /// [`crate::write_atomic`] does), never by writing in place. When that cannot be guaranteed, use
+    /// reads past the new end raise SIGBUS. Replace files by renaming a new file over them (as bvhc's
+    /// writer does), never by writing in place. When that cannot be guaranteed, use
     /// [`BvhFile::read`].
     #[allow(unsafe_code)]
     pub unsafe fn open(path: impl AsRef<Path>) -> Result<MappedBvh, Error> {
@@ -135,7 +139,7 @@ impl MappedBvh {
         let io = |source| Error::Io { path: path.to_path_buf(), source };
         let file = File::open(path).map_err(io)?;
         // SAFETY: the caller guarantees the file is not changed while mapped (this function's contract).
-        let map = unsafe { Mmap::map(&file) }.map_err(io)?;
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;
         BvhView::open(&map)?;
         Ok(MappedBvh { map })
     }

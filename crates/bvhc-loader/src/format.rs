@@ -6,8 +6,6 @@
 //! and the sizes are asserted at compile time. The file is little-endian; the zero-copy casts are only valid on
 //! little-endian hosts, which `BvhView::open` checks.
 
-use bytemuck::{Pod, Zeroable};
-
 /// The 8 bytes every `.bvh` file of bvhc starts with: `\x89 B V H C \r \n \x1a`.
 ///
 /// Like PNG's signature: the high first byte catches 7-bit transfers and tells the file apart from text files,
@@ -151,7 +149,7 @@ impl SectionKind {
 
 /// The file header: the first 64 bytes of the file.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FileHeader {
     /// [`MAGIC`].
     pub magic: [u8; 8],
@@ -175,7 +173,7 @@ pub struct FileHeader {
 
 /// One entry of the section table, which follows the header directly.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SectionEntry {
     /// What the section holds ([`SectionKind::code`]).
     pub kind: u32,
@@ -203,7 +201,7 @@ pub struct SectionEntry {
 ///
 /// Node 0 is the root. The box encloses the boxes of its children (inner) or its triangles (leaf).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PackedNode {
     /// Minimum corner of the box.
     pub min: [f32; 3],
@@ -225,7 +223,7 @@ impl PackedNode {
 
 /// The three vertices of one triangle, stored in leaf order so traversal reads them without indirection.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PackedTriangle {
     /// The vertices `v0, v1, v2`; the front face is counter-clockwise seen from the front.
     pub vertices: [[f32; 3]; 3],
@@ -237,7 +235,7 @@ pub struct PackedTriangle {
 /// triangle index within the primitive is `id - first_source_triangle`. Fields that do not apply to an input
 /// format hold [`NO_INDEX`].
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct SourceRange {
     /// First source triangle id of the range.
     pub first_source_triangle: u32,
@@ -288,7 +286,7 @@ pub const UNUSED_LANE_COORDINATE_BITS: u32 = 0x7FC0_0000;
 /// Occupied slots come first; the root has at least one, every other node at least two. Node 0 is the root;
 /// its own box is the binary root's (`nodes[0]`). 256 bytes, so nodes stay 64-byte aligned in the section.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WideNode8 {
     /// Children's box minima, per axis then per slot.
     pub min: [[f32; WIDE]; 3],
@@ -326,7 +324,7 @@ impl WideNode8 {
 /// SIMD lanes, and each lane's index into the `triangles` section, whose vertices the lane repeats bit for bit. Used lanes come first; an unused lane
 /// has index `UNUSED_LANE` and every coordinate `UNUSED_LANE_COORDINATE_BITS`. 160 bytes.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrianglePacket4 {
     /// Coordinates, per vertex, axis, lane.
     pub vertices: [[[f32; PACKET_LANES]; 3]; 3],
@@ -372,6 +370,34 @@ const _: () = assert!(size_of::<SectionEntry>() == 48);
 const _: () = assert!(size_of::<PackedNode>() == 32);
 const _: () = assert!(size_of::<PackedTriangle>() == 36);
 const _: () = assert!(size_of::<SourceRange>() == 32);
+
+/// Marks plain-data on-disk types as `bytemuck::Zeroable` and `bytemuck::Pod` (what the derive would do, without
+/// its proc-macro dependencies), after proving at compile time that each has no padding: its size is the sum of
+/// its fields' sizes.
+macro_rules! plain_data {
+    ($($ty:ty { $($field:ty),+ })+) => {$(
+        const _: () = assert!(size_of::<$ty>() == 0 $(+ size_of::<$field>())+, "no padding");
+        // SAFETY: `$ty` is `#[repr(C)]`, every field is an integer, a float or an array of them (all `Pod`: any
+        // bit pattern is valid, all-zero included), and the assertion above proves there is no padding byte, so
+        // every byte of a `$ty` is initialized and any bytes are a valid `$ty`. The type is `Copy` and `'static`.
+        #[allow(unsafe_code)]
+        unsafe impl bytemuck::Zeroable for $ty {}
+        // SAFETY: as above.
+        #[allow(unsafe_code)]
+        unsafe impl bytemuck::Pod for $ty {}
+    )+};
+}
+pub(crate) use plain_data;
+
+plain_data! {
+    FileHeader { [u8; 8], u16, u16, u32, u64, u32, u32, u64, [u64; 3] }
+    SectionEntry { u32, u32, u64, u64, u64, u32, u32, u64 }
+    PackedNode { [f32; 3], [f32; 3], u32, u32 }
+    PackedTriangle { [[f32; 3]; 3] }
+    SourceRange { u32, u32, u32, u32, u32, u32, u32, u32 }
+    WideNode8 { [[f32; WIDE]; 3], [[f32; WIDE]; 3], [u32; WIDE], [u32; WIDE] }
+    TrianglePacket4 { [[[f32; PACKET_LANES]; 3]; 3], [u32; PACKET_LANES] }
+}
 
 /// Byte size of the header.
 pub const HEADER_BYTE_LEN: usize = size_of::<FileHeader>();

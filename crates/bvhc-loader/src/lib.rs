@@ -1,18 +1,24 @@
-//! Runtime reader of bvhc's `.bvh` files: zero-copy views, a full verifier, the writer, and a robust ray
-//! traversal kernel (closest hit and any hit).
+//! Runtime reader of bvhc's `.bvh` files: zero-copy views, a full verifier, and a robust ray traversal kernel
+//! (closest hit and any hit); the writer is behind the `write` feature, which renderers do not need.
 //!
 //! The format is specified in `format-spec/bvh-1.md` of the bvhc repository; the types in [`mod@format`] are its
 //! single source of truth in Rust, used by the writer and the reader alike.
 //!
 //! ```
-//! use bvhc_loader::{BvhWriter, PackedNode, PackedTriangle, Ray};
+//! use bvhc_loader::{BvhFile, Ray};
 //!
-//! let triangle = PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
-//! let root = PackedNode { min: [0.0; 3], max: [1.0, 1.0, 0.0], index: 0, count: 1 };
-//! let file = BvhWriter::new(&[root], &[triangle]).build()?; // lays out and fully verifies
+//! // A file `bvhc` converted: here the golden quad of the format spec, embedded; `BvhFile::read("scene.bvh")`
+//! // reads one from disk, `MappedBvh::open` maps it.
+//! let file = BvhFile::from_bytes(include_bytes!("../../../fixtures/golden/quad-v1.1.bvh"))?;
 //! let view = file.view();
-//! let hit = view.tracer().closest_hit(&Ray::new([0.25, 0.25, 1.0], [0.0, 0.0, -1.0])).unwrap();
-//! assert_eq!((hit.t, hit.triangle_index), (1.0, 0));
+//! view.verify()?; // every validity rule (opening checked the structural ones)
+//! let tracer = view.tracer();
+//! let hit = tracer.closest_hit(&Ray::new([0.25, 0.75, 1.0], [0.0, 0.0, -1.0])).expect("the quad is below");
+//! assert_eq!(hit.t, 1.0);
+//! assert!(hit.front_face); // the quad's counter-clockwise side faces +z
+//! // A secondary ray from the hit, with t_min = 0 and no epsilon: it never meets the quad it leaves.
+//! let surface = tracer.surface(&hit);
+//! assert!(!tracer.any_hit(&surface.spawn([0.0, 0.0, 1.0])));
 //! # Ok::<(), bvhc_loader::Error>(())
 //! ```
 //!
@@ -31,6 +37,7 @@
 //! example inside a rayon loop). The batch calls (`closest_hits`, `any_hits` and their coherent forms) panic
 //! when the result slice is not as long as the ray slice, naming the call.
 
+#[cfg(feature = "write")]
 mod atomic;
 mod checksum;
 pub mod cost;
@@ -39,9 +46,11 @@ mod file;
 pub mod format;
 mod hit;
 mod intersect;
+mod json;
 mod simd;
 mod spawn;
 mod traverse;
+#[cfg(feature = "write")]
 mod uncached;
 mod verify;
 mod verify_consistency;
@@ -54,15 +63,19 @@ mod wide;
 mod wide_coherent;
 mod wide_packets;
 mod wide_walk;
+#[cfg(feature = "write")]
 mod writer;
 
+#[cfg(feature = "write")]
 pub use atomic::{
     AtomicOutput, TEMPORARY_PREFIX, TEMPORARY_SUFFIX, check_replaceable, directory_of, remove_own_temporary_files,
     sweep_stale, write_atomic,
 };
 pub use checksum::{header_checksum, section_checksum};
 pub use error::{Error, Rule, Violation};
-pub use file::{BvhFile, MappedBvh};
+pub use file::BvhFile;
+#[cfg(feature = "mmap")]
+pub use file::MappedBvh;
 pub use format::{
     EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, SectionKind, SourceRange, TrianglePacket4, WIDE,
     WideNode8,
@@ -72,16 +85,19 @@ pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use simd::KernelPath;
 pub use spawn::SurfacePoint;
 pub use traverse::{Kernel, Tracer};
+#[cfg(feature = "write")]
 pub use uncached::UncachedWriter;
 pub use verify::{PARALLEL_VERIFY_BYTES, verify_tree};
 pub use view::{BvhView, SectionInfo, WideSections};
 pub use wide::{WideBvh, WideTracer};
+#[cfg(feature = "write")]
 pub use writer::BvhWriter;
 
 /// The types a renderer shares between threads are `Send + Sync` (checked at compile time).
 const _: () = {
     const fn shared<T: Send + Sync>() {}
     shared::<BvhFile>();
+    #[cfg(feature = "mmap")]
     shared::<MappedBvh>();
     shared::<BvhView<'static>>();
     shared::<Tracer<'static>>();

@@ -15,8 +15,6 @@ use std::fs::File;
 use std::io::{Read, Write};
 use std::path::Path;
 
-use bytemuck::{Pod, Zeroable};
-
 /// The alignment of `O_DIRECT` transfers: buffer address, length and file offset. 4096 covers the logical
 /// block size of every common device (512 or 4096).
 const PAGE_BYTE_LEN: usize = 4096;
@@ -26,8 +24,10 @@ const STAGE_PAGES: usize = 2048;
 
 /// One page, aligned as `O_DIRECT` requires.
 #[repr(C, align(4096))]
-#[derive(Clone, Copy, Pod, Zeroable)]
+#[derive(Clone, Copy)]
 struct Page([u8; PAGE_BYTE_LEN]);
+
+crate::format::plain_data! { Page { [u8; PAGE_BYTE_LEN] } }
 
 /// A page-aligned buffer of `STAGE_PAGES` pages.
 struct Stage {

@@ -7,7 +7,7 @@
 //! * V38 build: `build.wide` and `build.write_ids` against the sections, leaf sizes against `max_leaf_size`;
 //! * V39 choice: `choice.kept` is the first candidate of lowest cost, and that cost is the file's.
 
-use serde_json::{Map, Value};
+use crate::json::{Map, Value};
 
 use crate::cost::{binary_cost, wide_cost};
 use crate::error::{Rule, Violation, violation};
@@ -19,7 +19,7 @@ use crate::view::BvhView;
 pub const COST_TOLERANCE: f64 = 1e-9;
 
 /// V36-V39 on `metadata`, the parsed metadata section (V23 held).
-pub(crate) fn verify_consistency(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+pub(crate) fn verify_consistency(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     verify_wide_counts(view, metadata)?;
     verify_triangle_counts(view, metadata)?;
     verify_costs(view, metadata)?;
@@ -27,12 +27,12 @@ pub(crate) fn verify_consistency(view: &BvhView<'_>, metadata: &Map<String, Valu
     verify_choice(metadata)
 }
 
-fn object<'m>(metadata: &'m Map<String, Value>, key: &str) -> Option<&'m Map<String, Value>> {
+fn object<'m>(metadata: &'m Map, key: &str) -> Option<&'m Map> {
     metadata.get(key).and_then(Value::as_object)
 }
 
 /// V36, the `wide` object: present exactly as the sections are, with their element counts.
-fn verify_wide_counts(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+fn verify_wide_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     let fail = |detail: String| Err(violation(Rule::MetadataCounts, format!("metadata wide: {detail}")));
     let sections = view.wide_sections();
     match (metadata.get("wide"), sections) {
@@ -56,14 +56,14 @@ fn verify_wide_counts(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Resu
 
 /// V36, the `triangles` object: ids below `source_triangle_count`; stored plus dropped is the source count;
 /// `stored_count` is the number of distinct source triangles the file holds.
-fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     let Some(record) = object(metadata, "triangles") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataCounts, format!("metadata triangles: {detail}")));
     let count = |key: &str| record.get(key).and_then(Value::as_u64);
     let dropped: Option<u64> = object(record, "dropped").and_then(|d| {
         ["repeated_index", "zero_area", "zero_area_after_placement"]
             .iter()
-            .map(|k| d.get(*k).and_then(Value::as_u64))
+            .map(|k| d.get(k).and_then(Value::as_u64))
             .try_fold(0u64, |sum, n| sum.checked_add(n?))
     });
     let (source, stored) = (count("source_triangle_count"), count("stored_count"));
@@ -136,7 +136,7 @@ fn distinct_id_count(ids: &[u32]) -> u64 {
     seen.iter().map(|w| u64::from(w.count_ones())).sum()
 }
 
-fn number(record: &Map<String, Value>, key: &str) -> Option<f64> {
+fn number(record: &Map, key: &str) -> Option<f64> {
     record.get(key).and_then(Value::as_f64)
 }
 
@@ -146,7 +146,7 @@ fn close(stated: f64, computed: f64) -> bool {
 }
 
 /// V37: `cost` and `wide.cost` equal the costs recomputed from the file.
-fn verify_costs(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+fn verify_costs(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     if let Some(record) = object(metadata, "cost") {
         let (c_t, c_i) = (number(record, "c_t").unwrap_or(3.0), number(record, "c_i").unwrap_or(2.0));
         let cost = binary_cost(view.nodes(), c_t, c_i);
@@ -183,7 +183,7 @@ fn verify_costs(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(),
 
 /// V38: `build.wide` and `build.write_ids` agree with the sections; leaves hold at most `max_leaf_size`
 /// distinct triangles.
-fn verify_build(view: &BvhView<'_>, metadata: &Map<String, Value>) -> Result<(), Violation> {
+fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     let Some(build) = object(metadata, "build") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataBuild, format!("metadata build: {detail}")));
     match (build.get("wide"), view.wide_sections()) {
@@ -272,7 +272,7 @@ impl TriangleIdentity<'_, '_> {
 }
 
 /// V39: `choice.kept` names a candidate, the first of lowest cost, and its cost is the file's under `measure`.
-fn verify_choice(metadata: &Map<String, Value>) -> Result<(), Violation> {
+fn verify_choice(metadata: &Map) -> Result<(), Violation> {
     let Some(choice) = object(metadata, "choice") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataChoice, format!("metadata choice: {detail}")));
     let Some(candidates) = choice.get("candidates").and_then(Value::as_array) else { return Ok(()) };

@@ -2,7 +2,7 @@
 //! byte order mark or NUL byte; source ranges name existing `inputs`; input names are never absolute paths;
 //! `format_version` agrees with the header.
 
-use serde_json::{Map, Value};
+use crate::json::{Map, Value};
 
 use crate::error::{Rule, Violation, violation};
 use crate::view::BvhView;
@@ -36,7 +36,7 @@ pub(crate) fn verify_metadata(view: &BvhView<'_>) -> Result<(), Violation> {
 }
 
 /// The metadata section as a JSON object, `None` without one; V23 broken otherwise.
-pub(crate) fn parsed_metadata(view: &BvhView<'_>) -> Result<Option<Map<String, Value>>, Violation> {
+pub(crate) fn parsed_metadata(view: &BvhView<'_>) -> Result<Option<Map>, Violation> {
     match view.metadata_str() {
         None => Ok(None),
         Some(text) => parse(text?).map(Some),
@@ -44,14 +44,14 @@ pub(crate) fn parsed_metadata(view: &BvhView<'_>) -> Result<Option<Map<String, V
 }
 
 /// V23: one JSON object, no BOM, no NUL byte.
-fn parse(text: &str) -> Result<Map<String, Value>, Violation> {
+fn parse(text: &str) -> Result<Map, Violation> {
     if text.starts_with('\u{feff}') {
         return Err(violation(Rule::Metadata, "metadata section: starts with a byte order mark"));
     }
     if let Some(at) = text.bytes().position(|b| b == 0) {
         return Err(violation(Rule::Metadata, format!("metadata section: NUL byte at offset {at}")));
     }
-    serde_json::from_str::<Map<String, Value>>(text)
+    crate::json::parse_object(text)
         .map_err(|e| violation(Rule::Metadata, format!("metadata section: not one JSON object ({e})")))
 }
 
