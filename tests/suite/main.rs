@@ -8,6 +8,7 @@ mod clusters;
 mod common;
 mod compat;
 mod corrupt;
+mod example_ao;
 mod convert;
 mod golden;
 mod hardening;

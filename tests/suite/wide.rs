@@ -289,12 +289,16 @@ fn streams_of_rays_equal_single_rays_on_every_path() {
                     assert_eq!(hits[i], wide.closest_hit(ray), "{path:?} interleave {interleave}: ray {i}");
                     assert_eq!(occluded[i], wide.any_hit(ray), "{path:?} interleave {interleave}: ray {i}");
                 }
-                // Through Tracer, and with more output slots than rays: the extra ones are left alone.
+                // Through Tracer: the same hits; more output slots than rays is a caller's bug, refused.
                 let tracer = view.binary_tracer().with_wide(wide);
+                let mut same = vec![None; rays.len()];
+                tracer.closest_hits(&rays, &mut same);
+                assert_eq!(same, hits);
                 let mut more = vec![None; rays.len() + 3];
-                tracer.closest_hits(&rays, &mut more);
-                assert_eq!(&more[..rays.len()], &hits[..]);
-                assert!(more[rays.len()..].iter().all(Option::is_none));
+                let refused = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    tracer.closest_hits(&rays, &mut more);
+                }));
+                assert!(refused.is_err(), "unequal slices are refused");
             }
         }
         // The binary kernel's streams, too.
