@@ -1,0 +1,120 @@
+//! The C API (`crates/bvhc-capi`): a C program built against `include/bvhc.h` and linked with the static
+//! library opens, verifies and traces a converted teapot (closest hit, any hit, batches, spawned rays) with
+//! the same hit records as the Rust API, bit for bit; the header's structs have the Rust structs' sizes and it
+//! declares exactly the library's exported functions. SKIPPED without a C compiler or without the library
+//! (`.ci/run` builds it with `cargo build --release -p bvhc-capi`).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use bvhc::loader::{BvhFile, Ray};
+use bvhc_capi::{BvhcHit, BvhcRay};
+
+use crate::cli::{bvhc, teapot};
+use crate::common::random_rays;
+
+const HEADER: &str = include_str!("../../crates/bvhc-capi/include/bvhc.h");
+const SOURCE: &str = include_str!("../../crates/bvhc-capi/src/lib.rs");
+
+#[test]
+fn the_header_declares_every_exported_function_and_nothing_else() {
+    let exported: Vec<&str> = SOURCE
+        .split("#[unsafe(no_mangle)]")
+        .skip(1)
+        .filter_map(|rest| rest.split("fn ").nth(1)?.split('(').next())
+        .collect();
+    assert!(exported.len() >= 12, "{exported:?}");
+    // Every `bvhc_name(` outside comments is a declaration.
+    let code = HEADER.lines().filter(|l| !l.trim_start().starts_with('*') && !l.trim_start().starts_with("/*"));
+    let mut declared: Vec<&str> = code
+        .flat_map(|line| line.match_indices("bvhc_").map(move |(at, _)| &line[at..]))
+        .filter_map(|rest| {
+            let name = &rest[..rest.find(|c: char| !c.is_ascii_alphanumeric() && c != '_').unwrap_or(rest.len())];
+            rest[name.len()..].starts_with('(').then_some(name)
+        })
+        .collect();
+    declared.sort_unstable();
+    let mut exported = exported;
+    exported.sort_unstable();
+    assert_eq!(declared, exported, "the header declares exactly the exported functions");
+    assert_eq!(size_of::<BvhcRay>(), 32);
+    assert_eq!(size_of::<BvhcHit>(), 36);
+}
+
+/// The static library beside the test binary (target/<profile>/libbvhc_capi.a), if built.
+fn static_library() -> Option<PathBuf> {
+    let exe = std::env::current_exe().ok()?;
+    let profile = exe.parent()?.parent()?;
+    Some(profile.join("libbvhc_capi.a")).filter(|p| p.is_file())
+}
+
+fn compile(dir: &Path, library: &Path) -> Result<PathBuf, String> {
+    let compiler = std::env::var("CC").unwrap_or_else(|_| "cc".to_string());
+    let binary = dir.join("capi_trace");
+    let output = Command::new(&compiler)
+        .args(["-std=c11", "-Wall", "-Wextra", "-pedantic", "-Werror"])
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/c/capi_trace.c"))
+        .arg(library)
+        .args(["-lpthread", "-ldl", "-lm", "-o"])
+        .arg(&binary)
+        .output()
+        .map_err(|e| format!("no C compiler ({compiler}: {e})"))?;
+    assert!(output.status.success(), "capi_trace.c does not build:\n{}", String::from_utf8_lossy(&output.stderr));
+    Ok(binary)
+}
+
+#[test]
+fn a_c_program_traces_with_the_same_hits_as_rust() {
+    let Some(library) = static_library() else {
+        eprintln!("SKIPPED: libbvhc_capi.a is not built (cargo build --release -p bvhc-capi)");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let binary = match compile(dir.path(), &library) {
+        Ok(binary) => binary,
+        Err(why) => {
+            eprintln!("SKIPPED: {why}");
+            return;
+        }
+    };
+    let bvh = dir.path().join("teapot.bvh");
+    assert!(bvhc(&[&teapot(), &"-o", &bvh, &"-q"]).status.success());
+    let mut rays = random_rays(61, 3000, 3.0);
+    rays.push(Ray::new([0.0, 1.5, 10.0], [0.0, 0.0, -1.0]));
+    let ray_file = dir.path().join("rays.bin");
+    let bytes: Vec<u8> = rays
+        .iter()
+        .flat_map(|r| r.origin.into_iter().chain(r.direction).chain([r.t_min, r.t_max]).flat_map(f32::to_le_bytes))
+        .collect();
+    std::fs::write(&ray_file, bytes).unwrap();
+    let run = Command::new(&binary).arg(&bvh).arg(&ray_file).output().unwrap();
+    assert!(run.status.success(), "capi_trace exit {:?}: {}", run.status.code(), String::from_utf8_lossy(&run.stderr));
+    let stdout = String::from_utf8(run.stdout).unwrap();
+    let mut lines = stdout.lines();
+    assert_eq!(lines.next(), Some("sizeof_ray 32"));
+    assert_eq!(lines.next(), Some("sizeof_hit 36"));
+    let file = BvhFile::read(&bvh).unwrap();
+    let tracer = file.view().tracer();
+    let mut hits = 0;
+    for (ray, line) in rays.iter().zip(lines) {
+        let any = u8::from(tracer.any_hit(ray));
+        let expected = match tracer.closest_hit(ray) {
+            None => format!("miss {any}"),
+            Some(hit) => {
+                hits += 1;
+                let [nx, ny, nz] = hit.normal.map(f32::to_bits);
+                format!(
+                    "hit {:08x} {:08x} {:08x} {nx:08x} {ny:08x} {nz:08x} {} {} {} {any}",
+                    hit.t.to_bits(),
+                    hit.u.to_bits(),
+                    hit.v.to_bits(),
+                    hit.triangle_index,
+                    hit.source_triangle_id.unwrap_or(u32::MAX),
+                    u8::from(hit.front_face)
+                )
+            }
+        };
+        assert_eq!(line, expected, "{ray:?}");
+    }
+    assert!(hits > 300, "{hits} of {} rays hit", rays.len());
+}
