@@ -96,6 +96,9 @@ fn golden_v1_1_file_reads_verifies_and_traces_on_every_kernel() {
         assert_traces_the_quad(&view, &view.binary_tracer().with_wide(wide_tracer));
     }
     assert_eq!(write_golden_1_1_scene().as_bytes(), file.as_bytes(), "the writer still writes the 1.1 bytes");
+    // The loader crate's docs embed a copy (it must package on its own).
+    let copy = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("crates/bvhc-loader/tests/data/quad-v1.1.bvh");
+    assert_eq!(std::fs::read(copy).unwrap(), file.as_bytes());
 }
 
 #[test]

@@ -9,7 +9,7 @@
 //!
 //! // A file `bvhc` converted: here the golden quad of the format spec, embedded; `BvhFile::read("scene.bvh")`
 //! // reads one from disk, `MappedBvh::open` maps it.
-//! let file = BvhFile::from_bytes(include_bytes!("../../../fixtures/golden/quad-v1.1.bvh"))?;
+//! let file = BvhFile::from_bytes(include_bytes!("../tests/data/quad-v1.1.bvh"))?;
 //! let view = file.view();
 //! view.verify()?; // every validity rule (opening checked the structural ones)
 //! let tracer = view.tracer();
