@@ -235,3 +235,32 @@ fn batch_calls_with_unequal_slices_panic_naming_the_call() {
     let mut exact = vec![false; 10];
     tracer.any_hits_coherent(&rays, &mut exact);
 }
+
+#[test]
+fn every_record_of_a_split_triangle_has_one_identity_with_or_without_ids() {
+    let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let dir = tempfile::tempdir().unwrap();
+    for write_ids in [true, false] {
+        let output = dir.path().join(format!("teapot-{write_ids}.bvh"));
+        bvhc::Conversion::new(&teapot, &output).preset(bvhc::Preset::MaxQuality).write_ids(write_ids).run().unwrap();
+        let file = bvhc::loader::BvhFile::read(&output).unwrap();
+        let view = file.view();
+        assert!(view.has_split_references(), "the max-quality teapot stores some triangles twice");
+        let identities = view.triangle_identities();
+        let mut by_coordinates: std::collections::HashMap<[u32; 9], u32> = Default::default();
+        for (t, record) in view.triangles().iter().enumerate() {
+            let identity = identities.get(t as u32);
+            match view.triangle_ids() {
+                Some(ids) => assert_eq!(identity, ids[t], "with ids the identity is the source id"),
+                None => {
+                    let key: [u32; 9] = std::array::from_fn(|k| record.vertices[k / 3][k % 3].to_bits());
+                    let first = *by_coordinates.entry(key).or_insert(t as u32);
+                    assert_eq!(identity, first, "record {t}: the first record with its coordinates");
+                }
+            }
+        }
+        let tracer = view.tracer();
+        let hit = tracer.closest_hit(&Ray::new([0.0, 1.5, 10.0], [0.0, 0.0, -1.0])).unwrap();
+        assert_eq!(identities.of(&hit), identities.get(hit.triangle_index));
+    }
+}

@@ -28,7 +28,8 @@
 //! [`BvhView::verify`] checks every rule.
 //!
 //! Hits ([`Hit`]) carry `t`, the barycentrics `u` (weight of `v1`) and `v` (weight of `v2`), the record's
-//! index, its source id, the geometric normal and whether the ray met the front side. For secondary rays,
+//! index, its source id, the geometric normal and whether the ray met the front side;
+//! [`BvhView::triangle_identities`] names the triangle the same way for every record of a split triangle. For secondary rays,
 //! [`Tracer::surface`] gives the hit's [`SurfacePoint`], whose `spawn` and `spawn_to` make rays with
 //! `t_min = 0` that never meet the triangle they leave, at any scale, with no epsilon to choose.
 //!
@@ -45,6 +46,7 @@ mod error;
 mod file;
 pub mod format;
 mod hit;
+mod identity;
 mod intersect;
 mod json;
 mod simd;
@@ -81,6 +83,7 @@ pub use format::{
     WideNode8,
 };
 pub use hit::{Hit, TraversalCounter, TraversalStats, geometric_normal};
+pub use identity::TriangleIdentities;
 pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use simd::KernelPath;
 pub use spawn::SurfacePoint;
