@@ -98,3 +98,10 @@ impl TraversalCounter for TraversalStats {
         self.triangle_tests += 1;
     }
 }
+
+/// Panics with a message naming `call` unless a batch's rays and results are as many (Embree's rule: a batch
+/// call with mismatched buffers is a caller's bug, reported at once, never a partial trace).
+#[track_caller]
+pub(crate) fn same_length(call: &str, rays: usize, results: usize) {
+    assert!(rays == results, "Tracer::{call}: {rays} rays but {results} result slots; pass slices of the same length");
+}

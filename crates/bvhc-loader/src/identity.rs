@@ -12,9 +12,8 @@
 
 use crate::format::PackedTriangle;
 use crate::hit::Hit;
-use crate::view::BvhView;
 
-/// The identity of each record of a file ([`BvhView::triangle_identities`]).
+/// The identity of each record of a file (`BvhView::triangle_identities`).
 #[derive(Clone, Debug)]
 pub struct TriangleIdentities<'a> {
     kind: Kind<'a>,
@@ -28,11 +27,16 @@ enum Kind<'a> {
 }
 
 impl<'a> TriangleIdentities<'a> {
-    pub(crate) fn of_view(view: &BvhView<'a>) -> TriangleIdentities<'a> {
-        let kind = match view.triangle_ids() {
+    /// The identities of a file's `triangles` with its `triangle_ids` and `SPLIT_REFERENCES` flag.
+    pub fn new(
+        triangles: &'a [PackedTriangle],
+        triangle_ids: Option<&'a [u32]>,
+        split_references: bool,
+    ) -> TriangleIdentities<'a> {
+        let kind = match triangle_ids {
             Some(ids) => Kind::SourceIds(ids),
-            None if !view.has_split_references() => Kind::Records,
-            None => Kind::FirstRecord(first_records(view.triangles())),
+            None if !split_references => Kind::Records,
+            None => Kind::FirstRecord(first_records(triangles)),
         };
         TriangleIdentities { kind }
     }

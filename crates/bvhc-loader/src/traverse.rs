@@ -87,7 +87,7 @@ impl<'a> Tracer<'a> {
     ///
     /// When `hits` is not as long as `rays` (a batch is never traced in part).
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        same_length("closest_hits", rays.len(), hits.len());
+        crate::hit::same_length("closest_hits", rays.len(), hits.len());
         match &self.wide {
             Some(wide) => wide.closest_hits(rays, hits),
             None => rays.iter().zip(hits).for_each(|(ray, hit)| *hit = self.closest_hit(ray)),
@@ -101,7 +101,7 @@ impl<'a> Tracer<'a> {
     ///
     /// When `occluded` is not as long as `rays`.
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
-        same_length("any_hits", rays.len(), occluded.len());
+        crate::hit::same_length("any_hits", rays.len(), occluded.len());
         match &self.wide {
             Some(wide) => wide.any_hits(rays, occluded),
             None => rays.iter().zip(occluded).for_each(|(ray, hit)| *hit = self.any_hit(ray)),
@@ -116,7 +116,7 @@ impl<'a> Tracer<'a> {
     ///
     /// When `hits` is not as long as `rays`.
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        same_length("closest_hits_coherent", rays.len(), hits.len());
+        crate::hit::same_length("closest_hits_coherent", rays.len(), hits.len());
         match &self.wide {
             Some(wide) => wide.closest_hits_coherent(rays, hits),
             None => self.closest_hits(rays, hits),
@@ -129,7 +129,7 @@ impl<'a> Tracer<'a> {
     ///
     /// When `occluded` is not as long as `rays`.
     pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
-        same_length("any_hits_coherent", rays.len(), occluded.len());
+        crate::hit::same_length("any_hits_coherent", rays.len(), occluded.len());
         match &self.wide {
             Some(wide) => wide.any_hits_coherent(rays, occluded),
             None => self.any_hits(rays, occluded),
@@ -232,11 +232,4 @@ impl<'a> Tracer<'a> {
             }
         }
     }
-}
-
-/// Panics with a message naming `call` unless a batch's rays and results are as many (Embree's rule: a batch
-/// call with mismatched buffers is a caller's bug, reported at once, never a partial trace).
-#[track_caller]
-pub(crate) fn same_length(call: &str, rays: usize, results: usize) {
-    assert!(rays == results, "Tracer::{call}: {rays} rays but {results} result slots; pass slices of the same length");
 }

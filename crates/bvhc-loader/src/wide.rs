@@ -157,14 +157,14 @@ impl<'a> WideTracer<'a> {
     /// misses overlap with the others' work ([`WideTracer::interleaves_streams`]); each ray's hit is the one
     /// [`WideTracer::closest_hit`] returns, whichever way.
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        crate::traverse::same_length("closest_hits", rays.len(), hits.len());
+        crate::hit::same_length("closest_hits", rays.len(), hits.len());
         self.stream::<false>(rays, &mut hit_writer(hits, rays, self.triangles, self.triangle_ids));
     }
 
     /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
     /// panic naming the call), with rays interleaved as in [`WideTracer::closest_hits`].
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
-        crate::traverse::same_length("any_hits", rays.len(), occluded.len());
+        crate::hit::same_length("any_hits", rays.len(), occluded.len());
         self.stream::<true>(rays, &mut occlusion_writer(occluded));
     }
 
@@ -174,7 +174,7 @@ impl<'a> WideTracer<'a> {
     /// triangle may be another one hit at the same `t`. Slower than [`WideTracer::closest_hits`] for rays that
     /// go different ways.
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        crate::traverse::same_length("closest_hits_coherent", rays.len(), hits.len());
+        crate::hit::same_length("closest_hits_coherent", rays.len(), hits.len());
         self.packets::<false>(rays, &mut hit_writer(hits, rays, self.triangles, self.triangle_ids));
     }
 
@@ -182,7 +182,7 @@ impl<'a> WideTracer<'a> {
     /// panic naming the call), 8 consecutive rays a traversal as in [`WideTracer::closest_hits_coherent`]; the same answers
     /// as [`WideTracer::any_hit`].
     pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
-        crate::traverse::same_length("any_hits_coherent", rays.len(), occluded.len());
+        crate::hit::same_length("any_hits_coherent", rays.len(), occluded.len());
         self.packets::<true>(rays, &mut occlusion_writer(occluded));
     }
 
