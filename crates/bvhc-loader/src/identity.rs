@@ -12,8 +12,18 @@
 
 use crate::format::PackedTriangle;
 use crate::hit::Hit;
+use crate::view::BvhView;
 
-/// The identity of each record of a file (`BvhView::triangle_identities`).
+impl<'a> BvhView<'a> {
+    /// One identity per triangle for hits on any of its records (the source id with ids; with split references
+    /// and no ids, the first record with the same coordinates): [`TriangleIdentities`]. O(1) for files with
+    /// ids or without split references; otherwise a table built in O(n log n).
+    pub fn triangle_identities(&self) -> TriangleIdentities<'a> {
+        TriangleIdentities::new(self.triangles(), self.triangle_ids(), self.has_split_references())
+    }
+}
+
+/// The identity of each record of a file ([`BvhView::triangle_identities`]).
 #[derive(Clone, Debug)]
 pub struct TriangleIdentities<'a> {
     kind: Kind<'a>,

@@ -205,13 +205,6 @@ impl<'a> BvhView<'a> {
         }
     }
 
-    /// One identity per triangle for hits on any of its records (the source id with ids; with split references
-    /// and no ids, the first record with the same coordinates): `TriangleIdentities`. O(1) for files with
-    /// ids or without split references; otherwise a table built in O(n log n).
-    pub fn triangle_identities(&self) -> crate::identity::TriangleIdentities<'a> {
-        crate::identity::TriangleIdentities::new(self.triangles, self.triangle_ids, self.has_split_references())
-    }
-
     /// The binary kernel over the nodes and triangles sections: the reference traversal.
     pub fn binary_tracer(&self) -> Tracer<'a> {
         Tracer::new(self.nodes, self.triangles, self.triangle_ids)
