@@ -240,11 +240,7 @@ fn unique_triangle_count(view: &bvhc::loader::BvhView<'_>, metadata: &serde_json
         None => match metadata["triangles"]["stored_count"].as_u64() {
             Some(stored) => stored as usize,
             None => {
-                let mut keys: Vec<[u32; 9]> = view
-                    .triangles()
-                    .iter()
-                    .map(|t| std::array::from_fn(|k| t.vertices[k / 3][k % 3].to_bits()))
-                    .collect();
+                let mut keys: Vec<[u32; 9]> = view.triangles().iter().map(|t| t.coordinate_bits()).collect();
                 keys.sort_unstable();
                 keys.dedup();
                 keys.len()

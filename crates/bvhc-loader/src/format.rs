@@ -332,6 +332,14 @@ pub struct TrianglePacket4 {
     pub triangle_index: [u32; PACKET_LANES],
 }
 
+impl PackedTriangle {
+    /// The nine coordinates' bit patterns, `v0.x, v0.y, v0.z, v1.x, ...`: records are the same triangle's
+    /// references exactly when these are equal (and, with ids, their ids are), `format-spec/bvh-1.md` 5.2.
+    pub fn coordinate_bits(&self) -> [u32; 9] {
+        std::array::from_fn(|k| self.vertices[k / 3][k % 3].to_bits())
+    }
+}
+
 impl TrianglePacket4 {
     /// The packet of up to four triangles `(index, triangle)`; missing lanes are unused.
     pub fn new(triangles: &[(u32, PackedTriangle)]) -> TrianglePacket4 {

@@ -70,10 +70,7 @@ impl<'a> TriangleIdentities<'a> {
 
 /// For each record, the lowest index of a record with the same coordinates.
 fn first_records(triangles: &[PackedTriangle]) -> Vec<u32> {
-    let bits = |t: u32| -> [u32; 9] {
-        let v = &triangles[t as usize].vertices;
-        std::array::from_fn(|k| v[k / 3][k % 3].to_bits())
-    };
+    let bits = |t: u32| triangles[t as usize].coordinate_bits();
     let mut order: Vec<(u64, u32)> = (0..triangles.len() as u32).map(|t| (hash(&bits(t)), t)).collect();
     order.sort_unstable();
     let mut first: Vec<u32> = (0..triangles.len() as u32).collect();

@@ -88,7 +88,7 @@ fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Viol
     let distinct = match ids {
         Some(ids) => distinct_id_count(ids),
         None if !view.has_split_references() => records,
-        None => distinct_count(view.triangles().iter().map(record_key).collect()),
+        None => distinct_count(view.triangles().iter().map(PackedTriangle::coordinate_bits).collect()),
     };
     // Without ids a split file cannot tell a repeated reference from two source triangles with the same
     // vertices, so the distinct records bound the count from below and the records from above.
@@ -108,11 +108,6 @@ fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Viol
         return fail(format!("stored_count {stored}, but {what}"));
     }
     Ok(())
-}
-
-/// A triangle record's nine coordinates as bits: records are the same triangle exactly when these are equal.
-pub(crate) fn record_key(triangle: &PackedTriangle) -> [u32; 9] {
-    std::array::from_fn(|k| triangle.vertices[k / 3][k % 3].to_bits())
 }
 
 fn distinct_count<T: Ord>(mut keys: Vec<T>) -> u64 {
@@ -262,7 +257,8 @@ impl TriangleIdentity<'_, '_> {
             None if !self.view.has_split_references() => records.count() as u64,
             None => {
                 self.records.clear();
-                self.records.extend(records.filter_map(|t| triangles.get(t as usize).map(record_key)));
+                self.records
+                    .extend(records.filter_map(|t| triangles.get(t as usize).map(PackedTriangle::coordinate_bits)));
                 self.records.sort_unstable();
                 self.records.dedup();
                 self.records.len() as u64

@@ -97,10 +97,7 @@ pub(crate) fn verify_coverage(
     rule: Rule,
     containers: &str,
 ) -> Result<(), Violation> {
-    let bits = |t: u32| -> [u32; 9] {
-        let v = &triangles[t as usize].vertices;
-        std::array::from_fn(|k| v[k / 3][k % 3].to_bits())
-    };
+    let bits = |t: u32| triangles[t as usize].coordinate_bits();
     let key = |t: u32| (ids.map_or(0, |ids| ids[t as usize]), hash(&bits(t)));
     let held_whole = |t: u32, container: u32| holds_triangle(&box_of(container), &triangles[t as usize].vertices);
     let mut partly_held: Vec<(u32, u32)> =
