@@ -40,7 +40,7 @@ impl TraversalCounter for Counts {
 /// (ns for all rays, visits, packet tests) of one tree.
 fn run(tree: &OptTree, soup: &[PackedTriangle], costs: &WideCosts, rays: &[bvhc::loader::Ray]) -> (f64, u64, u64) {
     let bvh = pack_wide(&collapse(tree, costs), soup, &mut Some, false).unwrap();
-    let tracer = WideTracer::new(&bvh, soup, None, KernelPath::best());
+    let tracer = WideTracer::new(&bvh, None, KernelPath::best());
     let mut counts = Counts::default();
     for ray in rays {
         tracer.closest_hit_counted(ray, &mut counts);

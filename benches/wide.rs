@@ -106,8 +106,8 @@ fn kernel_speeds(
     let binary = file.view().tracer();
     let soup: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
     let bvh = bvhc::pack::pack_wide(wide, &soup, &mut Some, false).unwrap();
-    let portable = WideTracer::new(&bvh, &soup, None, KernelPath::Portable);
-    let avx2 = WideTracer::new(&bvh, &soup, None, KernelPath::Avx2);
+    let portable = WideTracer::new(&bvh, None, KernelPath::Portable);
+    let avx2 = WideTracer::new(&bvh, None, KernelPath::Avx2);
     let root = &file.view().nodes()[0];
     let speed = |rays: &[Ray], f: &dyn Fn(&Ray) -> bool| {
         let time = harness::median_time(3, || {

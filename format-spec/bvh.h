@@ -1,11 +1,11 @@
 /*
  * bvh.h: C11 declarations of the on-disk types of the .bvh format, major version 1 (format-spec/bvh-1.md,
- * version 1.1). Normative together with bvh-1.md, section 15: where the two disagree, bvh-1.md is right.
+ * version 1.2). Normative together with bvh-1.md, section 15: where the two disagree, bvh-1.md is right.
  *
  * Every type is plain data with no padding: each byte belongs to a named field, reserved fields included, and the
  * static assertions below pin every size and field offset. All values are little-endian; a reader on a
  * little-endian host with a 4-byte-aligned buffer (8-byte for the header and the section table) can use the
- * arrays of a file in place, after checking rules V1-V10 (and V11-V39 to trust the contents).
+ * arrays of a file in place, after checking rules V1-V10 (and V11-V40 to trust the contents).
  *
  * Floating point: the traversal relies on IEEE 754 binary32 with infinities, NaN, signed zeros and subnormal
  * numbers (bvh-1.md section 11.1). Do not compile code that traces these arrays with -ffast-math,
@@ -29,7 +29,7 @@ extern "C" {
 #define BVH_MAGIC "\x89" "BVHC\r\n\x1a" /* 8 bytes, without the string's terminating zero */
 #define BVH_MAGIC_BYTE_LEN 8
 #define BVH_VERSION_MAJOR 1
-#define BVH_VERSION_MINOR 1
+#define BVH_VERSION_MINOR 2
 #define BVH_HEADER_BYTE_LEN 64
 #define BVH_SECTION_ENTRY_BYTE_LEN 48 /* the entry's first 48 bytes; section_entry_byte_len may be larger */
 #define BVH_SECTION_ALIGNMENT 64
@@ -43,6 +43,7 @@ extern "C" {
 #define BVH_KIND_METADATA 5u
 #define BVH_KIND_WIDE_NODES 6u       /* since 1.1 */
 #define BVH_KIND_TRIANGLE_PACKETS 7u /* since 1.1 */
+#define BVH_KIND_SOURCE_VERTICES 8u  /* since 1.2 */
 #define BVH_KIND_PRIVATE_FIRST 0x80000000u
 #define BVH_SECTION_FLAG_REQUIRED (1u << 0)
 #define BVH_SECTION_FLAG_SPLIT_REFERENCES (1u << 1) /* triangles only */
@@ -131,6 +132,11 @@ typedef struct BvhTrianglePacket4 {
     uint32_t triangle_index[BVH_PACKET_LANES];
 } BvhTrianglePacket4;
 
+/* Element of the source_vertices section (section 5.9, since 1.2): the source vertex of v0, v1, v2. */
+typedef struct BvhSourceVertexIndices {
+    uint32_t indices[3];
+} BvhSourceVertexIndices;
+
 /* The layout is the spec's byte for byte. */
 static_assert(sizeof(float) == 4, "f32 is IEEE 754 binary32");
 static_assert(sizeof(BvhFileHeader) == 64, "FileHeader is 64 bytes");
@@ -184,6 +190,9 @@ static_assert(offsetof(BvhWideNode8, reserved) == 224, "reserved");
 static_assert(sizeof(BvhTrianglePacket4) == 160, "TrianglePacket4 is 160 bytes");
 static_assert(offsetof(BvhTrianglePacket4, vertices) == 0, "vertices");
 static_assert(offsetof(BvhTrianglePacket4, triangle_index) == 144, "triangle_index");
+
+static_assert(sizeof(BvhSourceVertexIndices) == 12, "SourceVertexIndices is 12 bytes");
+static_assert(offsetof(BvhSourceVertexIndices, indices) == 0, "indices");
 
 #ifdef __cplusplus
 }

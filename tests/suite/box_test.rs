@@ -66,7 +66,7 @@ fn a_box_the_exact_ray_meets_is_never_missed() {
         let bvh = one_slot_tree(box_min, box_max, point.map(|c| c as f32));
         for &path in &paths {
             let mut stats = TraversalStats::default();
-            WideTracer::new(&bvh, &[], None, path).closest_hit_counted(&ray, &mut stats);
+            WideTracer::new(&bvh, None, path).closest_hit_counted(&ray, &mut stats);
             assert_eq!(
                 stats.triangle_tests, 1,
                 "{path:?} slot test missed {box_min:?}..{box_max:?} met at t = {t} by {ray:?}"

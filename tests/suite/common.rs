@@ -274,11 +274,6 @@ pub fn wide_bvh(triangles: &[Triangle]) -> bvhc::loader::WideBvh {
     wide_bvh_of(&tree, triangles)
 }
 
-/// `triangles` as records, as the packets of [`wide_bvh`] index them (for a `WideTracer`'s hit normals).
-pub fn records(triangles: &[Triangle]) -> Vec<bvhc::loader::PackedTriangle> {
-    triangles.iter().map(|&vertices| bvhc::loader::PackedTriangle { vertices }).collect()
-}
-
 /// [`wide_bvh`] from a given binary optimizer tree.
 pub fn wide_bvh_of(tree: &bvhc::optimize::OptTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
     let wide = bvhc::layout::collapse(tree, &bvhc::layout::WideCosts::default());

@@ -1,18 +1,20 @@
 //! The golden files: every later version of the loader must keep reading them, with the same contents.
 //!
-//! `fixtures/golden/quad-v1.0.bvh` and `quad-v1.1.bvh` (the same quad with the wide sections of 1.1) were
-//! written by this writer from the scene below. Regenerate them only for a deliberate format change that keeps
+//! `fixtures/golden/quad-v1.0.bvh`, `quad-v1.1.bvh` (the same quad with the wide sections of 1.1) and
+//! `quad-v1.2.bvh` (and with the source vertices of 1.2) were written by this writer from the scene below. Regenerate them only for a deliberate format change that keeps
 //! major version 1 (`BVHC_BLESS=1 cargo test golden`), and never change what the assertions below expect.
 
 use std::path::PathBuf;
 
-use bvhc::loader::{BvhFile, BvhWriter, Ray, SectionKind};
+use bvhc::loader::{BvhFile, BvhWriter, Ray, SectionKind, SourceVertexIndices};
 
 use crate::common::*;
 
 const GOLDEN_METADATA: &str = r#"{"generator":"bvhc golden fixture","format_version":"1.0"}"#;
 
 const GOLDEN_METADATA_1_1: &str = r#"{"generator":"bvhc golden fixture","format_version":"1.1"}"#;
+
+const GOLDEN_METADATA_1_2: &str = r#"{"generator":"bvhc golden fixture","format_version":"1.2"}"#;
 
 fn golden_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/quad-v1.0.bvh")
@@ -21,6 +23,14 @@ fn golden_path() -> PathBuf {
 fn golden_1_1_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/quad-v1.1.bvh")
 }
+
+fn golden_1_2_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/quad-v1.2.bvh")
+}
+
+/// The quad's corners as the vertices 0..4 of one glTF-like primitive: triangle 0 is vertices (0, 1, 2),
+/// triangle 1 is (0, 2, 3), as `quad` lists them.
+const QUAD_SOURCE_VERTICES: [[u32; 3]; 2] = [[0, 1, 2], [0, 2, 3]];
 
 /// The unit square in the z = 0 plane as two triangles.
 fn quad() -> Vec<Triangle> {
@@ -49,6 +59,23 @@ fn write_golden_1_1_scene() -> BvhFile {
         .source_table(&ranges)
         .metadata(GOLDEN_METADATA_1_1)
         .wide(wide.nodes(), wide.packets())
+        .build()
+        .unwrap()
+}
+
+/// The 1.2 golden scene: the 1.1 one plus its source vertices.
+fn write_golden_1_2_scene() -> BvhFile {
+    let tree = packed_tree(&quad(), 1);
+    let wide = wide_sections_for(&tree, &quad());
+    let ranges = single_source_range(2);
+    let source_vertices: Vec<SourceVertexIndices> =
+        tree.triangle_ids.iter().map(|&t| SourceVertexIndices { indices: QUAD_SOURCE_VERTICES[t as usize] }).collect();
+    BvhWriter::new(&tree.nodes, &tree.triangles)
+        .triangle_ids(&tree.triangle_ids)
+        .source_table(&ranges)
+        .metadata(GOLDEN_METADATA_1_2)
+        .wide(wide.nodes(), wide.packets())
+        .source_vertices(&source_vertices)
         .build()
         .unwrap()
 }
@@ -161,11 +188,12 @@ fn golden_split_path() -> PathBuf {
 
 #[test]
 fn golden_split_file_with_every_metadata_key_reads_verifies_and_traces() {
-    // A file as the converter writes it (section 12's third dump): split references, wide sections, and the
+    // A file as the converter writes it (section 12's fourth dump): split references, wide sections, and the
     // metadata keys that V36-V39 check. A later converter may write other bytes; this file must keep verifying.
     if std::env::var_os("BVHC_BLESS").is_some() {
         let source = golden_split_path().with_file_name("split.obj");
-        bvhc::Conversion::new(source, golden_split_path()).preset(bvhc::Preset::MaxQuality).force(true).run().unwrap();
+        let conversion = bvhc::Conversion::new(source, golden_split_path()).preset(bvhc::Preset::MaxQuality);
+        conversion.write_source_vertices(false).force(true).run().unwrap();
     }
     let file = BvhFile::read(golden_split_path()).expect("fixtures/golden/split-v1.1.bvh");
     let view = file.view();
@@ -197,4 +225,70 @@ fn golden_split_file_with_every_metadata_key_reads_verifies_and_traces() {
     for tracer in every_kernel(&view) {
         assert_matches_brute_force(&tracer, &source, &rays, ids);
     }
+}
+
+#[test]
+fn golden_v1_2_file_reads_verifies_traces_and_interpolates_source_attributes() {
+    if std::env::var_os("BVHC_BLESS").is_some() {
+        std::fs::write(golden_1_2_path(), write_golden_1_2_scene().as_bytes()).unwrap();
+    }
+    let file = BvhFile::read(golden_1_2_path()).expect("fixtures/golden/quad-v1.2.bvh");
+    let view = file.view();
+    view.verify().unwrap();
+    assert_eq!(view.version(), (1, 2));
+    let kinds: Vec<_> = view.sections().map(|s| s.kind).collect();
+    let expected = [
+        SectionKind::Nodes,
+        SectionKind::Triangles,
+        SectionKind::TriangleIds,
+        SectionKind::SourceTable,
+        SectionKind::Metadata,
+        SectionKind::WideNodes,
+        SectionKind::TrianglePackets,
+        SectionKind::SourceVertices,
+    ];
+    assert_eq!(kinds, expected.map(Some));
+    assert_eq!(view.metadata_str().unwrap().unwrap(), GOLDEN_METADATA_1_2);
+    for path in kernel_paths() {
+        let wide_tracer = view.wide_tracer(path).unwrap();
+        assert_traces_the_quad(&view, &view.binary_tracer().with_wide(wide_tracer));
+    }
+    // Each record names its own corners, whatever order the leaves put the records in.
+    let ids = view.triangle_ids().unwrap();
+    for (record, vertices) in view.source_vertices().unwrap().iter().enumerate() {
+        assert_eq!(vertices.indices, QUAD_SOURCE_VERTICES[ids[record] as usize]);
+    }
+    // The corners' texture coordinates (here equal to x and y) interpolate to the hit point's x and y.
+    let uv = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    for (x, y) in [(0.75, 0.25), (0.25, 0.75), (0.5, 0.5), (0.125, 0.0625)] {
+        let hit = view.tracer().closest_hit(&Ray::new([x, y, 1.0], [0.0, 0.0, -1.0])).unwrap();
+        let corners = view.source_corners(&hit).unwrap();
+        assert_eq!(corners.range.first_source_triangle, 0);
+        assert_eq!(corners.interpolate(&uv), Some([x, y]));
+        assert_eq!(corners.interpolate(&uv[..2]), None, "an array of another primitive is too short");
+    }
+    assert_eq!(write_golden_1_2_scene().as_bytes(), file.as_bytes(), "the writer still writes the 1.2 bytes");
+    let copy = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("crates/bvhc-loader/tests/data/quad-v1.2.bvh");
+    if std::env::var_os("BVHC_BLESS").is_some() {
+        std::fs::write(&copy, file.as_bytes()).unwrap();
+    }
+    assert_eq!(std::fs::read(copy).unwrap(), file.as_bytes());
+}
+
+#[test]
+fn a_reader_of_1_1_reads_the_1_2_golden_file_without_its_source_vertices() {
+    // A 1.1 reader does not know kind 8: it is optional, so it skips it. Renaming it to an unknown kind gives
+    // this reader the same view: every other section as before, and hits as before.
+    let mut bytes = std::fs::read(golden_1_2_path()).unwrap();
+    let at = 64 + 7 * 48;
+    assert_eq!(u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()), 8);
+    bytes[at..at + 4].copy_from_slice(&0x8000_0008u32.to_le_bytes());
+    crate::corrupt::refresh_checksums(&mut bytes);
+    let file = BvhFile::from_bytes(&bytes).unwrap();
+    let view = file.view();
+    view.verify().unwrap();
+    assert!(view.source_vertices().is_none() && view.wide_sections().is_some());
+    assert_traces_the_quad(&view, &view.tracer());
+    let hit = view.tracer().closest_hit(&Ray::new([0.5, 0.25, 1.0], [0.0, 0.0, -1.0])).unwrap();
+    assert_eq!(view.source_corners(&hit), None);
 }

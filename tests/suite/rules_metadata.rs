@@ -10,7 +10,7 @@ use bvhc::options::Preset;
 use serde_json::{Value, json};
 
 /// The converted teapot's bytes, made once for every test here.
-fn converted() -> &'static [u8] {
+pub(crate) fn converted() -> &'static [u8] {
     static BYTES: OnceLock<Vec<u8>> = OnceLock::new();
     BYTES.get_or_init(|| {
         let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
@@ -26,19 +26,27 @@ fn metadata() -> Value {
     serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap()
 }
 
-/// The converted file's sections written again with `metadata`, with or without the triangle ids; the rule the
-/// writer's verification reports, if any.
+/// The converted file's sections written again with `metadata`, with or without the triangle ids (and the
+/// source table and source vertices that need them); the rule the writer's verification reports, if any.
 fn rewritten_with(metadata: &Value, with_ids: bool) -> Option<Rule> {
     let file = BvhFile::from_bytes(converted()).unwrap();
     let view = file.view();
     let wide = view.wide_sections().unwrap();
+    // Without ids there are no source vertices either, so the file is 1.1 and its metadata says so.
+    let mut metadata = metadata.clone();
+    if !with_ids {
+        metadata["format_version"] = json!("1.1");
+    }
     let text = metadata.to_string();
     let mut writer = BvhWriter::new(view.nodes(), view.triangles())
         .split_references(view.has_split_references())
         .wide(wide.nodes, wide.packets)
         .metadata(&text);
     if with_ids {
-        writer = writer.triangle_ids(view.triangle_ids().unwrap()).source_table(view.source_table().unwrap());
+        writer = writer
+            .triangle_ids(view.triangle_ids().unwrap())
+            .source_table(view.source_table().unwrap())
+            .source_vertices(view.source_vertices().unwrap());
     }
     writer.build().err().map(|e| e.rule().unwrap_or_else(|| panic!("not a rule: {e}")))
 }
@@ -92,6 +100,7 @@ fn v36_metadata_counts() {
     // between the distinct vertex triples and the records passes, and one outside fails.
     let mut metadata = metadata();
     metadata["build"]["write_ids"] = json!(false);
+    metadata["build"]["write_source_vertices"] = json!(false);
     assert_eq!(rewritten_with(&metadata, false), None);
     let records = BvhFile::from_bytes(converted()).unwrap().view().triangles().len();
     metadata["triangles"]["stored_count"] = json!(records + 1);
@@ -128,9 +137,16 @@ fn v38_metadata_build() {
     // wide limit of 1 by the wide leaves.
     expect(Rule::MetadataBuild, |m| m["build"]["max_leaf_size"] = json!(1));
     expect(Rule::MetadataBuild, |m| m["build"]["wide"]["max_leaf_size"] = json!(1));
+    expect(Rule::MetadataBuild, |m| m["build"]["write_source_vertices"] = json!(false));
     let mut metadata = metadata();
-    metadata["build"]["write_ids"] = json!(true);
+    metadata["build"]["write_source_vertices"] = json!(false);
     assert_eq!(rewritten_with(&metadata, false), Some(Rule::MetadataBuild), "ids promised, none written");
+    metadata["build"]["write_ids"] = json!(false);
+    metadata["build"]["write_source_vertices"] = json!(true);
+    assert_eq!(rewritten_with(&metadata, false), Some(Rule::MetadataBuild), "source vertices promised, none written");
+    // A file written before 1.2 records no write_source_vertices: not checked.
+    metadata["build"].as_object_mut().unwrap().remove("write_source_vertices");
+    assert_eq!(rewritten_with(&metadata, false), None);
 }
 
 #[test]

@@ -266,8 +266,7 @@ fn run_case(case: &Case) -> Counts {
     // The wide kernel, every path, over the same optimized tree: the same answers as brute force.
     let wide = crate::common::wide_bvh_of(&opt, &case.triangles);
     for path in crate::common::kernel_paths() {
-        let records = crate::common::records(&case.triangles);
-        let wide_tracer = bvhc::loader::WideTracer::new(&wide, &records, None, path);
+        let wide_tracer = bvhc::loader::WideTracer::new(&wide, None, path);
         for ray in &case.rays {
             let brute = brute_force_closest(&case.triangles, ray).map(|(t, _)| t);
             let got = wide_tracer.closest_hit(ray);

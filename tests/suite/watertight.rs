@@ -57,8 +57,7 @@ fn assert_all_hit(name: &str, triangles: &[Triangle], rays: &[Ray]) {
     }
     let wide = crate::common::wide_bvh(triangles);
     for path in crate::common::kernel_paths() {
-        let records = crate::common::records(triangles);
-        let tracer = bvhc::loader::WideTracer::new(&wide, &records, None, path);
+        let tracer = bvhc::loader::WideTracer::new(&wide, None, path);
         let misses = rays.iter().filter(|ray| tracer.closest_hit(ray).is_none()).count();
         assert_eq!(misses, 0, "{name}: the wide kernel ({path:?}) missed {misses} of {} rays", rays.len());
         assert!(rays.iter().all(|ray| tracer.any_hit(ray)), "{name}: wide any-hit ({path:?}) missed");

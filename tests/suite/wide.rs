@@ -216,7 +216,7 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
                     eprintln!("SKIPPED (part): {path:?} is not supported on this machine");
                     continue;
                 }
-                let tracer = WideTracer::new(&bvh, &packed, Some(&ids), path);
+                let tracer = WideTracer::new(&bvh, Some(&ids), path);
                 for ray in &rays {
                     let ours = tracer.closest_hit(ray);
                     let reference = binary_tracer.closest_hit(ray);

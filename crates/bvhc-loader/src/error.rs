@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 /// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
 ///
-/// V1-V10 are structural and checked by every open; V11-V39 are checked by `BvhView::verify`
+/// V1-V10 are structural and checked by every open; V11-V40 are checked by `BvhView::verify`
 /// (V29-V35, the wide sections of 1.1, only when a file has them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -91,11 +91,14 @@ pub enum Rule {
     MetadataBuild,
     /// V39: the metadata's `choice` kept the first candidate of lowest cost, and that is the file's cost.
     MetadataChoice,
+    /// V40: source vertex indices agree with the vertices: one source vertex is one point wherever its primitive
+    /// names it, and a triangle's references name the same vertices.
+    SourceVertices,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 39] = [
+    pub const ALL: [Rule; 40] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -135,6 +138,7 @@ impl Rule {
         Rule::MetadataCost,
         Rule::MetadataBuild,
         Rule::MetadataChoice,
+        Rule::SourceVertices,
     ];
 
     /// The rule's number in the spec (1 for V1).

@@ -17,12 +17,18 @@ pub const MAGIC: [u8; 8] = *b"\x89BVHC\r\n\x1a";
 pub const VERSION_MAJOR: u16 = 1;
 /// Highest minor version this crate reads knowingly and writes. Readers accept any minor version of their
 /// major version.
-pub const VERSION_MINOR: u16 = 1;
+pub const VERSION_MINOR: u16 = 2;
 
-/// The minor version a writer stores: the lowest whose features the file uses (1.1 for the wide sections,
-/// otherwise 1.0, so files without them stay readable as 1.0 byte for byte).
-pub const fn written_minor(has_wide_sections: bool) -> u16 {
-    if has_wide_sections { 1 } else { 0 }
+/// The minor version a writer stores: the lowest whose features the file uses (1.2 for the `source_vertices`
+/// section, 1.1 for the wide sections, otherwise 1.0, so files without them stay readable as 1.0 byte for byte).
+pub const fn written_minor(has_wide_sections: bool, has_source_vertices: bool) -> u16 {
+    if has_source_vertices {
+        2
+    } else if has_wide_sections {
+        1
+    } else {
+        0
+    }
 }
 
 /// Whether this reader knows every field of a file with minor version `minor` (so reserved fields and undefined
@@ -66,11 +72,14 @@ pub enum SectionKind {
     WideNodes,
     /// Leaf triangles of the wide BVH in packets of four ([`TrianglePacket4`]), optional, since 1.1.
     TrianglePackets,
+    /// Each triangle's three vertex indices in its source primitive ([`SourceVertexIndices`]), optional, since
+    /// 1.2; needs the source table.
+    SourceVertices,
 }
 
 impl SectionKind {
     /// Every kind defined by this version, in the order the writer stores them.
-    pub const ALL: [SectionKind; 7] = [
+    pub const ALL: [SectionKind; 8] = [
         SectionKind::Nodes,
         SectionKind::Triangles,
         SectionKind::TriangleIds,
@@ -78,6 +87,7 @@ impl SectionKind {
         SectionKind::Metadata,
         SectionKind::WideNodes,
         SectionKind::TrianglePackets,
+        SectionKind::SourceVertices,
     ];
 
     /// The `kind` value stored in the section table.
@@ -90,6 +100,7 @@ impl SectionKind {
             SectionKind::Metadata => 5,
             SectionKind::WideNodes => 6,
             SectionKind::TrianglePackets => 7,
+            SectionKind::SourceVertices => 8,
         }
     }
 
@@ -103,6 +114,7 @@ impl SectionKind {
             5 => Some(SectionKind::Metadata),
             6 => Some(SectionKind::WideNodes),
             7 => Some(SectionKind::TrianglePackets),
+            8 => Some(SectionKind::SourceVertices),
             _ => None,
         }
     }
@@ -117,6 +129,16 @@ impl SectionKind {
             SectionKind::Metadata => 1,
             SectionKind::WideNodes => size_of::<WideNode8>() as u32,
             SectionKind::TrianglePackets => size_of::<TrianglePacket4>() as u32,
+            SectionKind::SourceVertices => size_of::<SourceVertexIndices>() as u32,
+        }
+    }
+
+    /// The minor version that defined the kind: a file of a lower minor version must not have it (rule V8).
+    pub const fn since_minor(self) -> u16 {
+        match self {
+            SectionKind::WideNodes | SectionKind::TrianglePackets => 1,
+            SectionKind::SourceVertices => 2,
+            _ => 0,
         }
     }
 
@@ -143,6 +165,7 @@ impl SectionKind {
             SectionKind::Metadata => "metadata",
             SectionKind::WideNodes => "wide_nodes",
             SectionKind::TrianglePackets => "triangle_packets",
+            SectionKind::SourceVertices => "source_vertices",
         }
     }
 }
@@ -253,6 +276,20 @@ pub struct SourceRange {
     pub instance_index: u32,
     /// Zero.
     pub reserved: u32,
+}
+
+/// One element of the `source_vertices` section (since 1.2): the vertex indices, in the triangle's source
+/// primitive, of the record's `v0`, `v1` and `v2`, so that a hit's barycentrics weigh a renderer's own vertex
+/// attributes: `(1 - u - v) attribute[indices[0]] + u attribute[indices[1]] + v attribute[indices[2]]`.
+///
+/// The index space is the source's (`format-spec/bvh-1.md` 5.9): a glTF primitive's vertex index (the value in
+/// its index accessor), a PLY file's `vertex` record, an OBJ file's `v` record counted from 0. The primitive is
+/// the triangle's source range, found from its source id.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SourceVertexIndices {
+    /// The source vertex of `v0`, `v1`, `v2`.
+    pub indices: [u32; 3],
 }
 
 /// Child slots of a wide node.
@@ -378,6 +415,7 @@ const _: () = assert!(size_of::<SectionEntry>() == 48);
 const _: () = assert!(size_of::<PackedNode>() == 32);
 const _: () = assert!(size_of::<PackedTriangle>() == 36);
 const _: () = assert!(size_of::<SourceRange>() == 32);
+const _: () = assert!(size_of::<SourceVertexIndices>() == 12);
 
 /// Marks plain-data on-disk types as `bytemuck::Zeroable` and `bytemuck::Pod` (what the derive would do, without
 /// its proc-macro dependencies), after proving at compile time that each has no padding: its size is the sum of
@@ -405,6 +443,7 @@ plain_data! {
     SourceRange { u32, u32, u32, u32, u32, u32, u32, u32 }
     WideNode8 { [[f32; WIDE]; 3], [[f32; WIDE]; 3], [u32; WIDE], [u32; WIDE] }
     TrianglePacket4 { [[[f32; PACKET_LANES]; 3]; 3], [u32; PACKET_LANES] }
+    SourceVertexIndices { [u32; 3] }
 }
 
 /// Byte size of the header.

@@ -1,7 +1,7 @@
 //! What every kernel returns and reports: the [`Hit`] record, the traversal counters, and the cull padding all
 //! kernels share (so that they find the same closest hit).
 
-use crate::format::PackedTriangle;
+use crate::format::{PACKET_LANES, PackedTriangle, TrianglePacket4};
 use crate::intersect::TriangleHit;
 
 /// Boxes are culled against the closest hit so far padded by this factor (`1 + 2^-18`). The triangle test's `t`
@@ -44,7 +44,40 @@ impl Hit {
         triangle_ids: Option<&[u32]>,
         direction: &[f32; 3],
     ) -> Hit {
-        let normal = triangles.get(triangle_index as usize).map_or([0.0; 3], geometric_normal);
+        Hit::on(triangle_index, triangles.get(triangle_index as usize), hit, triangle_ids, direction)
+    }
+
+    /// The hit in lane `address` ([`lane_address`]) of `packets` (the wide kernel's): the lane's triangle
+    /// index, and the normal from the lane's own copy of the record's vertices (the same bits, V33), which the
+    /// kernel has just read, rather than from the triangles section, which it has not (a cache miss a ray).
+    pub(crate) fn in_lane(
+        address: u32,
+        hit: TriangleHit,
+        packets: &[TrianglePacket4],
+        triangle_ids: Option<&[u32]>,
+        direction: &[f32; 3],
+    ) -> Hit {
+        let (packet, lane) = (address as usize / PACKET_LANES, address as usize % PACKET_LANES);
+        match packets.get(packet) {
+            Some(packet) => {
+                let v = &packet.vertices;
+                let vertex = |k: usize| [v[k][0][lane], v[k][1][lane], v[k][2][lane]];
+                let triangle = PackedTriangle { vertices: [vertex(0), vertex(1), vertex(2)] };
+                Hit::on(packet.triangle_index[lane], Some(&triangle), hit, triangle_ids, direction)
+            }
+            None => Hit::on(u32::MAX, None, hit, triangle_ids, direction),
+        }
+    }
+
+    /// The hit on record `triangle_index`, whose vertices are `triangle`.
+    fn on(
+        triangle_index: u32,
+        triangle: Option<&PackedTriangle>,
+        hit: TriangleHit,
+        triangle_ids: Option<&[u32]>,
+        direction: &[f32; 3],
+    ) -> Hit {
+        let normal = triangle.map_or([0.0; 3], geometric_normal);
         let facing = direction[0] * normal[0] + direction[1] * normal[1] + direction[2] * normal[2];
         Hit {
             t: hit.t,
@@ -67,6 +100,12 @@ pub fn geometric_normal(triangle: &PackedTriangle) -> [f32; 3] {
     let e1 = [v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]];
     let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
     [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
+}
+
+/// Where the wide kernel found a hit: `PACKET_LANES * packet + lane` of the `triangle_packets` section (below
+/// `2^30`, since `packet_count <= 2^28`, V10), turned into a [`Hit`] by [`Hit::in_lane`].
+pub(crate) fn lane_address(packet: usize, lane: usize) -> u32 {
+    (packet * PACKET_LANES + lane) as u32
 }
 
 /// Receives traversal events. The default path uses `()`, whose empty methods compile away.

@@ -29,7 +29,9 @@
 //!
 //! Hits ([`Hit`]) carry `t`, the barycentrics `u` (weight of `v1`) and `v` (weight of `v2`), the record's
 //! index, its source id, the geometric normal and whether the ray met the front side;
-//! [`BvhView::triangle_identities`] names the triangle the same way for every record of a split triangle. For secondary rays,
+//! [`BvhView::triangle_identities`] names the triangle the same way for every record of a split triangle, and
+//! [`BvhView::source_corners`] gives the source primitive's vertices and their weights, to interpolate a
+//! renderer's own normals or texture coordinates ([`SourceCorners::interpolate`]). For secondary rays,
 //! [`Tracer::surface`] gives the hit's [`SurfacePoint`], whose `spawn` and `spawn_to` make rays with
 //! `t_min = 0` that never meet the triangle they leave, at any scale, with no epsilon to choose.
 //!
@@ -50,7 +52,9 @@ mod identity;
 mod intersect;
 mod json;
 mod simd;
+mod source_corners;
 mod spawn;
+mod structure;
 mod traverse;
 #[cfg(feature = "write")]
 mod uncached;
@@ -58,6 +62,7 @@ mod verify;
 mod verify_consistency;
 mod verify_metadata;
 mod verify_references;
+mod verify_source_vertices;
 mod verify_wide;
 mod view;
 mod watertight;
@@ -79,19 +84,21 @@ pub use file::BvhFile;
 #[cfg(feature = "mmap")]
 pub use file::MappedBvh;
 pub use format::{
-    EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, SectionKind, SourceRange, TrianglePacket4, WIDE,
-    WideNode8,
+    EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, SectionKind, SourceRange, SourceVertexIndices,
+    TrianglePacket4, WIDE, WideNode8,
 };
 pub use hit::{Hit, TraversalCounter, TraversalStats, geometric_normal};
 pub use identity::TriangleIdentities;
 pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use simd::KernelPath;
+pub use source_corners::SourceCorners;
 pub use spawn::SurfacePoint;
+pub use structure::SectionInfo;
 pub use traverse::{Kernel, Tracer};
 #[cfg(feature = "write")]
 pub use uncached::UncachedWriter;
 pub use verify::{PARALLEL_VERIFY_BYTES, verify_tree};
-pub use view::{BvhView, SectionInfo, WideSections};
+pub use view::{BvhView, WideSections};
 pub use wide::{WideBvh, WideTracer};
 #[cfg(feature = "write")]
 pub use writer::BvhWriter;

@@ -133,6 +133,34 @@ impl SurfacePoint {
         })
     }
 
+    /// The unit geometric normal on the side the ray that found the point came from (the normal for a front-face
+    /// hit, its opposite for a back-face one): the hemisphere a reflection or an occlusion ray leaves into.
+    pub fn facing_normal(&self) -> [f32; 3] {
+        if self.front_face { self.normal } else { self.normal.map(|c| -c) }
+    }
+
+    /// A cosine-weighted unit direction in the hemisphere of [`SurfacePoint::facing_normal`] from two uniform
+    /// numbers `xi` in `[0, 1)`: Malley's method (a uniform point of the unit disk, `(sqrt(xi0) cos(2 pi xi1),
+    /// sqrt(xi0) sin(2 pi xi1))`, lifted onto the hemisphere) in the orthonormal basis of Duff et al. ("Building
+    /// an Orthonormal Basis, Revisited", JCGT 6(1), 2017), which is continuous and has no division by a small
+    /// number. Its probability density is `cos(theta) / pi`, the weight of ambient occlusion and of a diffuse
+    /// bounce, so an estimator averages the rays' results unweighted. For a degenerate record (no normal) the
+    /// hemisphere is that of `+z`.
+    pub fn cosine_direction(&self, xi: [f32; 2]) -> [f32; 3] {
+        let n = if self.normal == [0.0; 3] { [0.0, 0.0, 1.0] } else { self.facing_normal() };
+        let sign = 1.0f32.copysign(n[2]);
+        let a = -1.0 / (sign + n[2]);
+        let b = n[0] * n[1] * a;
+        let tangent = [1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]];
+        let bitangent = [b, sign + n[1] * n[1] * a, -n[1]];
+        let radius = xi[0].clamp(0.0, 1.0).sqrt();
+        let (sin, cos) = (std::f32::consts::TAU * xi[1]).sin_cos();
+        let (x, y, z) = (radius * cos, radius * sin, (1.0 - xi[0].clamp(0.0, 1.0)).sqrt());
+        let d: [f32; 3] = std::array::from_fn(|k| x * tangent[k] + y * bitangent[k] + z * n[k]);
+        let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        d.map(|c| c / length)
+    }
+
     /// A ray leaving the surface along `direction` (ambient occlusion, bounces), over `[0, +inf]`.
     pub fn spawn(&self, direction: [f32; 3]) -> Ray {
         Ray { origin: self.offset_origin(direction), direction, t_min: 0.0, t_max: f32::INFINITY }

@@ -176,7 +176,7 @@ fn verify_costs(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     Ok(())
 }
 
-/// V38: `build.wide` and `build.write_ids` agree with the sections; leaves hold at most `max_leaf_size`
+/// V38: `build.wide`, `build.write_ids` and `build.write_source_vertices` agree with the sections; leaves hold at most `max_leaf_size`
 /// distinct triangles.
 fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     let Some(build) = object(metadata, "build") else { return Ok(()) };
@@ -200,6 +200,12 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     {
         let has = if view.triangle_ids().is_some() { "has" } else { "has no" };
         return fail(format!("write_ids is {write_ids}, but the file {has} triangle_ids section"));
+    }
+    if let Some(write) = build.get("write_source_vertices").and_then(Value::as_bool)
+        && write != view.source_vertices().is_some()
+    {
+        let has = if view.source_vertices().is_some() { "has" } else { "has no" };
+        return fail(format!("write_source_vertices is {write}, but the file {has} source_vertices section"));
     }
     let mut identity = TriangleIdentity { view, ids: Vec::new(), records: Vec::new() };
     if let Some(limit) = build.get("max_leaf_size").and_then(Value::as_u64) {

@@ -77,8 +77,6 @@ impl WideBvh {
 #[derive(Clone, Copy, Debug)]
 pub struct WideTracer<'a> {
     sections: Sections<'a>,
-    /// The file's triangles section, for the hit's normal.
-    triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
     /// The AVX2 token when the tracer runs the AVX2 path.
     avx2: Option<Avx2>,
@@ -94,16 +92,10 @@ const STREAM_WIDTH: usize = 8;
 const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
 
 impl<'a> WideTracer<'a> {
-    /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangles` (the
-    /// records the packets' triangle indices name: a file's triangles section) give the hits' normals, and
-    /// `triangle_ids` their source ids.
-    pub fn new(
-        bvh: &'a WideBvh,
-        triangles: &'a [PackedTriangle],
-        triangle_ids: Option<&'a [u32]>,
-        path: KernelPath,
-    ) -> WideTracer<'a> {
-        WideTracer::over(&bvh.nodes, &bvh.packets, (bvh.root.min, bvh.root.max), triangles, triangle_ids, path)
+    /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangle_ids` are
+    /// indexed by the packets' triangle indices; hits take their normals from the packets' vertices.
+    pub fn new(bvh: &'a WideBvh, triangle_ids: Option<&'a [u32]>, path: KernelPath) -> WideTracer<'a> {
+        WideTracer::over(&bvh.nodes, &bvh.packets, (bvh.root.min, bvh.root.max), triangle_ids, path)
     }
 
     /// A tracer over borrowed wide sections (a `BvhView`'s) inside `root_box`, the binary root's box.
@@ -112,7 +104,6 @@ impl<'a> WideTracer<'a> {
         nodes: &'a [WideNode8],
         packets: &'a [TrianglePacket4],
         root_box: ([f32; 3], [f32; 3]),
-        triangles: &'a [PackedTriangle],
         triangle_ids: Option<&'a [u32]>,
         path: KernelPath,
     ) -> WideTracer<'a> {
@@ -122,7 +113,7 @@ impl<'a> WideTracer<'a> {
         };
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
         let interleave = size_of_val(nodes) + size_of_val(packets) > INTERLEAVE_ABOVE_BYTES;
-        WideTracer { sections: Sections { nodes, packets, root }, triangles, triangle_ids, avx2, interleave }
+        WideTracer { sections: Sections { nodes, packets, root }, triangle_ids, avx2, interleave }
     }
 
     /// The path this tracer runs.
@@ -138,8 +129,8 @@ impl<'a> WideTracer<'a> {
     /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (packets of
     /// four count as one test each) into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        let (triangle_index, hit) = self.dispatch::<false>(ray, counter)?;
-        Some(Hit::new(triangle_index, hit, self.triangles, self.triangle_ids, &ray.direction))
+        let (address, hit) = self.dispatch::<false>(ray, counter)?;
+        Some(Hit::in_lane(address, hit, self.sections.packets, self.triangle_ids, &ray.direction))
     }
 
     /// Whether any triangle is hit.
@@ -158,7 +149,7 @@ impl<'a> WideTracer<'a> {
     /// [`WideTracer::closest_hit`] returns, whichever way.
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         crate::hit::same_length("closest_hits", rays.len(), hits.len());
-        self.stream::<false>(rays, &mut hit_writer(hits, rays, self.triangles, self.triangle_ids));
+        self.stream::<false>(rays, &mut hit_writer(hits, rays, self.sections.packets, self.triangle_ids));
     }
 
     /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
@@ -175,7 +166,7 @@ impl<'a> WideTracer<'a> {
     /// go different ways.
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         crate::hit::same_length("closest_hits_coherent", rays.len(), hits.len());
-        self.packets::<false>(rays, &mut hit_writer(hits, rays, self.triangles, self.triangle_ids));
+        self.packets::<false>(rays, &mut hit_writer(hits, rays, self.sections.packets, self.triangle_ids));
     }
 
     /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
@@ -312,17 +303,17 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
     }
 }
 
-/// The `done` callback of the batch entry points for closest hits: ray `i`'s hit into `hits[i]`, its normal
-/// from `triangles` and its source id from `triangle_ids`.
+/// The `done` callback of the batch entry points for closest hits: ray `i`'s hit into `hits[i]`, its triangle
+/// and normal from the lane of `packets` it was found in and its source id from `triangle_ids`.
 fn hit_writer<'h>(
     hits: &'h mut [Option<Hit>],
     rays: &'h [Ray],
-    triangles: &'h [PackedTriangle],
+    packets: &'h [TrianglePacket4],
     triangle_ids: Option<&'h [u32]>,
 ) -> impl FnMut(usize, Option<(u32, TriangleHit)>) + 'h {
     move |i, found| {
         if let (Some(slot), Some(ray)) = (hits.get_mut(i), rays.get(i)) {
-            *slot = found.map(|(t, hit)| Hit::new(t, hit, triangles, triangle_ids, &ray.direction));
+            *slot = found.map(|(address, hit)| Hit::in_lane(address, hit, packets, triangle_ids, &ray.direction));
         }
     }
 }

@@ -17,7 +17,7 @@
 use std::mem::MaybeUninit;
 
 use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
-use crate::hit::CULL_PADDING;
+use crate::hit::{CULL_PADDING, lane_address};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
 use crate::simd::{Isa, LaneMask, Lanes};
 use crate::watertight::{
@@ -114,11 +114,10 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, I: Isa>(
             if entry.child & LEAF_BIT != 0 {
                 let (first, count) = WideNode8::leaf_packets(entry.child);
                 let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
+                let leaf = (first as usize, packets);
                 let hit = match lanes.shared_axes {
-                    Some(axes) => {
-                        leaf_in_lanes::<ANY_HIT, I>(isa, packets, &lanes, axes, active, &prepared, &mut found)
-                    }
-                    None => leaf_ray_by_ray::<ANY_HIT, I>(isa, packets, active, &prepared, &mut found),
+                    Some(axes) => leaf_in_lanes::<ANY_HIT, I>(isa, leaf, &lanes, axes, active, &prepared, &mut found),
+                    None => leaf_ray_by_ray::<ANY_HIT, I>(isa, leaf, active, &prepared, &mut found),
                 };
                 if ANY_HIT {
                     pending &= !hit;
@@ -228,7 +227,7 @@ fn slot_test<I: Isa>(
 #[inline(always)]
 fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
     isa: I,
-    packets: &[TrianglePacket4],
+    (first, packets): (usize, &[TrianglePacket4]),
     lanes: &RayLanes,
     [kx, ky, kz]: [usize; 3],
     mut active: u8,
@@ -239,7 +238,7 @@ fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
     let origin = [isa.f8(&lanes.origin[kx]), isa.f8(&lanes.origin[ky]), isa.f8(&lanes.origin[kz])];
     let (sx, sy, sz) = (isa.f8(&lanes.shear[0]), isa.f8(&lanes.shear[1]), isa.f8(&lanes.shear[2]));
     let (t_min, zero, one) = (isa.f8(&lanes.t_min), isa.f8_splat(0.0), isa.f8_splat(1.0));
-    for packet in packets {
+    for (p, packet) in packets.iter().enumerate() {
         for tri in 0..packet.used_lanes() {
             let r = RelativeTriangle {
                 a: relative_vertex(isa, &packet.vertices[0], tri, [kx, ky, kz], &origin),
@@ -260,7 +259,7 @@ fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
                     let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
                     rays &= rays - 1;
                     found.t_max[l] = t[l];
-                    found.hit[l] = Some((packet.triangle_index[tri], TriangleHit { t: t[l], u: u[l], v: v[l] }));
+                    found.hit[l] = Some((lane_address(first + p, tri), TriangleHit { t: t[l], u: u[l], v: v[l] }));
                 }
                 hit_rays |= valid_rays;
             }
@@ -271,7 +270,7 @@ fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
                 let Some(ray) = &prepared[l] else { continue };
                 if let Some(hit) = ray.intersect_triangle(&packet.triangle(tri), found.t_max[l]) {
                     found.t_max[l] = hit.t;
-                    found.hit[l] = Some((packet.triangle_index[tri], hit));
+                    found.hit[l] = Some((lane_address(first + p, tri), hit));
                     hit_rays |= 1 << l;
                 }
             }
@@ -308,7 +307,7 @@ fn relative_vertex<I: Isa>(
 #[inline(always)]
 fn leaf_ray_by_ray<const ANY_HIT: bool, I: Isa>(
     isa: I,
-    packets: &[TrianglePacket4],
+    (first, packets): (usize, &[TrianglePacket4]),
     active: u8,
     prepared: &[Option<PreparedRay>; PACKET_RAYS],
     found: &mut Found,
@@ -316,10 +315,10 @@ fn leaf_ray_by_ray<const ANY_HIT: bool, I: Isa>(
     let mut hit_rays = 0u8;
     for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
         let Some(ray) = &prepared[l] else { continue };
-        for packet in packets {
+        for (p, packet) in packets.iter().enumerate() {
             if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I>(isa, packet, ray, found.t_max[l]) {
                 found.t_max[l] = hit.t;
-                found.hit[l] = Some((packet.triangle_index[lane], hit));
+                found.hit[l] = Some((lane_address(first + p, lane), hit));
                 hit_rays |= 1 << l;
                 if ANY_HIT {
                     break;

@@ -21,7 +21,7 @@
 use std::mem::MaybeUninit;
 
 use crate::format::{LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
-use crate::hit::{CULL_PADDING, TraversalCounter};
+use crate::hit::{CULL_PADDING, TraversalCounter, lane_address};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
 use crate::simd::Isa;
 use crate::wide_packets::closest_in_packet;
@@ -199,8 +199,8 @@ impl Walk {
     }
 }
 
-/// The closest hit in packets `first .. first + count`, within `t_max`, as (triangle index, hit); for
-/// `ANY_HIT`, the first packet's hit.
+/// The closest hit in packets `first .. first + count`, within `t_max`, as (lane address, hit); for `ANY_HIT`,
+/// the first packet's hit.
 #[inline(always)]
 fn leaf_hit<const ANY_HIT: bool, I: Isa>(
     isa: I,
@@ -214,11 +214,11 @@ fn leaf_hit<const ANY_HIT: bool, I: Isa>(
     let packets = sections.packets.get(first..first.saturating_add(count))?;
     let mut best = None;
     let mut limit = t_max;
-    for packet in packets {
+    for (p, packet) in packets.iter().enumerate() {
         counter.triangle_tested();
         if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I>(isa, packet, ray, limit) {
             limit = hit.t;
-            best = Some((packet.triangle_index[lane], hit));
+            best = Some((lane_address(first + p, lane), hit));
             if ANY_HIT {
                 break;
             }

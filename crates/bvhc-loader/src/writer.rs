@@ -12,8 +12,8 @@ use crate::error::Error;
 use crate::file::{AlignedBuffer, BvhFile};
 use crate::format::{
     FileHeader, HEADER_BYTE_LEN, MAGIC, PackedNode, PackedTriangle, SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED,
-    SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, TrianglePacket4, VERSION_MAJOR, WideNode8,
-    align_up, written_minor,
+    SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4,
+    VERSION_MAJOR, WideNode8, align_up, written_minor,
 };
 
 /// Collects the parts of a `.bvh` file; [`BvhWriter::build`] lays them out.
@@ -23,6 +23,7 @@ pub struct BvhWriter<'a> {
     triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
     source_table: Option<&'a [SourceRange]>,
+    source_vertices: Option<&'a [SourceVertexIndices]>,
     metadata: Option<&'a str>,
     split_references: bool,
     wide: Option<(&'a [WideNode8], &'a [TrianglePacket4])>,
@@ -52,6 +53,7 @@ impl<'a> BvhWriter<'a> {
             triangles,
             triangle_ids: None,
             source_table: None,
+            source_vertices: None,
             metadata: None,
             split_references: false,
             wide: None,
@@ -68,6 +70,14 @@ impl<'a> BvhWriter<'a> {
     /// Adds the source_table section (needs triangle ids).
     pub fn source_table(mut self, ranges: &'a [SourceRange]) -> Self {
         self.source_table = Some(ranges);
+        self
+    }
+
+    /// Adds the source_vertices section (format 1.2; needs the source table): per triangle, in the order of
+    /// [`BvhWriter::new`]'s triangles, the source vertex indices of its `v0`, `v1`, `v2`. The file is then
+    /// written as version 1.2.
+    pub fn source_vertices(mut self, indices: &'a [SourceVertexIndices]) -> Self {
+        self.source_vertices = Some(indices);
         self
     }
 
@@ -90,9 +100,9 @@ impl<'a> BvhWriter<'a> {
         self
     }
 
-    /// The minor version the file will have: 1 with wide sections, else 0.
+    /// The minor version the file will have: 2 with source vertices, else 1 with wide sections, else 0.
     pub fn version_minor(&self) -> u16 {
-        written_minor(self.wide.is_some())
+        written_minor(self.wide.is_some(), self.source_vertices.is_some())
     }
 
     /// Appends a section of a kind that this version does not define. `required` sets its REQUIRED flag, which
@@ -139,6 +149,9 @@ impl<'a> BvhWriter<'a> {
         if let Some((nodes, packets)) = self.wide {
             known(SectionKind::WideNodes, bytemuck::cast_slice(nodes), nodes.len(), 0);
             known(SectionKind::TrianglePackets, bytemuck::cast_slice(packets), packets.len(), 0);
+        }
+        if let Some(indices) = self.source_vertices {
+            known(SectionKind::SourceVertices, bytemuck::cast_slice(indices), indices.len(), 0);
         }
         for extra in &self.extra_sections {
             if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {
