@@ -188,9 +188,14 @@ pub struct OptionArgs {
     /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
     #[arg(long, help_heading = "Leaf layout")]
     pub no_wide: bool,
-    /// Omit the optional triangle_ids and source_table sections.
+    /// Omit the optional triangle_ids and source_table sections (and with them the source vertices).
     #[arg(long, help_heading = "Output")]
     pub no_ids: bool,
+    /// Omit the optional source_vertices section (each triangle's vertex indices in its source primitive, for
+    /// interpolating the source's normals and texture coordinates; 12 bytes a triangle). Without it and without
+    /// the wide sections the file is version 1.0.
+    #[arg(long, help_heading = "Output")]
+    pub no_source_vertices: bool,
 }
 
 impl OptionArgs {
@@ -225,6 +230,7 @@ impl OptionArgs {
             max_leaf_size: self.max_leaf_size,
             wide: given(self.no_wide),
             write_ids: given(self.no_ids),
+            write_source_vertices: given(self.no_source_vertices),
         }
     }
 }

@@ -120,6 +120,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "reference_count": view.triangles().len(),
             "unique_triangle_count": unique_triangles,
             "split_references": view.has_split_references(),
+            "source_vertices": view.source_vertices().is_some(),
             "node_count": view.nodes().len(),
             "wide_node_count": view.wide_sections().map(|w| w.nodes.len()),
             "packet_count": view.wide_sections().map(|w| w.packets.len()),
@@ -168,6 +169,12 @@ pub fn info(path: &Path, json: bool) -> Exit {
             view.triangles().len() as f64 / unique_triangles.max(1) as f64
         );
     }
+    let shading = match (view.triangle_ids().is_some(), view.source_vertices().is_some()) {
+        (true, true) => "source ids and source vertices (attributes interpolate at hits)",
+        (true, false) => "source ids, no source vertices",
+        (false, _) => "no source ids",
+    };
+    outln!(out, "provenance: {shading}");
     match view.wide_sections() {
         Some(wide) => outln!(
             out,

@@ -75,6 +75,7 @@ pub struct BuildRecord {
     /// `null` without wide sections.
     wide: Option<WideCosts>,
     write_ids: bool,
+    write_source_vertices: bool,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -107,6 +108,7 @@ impl BuildRecord {
             splits: options.splits,
             wide: options.wide,
             write_ids: options.write_ids,
+            write_source_vertices: options.write_source_vertices,
         }
     }
 

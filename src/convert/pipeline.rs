@@ -7,7 +7,7 @@ use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
 
-use bvhc_loader::{AtomicOutput, BvhFile, BvhWriter};
+use bvhc_loader::{AtomicOutput, BvhFile, BvhWriter, SourceVertexIndices};
 
 use super::candidates::{Candidate, best_candidate, lap};
 use super::files::{input_entries, refuse_output_among};
@@ -53,9 +53,15 @@ pub fn convert_with(
     let triangles = soup.triangle_vertices();
     // Each large intermediate is dropped once its stage is done, so the peak is one stage's working set: here
     // the soup's vertices and indices (the triangles hold the positions now).
-    let TriangleSoup { positions, triangles: vertex_indices, source_ids: soup_source_ids, sources: soup_sources } =
-        soup;
+    let TriangleSoup {
+        positions,
+        triangles: vertex_indices,
+        source_ids: soup_source_ids,
+        sources: soup_sources,
+        source_vertices: soup_source_vertices,
+    } = soup;
     drop((positions, vertex_indices));
+    let soup_source_vertices = if options.write_source_vertices { soup_source_vertices } else { Vec::new() };
     if u32::try_from(triangles.len()).is_err() {
         return Err(ConvertError::TooLarge { path: input.to_path_buf(), count: triangles.len() });
     }
@@ -85,6 +91,16 @@ pub fn convert_with(
     )
     .map_err(|e| out_of_memory(input, "packing", e))?;
     drop(soup_source_ids);
+    // Each record's source vertices, in the record's corner order (the soup's order, mirrored already).
+    let source_vertices = if options.write_source_vertices {
+        let records =
+            packed.triangle_ids.iter().map(|&t| SourceVertexIndices { indices: soup_source_vertices[t as usize] });
+        collect_exact(packed.triangle_ids.len(), records, "the source vertices")
+            .map_err(|e| out_of_memory(input, "packing", e))?
+    } else {
+        Vec::new()
+    };
+    drop(soup_source_vertices);
     let wide = match wide_tree {
         Some((wide_tree, costs)) => {
             let split = stored_triangle_count > triangle_count;
@@ -113,7 +129,7 @@ pub fn convert_with(
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);
-    let minor = bvhc_loader::format::written_minor(summary.is_some());
+    let minor = bvhc_loader::format::written_minor(summary.is_some(), options.write_source_vertices);
     let metadata = Metadata {
         generator: concat!("bvhc ", env!("CARGO_PKG_VERSION")),
         format_version: format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR),
@@ -131,6 +147,9 @@ pub fn convert_with(
     if options.write_ids {
         writer = writer.triangle_ids(&source_ids).source_table(&soup_sources);
     }
+    if options.write_source_vertices {
+        writer = writer.source_vertices(&source_vertices);
+    }
     if let Some((bvh, _)) = &wide {
         writer = writer.wide(bvh.nodes(), bvh.packets());
     }
@@ -145,7 +164,7 @@ pub fn convert_with(
         sink.finish().map_err(|source| bvhc_loader::Error::Io { path: output.to_path_buf(), source })?;
     let node_count = packed.nodes.len();
     drop(writer);
-    drop((packed, wide, source_ids));
+    drop((packed, wide, source_ids, source_vertices));
     let file = BvhFile::read_uncached(atomic.temporary_path())
         .map_err(|e| out_of_memory(input, "reading the written file back", e))?;
     file.view().verify().map_err(bvhc_loader::Error::from)?;

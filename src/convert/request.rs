@@ -122,6 +122,13 @@ impl Conversion {
         self
     }
 
+    /// Whether to write the source_vertices section of format 1.2 (on by default; it needs the ids, so
+    /// `write_ids(false)` leaves it out unless this asks for it, which is then an error).
+    pub fn write_source_vertices(mut self, write: bool) -> Self {
+        self.overrides.write_source_vertices = Some(write);
+        self
+    }
+
     /// Whether to write the wide sections of format 1.1 (on by default); without them the file is version 1.0
     /// and traced by the binary kernel.
     pub fn write_wide(mut self, write: bool) -> Self {

@@ -14,6 +14,8 @@ pub(super) fn read(bytes: &[u8], limits: &ImportLimits, builder: &mut SoupBuilde
         tobj::LoadOptions { single_index: false, triangulate: false, ignore_points: true, ignore_lines: true };
     let (models, _materials) = tobj::load_obj_buf(&mut &bytes[..], &options, |_| Err(tobj::LoadError::OpenFileFailed))
         .map_err(|e| locate_error(bytes, e))?;
+    let corners = face_corner_vertices(bytes);
+    let mut corners_used = 0usize;
     let mut triangles = Vec::new();
     for (m, model) in models.iter().enumerate() {
         let mesh = &model.mesh;
@@ -44,14 +46,81 @@ pub(super) fn read(bytes: &[u8], limits: &ImportLimits, builder: &mut SoupBuilde
             triangulate(polygon, &positions, &mut triangles);
             start = end;
         }
+        let file_vertex = file_vertex_numbers(&mesh.indices, vertex_count, &corners, &mut corners_used)
+            .map_err(|e| Located::new(&format!("model {m} ('{}')", model.name), e))?;
         let provenance = Provenance { mesh_index: m as u32, ..Provenance::NONE };
         builder
-            .add_mesh_in_place(provenance, &source, &positions, &triangles)
+            .add_mesh_in_place(provenance, &source, &positions, &triangles, Some(&file_vertex))
             .map_err(|(kind, e)| Located::of_kind(kind, &format!("model {m}"), e))?;
     }
     // tobj keeps only the vertices each model uses; count the file's unused ones from its text.
     builder.report.unreferenced_vertices = unreferenced_vertices(bytes);
     Ok(())
+}
+
+/// The `v` record (counted from 0, relative indices resolved) of every corner of every face, in file order, as
+/// tobj reads them: `f` and `l` records of three or more corners (tobj takes those as polygons; shorter ones are
+/// the points and lines it ignores here), the first number of each `v/vt/vn` corner. Corners that do not parse
+/// give `u32::MAX` (tobj refuses such files first).
+fn face_corner_vertices(bytes: &[u8]) -> Vec<u32> {
+    let mut corners = Vec::new();
+    let mut vertex_count = 0i64;
+    for line in bytes.split(|&b| b == b'\n') {
+        // Words split at tobj's whitespace: `char::is_whitespace`, on ASCII lines without decoding them.
+        if line.is_ascii() {
+            let words =
+                line.split(|&b| matches!(b, b' ' | b'\t' | b'\r' | b'\x0b' | b'\x0c')).filter(|w| !w.is_empty());
+            read_record(words, &mut vertex_count, &mut corners);
+        } else {
+            let text = std::str::from_utf8(line).unwrap_or_default();
+            read_record(text.split_whitespace().map(str::as_bytes), &mut vertex_count, &mut corners);
+        }
+    }
+    corners
+}
+
+/// One line's words: a `v` record counts, an `f` or `l` record of three or more corners adds their `v` records.
+fn read_record<'a>(mut words: impl Iterator<Item = &'a [u8]>, vertex_count: &mut i64, corners: &mut Vec<u32>) {
+    match words.next() {
+        Some(b"v") => *vertex_count += 1,
+        Some(b"f" | b"l") => {
+            let first = corners.len();
+            corners.extend(words.map(|word| {
+                let number = word.split(|&b| b == b'/').next().and_then(|n| std::str::from_utf8(n).ok());
+                let resolved =
+                    number.and_then(|n| n.parse::<i64>().ok()).map(|n| if n < 0 { *vertex_count + n } else { n - 1 });
+                resolved.and_then(|v| u32::try_from(v).ok()).unwrap_or(u32::MAX)
+            }));
+            // One or two corners are a point or a line, which tobj skips.
+            if (1..3).contains(&(corners.len() - first)) {
+                corners.truncate(first);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// For each vertex of a tobj model (numbered in the order its faces first use them), the file's `v` record:
+/// the model's corners `indices` are the next `indices.len()` of the file's `corners`, from `*used` on. Fails
+/// when one model vertex would be two records (the corners do not line up with tobj's).
+fn file_vertex_numbers(
+    indices: &[u32],
+    vertex_count: usize,
+    corners: &[u32],
+    used: &mut usize,
+) -> Result<Vec<u32>, String> {
+    let mut numbers = vec![u32::MAX; vertex_count];
+    let mismatch = || "the faces' corners could not be matched to their v records".to_string();
+    let file_corners = corners.get(*used..*used + indices.len()).ok_or_else(mismatch)?;
+    for (&local, &record) in indices.iter().zip(file_corners) {
+        let slot = numbers.get_mut(local as usize).ok_or_else(mismatch)?;
+        if *slot != u32::MAX && *slot != record {
+            return Err(mismatch());
+        }
+        *slot = record;
+    }
+    *used += indices.len();
+    Ok(numbers)
 }
 
 /// tobj's errors carry no line number; find the first line that breaks the same rule.

@@ -149,7 +149,7 @@ pub(super) fn read(bytes: &[u8], limits: &ImportLimits, builder: &mut SoupBuilde
         strip_triangles(strip, &mut triangles);
     }
     builder
-        .add_mesh_in_place(Provenance::NONE, &source, &positions, &triangles)
+        .add_mesh_in_place(Provenance::NONE, &source, &positions, &triangles, None)
         .map_err(|(kind, e)| Located::of_kind(kind, "faces", e))?;
     Ok(())
 }

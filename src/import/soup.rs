@@ -7,7 +7,9 @@
 //!   triangle's index within its primitive is `source_id - first_source_triangle` of its [`SourceRange`];
 //! * drops degenerate triangles (a repeated vertex index, or zero area in world space) unless told to keep
 //!   them, and counts them either way;
-//! * copies only the vertices that kept triangles use, so unreferenced vertices cost nothing downstream.
+//! * copies only the vertices that kept triangles use, so unreferenced vertices cost nothing downstream;
+//! * records each kept triangle's source vertex indices (the primitive's own numbering, in the stored corner
+//!   order), which the writer stores as the `source_vertices` section.
 
 use crate::import::limits::Meter;
 use crate::import::memory::{MemoryLimit, usable_memory};
@@ -26,6 +28,9 @@ pub struct TriangleSoup {
     pub triangles: Vec<[u32; 3]>,
     /// Each triangle's source id (see the module documentation).
     pub source_ids: Vec<u32>,
+    /// Each triangle's vertex indices in its source primitive, in the order of `triangles` (so swapped with
+    /// them in a mirrored placement): `format-spec/bvh-1.md` 5.9.
+    pub source_vertices: Vec<[u32; 3]>,
     /// The source ranges, ascending and disjoint; every source id lies in one of them.
     pub sources: Vec<SourceRange>,
 }
@@ -81,6 +86,9 @@ pub struct PrimitiveInstance<'a, S: Fn(u32) -> [f64; 3], P: Fn(u32) -> [f32; 3]>
     pub position: P,
     /// Triangles as local vertex indices, in the primitive's order.
     pub triangles: &'a [[u32; 3]],
+    /// The source's number of each local vertex (an OBJ model's vertex -> the file's `v` record), where it
+    /// differs from the local index; `None`: the local indices are the source's (glTF, PLY).
+    pub source_vertex_index: Option<&'a [u32]>,
     /// Reverse the winding (the placement has a negative determinant).
     pub flip_winding: bool,
     /// Whether this is the first placement of this mesh data (counted in the "unique" figures).
@@ -147,11 +155,18 @@ impl SoupBuilder {
             let message = format!("triangle {t}: vertex index out of range ({} vertices)", primitive.vertex_count);
             return Err((ErrorKind::Invalid, message));
         }
+        if primitive.source_vertex_index.is_some_and(|numbers| numbers.len() < primitive.vertex_count) {
+            return Err((ErrorKind::Invalid, "a vertex has no source number".to_string()));
+        }
         self.triangle_budget.take(count as u64).map_err(|e| (ErrorKind::Limit, e))?;
         self.check_memory(self.report.source_triangles.saturating_add(count as u64))
             .map_err(|e| (ErrorKind::Limit, e))?;
         let soup = &mut self.soup;
-        let reserved = soup.triangles.try_reserve(count).and_then(|()| soup.source_ids.try_reserve(count));
+        let reserved = soup
+            .triangles
+            .try_reserve(count)
+            .and_then(|()| soup.source_ids.try_reserve(count))
+            .and_then(|()| soup.source_vertices.try_reserve(count));
         reserved.map_err(|_| (ErrorKind::Limit, format!("out of memory adding {count} triangles")))?;
         let first = self.next_source_id;
         self.next_source_id += count as u64;
@@ -216,10 +231,16 @@ impl SoupBuilder {
                 }
                 *slot = *mapped;
             }
+            let mut source_vertices = [a, b, c];
+            if let Some(numbers) = primitive.source_vertex_index {
+                source_vertices = source_vertices.map(|v| numbers[v as usize]);
+            }
             if primitive.flip_winding {
                 triangle.swap(1, 2);
+                source_vertices.swap(1, 2);
             }
             self.soup.triangles.push(triangle);
+            self.soup.source_vertices.push(source_vertices);
             self.soup.source_ids.push(first as u32 + k as u32);
         }
         if primitive.first_use {
@@ -229,13 +250,15 @@ impl SoupBuilder {
     }
 
     /// Adds a mesh that is placed once, as it is (OBJ models, PLY files): its source positions, the same
-    /// rounded to f32, and its triangles; counts the placement and the file's triangles.
+    /// rounded to f32, its triangles, and the source's number of each vertex where it differs from its index;
+    /// counts the placement and the file's triangles.
     pub fn add_mesh_in_place(
         &mut self,
         provenance: Provenance,
         source: &[[f64; 3]],
         positions: &[[f32; 3]],
         triangles: &[[u32; 3]],
+        source_vertex_index: Option<&[u32]>,
     ) -> Result<(), (ErrorKind, String)> {
         self.add(PrimitiveInstance {
             provenance,
@@ -243,6 +266,7 @@ impl SoupBuilder {
             source_position: |v| source[v as usize],
             position: |v| positions[v as usize],
             triangles,
+            source_vertex_index,
             flip_winding: false,
             first_use: true,
         })?;

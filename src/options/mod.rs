@@ -39,6 +39,9 @@ pub struct ConvertOptions {
     pub wide: Option<WideCosts>,
     /// Write the triangle_ids and source_table sections.
     pub write_ids: bool,
+    /// Write the source_vertices section of format 1.2 (each triangle's vertex indices in its source
+    /// primitive); needs `write_ids`.
+    pub write_source_vertices: bool,
 }
 
 impl Default for ConvertOptions {
@@ -79,6 +82,14 @@ impl ConvertOptions {
                     "the SBVH builds its own tree; add --no-splits or --split-method pre-split",
                 ));
             }
+        }
+        if self.write_source_vertices && !self.write_ids {
+            return Err(OptionsError::inert(
+                "source vertices",
+                "--no-ids",
+                "the source_vertices section names vertices of the primitive a source id leads to; keep the ids \
+                 or add --no-source-vertices",
+            ));
         }
         if let Some(wide) = self.wide {
             let fits = (2..=8).contains(&wide.width)

@@ -47,6 +47,8 @@ pub struct Overrides {
     pub wide: Option<bool>,
     /// Output: write the triangle_ids and source_table sections.
     pub write_ids: Option<bool>,
+    /// Output: write the source_vertices section (needs the ids; leaving the ids out leaves it out too).
+    pub write_source_vertices: Option<bool>,
 }
 
 /// A setting that cannot be honoured.
@@ -111,6 +113,15 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
         options.wide = Some(options.wide.unwrap_or_default());
     }
     options.write_ids = o.write_ids.unwrap_or(options.write_ids);
+    if o.write_source_vertices == Some(false) && o.write_ids == Some(false) {
+        return Err(OptionsError::inert(
+            "--no-source-vertices",
+            "--no-ids",
+            "without ids the source vertices are left out already; drop --no-source-vertices",
+        ));
+    }
+    options.write_source_vertices =
+        o.write_source_vertices.unwrap_or(options.write_source_vertices && options.write_ids);
     if o.builder == Some(Builder::SpatialMedian) && options.splits.is_some_and(|s| s.method == SplitMethod::Sbvh) {
         let because = if o.split_method.is_some() { "--split-method sbvh" } else { "the preset's SBVH splits" };
         return Err(OptionsError::inert(

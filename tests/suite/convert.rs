@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use bvhc::convert::convert_with;
 use bvhc::import::{ImportOptions, import};
-use bvhc::loader::BvhFile;
+use bvhc::loader::{BvhFile, SectionKind};
 use bvhc::options::ConvertOptions;
 use bvhc::options::Preset;
 
@@ -98,19 +98,38 @@ fn optimized_real_scenes_trace_like_brute_force() {
 }
 
 #[test]
-fn the_default_conversion_writes_1_1_with_wide_sections_and_no_wide_writes_1_0() {
+fn each_conversion_writes_the_lowest_version_its_sections_need() {
+    // Default: wide sections (1.1) and source vertices (1.2); without source vertices 1.1; without wide sections
+    // and source vertices 1.0.
     let dir = tempfile::tempdir().unwrap();
     let (wide_path, plain_path) = (dir.path().join("wide.bvh"), dir.path().join("plain.bvh"));
-    let wide_options = ConvertOptions::default();
-    let plain_options = ConvertOptions { wide: None, ..ConvertOptions::default() };
+    let default_options = ConvertOptions::default();
+    let wide_options = ConvertOptions { write_source_vertices: false, ..ConvertOptions::default() };
+    let plain_options = ConvertOptions { wide: None, ..wide_options.clone() };
+    let default_bytes = convert_in_pool(1, &teapot(), &dir.path().join("default.bvh"), &default_options);
     let wide_bytes = convert_in_pool(1, &teapot(), &wide_path, &wide_options);
     let plain_bytes = convert_in_pool(1, &teapot(), &plain_path, &plain_options);
+    let default = BvhFile::from_bytes(&default_bytes).unwrap();
     let (wide, plain) = (BvhFile::from_bytes(&wide_bytes).unwrap(), BvhFile::from_bytes(&plain_bytes).unwrap());
-    assert_eq!((wide.view().version(), plain.view().version()), ((1, 1), (1, 0)));
+    let versions = [&default, &wide, &plain].map(|file| file.view().version());
+    assert_eq!(versions, [(1, 2), (1, 1), (1, 0)]);
+    assert!(default.view().source_vertices().is_some() && wide.view().source_vertices().is_none());
     assert!(wide.view().wide_sections().is_some() && plain.view().wide_sections().is_none());
-    // The binary sections are the same tree either way.
-    assert_eq!(wide.view().nodes(), plain.view().nodes());
-    assert_eq!(wide.view().triangles(), plain.view().triangles());
+    // The binary sections are the same tree either way, and the wide ones with or without source vertices.
+    for other in [&wide, &plain] {
+        assert_eq!(default.view().nodes(), other.view().nodes());
+        assert_eq!(default.view().triangles(), other.view().triangles());
+    }
+    let checksums = |file: &BvhFile, kinds: [SectionKind; 2]| -> Vec<u64> {
+        let view = file.view();
+        view.sections()
+            .filter(|s| s.kind.is_some_and(|k| kinds.contains(&k)))
+            .map(|s| s.entry.section_checksum)
+            .collect()
+    };
+    let wide_kinds = [SectionKind::WideNodes, SectionKind::TrianglePackets];
+    assert_eq!(checksums(&default, wide_kinds), checksums(&wide, wide_kinds));
+    assert_eq!(crate::common::assert_metadata_matches_schema(&default)["format_version"], "1.2");
     let metadata = crate::common::assert_metadata_matches_schema(&wide);
     assert_eq!(metadata["format_version"], "1.1");
     assert_eq!(metadata["build"]["wide"]["width"], 8);
@@ -121,8 +140,10 @@ fn the_default_conversion_writes_1_1_with_wide_sections_and_no_wide_writes_1_0()
     let binary_bytes = 32 * wide.view().nodes().len() + 36 * wide.view().triangles().len();
     let wide_bytes = 256 * sections.nodes.len() + 160 * sections.packets.len();
     assert!(wide_bytes as f64 <= 1.3 * binary_bytes as f64, "{wide_bytes} wide bytes for {binary_bytes}");
-    // A file written without wide sections is not up to date for options that want them.
-    let report = convert_with(&teapot(), &plain_path, &wide_options, &mut |_| std::ops::ControlFlow::Continue(()));
-    assert!(report.is_ok());
-    assert_eq!(BvhFile::read(&plain_path).unwrap().view().version(), (1, 1));
+    // A file written without wide sections or source vertices is not up to date for options that want them.
+    for (options, version) in [(&wide_options, (1, 1)), (&default_options, (1, 2))] {
+        let report = convert_with(&teapot(), &plain_path, options, &mut |_| std::ops::ControlFlow::Continue(()));
+        assert!(report.is_ok());
+        assert_eq!(BvhFile::read(&plain_path).unwrap().view().version(), version);
+    }
 }

@@ -1,6 +1,7 @@
 //! glTF placement against an independent oracle: the gltf crate's own validated reader decodes each primitive,
 //! the test accumulates node transforms in f64, and every imported triangle must equal its local triangle
-//! placed in world space, in the source's winding, reversed exactly where the placement mirrors.
+//! placed in world space, in the source's winding, reversed exactly where the placement mirrors, and name the
+//! primitive's vertex indices in that order as its source vertices.
 
 use std::path::Path;
 
@@ -10,7 +11,7 @@ use glam::{DMat4, DVec3};
 use crate::common::scene;
 
 /// World matrices of every node reachable from the default scene, by node index.
-fn world_matrices(document: &gltf::Document) -> Vec<Option<DMat4>> {
+pub(crate) fn world_matrices(document: &gltf::Document) -> Vec<Option<DMat4>> {
     let mut worlds = vec![None; document.nodes().len()];
     let scene = document.default_scene().or_else(|| document.scenes().next()).unwrap();
     let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
@@ -51,15 +52,17 @@ fn check_against_oracle(relative: &str) -> Option<(usize, usize)> {
             (positions, indices)
         });
         let world = worlds[range.node_index as usize].unwrap();
-        let local = [indices[3 * k], indices[3 * k + 1], indices[3 * k + 2]];
-        let mut expected = local.map(|i| {
+        let mut local = [indices[3 * k], indices[3 * k + 1], indices[3 * k + 2]];
+        if world.determinant() < 0.0 {
+            local.swap(1, 2);
+            mirrored += 1;
+        }
+        // The source vertices are the primitive's indices in the stored corner order (spec 5.9).
+        assert_eq!(soup.source_vertices[t], local, "{relative} triangle {t}");
+        let expected = local.map(|i| {
             let p = positions[i as usize].map(f64::from);
             world.transform_point3(DVec3::from_array(p))
         });
-        if world.determinant() < 0.0 {
-            expected.swap(1, 2);
-            mirrored += 1;
-        }
         let got = soup.vertices(t);
         for (corner, (g, e)) in got.iter().zip(&expected).enumerate() {
             let scale = e.abs().max_element().max(1.0);
@@ -70,7 +73,7 @@ fn check_against_oracle(relative: &str) -> Option<(usize, usize)> {
     Some((soup.triangles.len(), mirrored))
 }
 
-fn load_with_gltf_crate(path: &Path) -> (gltf::Document, Vec<Vec<u8>>) {
+pub(crate) fn load_with_gltf_crate(path: &Path) -> (gltf::Document, Vec<Vec<u8>>) {
     let gltf = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).unwrap();
     let buffers = gltf
         .document

@@ -28,6 +28,7 @@ const REFUSED: &[(&[&str], &str, &str)] = &[
     (&["--preset", "fast", "--split-method", "pre-split"], "--split-method", "fast preset"),
     (&["--builder", "spatial-median"], "--builder spatial-median", "SBVH"),
     (&["--builder", "spatial-median", "--split-method", "sbvh"], "--builder spatial-median", "--split-method sbvh"),
+    (&["--no-ids", "--no-source-vertices"], "--no-source-vertices", "--no-ids"),
 ];
 
 #[test]
@@ -69,6 +70,14 @@ fn the_library_refuses_the_same_combinations_with_typed_errors() {
         Overrides { merge_leaves: Some(false), max_leaf_size: Some(4), ..Default::default() },
         "--max-leaf-size",
     );
+    // Source vertices asked for without the ids they need; without ids and not asked for, they are left out.
+    inert(
+        Preset::Balanced,
+        Overrides { write_ids: Some(false), write_source_vertices: Some(true), ..Default::default() },
+        "source vertices",
+    );
+    let no_ids = resolve(Preset::Balanced, &Overrides { write_ids: Some(false), ..Default::default() }).unwrap();
+    assert!(!no_ids.write_ids && !no_ids.write_source_vertices);
     inert(
         Preset::MaxQuality,
         Overrides { optimize: Some(false), selection: Some(bvhc::optimize::Selection::Sum), ..Default::default() },

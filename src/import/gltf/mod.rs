@@ -202,6 +202,7 @@ impl Walker<'_, '_> {
                     },
                     position: |v| positions[v as usize],
                     triangles: &geometry.triangles,
+                    source_vertex_index: None,
                     flip_winding,
                     first_use: self.placed.insert((mesh_index, p)),
                 })
