@@ -1,6 +1,6 @@
 //! The C API (`crates/bvhc-capi`): a C program built against `include/bvhc.h` and linked with the static
-//! library opens, verifies and traces a converted teapot (closest hit, any hit, batches, spawned rays) with
-//! the same hit records as the Rust API, bit for bit; the header's structs have the Rust structs' sizes and it
+//! library opens, verifies and traces a converted teapot (closest hit, any hit, batches, spawned rays, source
+//! corners) with the same hit records as the Rust API, bit for bit; the header's structs have the Rust structs' sizes and it
 //! declares exactly the library's exported functions. SKIPPED without a C compiler or without the library
 //! (`.ci/run` builds it with `cargo build --release -p bvhc-capi`).
 
@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use bvhc::loader::{BvhFile, Ray};
-use bvhc_capi::{BvhcHit, BvhcRay};
+use bvhc_capi::{BvhcHit, BvhcRay, BvhcSourceCorners};
 
 use crate::cli::{bvhc, teapot};
 use crate::common::random_rays;
@@ -39,6 +39,7 @@ fn the_header_declares_every_exported_function_and_nothing_else() {
     assert_eq!(declared, exported, "the header declares exactly the exported functions");
     assert_eq!(size_of::<BvhcRay>(), 32);
     assert_eq!(size_of::<BvhcHit>(), 36);
+    assert_eq!(size_of::<BvhcSourceCorners>(), 44);
 }
 
 /// The static library beside the test binary (target/<profile>/libbvhc_capi.a), if built.
@@ -93,8 +94,10 @@ fn a_c_program_traces_with_the_same_hits_as_rust() {
     let mut lines = stdout.lines();
     assert_eq!(lines.next(), Some("sizeof_ray 32"));
     assert_eq!(lines.next(), Some("sizeof_hit 36"));
+    assert_eq!(lines.next(), Some("sizeof_source_corners 44"));
     let file = BvhFile::read(&bvh).unwrap();
-    let tracer = file.view().tracer();
+    let view = file.view();
+    let tracer = view.tracer();
     let mut hits = 0;
     for (ray, line) in rays.iter().zip(lines) {
         let any = u8::from(tracer.any_hit(ray));
@@ -103,14 +106,18 @@ fn a_c_program_traces_with_the_same_hits_as_rust() {
             Some(hit) => {
                 hits += 1;
                 let [nx, ny, nz] = hit.normal.map(f32::to_bits);
+                let corners = view.source_corners(&hit).expect("the teapot has source vertices");
+                let [s0, s1, s2] = corners.vertices;
                 format!(
-                    "hit {:08x} {:08x} {:08x} {nx:08x} {ny:08x} {nz:08x} {} {} {} {any}",
+                    "hit {:08x} {:08x} {:08x} {nx:08x} {ny:08x} {nz:08x} {} {} {} {any} {s0} {s1} {s2} {} {:08x}",
                     hit.t.to_bits(),
                     hit.u.to_bits(),
                     hit.v.to_bits(),
                     hit.triangle_index,
                     hit.source_triangle_id.unwrap_or(u32::MAX),
-                    u8::from(hit.front_face)
+                    u8::from(hit.front_face),
+                    corners.range.mesh_index,
+                    corners.weights[0].to_bits()
                 )
             }
         };

@@ -9,8 +9,9 @@
  * - null pointers are argument errors, never crashes; no exception or panic crosses the boundary;
  * - a bvhc_file is immutable: any number of threads may trace through one at once; only bvhc_close must not
  *   race with them.
- * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices (format-spec/bvh-1.md 5.4
- * says which source corners they are). bvhc_spawn_ray gives a secondary ray with t_min = 0 that does not meet
+ * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices; bvhc_hit_source_corners
+ * names them in the source scene's own primitive (format-spec/bvh-1.md 5.9), to interpolate its normals, texture
+ * coordinates or colours. bvhc_spawn_ray gives a secondary ray with t_min = 0 that does not meet
  * the triangle it leaves, at any scale, with no epsilon to choose.
  */
 #ifndef BVHC_H
@@ -30,6 +31,7 @@ typedef int bvhc_status;
 #define BVHC_ERROR_ARGUMENT 3
 #define BVHC_ERROR_MEMORY 4
 #define BVHC_ERROR_PANIC 5
+#define BVHC_ERROR_NOT_IN_FILE 6 /* the file lacks an optional section the call needs */
 
 /* No source id (a file without a triangle_ids section). */
 #define BVHC_NO_SOURCE_ID 0xFFFFFFFFu
@@ -54,6 +56,18 @@ typedef struct bvhc_hit {
     uint8_t reserved[3];
 } bvhc_hit;
 
+/* Where a hit lies in the source scene: attribute(hit) = sum of weights[i] * attribute[vertices[i]] over the
+ * vertex arrays of the glTF primitive (node, mesh, primitive, instance), OBJ file or PLY file it came from. */
+typedef struct bvhc_source_corners {
+    uint32_t vertices[3]; /* source vertex of the record's v0, v1, v2 */
+    float weights[3];     /* 1 - u - v, u, v */
+    uint32_t source_triangle_id;
+    uint32_t node_index;      /* 0xFFFFFFFF where it does not apply */
+    uint32_t mesh_index;      /* glTF mesh or OBJ model */
+    uint32_t primitive_index; /* glTF primitive within the mesh */
+    uint32_t instance_index;  /* EXT_mesh_gpu_instancing instance */
+} bvhc_source_corners;
+
 bvhc_status bvhc_open(const char *path, bvhc_file **out);
 bvhc_status bvhc_open_memory(const void *bytes, size_t len, bvhc_file **out);
 bvhc_status bvhc_verify(const bvhc_file *file);
@@ -67,6 +81,7 @@ bvhc_status bvhc_any_hits(const bvhc_file *file, const bvhc_ray *rays, size_t co
 bvhc_status bvhc_spawn_ray(const bvhc_file *file, const bvhc_hit *hit, const float direction[3], bvhc_ray *out);
 
 uint32_t bvhc_source_id(const bvhc_file *file, uint32_t triangle_index);
+bvhc_status bvhc_hit_source_corners(const bvhc_file *file, const bvhc_hit *hit, bvhc_source_corners *out);
 size_t bvhc_triangle_count(const bvhc_file *file);
 const char *bvhc_last_error_message(void);
 

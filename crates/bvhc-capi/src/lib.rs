@@ -24,6 +24,8 @@ pub const BVHC_ERROR_ARGUMENT: c_int = 3;
 pub const BVHC_ERROR_MEMORY: c_int = 4;
 /// A bug inside the library was caught at the boundary.
 pub const BVHC_ERROR_PANIC: c_int = 5;
+/// The file lacks an optional section the call needs (the source vertices of format 1.2).
+pub const BVHC_ERROR_NOT_IN_FILE: c_int = 6;
 
 /// `bvhc_ray`: the Rust `Ray`, field for field.
 #[repr(C)]
@@ -95,6 +97,27 @@ impl BvhcHit {
             front_face: self.front_face != 0,
         }
     }
+}
+
+/// `bvhc_source_corners`: where a hit lies in the source scene (the Rust `SourceCorners`, with the source
+/// range's indices inline).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BvhcSourceCorners {
+    /// The source vertex of the record's `v0`, `v1`, `v2` in its primitive.
+    pub vertices: [u32; 3],
+    /// The hit's weight of each: `1 - u - v`, `u`, `v`.
+    pub weights: [f32; 3],
+    /// The triangle's source id.
+    pub source_triangle_id: u32,
+    /// The source range's glTF node, or `0xFFFFFFFF`.
+    pub node_index: u32,
+    /// The source range's glTF mesh or OBJ model, or `0xFFFFFFFF`.
+    pub mesh_index: u32,
+    /// The source range's glTF primitive, or `0xFFFFFFFF`.
+    pub primitive_index: u32,
+    /// The source range's `EXT_mesh_gpu_instancing` instance, or `0xFFFFFFFF`.
+    pub instance_index: u32,
 }
 
 /// An open file (`bvhc_file`, opaque to C).
@@ -190,7 +213,7 @@ pub unsafe extern "C" fn bvhc_open_memory(bytes: *const u8, len: usize, out: *mu
     })
 }
 
-/// Checks every validity rule (V11-V39): `BVHC_OK`, or `BVHC_ERROR_INVALID` with the broken rule in the last
+/// Checks every validity rule (V11-V40): `BVHC_OK`, or `BVHC_ERROR_INVALID` with the broken rule in the last
 /// error message.
 ///
 /// # Safety
@@ -381,6 +404,49 @@ pub unsafe extern "C" fn bvhc_source_id(file: *const BvhcFile, triangle_index: u
     let Some(file) = (unsafe { file.as_ref() }) else { return u32::MAX };
     let view = file.file.view();
     view.triangle_ids().and_then(|ids| ids.get(triangle_index as usize).copied()).unwrap_or(u32::MAX)
+}
+
+/// The source primitive, source vertices and weights of `*hit` (`BvhView::source_corners`), into `*out`:
+/// interpolate a per-vertex attribute `A` of that primitive as `weights[0] A[vertices[0]] + weights[1]
+/// A[vertices[1]] + weights[2] A[vertices[2]]`. `BVHC_ERROR_NOT_IN_FILE` when the file has no source vertices.
+///
+/// # Safety
+///
+/// `file` is null or a live file; `hit` null or a `bvhc_hit` this file's tracing returned; `out` null or
+/// writable storage for a `bvhc_source_corners`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_hit_source_corners(
+    file: *const BvhcFile,
+    hit: *const BvhcHit,
+    out: *mut BvhcSourceCorners,
+) -> c_int {
+    guarded(|| {
+        // SAFETY: by the contract each pointer is null or valid.
+        let (file, hit, out) = unsafe { (file.as_ref(), hit.as_ref(), out.as_mut()) };
+        let (Some(file), Some(hit), Some(out)) = (file, hit, out) else {
+            return Err(argument("bvhc_hit_source_corners: file, hit and out must not be null"));
+        };
+        let view = file.file.view();
+        let Some(corners) = view.source_corners(&hit.to_hit()) else {
+            let why = if view.source_vertices().is_none() {
+                "the file has no source_vertices section (format 1.2; convert without --no-source-vertices)"
+            } else {
+                "the hit's triangle index is not a record of this file"
+            };
+            return Err((BVHC_ERROR_NOT_IN_FILE, format!("bvhc_hit_source_corners: {why}")));
+        };
+        let range = corners.range;
+        *out = BvhcSourceCorners {
+            vertices: corners.vertices,
+            weights: corners.weights,
+            source_triangle_id: corners.source_triangle_id,
+            node_index: range.node_index,
+            mesh_index: range.mesh_index,
+            primitive_index: range.primitive_index,
+            instance_index: range.instance_index,
+        };
+        Ok(BVHC_OK)
+    })
 }
 
 /// The number of triangle records (0 for null).
