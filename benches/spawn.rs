@@ -48,22 +48,6 @@ fn write_ply(path: &Path, triangles: &[[[f32; 3]; 3]]) {
     }
 }
 
-/// A unit direction in the hemisphere of `normal` (cosine-weighted).
-fn hemisphere(rng: &mut rand_pcg::Pcg64Mcg, normal: [f32; 3]) -> [f32; 3] {
-    loop {
-        let p: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0f32..1.0));
-        let length = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        if !(0.01..=1.0).contains(&length) {
-            continue;
-        }
-        let d: [f32; 3] = std::array::from_fn(|a| p[a] / length + normal[a]);
-        let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if length > 1e-3 {
-            return d.map(|c| c / length);
-        }
-    }
-}
-
 /// (AO rays, self-hits with the helper, self-hits when spawned naively) for `camera` rays, 8 AO rays a hit.
 fn trace(tracer: &Tracer<'_>, camera: &[Ray]) -> (u64, u64, u64) {
     camera
@@ -78,12 +62,11 @@ fn trace(tracer: &Tracer<'_>, camera: &[Ray]) -> (u64, u64, u64) {
                 if surface.normal == [0.0; 3] {
                     continue;
                 }
-                let outward = if hit.front_face { surface.normal } else { surface.normal.map(|c| -c) };
                 let own = |found: Option<bvhc::loader::Hit>| {
                     found.is_some_and(|h| h.source_triangle_id == hit.source_triangle_id)
                 };
                 for _ in 0..8 {
-                    let direction = hemisphere(&mut rng, outward);
+                    let direction = surface.cosine_direction([rng.random(), rng.random()]);
                     counts.0 += 1;
                     counts.1 += u64::from(own(tracer.closest_hit(&surface.spawn(direction))));
                     let naive = Ray { origin: surface.position, direction, t_min: 0.0, t_max: f32::INFINITY };

@@ -81,19 +81,9 @@ fn normalize(v: [f32; 3]) -> [f32; 3] {
 /// The fraction of `samples` cosine-weighted rays from `hit` that nothing blocks within `radius`.
 fn ambient(tracer: &Tracer<'_>, hit: &Hit, samples: usize, radius: f32, rng: &mut rand_pcg::Pcg64Mcg) -> f32 {
     let surface = tracer.surface(hit);
-    let outward = if hit.front_face { surface.normal } else { surface.normal.map(|c| -c) };
     let rays: Vec<Ray> = (0..samples)
         .map(|_| {
-            let direction = loop {
-                let p: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0f32..1.0));
-                let length = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-                if (0.01..=1.0).contains(&length) {
-                    let d: [f32; 3] = std::array::from_fn(|a| p[a] / length + outward[a]);
-                    if d.iter().any(|c| c.abs() > 1e-3) {
-                        break normalize(d);
-                    }
-                }
-            };
+            let direction = surface.cosine_direction([rng.random(), rng.random()]);
             Ray { t_max: radius, ..surface.spawn(direction) }
         })
         .collect();

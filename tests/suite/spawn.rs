@@ -20,22 +20,6 @@ struct SelfHits {
     naive: usize,
 }
 
-/// A unit direction in the hemisphere of `normal` (cosine-weighted: a random unit vector plus the normal).
-fn hemisphere(rng: &mut impl RngExt, normal: [f32; 3]) -> [f32; 3] {
-    loop {
-        let p: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0f32..1.0));
-        let length = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        if !(0.01..=1.0).contains(&length) {
-            continue;
-        }
-        let d: [f32; 3] = std::array::from_fn(|a| p[a] / length + normal[a]);
-        let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        if length > 1e-3 {
-            return d.map(|c| c / length);
-        }
-    }
-}
-
 /// Camera rays into the scene, `per_hit` ambient-occlusion rays from each hit (to the side the camera ray came
 /// from), traced by `tracer`.
 fn count_self_hits(tracer: &Tracer<'_>, camera_rays: &[Ray], per_hit: usize, seed: u64) -> SelfHits {
@@ -47,9 +31,8 @@ fn count_self_hits(tracer: &Tracer<'_>, camera_rays: &[Ray], per_hit: usize, see
         if surface.normal == [0.0; 3] {
             continue;
         }
-        let outward = if hit.front_face { surface.normal } else { surface.normal.map(|c| -c) };
         for _ in 0..per_hit {
-            let direction = hemisphere(&mut rng, outward);
+            let direction = surface.cosine_direction([rng.random(), rng.random()]);
             counts.spawned += 1;
             let own = |found: Option<Hit>| found.is_some_and(|h| h.triangle_index == hit.triangle_index);
             let spawned = surface.spawn(direction);
@@ -314,9 +297,8 @@ fn ambient_occlusion_with_spawned_rays_matches_an_f64_reference() {
         let (o, d) = (ray.origin.map(f64::from), ray.direction.map(f64::from));
         let along = (0..3).map(|a| n[a] * (v0[a] - o[a])).sum::<f64>() / (0..3).map(|a| n[a] * d[a]).sum::<f64>();
         let exact: [f64; 3] = std::array::from_fn(|a| o[a] + along * d[a]);
-        let outward = if hit.front_face { surface.normal } else { surface.normal.map(|c| -c) };
         for _ in 0..16 {
-            let direction = hemisphere(&mut rng, outward);
+            let direction = surface.cosine_direction([rng.random(), rng.random()]);
             samples += 1;
             ours += usize::from(!tracer.any_hit(&Ray { t_max: radius, ..surface.spawn(direction) }));
             let naive_ray = Ray { origin: surface.position, direction, t_min: 0.0, t_max: radius };
@@ -341,4 +323,34 @@ fn ambient_occlusion_with_spawned_rays_matches_an_f64_reference() {
         (mean(ours) - mean(reference)).abs() <= 0.01 * mean(reference),
         "spawned AO differs from the f64 reference"
     );
+}
+
+#[test]
+fn cosine_directions_are_unit_in_the_facing_hemisphere_with_the_cosine_density() {
+    // Against the density cos(theta) / pi: E[cos theta] = 2/3 and P(cos theta > c) = 1 - c^2, for normals on
+    // both sides of z = 0 (the basis' two branches) and on the side a back-face hit faces.
+    // The point's normal is the hit's (normalized); the record only places the point.
+    let record = bvhc::loader::PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
+    let mut rng = rng(99);
+    for (normal, front_face) in [([0.0, 0.0, 1.0], true), ([0.0, 0.0, 1.0], false), ([0.6, -0.48, 0.64], true)] {
+        let hit = Hit { t: 1.0, triangle_index: 0, source_triangle_id: None, u: 0.25, v: 0.25, normal, front_face };
+        let surface = bvhc::loader::SurfacePoint::new(&hit, &record);
+        let facing = surface.facing_normal();
+        assert_eq!(facing[2].signum(), if front_face { 1.0 } else { -1.0 });
+        let n = 200_000;
+        let (mut sum, mut above) = (0.0f64, 0usize);
+        for _ in 0..n {
+            let d = surface.cosine_direction([rng.random(), rng.random()]);
+            let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            assert!((length - 1.0).abs() < 1e-5, "{d:?}");
+            let cos = f64::from(d[0] * facing[0] + d[1] * facing[1] + d[2] * facing[2]);
+            assert!(cos >= -1e-6, "{d:?} leaves the hemisphere of {facing:?}");
+            sum += cos;
+            above += usize::from(cos > 0.5);
+        }
+        let mean = sum / n as f64;
+        let fraction = above as f64 / n as f64;
+        assert!((mean - 2.0 / 3.0).abs() < 0.005, "E[cos] {mean}");
+        assert!((fraction - 0.75).abs() < 0.005, "P(cos > 0.5) {fraction}");
+    }
 }
