@@ -37,10 +37,13 @@ fn every_written_file_matches_the_metadata_schema() {
     options.leaves = LeafMerge::Off;
     let metadata = convert_and_check(&teapot, &options);
     assert_eq!(metadata["build"]["max_leaf_size"], 1, "one triangle per leaf is recorded as such");
+    // Without ids, and so without source vertices (which name vertices of the primitive an id leads to).
     options.write_ids = false;
+    options.write_source_vertices = false;
     options.reinsertion = None;
     options.optimize.time_budget = Some(std::time::Duration::from_millis(1500));
-    convert_and_check(&teapot, &options);
+    let metadata = convert_and_check(&teapot, &options);
+    assert_eq!(metadata["build"]["write_source_vertices"], false);
     // Split references, by either method.
     for method in [SplitMethod::Sbvh, SplitMethod::PreSplit] {
         let split = ConvertOptions {
