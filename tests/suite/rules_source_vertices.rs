@@ -133,16 +133,7 @@ fn v40_source_vertices_with_dense_and_sparse_numbers() {
     let source = |t: u32| if t as usize == triangles.len() - 1 { 7 } else { t };
     for spacing in [1u32, 100_000] {
         let ids: Vec<u32> = tree.triangle_ids.iter().map(|&t| source(t) * spacing).collect();
-        let ranges = [bvhc::loader::SourceRange {
-            first_source_triangle: 0,
-            source_triangle_count: triangles.len() as u32 * spacing,
-            file_index: 0,
-            node_index: u32::MAX,
-            mesh_index: 0,
-            primitive_index: u32::MAX,
-            instance_index: u32::MAX,
-            reserved: 0,
-        }];
+        let ranges = crate::common::single_source_range(triangles.len() * spacing as usize);
         let good: Vec<SourceVertexIndices> = tree
             .triangle_ids
             .iter()
