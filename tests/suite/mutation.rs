@@ -1,5 +1,6 @@
 //! No input panics the loader: random bytes, and mutated and truncated good files (with and without their
-//! checksums repaired, so that mutations reach every rule), opened, verified and traced.
+//! checksums repaired, so that mutations reach every rule; binary, wide, and a converted file with split
+//! references and source vertices), opened, verified and traced, and the hits' source corners looked up.
 
 use bvhc::loader::{BvhFile, Ray};
 use proptest::prelude::*;
@@ -27,7 +28,12 @@ fn exercise(bytes: &[u8]) {
         [[1.0, 0.5, 0.25], [-0.0, 0.0, 1.0], [0.3, -1.0, 0.0]].map(|d| Ray::new([-0.1, 0.2, -3.0], d)).to_vec();
     for tracer in tracers.iter().flatten() {
         for ray in &rays {
-            let _ = tracer.closest_hit(ray);
+            if let Some(hit) = tracer.closest_hit(ray) {
+                if let Some(corners) = view.source_corners(&hit) {
+                    let _ = corners.interpolate(&[[0.0f32; 2]; 4]);
+                }
+                let _ = tracer.surface(&hit).spawn([0.0, 0.0, 1.0]);
+            }
             let _ = tracer.any_hit(ray);
         }
     }
@@ -66,10 +72,14 @@ proptest! {
     fn mutated_good_files_never_panic(
         edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..12),
         repair in any::<bool>(),
-        wide in any::<bool>(),
+        base in 0..3usize,
         truncate in proptest::option::of(any::<prop::sample::Index>()),
     ) {
-        let mut bytes = if wide { good_wide_bytes() } else { good_bytes() };
+        let mut bytes = match base {
+            0 => good_bytes(),
+            1 => good_wide_bytes(),
+            _ => converted_split_file().to_vec(),
+        };
         for (index, value) in edits {
             let at = index.index(bytes.len());
             bytes[at] = value;
@@ -84,4 +94,19 @@ proptest! {
         }
         exercise(&bytes);
     }
+}
+
+/// `fixtures/golden/split.obj` converted with the defaults: split references, wide sections, source vertices
+/// (format 1.2), every metadata key; made once.
+fn converted_split_file() -> &'static [u8] {
+    static BYTES: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    BYTES.get_or_init(|| {
+        let source = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden/split.obj");
+        let dir = tempfile::tempdir().unwrap();
+        let output = dir.path().join("split.bvh");
+        bvhc::Conversion::new(source, &output).run().unwrap();
+        let bytes = std::fs::read(&output).unwrap();
+        assert_eq!(BvhFile::from_bytes(&bytes).unwrap().view().version(), (1, 2));
+        bytes
+    })
 }
