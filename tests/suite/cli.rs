@@ -152,6 +152,14 @@ fn info_text_and_json() {
         (Some(2), Some(2), Some(1))
     );
     assert_eq!(info["format_version"], "1.0");
+    assert_eq!(info["source_vertices"], false);
+    assert!(stdout(&text).contains("provenance: source ids, no source vertices"), "{}", stdout(&text));
+    // The 1.2 golden file: hits can interpolate the source's attributes.
+    let golden_1_2 = golden().with_file_name("quad-v1.2.bvh");
+    let text = stdout(&bvhc(&[&"info", &golden_1_2]));
+    assert!(text.contains("provenance: source ids and source vertices"), "{text}");
+    let info: serde_json::Value = serde_json::from_str(&stdout(&bvhc(&[&"info", &golden_1_2, &"--json"]))).unwrap();
+    assert_eq!((info["format_version"].as_str(), info["source_vertices"].as_bool()), (Some("1.2"), Some(true)));
     assert_eq!(bvhc(&[&"info", &teapot()]).status.code(), Some(1));
 }
 
