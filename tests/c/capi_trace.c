@@ -34,11 +34,17 @@ int main(int argc, char **argv) {
     size_t count = (size_t)len / sizeof(bvhc_ray);
     bvhc_ray *rays = malloc(count * sizeof(bvhc_ray) + 1);
     bvhc_hit *hits = malloc(count * sizeof(bvhc_hit) + 1);
+    bvhc_hit *coherent_hits = malloc(count * sizeof(bvhc_hit) + 1);
     uint8_t *found = malloc(count + 1), *occluded = malloc(count + 1);
-    if (!rays || !hits || !found || !occluded || fread(rays, sizeof(bvhc_ray), count, f) != count) return 4;
+    uint8_t *coherent_found = malloc(count + 1), *coherent_occluded = malloc(count + 1);
+    if (!rays || !hits || !found || !occluded || !coherent_hits || !coherent_found || !coherent_occluded ||
+        fread(rays, sizeof(bvhc_ray), count, f) != count)
+        return 4;
     fclose(f);
     if (bvhc_closest_hits(file, rays, count, hits, found) != BVHC_OK) return 5;
     if (bvhc_any_hits(file, rays, count, occluded) != BVHC_OK) return 6;
+    if (bvhc_closest_hits_coherent(file, rays, count, coherent_hits, coherent_found) != BVHC_OK) return 16;
+    if (bvhc_any_hits_coherent(file, rays, count, coherent_occluded) != BVHC_OK) return 17;
     if (bvhc_closest_hit(file, NULL, hits) != -1) return 7;
     for (size_t i = 0; i < count; i++) {
         bvhc_hit one;
@@ -46,6 +52,9 @@ int main(int argc, char **argv) {
         int any = bvhc_any_hit(file, &rays[i]);
         if (hit != found[i] || any != occluded[i]) return 8;
         if (hit && memcmp(&one, &hits[i], sizeof one) != 0) return 9;
+        /* Coherent groups: the same answers, and the same t (a tie may name another triangle). */
+        if (coherent_found[i] != found[i] || coherent_occluded[i] != occluded[i]) return 18;
+        if (hit && bits(coherent_hits[i].t) != bits(one.t)) return 19;
         if (!hit) {
             printf("miss %d\n", any);
             continue;
@@ -70,5 +79,8 @@ int main(int argc, char **argv) {
     free(hits);
     free(found);
     free(occluded);
+    free(coherent_hits);
+    free(coherent_found);
+    free(coherent_occluded);
     return 0;
 }

@@ -14,13 +14,14 @@ use crate::cli::{bvhc, teapot};
 use crate::common::random_rays;
 
 const HEADER: &str = include_str!("../../crates/bvhc-capi/include/bvhc.h");
-const SOURCE: &str = include_str!("../../crates/bvhc-capi/src/lib.rs");
+const SOURCES: [&str; 2] =
+    [include_str!("../../crates/bvhc-capi/src/lib.rs"), include_str!("../../crates/bvhc-capi/src/batch.rs")];
 
 #[test]
 fn the_header_declares_every_exported_function_and_nothing_else() {
-    let exported: Vec<&str> = SOURCE
-        .split("#[unsafe(no_mangle)]")
-        .skip(1)
+    let exported: Vec<&str> = SOURCES
+        .iter()
+        .flat_map(|source| source.split("#[unsafe(no_mangle)]").skip(1))
         .filter_map(|rest| rest.split("fn ").nth(1)?.split('(').next())
         .collect();
     assert!(exported.len() >= 12, "{exported:?}");

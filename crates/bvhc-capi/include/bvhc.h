@@ -78,6 +78,11 @@ int bvhc_any_hit(const bvhc_file *file, const bvhc_ray *ray);
 bvhc_status bvhc_closest_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
                               uint8_t *found);
 bvhc_status bvhc_any_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
+/* Coherent rays (camera rays of neighbouring pixels): each 8 consecutive rays traced together; the same t and
+ * occlusion as one at a time (on a tie at t, possibly another triangle). */
+bvhc_status bvhc_closest_hits_coherent(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
+                                       uint8_t *found);
+bvhc_status bvhc_any_hits_coherent(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
 bvhc_status bvhc_spawn_ray(const bvhc_file *file, const bvhc_hit *hit, const float direction[3], bvhc_ray *out);
 
 uint32_t bvhc_source_id(const bvhc_file *file, uint32_t triangle_index);

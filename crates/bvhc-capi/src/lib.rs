@@ -12,6 +12,9 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use bvhc_loader::{BvhFile, Hit, Ray, Tracer};
 
+mod batch;
+pub use batch::{bvhc_any_hits, bvhc_any_hits_coherent, bvhc_closest_hits, bvhc_closest_hits_coherent};
+
 /// Status codes (`bvhc_status` in the header).
 pub const BVHC_OK: c_int = 0;
 /// A file could not be read.
@@ -283,83 +286,6 @@ pub unsafe extern "C" fn bvhc_any_hit(file: *const BvhcFile, ray: *const BvhcRay
         Ok(c_int::from(file.tracer().any_hit(&Ray::from(*ray))))
     });
     if status > 1 { -1 } else { status }
-}
-
-/// Traces `count` rays for their closest hits: `hits[i]` is ray `i`'s hit where `found[i]` is 1 (0: a miss,
-/// `hits[i]` zeroed). Rays are interleaved over large files, as `Tracer::closest_hits` does.
-///
-/// # Safety
-///
-/// `file` is null or a live file; `rays`, `hits` and `found` are null or point to `count` elements each.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn bvhc_closest_hits(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    hits: *mut BvhcHit,
-    found: *mut u8,
-) -> c_int {
-    guarded(|| {
-        // SAFETY: by the contract `file` is null or live.
-        let file = unsafe { file.as_ref() }.ok_or_else(|| argument("bvhc_closest_hits: file is null"))?;
-        if count == 0 {
-            return Ok(BVHC_OK);
-        }
-        if rays.is_null() || hits.is_null() || found.is_null() {
-            return Err(argument("bvhc_closest_hits: rays, hits and found must not be null"));
-        }
-        // SAFETY: not null, and by the contract each points to `count` elements; the outputs do not overlap
-        // the input (they are distinct C arrays of other types).
-        let (rays, hits, found) = unsafe {
-            (
-                std::slice::from_raw_parts(rays, count),
-                std::slice::from_raw_parts_mut(hits, count),
-                std::slice::from_raw_parts_mut(found, count),
-            )
-        };
-        let rays: Vec<Ray> = rays.iter().map(|&r| Ray::from(r)).collect();
-        let mut results = vec![None; count];
-        file.tracer().closest_hits(&rays, &mut results);
-        for ((result, hit), flag) in results.iter().zip(hits).zip(found) {
-            *hit = result.as_ref().map(BvhcHit::from).unwrap_or_default();
-            *flag = u8::from(result.is_some());
-        }
-        Ok(BVHC_OK)
-    })
-}
-
-/// Traces `count` rays for occlusion: `occluded[i]` is 1 when ray `i` hits anything.
-///
-/// # Safety
-///
-/// `file` is null or a live file; `rays` and `occluded` are null or point to `count` elements each.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn bvhc_any_hits(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    occluded: *mut u8,
-) -> c_int {
-    guarded(|| {
-        // SAFETY: by the contract `file` is null or live.
-        let file = unsafe { file.as_ref() }.ok_or_else(|| argument("bvhc_any_hits: file is null"))?;
-        if count == 0 {
-            return Ok(BVHC_OK);
-        }
-        if rays.is_null() || occluded.is_null() {
-            return Err(argument("bvhc_any_hits: rays and occluded must not be null"));
-        }
-        // SAFETY: not null, and by the contract each points to `count` elements.
-        let (rays, occluded) =
-            unsafe { (std::slice::from_raw_parts(rays, count), std::slice::from_raw_parts_mut(occluded, count)) };
-        let rays: Vec<Ray> = rays.iter().map(|&r| Ray::from(r)).collect();
-        let mut flags = vec![false; count];
-        file.tracer().any_hits(&rays, &mut flags);
-        for (flag, out) in flags.iter().zip(occluded) {
-            *out = u8::from(*flag);
-        }
-        Ok(BVHC_OK)
-    })
 }
 
 /// A ray leaving the surface of `*hit` along `direction` with `t_min = 0` that does not meet the triangle it
