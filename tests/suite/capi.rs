@@ -14,12 +14,22 @@ use crate::cli::{bvhc, teapot};
 use crate::common::random_rays;
 
 const HEADER: &str = include_str!("../../crates/bvhc-capi/include/bvhc.h");
-const SOURCES: [&str; 2] =
-    [include_str!("../../crates/bvhc-capi/src/lib.rs"), include_str!("../../crates/bvhc-capi/src/batch.rs")];
+/// Every source file of the C API crate.
+fn sources() -> Vec<String> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/bvhc-capi/src");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    files
+        .iter()
+        .filter(|f| f.extension().is_some_and(|e| e == "rs"))
+        .map(|f| std::fs::read_to_string(f).unwrap())
+        .collect()
+}
 
 #[test]
 fn the_header_declares_every_exported_function_and_nothing_else() {
-    let exported: Vec<&str> = SOURCES
+    let sources = sources();
+    let exported: Vec<&str> = sources
         .iter()
         .flat_map(|source| source.split("#[unsafe(no_mangle)]").skip(1))
         .filter_map(|rest| rest.split("fn ").nth(1)?.split('(').next())

@@ -5,7 +5,8 @@ use std::ffi::c_int;
 
 use bvhc_loader::{Hit, Ray, Tracer};
 
-use crate::{BVHC_OK, BvhcFile, BvhcHit, BvhcRay, argument, guarded};
+use crate::boundary::{BVHC_OK, BvhcFile, argument, guarded};
+use crate::records::{BvhcHit, BvhcRay};
 
 /// Traces `count` rays for their closest hits: `hits[i]` is ray `i`'s hit where `found[i]` is 1 (0: a miss,
 /// `hits[i]` zeroed). Rays are interleaved over large files, as `Tracer::closest_hits` does.

@@ -6,169 +6,21 @@
 //! of the last error is per thread (`bvhc_last_error_message`). A `bvhc_file` is immutable once opened, so any
 //! number of threads may trace through one at the same time; only `bvhc_close` must not race with them.
 
-use std::cell::RefCell;
-use std::ffi::{CStr, CString, c_char, c_int};
-use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::ffi::{CStr, c_char, c_int};
 
-use bvhc_loader::{BvhFile, Hit, Ray, Tracer};
+use bvhc_loader::{BvhFile, Ray};
 
 mod batch;
+mod boundary;
+mod records;
+
 pub use batch::{bvhc_any_hits, bvhc_any_hits_coherent, bvhc_closest_hits, bvhc_closest_hits_coherent};
-
-/// Status codes (`bvhc_status` in the header).
-pub const BVHC_OK: c_int = 0;
-/// A file could not be read.
-pub const BVHC_ERROR_IO: c_int = 1;
-/// The bytes break a validity rule of the format.
-pub const BVHC_ERROR_INVALID: c_int = 2;
-/// A null pointer, a bad length, or a path that is not UTF-8.
-pub const BVHC_ERROR_ARGUMENT: c_int = 3;
-/// The system refused memory.
-pub const BVHC_ERROR_MEMORY: c_int = 4;
-/// A bug inside the library was caught at the boundary.
-pub const BVHC_ERROR_PANIC: c_int = 5;
-/// The file lacks an optional section the call needs (the source vertices of format 1.2).
-pub const BVHC_ERROR_NOT_IN_FILE: c_int = 6;
-
-/// `bvhc_ray`: the Rust `Ray`, field for field.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct BvhcRay {
-    /// Start point.
-    pub origin: [f32; 3],
-    /// Direction, not necessarily normalized.
-    pub direction: [f32; 3],
-    /// Smallest distance that counts.
-    pub t_min: f32,
-    /// Largest distance that counts (`INFINITY` for an unbounded ray).
-    pub t_max: f32,
-}
-
-/// `bvhc_hit`: the Rust `Hit`, with `0xFFFFFFFF` for "no source id" and a byte for the front-face flag.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct BvhcHit {
-    /// Distance along the ray.
-    pub t: f32,
-    /// Barycentric weight of `v1`.
-    pub u: f32,
-    /// Barycentric weight of `v2`.
-    pub v: f32,
-    /// Geometric normal `(v1 - v0) x (v2 - v0)`, not normalized.
-    pub normal: [f32; 3],
-    /// Index of the record in the triangles section.
-    pub triangle_index: u32,
-    /// Source id, or `0xFFFFFFFF` without one.
-    pub source_triangle_id: u32,
-    /// 1 when the ray met the front side.
-    pub front_face: u8,
-    /// Zero.
-    pub reserved: [u8; 3],
-}
-
-impl From<BvhcRay> for Ray {
-    fn from(ray: BvhcRay) -> Ray {
-        Ray { origin: ray.origin, direction: ray.direction, t_min: ray.t_min, t_max: ray.t_max }
-    }
-}
-
-impl From<&Hit> for BvhcHit {
-    fn from(hit: &Hit) -> BvhcHit {
-        BvhcHit {
-            t: hit.t,
-            u: hit.u,
-            v: hit.v,
-            normal: hit.normal,
-            triangle_index: hit.triangle_index,
-            source_triangle_id: hit.source_triangle_id.unwrap_or(u32::MAX),
-            front_face: u8::from(hit.front_face),
-            reserved: [0; 3],
-        }
-    }
-}
-
-impl BvhcHit {
-    /// The Rust hit this record was made from.
-    fn to_hit(self) -> Hit {
-        Hit {
-            t: self.t,
-            triangle_index: self.triangle_index,
-            source_triangle_id: (self.source_triangle_id != u32::MAX).then_some(self.source_triangle_id),
-            u: self.u,
-            v: self.v,
-            normal: self.normal,
-            front_face: self.front_face != 0,
-        }
-    }
-}
-
-/// `bvhc_source_corners`: where a hit lies in the source scene (the Rust `SourceCorners`, with the source
-/// range's indices inline).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct BvhcSourceCorners {
-    /// The source vertex of the record's `v0`, `v1`, `v2` in its primitive.
-    pub vertices: [u32; 3],
-    /// The hit's weight of each: `1 - u - v`, `u`, `v`.
-    pub weights: [f32; 3],
-    /// The triangle's source id.
-    pub source_triangle_id: u32,
-    /// The source range's glTF node, or `0xFFFFFFFF`.
-    pub node_index: u32,
-    /// The source range's glTF mesh or OBJ model, or `0xFFFFFFFF`.
-    pub mesh_index: u32,
-    /// The source range's glTF primitive, or `0xFFFFFFFF`.
-    pub primitive_index: u32,
-    /// The source range's `EXT_mesh_gpu_instancing` instance, or `0xFFFFFFFF`.
-    pub instance_index: u32,
-}
-
-/// An open file (`bvhc_file`, opaque to C).
-pub struct BvhcFile {
-    file: BvhFile,
-}
-
-impl BvhcFile {
-    fn tracer(&self) -> Tracer<'_> {
-        self.file.view().tracer()
-    }
-}
-
-thread_local! {
-    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
-}
-
-fn set_error(message: &str) {
-    let message = CString::new(message.replace('\0', " ")).unwrap_or_default();
-    LAST_ERROR.with(|last| *last.borrow_mut() = message);
-}
-
-/// Runs `body`, turning a panic into `BVHC_ERROR_PANIC` with its message.
-fn guarded(body: impl FnOnce() -> Result<c_int, (c_int, String)>) -> c_int {
-    match catch_unwind(AssertUnwindSafe(body)) {
-        Ok(Ok(status)) => status,
-        Ok(Err((status, message))) => {
-            set_error(&message);
-            status
-        }
-        Err(_) => {
-            set_error("internal error (a panic was caught at the C boundary); please report it");
-            BVHC_ERROR_PANIC
-        }
-    }
-}
-
-fn status_of(error: &bvhc_loader::Error) -> c_int {
-    match error {
-        bvhc_loader::Error::Io { .. } => BVHC_ERROR_IO,
-        bvhc_loader::Error::OutOfMemory { .. } => BVHC_ERROR_MEMORY,
-        _ => BVHC_ERROR_INVALID,
-    }
-}
-
-fn argument(message: &str) -> (c_int, String) {
-    (BVHC_ERROR_ARGUMENT, message.to_string())
-}
+pub use boundary::{
+    BVHC_ERROR_ARGUMENT, BVHC_ERROR_INVALID, BVHC_ERROR_IO, BVHC_ERROR_MEMORY, BVHC_ERROR_NOT_IN_FILE,
+    BVHC_ERROR_PANIC, BVHC_OK, BvhcFile, bvhc_last_error_message,
+};
+use boundary::{argument, guarded, status_of};
+pub use records::{BvhcHit, BvhcRay, BvhcSourceCorners};
 
 fn opened(result: Result<BvhFile, bvhc_loader::Error>, out: *mut *mut BvhcFile) -> Result<c_int, (c_int, String)> {
     let file = result.map_err(|e| (status_of(&e), e.to_string()))?;
@@ -384,10 +236,4 @@ pub unsafe extern "C" fn bvhc_hit_source_corners(
 pub unsafe extern "C" fn bvhc_triangle_count(file: *const BvhcFile) -> usize {
     // SAFETY: by the contract `file` is null or live.
     unsafe { file.as_ref() }.map_or(0, |file| file.file.view().triangles().len())
-}
-
-/// The message of the last error on this thread (empty when none), valid until the next call on this thread.
-#[unsafe(no_mangle)]
-pub extern "C" fn bvhc_last_error_message() -> *const c_char {
-    LAST_ERROR.with(|last| last.borrow().as_ptr())
 }
