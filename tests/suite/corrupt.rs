@@ -44,6 +44,21 @@ pub fn data(bytes: &[u8], section: usize) -> usize {
     read_u64(bytes, entry(section) + 8) as usize
 }
 
+/// Relabels a good file of minor version `from` as `to`: the header's `version_minor` and the metadata's
+/// `format_version` (the metadata at table position 4, as every writer of these tests puts it), checksums
+/// repaired.
+pub fn relabel_minor(bytes: &mut [u8], from: u16, to: u16) {
+    assert_eq!(u16::from_le_bytes([bytes[10], bytes[11]]), from);
+    bytes[10..12].copy_from_slice(&to.to_le_bytes());
+    let (at, len) = (data(bytes, METADATA_SECTION), read_u64(bytes, entry(METADATA_SECTION) + 16) as usize);
+    let text = String::from_utf8(bytes[at..at + len].to_vec()).unwrap();
+    let relabelled =
+        text.replace(&format!("\"format_version\":\"1.{from}\""), &format!("\"format_version\":\"1.{to}\""));
+    assert_ne!(text, relabelled, "{text}");
+    bytes[at..at + len].copy_from_slice(relabelled.as_bytes());
+    refresh_checksums(bytes);
+}
+
 /// Recomputes every checksum, so that a corruption reaches the rules behind V11 and V12.
 pub fn refresh_checksums(bytes: &mut [u8]) {
     try_refresh_checksums(bytes).expect("the section table lies inside the file");

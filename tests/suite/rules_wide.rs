@@ -84,14 +84,7 @@ fn v8_wide_sections_come_together() {
 fn v8_wide_sections_only_in_files_of_1_1() {
     // Relabelled 1.0 (header and metadata), checksums repaired: the wide sections came with 1.1.
     let mut bytes = good_wide_bytes();
-    bytes[10..12].copy_from_slice(&0u16.to_le_bytes());
-    let metadata = data(&bytes, 4);
-    let len = crate::corrupt::read_u64(&bytes, entry(4) + 16) as usize;
-    let text = String::from_utf8(bytes[metadata..metadata + len].to_vec()).unwrap();
-    let relabelled = text.replace("\"format_version\":\"1.1\"", "\"format_version\":\"1.0\"");
-    assert_ne!(text, relabelled, "{text}");
-    bytes[metadata..metadata + len].copy_from_slice(relabelled.as_bytes());
-    refresh_checksums(&mut bytes);
+    crate::corrupt::relabel_minor(&mut bytes, 1, 0);
     assert_eq!(broken_rule(&bytes), Some(Rule::SectionMultiplicity));
     let error = BvhFile::from_bytes(&bytes).unwrap_err().to_string();
     assert!(error.contains("came with 1.1"), "{error}");

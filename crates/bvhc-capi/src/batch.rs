@@ -61,24 +61,17 @@ unsafe fn closest_hits(
     found: *mut u8,
 ) -> c_int {
     guarded(|| {
-        // SAFETY: by the contract `file` is null or live.
-        let file = unsafe { file.as_ref() }.ok_or_else(|| argument(&format!("{name}: file is null")))?;
-        if count == 0 {
+        let outputs_null = hits.is_null() || found.is_null();
+        // SAFETY: the caller's contract is this function's.
+        let Some((file, rays)) =
+            (unsafe { batch_input(name, file, rays, count, outputs_null, "rays, hits and found") })?
+        else {
             return Ok(BVHC_OK);
-        }
-        if rays.is_null() || hits.is_null() || found.is_null() {
-            return Err(argument(&format!("{name}: rays, hits and found must not be null")));
-        }
-        // SAFETY: not null, and by the contract each points to `count` elements; the outputs do not overlap
-        // the input (they are distinct C arrays of other types).
-        let (rays, hits, found) = unsafe {
-            (
-                std::slice::from_raw_parts(rays, count),
-                std::slice::from_raw_parts_mut(hits, count),
-                std::slice::from_raw_parts_mut(found, count),
-            )
         };
-        let rays: Vec<Ray> = rays.iter().map(|&r| Ray::from(r)).collect();
+        // SAFETY: not null (checked by `batch_input`), and by the contract each points to `count` elements; the
+        // outputs do not overlap the input (they are distinct C arrays of other types).
+        let (hits, found) =
+            unsafe { (std::slice::from_raw_parts_mut(hits, count), std::slice::from_raw_parts_mut(found, count)) };
         let mut results = vec![None; count];
         trace(&file.tracer(), &rays, &mut results);
         for ((result, hit), flag) in results.iter().zip(hits).zip(found) {
@@ -136,18 +129,14 @@ unsafe fn any_hits(
     occluded: *mut u8,
 ) -> c_int {
     guarded(|| {
-        // SAFETY: by the contract `file` is null or live.
-        let file = unsafe { file.as_ref() }.ok_or_else(|| argument(&format!("{name}: file is null")))?;
-        if count == 0 {
+        // SAFETY: the caller's contract is this function's.
+        let Some((file, rays)) =
+            (unsafe { batch_input(name, file, rays, count, occluded.is_null(), "rays and occluded") })?
+        else {
             return Ok(BVHC_OK);
-        }
-        if rays.is_null() || occluded.is_null() {
-            return Err(argument(&format!("{name}: rays and occluded must not be null")));
-        }
-        // SAFETY: not null, and by the contract each points to `count` elements.
-        let (rays, occluded) =
-            unsafe { (std::slice::from_raw_parts(rays, count), std::slice::from_raw_parts_mut(occluded, count)) };
-        let rays: Vec<Ray> = rays.iter().map(|&r| Ray::from(r)).collect();
+        };
+        // SAFETY: not null (checked by `batch_input`), and by the contract it points to `count` elements.
+        let occluded = unsafe { std::slice::from_raw_parts_mut(occluded, count) };
         let mut flags = vec![false; count];
         trace(&file.tracer(), &rays, &mut flags);
         for (flag, out) in flags.iter().zip(occluded) {
@@ -155,4 +144,35 @@ unsafe fn any_hits(
         }
         Ok(BVHC_OK)
     })
+}
+
+/// The file of a batch call and its rays.
+type BatchInput<'f> = (&'f BvhcFile, Vec<Ray>);
+
+/// What every batch call checks and reads first: the file, and its `count` rays as Rust rays; `None` for an
+/// empty batch (nothing to check or write). Argument errors name the call and, when a pointer is null, the
+/// `arrays` that must not be (`outputs_null`: whether one of the call's output arrays is).
+///
+/// # Safety
+///
+/// `file` is null or a live file; `rays` is null or points to `count` rays.
+unsafe fn batch_input<'f>(
+    name: &str,
+    file: *const BvhcFile,
+    rays: *const BvhcRay,
+    count: usize,
+    outputs_null: bool,
+    arrays: &str,
+) -> Result<Option<BatchInput<'f>>, (c_int, String)> {
+    // SAFETY: by the contract `file` is null or live.
+    let file = unsafe { file.as_ref() }.ok_or_else(|| argument(&format!("{name}: file is null")))?;
+    if count == 0 {
+        return Ok(None);
+    }
+    if rays.is_null() || outputs_null {
+        return Err(argument(&format!("{name}: {arrays} must not be null")));
+    }
+    // SAFETY: not null, and by the contract it points to `count` rays.
+    let rays = unsafe { std::slice::from_raw_parts(rays, count) };
+    Ok(Some((file, rays.iter().map(|&r| Ray::from(r)).collect())))
 }
