@@ -29,7 +29,7 @@ extern "C" {
 #define BVH_MAGIC "\x89" "BVHC\r\n\x1a" /* 8 bytes, without the string's terminating zero */
 #define BVH_MAGIC_BYTE_LEN 8
 #define BVH_VERSION_MAJOR 1
-#define BVH_VERSION_MINOR 2
+#define BVH_VERSION_MINOR 3
 #define BVH_HEADER_BYTE_LEN 64
 #define BVH_SECTION_ENTRY_BYTE_LEN 48 /* the entry's first 48 bytes; section_entry_byte_len may be larger */
 #define BVH_SECTION_ALIGNMENT 64
@@ -44,6 +44,9 @@ extern "C" {
 #define BVH_KIND_WIDE_NODES 6u       /* since 1.1 */
 #define BVH_KIND_TRIANGLE_PACKETS 7u /* since 1.1 */
 #define BVH_KIND_SOURCE_VERTICES 8u  /* since 1.2 */
+#define BVH_KIND_MESHES 9u           /* since 1.3, REQUIRED */
+#define BVH_KIND_INSTANCES 10u       /* since 1.3, REQUIRED */
+#define BVH_KIND_TOP_NODES 11u       /* since 1.3, REQUIRED; elements are BvhPackedNode */
 #define BVH_KIND_PRIVATE_FIRST 0x80000000u
 #define BVH_SECTION_FLAG_REQUIRED (1u << 0)
 #define BVH_SECTION_FLAG_SPLIT_REFERENCES (1u << 1) /* triangles only */
@@ -137,6 +140,29 @@ typedef struct BvhSourceVertexIndices {
     uint32_t indices[3];
 } BvhSourceVertexIndices;
 
+/* Element of the meshes section (section 5.10, since 1.3): a mesh's ranges of the one-level sections; indices
+ * inside a mesh count from its ranges' starts. */
+typedef struct BvhMeshRecord {
+    uint32_t first_node;
+    uint32_t node_count;
+    uint32_t first_triangle;
+    uint32_t triangle_count;
+    uint32_t first_wide_node;
+    uint32_t wide_node_count;
+    uint32_t first_packet;
+    uint32_t packet_count;
+} BvhMeshRecord;
+
+/* Element of the instances section (section 5.11, since 1.3): rows [a, b, c, d], p' = a.p + d per row. */
+typedef struct BvhInstanceRecord {
+    float object_to_world[3][4];
+    float world_to_object[3][4];
+    uint32_t mesh_index;
+    uint32_t node_index;         /* BVH_NO_INDEX where it does not apply */
+    uint32_t gpu_instance_index; /* BVH_NO_INDEX where it does not apply */
+    uint32_t reserved;
+} BvhInstanceRecord;
+
 /* The layout is the spec's byte for byte. */
 static_assert(sizeof(float) == 4, "f32 is IEEE 754 binary32");
 static_assert(sizeof(BvhFileHeader) == 64, "FileHeader is 64 bytes");
@@ -193,6 +219,24 @@ static_assert(offsetof(BvhTrianglePacket4, triangle_index) == 144, "triangle_ind
 
 static_assert(sizeof(BvhSourceVertexIndices) == 12, "SourceVertexIndices is 12 bytes");
 static_assert(offsetof(BvhSourceVertexIndices, indices) == 0, "indices");
+
+static_assert(sizeof(BvhMeshRecord) == 32, "MeshRecord is 32 bytes");
+static_assert(offsetof(BvhMeshRecord, first_node) == 0, "first_node");
+static_assert(offsetof(BvhMeshRecord, node_count) == 4, "node_count");
+static_assert(offsetof(BvhMeshRecord, first_triangle) == 8, "first_triangle");
+static_assert(offsetof(BvhMeshRecord, triangle_count) == 12, "triangle_count");
+static_assert(offsetof(BvhMeshRecord, first_wide_node) == 16, "first_wide_node");
+static_assert(offsetof(BvhMeshRecord, wide_node_count) == 20, "wide_node_count");
+static_assert(offsetof(BvhMeshRecord, first_packet) == 24, "first_packet");
+static_assert(offsetof(BvhMeshRecord, packet_count) == 28, "packet_count");
+
+static_assert(sizeof(BvhInstanceRecord) == 112, "InstanceRecord is 112 bytes");
+static_assert(offsetof(BvhInstanceRecord, object_to_world) == 0, "object_to_world");
+static_assert(offsetof(BvhInstanceRecord, world_to_object) == 48, "world_to_object");
+static_assert(offsetof(BvhInstanceRecord, mesh_index) == 96, "mesh_index");
+static_assert(offsetof(BvhInstanceRecord, node_index) == 100, "node_index");
+static_assert(offsetof(BvhInstanceRecord, gpu_instance_index) == 104, "gpu_instance_index");
+static_assert(offsetof(BvhInstanceRecord, reserved) == 108, "reserved");
 
 #ifdef __cplusplus
 }

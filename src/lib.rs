@@ -3,7 +3,7 @@
 //!
 //! The modules in the order the data flows through them: [`import`] (scene files to triangles), [`builders`]
 //! (initial trees, split references), [`optimize`] (reinsertion), [`layout`] (leaf merging, the wide collapse),
-//! [`pack`] (the file's arrays), [`convert`] (the pipeline, metadata, the build-script API), with [`options`]
+//! [`pack`] (the file's arrays), [`instancing`] (two-level scenes: the top tree, the sections), [`convert`] (the pipeline, metadata, the build-script API), with [`options`]
 //! (presets and overrides, resolved in one place). Shared below them: [`geometry`] (boxes, clipping), [`cost`]
 //! (the one SAH definition), [`build_tree`] (the flat binary tree); [`epo`] measures trees for the evaluation.
 #![forbid(unsafe_code)]
@@ -19,6 +19,7 @@ pub mod builders;
 pub mod optimize;
 pub mod layout;
 pub mod pack;
+pub mod instancing;
 // Options and the pipeline over the stages.
 pub mod options;
 pub mod convert;

@@ -129,7 +129,7 @@ pub fn convert_with(
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);
-    let minor = bvhc_loader::format::written_minor(summary.is_some(), options.write_source_vertices);
+    let minor = bvhc_loader::format::written_minor(summary.is_some(), options.write_source_vertices, false);
     let metadata = Metadata {
         generator: concat!("bvhc ", env!("CARGO_PKG_VERSION")),
         format_version: format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR),

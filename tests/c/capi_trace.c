@@ -61,10 +61,10 @@ int main(int argc, char **argv) {
         }
         bvhc_source_corners corners;
         if (bvhc_hit_source_corners(file, &one, &corners) != BVHC_OK) return 15;
-        printf("hit %08x %08x %08x %08x %08x %08x %u %u %u %d %u %u %u %u %08x\n", bits(one.t), bits(one.u),
+        printf("hit %08x %08x %08x %08x %08x %08x %u %u %u %d %u %u %u %u %08x %u\n", bits(one.t), bits(one.u),
                bits(one.v), bits(one.normal[0]), bits(one.normal[1]), bits(one.normal[2]), one.triangle_index,
                one.source_triangle_id, one.front_face, any, corners.vertices[0], corners.vertices[1],
-               corners.vertices[2], corners.mesh_index, bits(corners.weights[0]));
+               corners.vertices[2], corners.mesh_index, bits(corners.weights[0]), one.instance_index);
         if (bvhc_source_id(file, one.triangle_index) != one.source_triangle_id) return 12;
         /* A secondary ray away from the surface never meets the triangle it leaves. */
         float away[3] = {one.normal[0], one.normal[1], one.normal[2]};
@@ -72,7 +72,9 @@ int main(int argc, char **argv) {
         bvhc_ray spawned;
         bvhc_hit again;
         if (bvhc_spawn_ray(file, &one, away, &spawned) != BVHC_OK) return 13;
-        if (bvhc_closest_hit(file, &spawned, &again) == 1 && again.source_triangle_id == one.source_triangle_id) return 14;
+        if (bvhc_closest_hit(file, &spawned, &again) == 1 && again.source_triangle_id == one.source_triangle_id &&
+            again.instance_index == one.instance_index)
+            return 14;
     }
     bvhc_close(file);
     free(rays);

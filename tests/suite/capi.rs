@@ -49,7 +49,7 @@ fn the_header_declares_every_exported_function_and_nothing_else() {
     exported.sort_unstable();
     assert_eq!(declared, exported, "the header declares exactly the exported functions");
     assert_eq!(size_of::<BvhcRay>(), 32);
-    assert_eq!(size_of::<BvhcHit>(), 36);
+    assert_eq!(size_of::<BvhcHit>(), 40);
     assert_eq!(size_of::<BvhcSourceCorners>(), 44);
 }
 
@@ -93,20 +93,33 @@ fn a_c_program_traces_with_the_same_hits_as_rust() {
     assert!(bvhc(&[&teapot(), &"-o", &bvh, &"-q"]).status.success());
     let mut rays = random_rays(61, 3000, 3.0);
     rays.push(Ray::new([0.0, 1.5, 10.0], [0.0, 0.0, -1.0]));
-    let ray_file = dir.path().join("rays.bin");
+    let hits = same_hits_in_c_and_rust(&binary, &bvh, &rays, dir.path());
+    assert!(hits > 300, "{hits} of {} rays hit", rays.len());
+    // A two-level file (format 1.3): the hit records carry the instance, and spawned rays leave it.
+    let (scene, sources) =
+        crate::instances::two_level(&crate::instances::test_meshes(), &crate::instances::test_placements(), true);
+    let two_level = dir.path().join("instances.bvh");
+    std::fs::write(&two_level, crate::instances::write_two_level(&scene, &sources).unwrap().as_bytes()).unwrap();
+    let hits = same_hits_in_c_and_rust(&binary, &two_level, &random_rays(62, 3000, 4.0), dir.path());
+    assert!(hits > 300, "{hits} of 3000 rays hit the instances");
+}
+
+/// Runs the C program on `bvh` and `rays` and checks its lines against the Rust tracer's; returns the hits.
+fn same_hits_in_c_and_rust(binary: &Path, bvh: &Path, rays: &[Ray], dir: &Path) -> usize {
+    let ray_file = dir.join("rays.bin");
     let bytes: Vec<u8> = rays
         .iter()
         .flat_map(|r| r.origin.into_iter().chain(r.direction).chain([r.t_min, r.t_max]).flat_map(f32::to_le_bytes))
         .collect();
     std::fs::write(&ray_file, bytes).unwrap();
-    let run = Command::new(&binary).arg(&bvh).arg(&ray_file).output().unwrap();
+    let run = Command::new(binary).arg(bvh).arg(&ray_file).output().unwrap();
     assert!(run.status.success(), "capi_trace exit {:?}: {}", run.status.code(), String::from_utf8_lossy(&run.stderr));
     let stdout = String::from_utf8(run.stdout).unwrap();
     let mut lines = stdout.lines();
     assert_eq!(lines.next(), Some("sizeof_ray 32"));
-    assert_eq!(lines.next(), Some("sizeof_hit 36"));
+    assert_eq!(lines.next(), Some("sizeof_hit 40"));
     assert_eq!(lines.next(), Some("sizeof_source_corners 44"));
-    let file = BvhFile::read(&bvh).unwrap();
+    let file = BvhFile::read(bvh).unwrap();
     let view = file.view();
     let tracer = view.tracer();
     let mut hits = 0;
@@ -117,10 +130,10 @@ fn a_c_program_traces_with_the_same_hits_as_rust() {
             Some(hit) => {
                 hits += 1;
                 let [nx, ny, nz] = hit.normal.map(f32::to_bits);
-                let corners = view.source_corners(&hit).expect("the teapot has source vertices");
+                let corners = view.source_corners(&hit).expect("the file has source vertices");
                 let [s0, s1, s2] = corners.vertices;
                 format!(
-                    "hit {:08x} {:08x} {:08x} {nx:08x} {ny:08x} {nz:08x} {} {} {} {any} {s0} {s1} {s2} {} {:08x}",
+                    "hit {:08x} {:08x} {:08x} {nx:08x} {ny:08x} {nz:08x} {} {} {} {any} {s0} {s1} {s2} {} {:08x} {}",
                     hit.t.to_bits(),
                     hit.u.to_bits(),
                     hit.v.to_bits(),
@@ -128,11 +141,12 @@ fn a_c_program_traces_with_the_same_hits_as_rust() {
                     hit.source_triangle_id.unwrap_or(u32::MAX),
                     u8::from(hit.front_face),
                     corners.range.mesh_index,
-                    corners.weights[0].to_bits()
+                    corners.weights[0].to_bits(),
+                    hit.instance_index.unwrap_or(u32::MAX)
                 )
             }
         };
         assert_eq!(line, expected, "{ray:?}");
     }
-    assert!(hits > 300, "{hits} of {} rays hit", rays.len());
+    hits
 }

@@ -1,6 +1,7 @@
 //! No input panics the loader: random bytes, and mutated and truncated good files (with and without their
-//! checksums repaired, so that mutations reach every rule; binary, wide, and a converted file with split
-//! references and source vertices), opened, verified and traced, and the hits' source corners looked up.
+//! checksums repaired, so that mutations reach every rule; binary, wide, a converted file with split
+//! references and source vertices, and a two-level file), opened, verified and traced, and the hits' source
+//! corners looked up.
 
 use bvhc::loader::{BvhFile, Ray};
 use proptest::prelude::*;
@@ -37,6 +38,9 @@ fn exercise(bytes: &[u8]) {
             let _ = tracer.any_hit(ray);
         }
     }
+    let (mut hits, mut occluded) = (vec![None; rays.len()], vec![false; rays.len()]);
+    view.tracer().closest_hits(&rays, &mut hits);
+    view.tracer().any_hits_coherent(&rays, &mut occluded);
     if let Some(wide) = view.wide_tracer(bvhc::loader::KernelPath::best()) {
         let (mut hits, mut occluded) = (vec![None; rays.len()], vec![false; rays.len()]);
         wide.interleaving_streams(true).closest_hits(&rays, &mut hits);
@@ -72,13 +76,14 @@ proptest! {
     fn mutated_good_files_never_panic(
         edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..12),
         repair in any::<bool>(),
-        base in 0..3usize,
+        base in 0..4usize,
         truncate in proptest::option::of(any::<prop::sample::Index>()),
     ) {
         let mut bytes = match base {
             0 => good_bytes(),
             1 => good_wide_bytes(),
-            _ => converted_split_file().to_vec(),
+            2 => converted_split_file().to_vec(),
+            _ => crate::instances::small_two_level_bytes(),
         };
         for (index, value) in edits {
             let at = index.index(bytes.len());

@@ -301,13 +301,14 @@ fn v28_format_version() {
 fn every_rule_has_a_test_here() {
     // Keeps this table complete when a rule is added: each rule's number appears in a test name above, or in
     // the wide sections' module (V29-V35), or the metadata consistency module (V36-V39), or the source
-    // vertices' module (V40).
+    // vertices' module (V40), or the two-level sections' module (V41-V45).
     let source = [
         include_str!("rules.rs"),
         include_str!("rules_tree.rs"),
         include_str!("rules_wide.rs"),
         include_str!("rules_metadata.rs"),
         include_str!("rules_source_vertices.rs"),
+        include_str!("rules_instances.rs"),
     ]
     .concat();
     for rule in Rule::ALL {

@@ -333,7 +333,16 @@ fn cosine_directions_are_unit_in_the_facing_hemisphere_with_the_cosine_density()
     let record = bvhc::loader::PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
     let mut rng = rng(99);
     for (normal, front_face) in [([0.0, 0.0, 1.0], true), ([0.0, 0.0, 1.0], false), ([0.6, -0.48, 0.64], true)] {
-        let hit = Hit { t: 1.0, triangle_index: 0, source_triangle_id: None, u: 0.25, v: 0.25, normal, front_face };
+        let hit = Hit {
+            t: 1.0,
+            triangle_index: 0,
+            source_triangle_id: None,
+            u: 0.25,
+            v: 0.25,
+            normal,
+            front_face,
+            instance_index: None,
+        };
         let surface = bvhc::loader::SurfacePoint::new(&hit, &record);
         let facing = surface.facing_normal();
         assert_eq!(facing[2].signum(), if front_face { 1.0 } else { -1.0 });

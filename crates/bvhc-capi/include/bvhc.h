@@ -36,6 +36,9 @@ typedef int bvhc_status;
 /* No source id (a file without a triangle_ids section). */
 #define BVHC_NO_SOURCE_ID 0xFFFFFFFFu
 
+/* No instance (a hit in a one-level file). */
+#define BVHC_NO_INSTANCE 0xFFFFFFFFu
+
 typedef struct bvhc_file bvhc_file;
 
 typedef struct bvhc_ray {
@@ -49,9 +52,10 @@ typedef struct bvhc_hit {
     float t;
     float u; /* weight of the record's v1 */
     float v; /* weight of the record's v2 */
-    float normal[3]; /* (v1 - v0) x (v2 - v0), not normalized */
+    float normal[3]; /* (v1 - v0) x (v2 - v0), not normalized; in world space for an instance's hit */
     uint32_t triangle_index;
     uint32_t source_triangle_id; /* BVHC_NO_SOURCE_ID without ids */
+    uint32_t instance_index;     /* two-level files: the instance hit; BVHC_NO_INSTANCE otherwise */
     uint8_t front_face;          /* 1 when the ray met the counter-clockwise side */
     uint8_t reserved[3];
 } bvhc_hit;

@@ -33,6 +33,8 @@ pub struct BvhcHit {
     pub triangle_index: u32,
     /// Source id, or `0xFFFFFFFF` without one.
     pub source_triangle_id: u32,
+    /// In a two-level file, the instance whose mesh was hit; `0xFFFFFFFF` otherwise.
+    pub instance_index: u32,
     /// 1 when the ray met the front side.
     pub front_face: u8,
     /// Zero.
@@ -54,6 +56,7 @@ impl From<&Hit> for BvhcHit {
             normal: hit.normal,
             triangle_index: hit.triangle_index,
             source_triangle_id: hit.source_triangle_id.unwrap_or(u32::MAX),
+            instance_index: hit.instance_index.unwrap_or(u32::MAX),
             front_face: u8::from(hit.front_face),
             reserved: [0; 3],
         }
@@ -71,6 +74,7 @@ impl BvhcHit {
             v: self.v,
             normal: self.normal,
             front_face: self.front_face != 0,
+            instance_index: (self.instance_index != u32::MAX).then_some(self.instance_index),
         }
     }
 }

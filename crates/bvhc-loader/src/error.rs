@@ -94,11 +94,23 @@ pub enum Rule {
     /// V40: source vertex indices agree with the vertices: one source vertex is one point wherever its primitive
     /// names it, and a triangle's references name the same vertices.
     SourceVertices,
+    /// V41: in a two-level file, the meshes tile the nodes, triangles and wide sections in order, each with a
+    /// one-level file's counts, and each mesh's ranges obey the one-level tree rules.
+    MeshTable,
+    /// V42: every instance names a mesh, and its transforms are finite, invertible and each other's inverse.
+    InstanceTransform,
+    /// V43: the top tree is a binary tree (V14, V16, V17, V20) whose leaves hold one instance each, every
+    /// instance in exactly one leaf.
+    TopTree,
+    /// V44: a top leaf's box contains its instance's mesh root box mapped to world space.
+    InstanceBox,
+    /// V45: every mesh is placed by at least one instance.
+    MeshPlaced,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 40] = [
+    pub const ALL: [Rule; 45] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -139,6 +151,11 @@ impl Rule {
         Rule::MetadataBuild,
         Rule::MetadataChoice,
         Rule::SourceVertices,
+        Rule::MeshTable,
+        Rule::InstanceTransform,
+        Rule::TopTree,
+        Rule::InstanceBox,
+        Rule::MeshPlaced,
     ];
 
     /// The rule's number in the spec (1 for V1).

@@ -17,12 +17,15 @@ pub const MAGIC: [u8; 8] = *b"\x89BVHC\r\n\x1a";
 pub const VERSION_MAJOR: u16 = 1;
 /// Highest minor version this crate reads knowingly and writes. Readers accept any minor version of their
 /// major version.
-pub const VERSION_MINOR: u16 = 2;
+pub const VERSION_MINOR: u16 = 3;
 
-/// The minor version a writer stores: the lowest whose features the file uses (1.2 for the `source_vertices`
-/// section, 1.1 for the wide sections, otherwise 1.0, so files without them stay readable as 1.0 byte for byte).
-pub const fn written_minor(has_wide_sections: bool, has_source_vertices: bool) -> u16 {
-    if has_source_vertices {
+/// The minor version a writer stores: the lowest whose features the file uses (1.3 for the two-level sections,
+/// 1.2 for the `source_vertices` section, 1.1 for the wide sections, otherwise 1.0, so files without them stay
+/// readable as 1.0 byte for byte).
+pub const fn written_minor(has_wide_sections: bool, has_source_vertices: bool, has_instances: bool) -> u16 {
+    if has_instances {
+        3
+    } else if has_source_vertices {
         2
     } else if has_wide_sections {
         1
@@ -54,6 +57,10 @@ pub const SECTION_FLAG_SPLIT_REFERENCES: u32 = 1 << 1;
 /// Marks an absent field in a [`SourceRange`] (for example the node of an OBJ group).
 pub const NO_INDEX: u32 = u32::MAX;
 
+pub use crate::format_instances::{
+    Affine3x4, INSTANCE_BOX_PADDING, INVERSE_TOLERANCE, InstanceRecord, MIN_ORTHOGONALITY, MeshRecord,
+};
+
 /// The kinds of section that major version 1 defines. Other values are unknown kinds (rule V7).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -75,11 +82,19 @@ pub enum SectionKind {
     /// Each triangle's three vertex indices in its source primitive ([`SourceVertexIndices`]), optional, since
     /// 1.2; needs the source table.
     SourceVertices,
+    /// The mesh table of a two-level file ([`MeshRecord`]), required, since 1.3; comes with `Instances` and
+    /// `TopNodes`.
+    Meshes,
+    /// The instance table of a two-level file ([`InstanceRecord`]), required, since 1.3.
+    Instances,
+    /// The top-level tree of a two-level file ([`PackedNode`]s whose leaves hold one instance each), required,
+    /// since 1.3.
+    TopNodes,
 }
 
 impl SectionKind {
     /// Every kind defined by this version, in the order the writer stores them.
-    pub const ALL: [SectionKind; 8] = [
+    pub const ALL: [SectionKind; 11] = [
         SectionKind::Nodes,
         SectionKind::Triangles,
         SectionKind::TriangleIds,
@@ -88,6 +103,9 @@ impl SectionKind {
         SectionKind::WideNodes,
         SectionKind::TrianglePackets,
         SectionKind::SourceVertices,
+        SectionKind::Meshes,
+        SectionKind::Instances,
+        SectionKind::TopNodes,
     ];
 
     /// The `kind` value stored in the section table.
@@ -101,6 +119,9 @@ impl SectionKind {
             SectionKind::WideNodes => 6,
             SectionKind::TrianglePackets => 7,
             SectionKind::SourceVertices => 8,
+            SectionKind::Meshes => 9,
+            SectionKind::Instances => 10,
+            SectionKind::TopNodes => 11,
         }
     }
 
@@ -115,6 +136,9 @@ impl SectionKind {
             6 => Some(SectionKind::WideNodes),
             7 => Some(SectionKind::TrianglePackets),
             8 => Some(SectionKind::SourceVertices),
+            9 => Some(SectionKind::Meshes),
+            10 => Some(SectionKind::Instances),
+            11 => Some(SectionKind::TopNodes),
             _ => None,
         }
     }
@@ -130,6 +154,9 @@ impl SectionKind {
             SectionKind::WideNodes => size_of::<WideNode8>() as u32,
             SectionKind::TrianglePackets => size_of::<TrianglePacket4>() as u32,
             SectionKind::SourceVertices => size_of::<SourceVertexIndices>() as u32,
+            SectionKind::Meshes => size_of::<MeshRecord>() as u32,
+            SectionKind::Instances => size_of::<InstanceRecord>() as u32,
+            SectionKind::TopNodes => size_of::<PackedNode>() as u32,
         }
     }
 
@@ -138,13 +165,22 @@ impl SectionKind {
         match self {
             SectionKind::WideNodes | SectionKind::TrianglePackets => 1,
             SectionKind::SourceVertices => 2,
+            SectionKind::Meshes | SectionKind::Instances | SectionKind::TopNodes => 3,
             _ => 0,
         }
     }
 
-    /// Whether the section's `REQUIRED` flag must be set (nodes, triangles) or clear (the others).
+    /// Whether the section's `REQUIRED` flag must be set (nodes, triangles and the two-level sections, without
+    /// which a reader would trace the meshes' object-space trees as if they were the scene) or clear (the others).
     pub const fn is_required(self) -> bool {
-        matches!(self, SectionKind::Nodes | SectionKind::Triangles)
+        matches!(
+            self,
+            SectionKind::Nodes
+                | SectionKind::Triangles
+                | SectionKind::Meshes
+                | SectionKind::Instances
+                | SectionKind::TopNodes
+        )
     }
 
     /// Flag bits this version defines for the kind; all other bits are reserved and zero.
@@ -166,6 +202,9 @@ impl SectionKind {
             SectionKind::WideNodes => "wide_nodes",
             SectionKind::TrianglePackets => "triangle_packets",
             SectionKind::SourceVertices => "source_vertices",
+            SectionKind::Meshes => "meshes",
+            SectionKind::Instances => "instances",
+            SectionKind::TopNodes => "top_nodes",
         }
     }
 }

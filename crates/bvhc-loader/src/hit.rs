@@ -32,9 +32,26 @@ pub struct Hit {
     pub normal: [f32; 3],
     /// Whether the ray arrived at the front side: `dot(direction, normal) < 0`.
     pub front_face: bool,
+    /// In a two-level file (1.3), the index of the instance whose mesh was hit (in the `instances` section);
+    /// `triangle_index` is then the mesh's record (in the triangles section, as always), `t`, `u` and `v` are
+    /// those of the ray mapped into the mesh's object space (the same `t` as the world ray's, up to rounding),
+    /// and `normal` is in world space (`format-spec/bvh-1.md` 11.3). `None` in a one-level file.
+    pub instance_index: Option<u32>,
 }
 
 impl Hit {
+    /// What an any-hit walk through instances passes up when a mesh occludes the ray: only its presence counts.
+    pub(crate) const OCCLUSION: Hit = Hit {
+        t: 0.0,
+        triangle_index: u32::MAX,
+        source_triangle_id: None,
+        u: 0.0,
+        v: 0.0,
+        normal: [0.0; 3],
+        front_face: false,
+        instance_index: None,
+    };
+
     /// The hit on record `triangle_index` of `triangles` (of the file) by a ray along `direction`, its source id
     /// looked up in `triangle_ids`.
     pub(crate) fn new(
@@ -87,6 +104,7 @@ impl Hit {
             v: hit.v,
             normal,
             front_face: facing < 0.0,
+            instance_index: None,
         }
     }
 }

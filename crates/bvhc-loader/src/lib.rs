@@ -47,8 +47,11 @@ pub mod cost;
 mod error;
 mod file;
 pub mod format;
+mod format_instances;
 mod hit;
 mod identity;
+mod instance_transform;
+mod instances;
 mod intersect;
 mod json;
 mod simd;
@@ -60,6 +63,7 @@ mod traverse;
 mod uncached;
 mod verify;
 mod verify_consistency;
+mod verify_instances;
 mod verify_metadata;
 mod verify_references;
 mod verify_source_vertices;
@@ -84,11 +88,13 @@ pub use file::BvhFile;
 #[cfg(feature = "mmap")]
 pub use file::MappedBvh;
 pub use format::{
-    EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, SectionKind, SourceRange, SourceVertexIndices,
-    TrianglePacket4, WIDE, WideNode8,
+    Affine3x4, EMPTY_SLOT, InstanceRecord, LEAF_BIT, MeshRecord, PACKET_LANES, PackedNode, PackedTriangle, SectionKind,
+    SourceRange, SourceVertexIndices, TrianglePacket4, WIDE, WideNode8,
 };
 pub use hit::{Hit, TraversalCounter, TraversalStats, geometric_normal};
 pub use identity::TriangleIdentities;
+pub use instance_transform::{instance_world_box, transformed_box};
+pub use instances::TwoLevelSections;
 pub use intersect::{PreparedRay, Ray, TriangleHit};
 pub use simd::KernelPath;
 pub use source_corners::SourceCorners;

@@ -24,8 +24,9 @@
 //! real scenes scaled from `1e-3` to `1e4` and moved up to `1e6` from the origin and count the rays that meet
 //! their own triangle: none.
 
-use crate::format::PackedTriangle;
-use crate::hit::Hit;
+use crate::format::{InstanceRecord, PackedTriangle};
+use crate::hit::{Hit, geometric_normal};
+use crate::instance_transform::{object_ray, world_point};
 use crate::intersect::{PreparedRay, Ray};
 
 /// The unit roundoff of f32, `2^-24`.
@@ -60,8 +61,12 @@ pub struct SurfacePoint {
     pub normal: [f32; 3],
     /// Whether the ray that found the point arrived at the front side.
     pub front_face: bool,
-    /// The triangle record the point lies on.
+    /// The triangle record the point lies on (in its mesh's object space when `instance` is set).
     pub triangle: PackedTriangle,
+    /// In a two-level file, the instance that places `triangle` in world space; `position`, `error`,
+    /// `resolution` and `normal` are then in world space, and the offset is confirmed on the ray as the
+    /// kernel maps it into the mesh's object space.
+    pub instance: Option<InstanceRecord>,
 }
 
 impl SurfacePoint {
@@ -83,7 +88,45 @@ impl SurfacePoint {
         let n = hit.normal;
         let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         let normal = if length > 0.0 && length.is_finite() { n.map(|c| c / length) } else { [0.0; 3] };
-        SurfacePoint { position, error, resolution, normal, front_face: hit.front_face, triangle: *triangle }
+        SurfacePoint {
+            position,
+            error,
+            resolution,
+            normal,
+            front_face: hit.front_face,
+            triangle: *triangle,
+            instance: None,
+        }
+    }
+
+    /// The point of `hit` on `triangle` (a mesh's record, in object space) placed by `instance`: the object-space
+    /// point mapped to world space in f64 and rounded, its error bound carried through the map (`sum_j |L_ij|
+    /// error_j`, plus the final rounding, `gamma(1) |p_i|`), the resolution scaled by the map's largest stretch
+    /// (the Frobenius norm of `L` bounds it), and the unit normal of `hit.normal` (world space already).
+    pub fn placed(hit: &Hit, triangle: &PackedTriangle, instance: &InstanceRecord) -> SurfacePoint {
+        let object_hit = Hit { normal: geometric_normal(triangle), ..*hit };
+        let object = SurfacePoint::new(&object_hit, triangle);
+        let l = &instance.object_to_world;
+        let exact = world_point(instance, object.position);
+        let position = exact.map(|c| c as f32);
+        let error = std::array::from_fn(|i| {
+            let carried: f64 = (0..3).map(|j| f64::from(l[i][j].abs()) * f64::from(object.error[j])).sum();
+            (carried as f32) * (1.0 + 4.0 * EPS) + gamma(1.0) * position[i].abs()
+        });
+        let frobenius: f64 = l.iter().flat_map(|row| &row[..3]).map(|&c| f64::from(c) * f64::from(c)).sum::<f64>();
+        let resolution = (f64::from(object.resolution) * frobenius.sqrt()) as f32 * (1.0 + 4.0 * EPS);
+        let n = hit.normal;
+        let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let normal = if length > 0.0 && length.is_finite() { n.map(|c| c / length) } else { [0.0; 3] };
+        SurfacePoint {
+            position,
+            error,
+            resolution,
+            normal,
+            front_face: hit.front_face,
+            triangle: *triangle,
+            instance: Some(*instance),
+        }
     }
 
     /// The origin for a ray leaving the surface along `direction` (to either side): [`SurfacePoint::position`]
@@ -97,6 +140,10 @@ impl SurfacePoint {
         let mut origin = self.moved_by(d, direction);
         for _ in 0..MAX_DOUBLINGS {
             let ray = Ray { origin, direction, t_min: 0.0, t_max: f32::INFINITY };
+            let ray = match &self.instance {
+                Some(instance) => object_ray(instance, &ray),
+                None => ray,
+            };
             if PreparedRay::new(&ray).intersect_triangle(&self.triangle, f32::INFINITY).is_none() {
                 break;
             }

@@ -69,6 +69,14 @@ pub(crate) fn check_structure(bytes: &[u8]) -> Result<(FileHeader, KnownSections
         )
         .into());
     }
+    let two_level = [SectionKind::Meshes, SectionKind::Instances, SectionKind::TopNodes].map(|k| sections.get(k));
+    if two_level.iter().any(Option::is_some) && !two_level.iter().all(Option::is_some) {
+        return Err(violation(
+            Rule::SectionMultiplicity,
+            "a file has all of the meshes, instances and top_nodes sections or none".to_string(),
+        )
+        .into());
+    }
     check_counts(&sections)?;
     Ok((header, sections))
 }
@@ -232,11 +240,16 @@ fn check_counts(sections: &KnownSections) -> Result<(), Violation> {
     if (node_count == 0) != (triangle_count == 0) {
         return fail(format!("node_count {node_count} and triangle_count {triangle_count}: both or neither must be 0"));
     }
-    if node_count != 0 && (node_count.is_multiple_of(2) || node_count > 2 * triangle_count - 1) {
+    // A two-level file's nodes are its meshes' trees, each of odd size (V41), so their sum need not be odd.
+    let two_level = sections.get(SectionKind::Meshes).is_some();
+    if node_count != 0 && ((!two_level && node_count.is_multiple_of(2)) || node_count > 2 * triangle_count - 1) {
         return fail(format!(
-            "node_count {node_count} must be odd and at most 2 x triangle_count - 1 = {}",
+            "node_count {node_count} must be odd (in a one-level file) and at most 2 x triangle_count - 1 = {}",
             2 * triangle_count - 1
         ));
+    }
+    if two_level {
+        check_two_level_counts(sections, triangle_count)?;
     }
     let id_count = sections.get(SectionKind::TriangleIds).map(|ids| ids.element_count);
     if id_count.is_some_and(|count| count != triangle_count) {
@@ -270,7 +283,7 @@ fn check_counts(sections: &KnownSections) -> Result<(), Violation> {
 /// `triangle_count` packets (each lane holds one triangle, each triangle one lane, a packet at least one lane),
 /// at most one wide node per packet (every node but the root has two children or more), and packets within
 /// what a leaf reference encodes.
-fn check_wide_counts(wide_node_count: u64, packet_count: u64, triangle_count: u64) -> Result<(), Violation> {
+pub(crate) fn check_wide_counts(wide_node_count: u64, packet_count: u64, triangle_count: u64) -> Result<(), Violation> {
     let min_packets = triangle_count.div_ceil(PACKET_LANES as u64);
     // `wide_node_count <= packet_count <= 2^28` also keeps every inner reference below `LEAF_BIT`.
     let ok = packet_count <= MAX_PACKET_COUNT
@@ -286,6 +299,29 @@ fn check_wide_counts(wide_node_count: u64, packet_count: u64, triangle_count: u6
             "wide_nodes count {wide_node_count} and triangle_packets count {packet_count} for {triangle_count} \
              triangles: packets must number {min_packets}..={triangle_count} (at most 2^28), wide nodes 1..=packets \
              (none without triangles)"
+        ),
+    ))
+}
+
+/// V10 for the two-level sections (1.3): at least one mesh, at most one per triangle; at least one instance,
+/// fewer than 2^31 (so the top tree's `2 * instance_count - 1` nodes fit a `u32`); exactly that many top nodes,
+/// since every top leaf holds one instance.
+fn check_two_level_counts(sections: &KnownSections, triangle_count: u64) -> Result<(), Violation> {
+    let mesh_count = sections.count(SectionKind::Meshes);
+    let instance_count = sections.count(SectionKind::Instances);
+    let top_node_count = sections.count(SectionKind::TopNodes);
+    let ok = (1..=triangle_count).contains(&mesh_count)
+        && (1..1 << 31).contains(&instance_count)
+        && top_node_count == 2 * instance_count - 1;
+    if ok {
+        return Ok(());
+    }
+    Err(violation(
+        Rule::Counts,
+        format!(
+            "meshes count {mesh_count}, instances count {instance_count}, top_nodes count {top_node_count} for \
+             {triangle_count} triangles: meshes must number 1..=triangle_count, instances 1..2^31, top nodes \
+             2 x instances - 1"
         ),
     ))
 }

@@ -5,8 +5,9 @@
 //! must exceed its parent's (so paths cannot cycle), and a ray visits at most `node_count` nodes; on a file that
 //! fails verification it may return wrong hits, never panic or hang.
 
-use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
+use crate::format::{MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle};
 use crate::hit::{CULL_PADDING, Hit, TraversalCounter};
+use crate::instances::{TwoLevelSections, walk_instances};
 use crate::intersect::{PreparedRay, Ray};
 use crate::simd::KernelPath;
 use crate::spawn::SurfacePoint;
@@ -14,13 +15,15 @@ use crate::wide::WideTracer;
 
 /// The traversal kernel over borrowed node and triangle arrays (a `BvhView`'s, or in-memory ones),
 /// and, when it was given one ([`Tracer::with_wide`]), the wide kernel over the same triangles, which it then
-/// runs instead: both give the same closest `t` and any-hit answers.
+/// runs instead: both give the same closest `t` and any-hit answers. Over a two-level file
+/// ([`Tracer::with_instances`]) it walks the top-level tree and runs that kernel in each instance's mesh.
 #[derive(Clone, Copy, Debug)]
 pub struct Tracer<'a> {
     nodes: &'a [PackedNode],
     triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
     wide: Option<WideTracer<'a>>,
+    instances: Option<TwoLevelSections<'a>>,
 }
 
 /// Which kernel a [`Tracer`] runs.
@@ -38,7 +41,36 @@ type Found = Option<(u32, crate::intersect::TriangleHit)>;
 impl<'a> Tracer<'a> {
     /// A tracer over a tree in the layout of the nodes section (node 0 is the root).
     pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle], triangle_ids: Option<&'a [u32]>) -> Self {
-        Tracer { nodes, triangles, triangle_ids, wide: None }
+        Tracer { nodes, triangles, triangle_ids, wide: None, instances: None }
+    }
+
+    /// This tracer over a two-level file (1.3): its arrays (and wide sections) are the meshes' trees, which
+    /// `sections` place; rays walk the top-level tree and are traced through each mesh they reach in its object
+    /// space (`format-spec/bvh-1.md` 11.3).
+    pub fn with_instances(self, sections: TwoLevelSections<'a>) -> Self {
+        Tracer { instances: Some(sections), ..self }
+    }
+
+    /// The two-level sections this tracer walks, if any.
+    pub fn instances(&self) -> Option<&TwoLevelSections<'a>> {
+        self.instances.as_ref()
+    }
+
+    /// The one-level tracer over `mesh`'s ranges of this tracer's arrays (indices relative to the mesh, as the
+    /// two-level layout stores them), with the wide kernel when this tracer has it. `None` when the ranges lie
+    /// outside the arrays (a file that breaks V41).
+    fn mesh_tracer(&self, mesh: &MeshRecord) -> Option<Tracer<'a>> {
+        let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
+        let nodes = self.nodes.get(range(mesh.first_node, mesh.node_count))?;
+        let triangle_range = range(mesh.first_triangle, mesh.triangle_count);
+        let triangles = self.triangles.get(triangle_range.clone())?;
+        let ids = self.triangle_ids.and_then(|ids| ids.get(triangle_range));
+        let bottom = Tracer::new(nodes, triangles, ids);
+        let root = nodes.first()?;
+        Some(match self.wide.and_then(|wide| wide.mesh(mesh, (root.min, root.max), ids)) {
+            Some(wide) => bottom.with_wide(wide),
+            None => bottom,
+        })
     }
 
     /// This tracer running `wide` (built over the same triangles) instead of the binary kernel.
@@ -61,7 +93,12 @@ impl<'a> Tracer<'a> {
     /// triangle it starts on ([`SurfacePoint`]).
     pub fn surface(&self, hit: &Hit) -> SurfacePoint {
         let triangle = self.triangles.get(hit.triangle_index as usize).copied();
-        SurfacePoint::new(hit, &triangle.unwrap_or(PackedTriangle { vertices: [[0.0; 3]; 3] }))
+        let triangle = triangle.unwrap_or(PackedTriangle { vertices: [[0.0; 3]; 3] });
+        let placement = hit.instance_index.zip(self.instances).and_then(|(i, s)| s.placement(i));
+        match placement {
+            Some((instance, _)) => SurfacePoint::placed(hit, &triangle, instance),
+            None => SurfacePoint::new(hit, &triangle),
+        }
     }
 
     /// The closest hit with `t_min <= t <= t_max`.
@@ -72,6 +109,11 @@ impl<'a> Tracer<'a> {
     /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter` (with the wide kernel:
     /// wide node visits and packet tests).
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        if let Some(sections) = &self.instances {
+            return walk_instances::<_, false>(sections, ray, counter, |mesh, object_ray, counter| {
+                self.mesh_tracer(mesh)?.closest_hit_counted(object_ray, counter)
+            });
+        }
         let (triangle_index, hit) = match &self.wide {
             None => self.traverse::<false>(ray, counter)?,
             Some(wide) => return wide.closest_hit_counted(ray, counter),
@@ -89,8 +131,8 @@ impl<'a> Tracer<'a> {
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         crate::hit::same_length("closest_hits", rays.len(), hits.len());
         match &self.wide {
-            Some(wide) => wide.closest_hits(rays, hits),
-            None => rays.iter().zip(hits).for_each(|(ray, hit)| *hit = self.closest_hit(ray)),
+            Some(wide) if self.instances.is_none() => wide.closest_hits(rays, hits),
+            _ => rays.iter().zip(hits).for_each(|(ray, hit)| *hit = self.closest_hit(ray)),
         }
     }
 
@@ -103,8 +145,8 @@ impl<'a> Tracer<'a> {
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
         crate::hit::same_length("any_hits", rays.len(), occluded.len());
         match &self.wide {
-            Some(wide) => wide.any_hits(rays, occluded),
-            None => rays.iter().zip(occluded).for_each(|(ray, hit)| *hit = self.any_hit(ray)),
+            Some(wide) if self.instances.is_none() => wide.any_hits(rays, occluded),
+            _ => rays.iter().zip(occluded).for_each(|(ray, hit)| *hit = self.any_hit(ray)),
         }
     }
 
@@ -118,8 +160,8 @@ impl<'a> Tracer<'a> {
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         crate::hit::same_length("closest_hits_coherent", rays.len(), hits.len());
         match &self.wide {
-            Some(wide) => wide.closest_hits_coherent(rays, hits),
-            None => self.closest_hits(rays, hits),
+            Some(wide) if self.instances.is_none() => wide.closest_hits_coherent(rays, hits),
+            _ => self.closest_hits(rays, hits),
         }
     }
 
@@ -131,8 +173,8 @@ impl<'a> Tracer<'a> {
     pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
         crate::hit::same_length("any_hits_coherent", rays.len(), occluded.len());
         match &self.wide {
-            Some(wide) => wide.any_hits_coherent(rays, occluded),
-            None => self.any_hits(rays, occluded),
+            Some(wide) if self.instances.is_none() => wide.any_hits_coherent(rays, occluded),
+            _ => self.any_hits(rays, occluded),
         }
     }
 
@@ -143,6 +185,12 @@ impl<'a> Tracer<'a> {
 
     /// [`Tracer::any_hit`], counting as [`Tracer::closest_hit_counted`] does.
     pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        if let Some(sections) = &self.instances {
+            let occluding = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
+                self.mesh_tracer(mesh)?.any_hit_counted(object_ray, counter).then_some(Hit::OCCLUSION)
+            };
+            return walk_instances::<_, true>(sections, ray, counter, occluding).is_some();
+        }
         match &self.wide {
             None => self.traverse::<true>(ray, counter).is_some(),
             Some(wide) => wide.any_hit_counted(ray, counter),

@@ -1,7 +1,8 @@
-//! The full verifier: rules V11-V40 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! The full verifier: rules V11-V45 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
 //! V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
 //! (the wide sections of 1.1) in `verify_wide`, V36-V39 (the metadata against the file) in
-//! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`.
+//! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`, V41-V45 (the two-level
+//! sections of 1.3, and the one-level rules per mesh) in `verify_instances`.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
@@ -18,7 +19,7 @@ use crate::view::{BvhView, section_bytes};
 pub const PARALLEL_VERIFY_BYTES: usize = 64 << 20;
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V40; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V45; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke. A file of
     /// [`PARALLEL_VERIFY_BYTES`] or more has its wide sections (V29-V35, the last rules checked) checked on a
@@ -61,27 +62,36 @@ impl BvhView<'_> {
         .and_then(|()| self.verify_consistency())
     }
 
-    /// Rules V29-V35: the wide sections, where the file has them.
+    /// Rules V29-V35: the wide sections, where the file has them (per mesh in a two-level file).
     fn verify_wide_sections(&self) -> Result<(), Violation> {
+        if let Some(sections) = self.two_level() {
+            return crate::verify_instances::verify_mesh_wide(self, &sections);
+        }
         match self.wide_sections() {
             Some(wide) => crate::verify_wide::verify_wide(wide.nodes, wide.packets, &self.wide_context()),
             None => Ok(()),
         }
     }
 
-    /// Rules V11-V28 and V40: everything but the wide sections and the metadata's consistency.
+    /// Rules V11-V28, V40 and V41-V45: everything but the wide sections and the metadata's consistency.
     fn verify_all_but_wide(&self) -> Result<(), Violation> {
         verify_checksums(self)?;
         verify_reserved_and_padding(self)?;
-        verify_tree(self.nodes(), self.triangles(), self.has_split_references())?;
+        match self.two_level() {
+            Some(sections) => crate::verify_instances::verify_meshes(self, &sections)?,
+            None => verify_tree(self.nodes(), self.triangles(), self.has_split_references())?,
+        }
         verify_sources(self)?;
         crate::verify_metadata::verify_metadata(self)?;
-        crate::verify_references::verify_references(
-            self.nodes(),
-            self.triangles(),
-            self.triangle_ids(),
-            self.has_split_references(),
-        )?;
+        match self.two_level() {
+            Some(sections) => crate::verify_instances::verify_instances(&sections, self.nodes())?,
+            None => crate::verify_references::verify_references(
+                self.nodes(),
+                self.triangles(),
+                self.triangle_ids(),
+                self.has_split_references(),
+            )?,
+        }
         match (self.triangle_ids(), self.source_table(), self.source_vertices()) {
             (Some(ids), Some(table), Some(vertices)) => {
                 let split = self.has_split_references();
@@ -161,6 +171,10 @@ fn verify_reserved_and_padding(view: &BvhView<'_>) -> Result<(), Violation> {
     let wide_nodes = view.wide_sections().filter(|_| known_minor).map_or(&[][..], |wide| wide.nodes);
     if let Some(i) = wide_nodes.iter().position(|n| n.reserved != [0; 8]) {
         return fail(format!("wide node {i}: reserved must be zero"));
+    }
+    let instances = view.two_level().filter(|_| known_minor).map_or(&[][..], |sections| sections.instances);
+    if let Some(i) = instances.iter().position(|instance| instance.reserved != 0) {
+        return fail(format!("instance {i}: reserved must be zero"));
     }
     Ok(())
 }

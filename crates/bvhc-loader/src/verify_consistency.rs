@@ -142,6 +142,13 @@ fn close(stated: f64, computed: f64) -> bool {
 
 /// V37: `cost` and `wide.cost` equal the costs recomputed from the file.
 fn verify_costs(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
+    let wide_cost_stated = object(metadata, "wide").is_some_and(|wide| wide.get("cost").is_some());
+    if view.two_level().is_some() && (metadata.get("cost").is_some() || wide_cost_stated) {
+        return Err(violation(
+            Rule::MetadataCost,
+            "metadata cost or wide.cost in a two-level file, for which 1.3 defines no cost".to_string(),
+        ));
+    }
     if let Some(record) = object(metadata, "cost") {
         let (c_t, c_i) = (number(record, "c_t").unwrap_or(3.0), number(record, "c_i").unwrap_or(2.0));
         let cost = binary_cost(view.nodes(), c_t, c_i);
@@ -206,6 +213,10 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     {
         let has = if view.source_vertices().is_some() { "has" } else { "has no" };
         return fail(format!("write_source_vertices is {write}, but the file {has} source_vertices section"));
+    }
+    let wide_limit_stated = object(build, "wide").is_some_and(|wide| wide.get("max_leaf_size").is_some());
+    if view.two_level().is_some() && (build.get("max_leaf_size").is_some() || wide_limit_stated) {
+        return fail("max_leaf_size or wide.max_leaf_size in a two-level file, for which 1.3 defines none".into());
     }
     let mut identity = TriangleIdentity { view, ids: Vec::new(), records: Vec::new() };
     if let Some(limit) = build.get("max_leaf_size").and_then(Value::as_u64) {

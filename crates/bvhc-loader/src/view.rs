@@ -6,9 +6,10 @@
 
 use crate::error::{Error, Rule, Violation, violation};
 use crate::format::{
-    FileHeader, PackedNode, PackedTriangle, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange,
-    SourceVertexIndices, TrianglePacket4, WideNode8,
+    FileHeader, InstanceRecord, MeshRecord, PackedNode, PackedTriangle, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry,
+    SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
 };
+use crate::instances::TwoLevelSections;
 use crate::simd::KernelPath;
 use crate::structure::{SectionInfo, check_structure, missing, section_infos};
 use crate::traverse::Tracer;
@@ -29,6 +30,7 @@ pub struct BvhView<'a> {
     source_vertices: Option<&'a [SourceVertexIndices]>,
     metadata: Option<&'a [u8]>,
     wide: Option<WideSections<'a>>,
+    two_level: Option<TwoLevelSections<'a>>,
     split_references: bool,
 }
 
@@ -63,6 +65,18 @@ impl<'a> BvhView<'a> {
                 (Some(nodes), Some(packets)) => {
                     Some(WideSections { nodes: cast_section(bytes, &nodes)?, packets: cast_section(bytes, &packets)? })
                 }
+                _ => None,
+            },
+            two_level: match (
+                sections.get(SectionKind::Meshes),
+                sections.get(SectionKind::Instances),
+                sections.get(SectionKind::TopNodes),
+            ) {
+                (Some(meshes), Some(instances), Some(top_nodes)) => Some(TwoLevelSections {
+                    meshes: cast_section(bytes, &meshes)?,
+                    instances: cast_section(bytes, &instances)?,
+                    top_nodes: cast_section(bytes, &top_nodes)?,
+                }),
                 _ => None,
             },
             split_references: triangles_entry.section_flags & SECTION_FLAG_SPLIT_REFERENCES != 0,
@@ -148,26 +162,45 @@ impl<'a> BvhView<'a> {
         self.wide
     }
 
+    /// The two-level sections (1.3), when the file places meshes by instances: its nodes, triangles and wide
+    /// sections are then the meshes' trees, each in its object space, and the scene is the instances.
+    pub fn two_level(&self) -> Option<TwoLevelSections<'a>> {
+        self.two_level
+    }
+
     /// The fastest traversal kernel for this file on this machine: the wide kernel on the best SIMD path when
     /// the file has wide sections, the binary kernel otherwise. Both report the same closest `t` and any-hit
-    /// answers (the tests check it); triangle indices refer to the triangles section either way.
+    /// answers (the tests check it); triangle indices refer to the triangles section either way. In a
+    /// two-level file the tracer walks the instances and runs that kernel in their meshes.
     ///
     /// Tracing never panics or loops forever, whatever the bytes; on a file that fails [`BvhView::verify`] the
     /// hits it returns are unspecified.
     pub fn tracer(&self) -> Tracer<'a> {
-        match self.wide_tracer(KernelPath::best()) {
+        self.tracer_on(KernelPath::best())
+    }
+
+    /// The binary kernel over the nodes and triangles sections: the reference traversal.
+    pub fn binary_tracer(&self) -> Tracer<'a> {
+        let tracer = Tracer::new(self.nodes, self.triangles, self.triangle_ids);
+        match self.two_level {
+            Some(sections) => tracer.with_instances(sections),
+            None => tracer,
+        }
+    }
+
+    /// The wide kernel on `path` (the portable one where `path` is not supported) through the instances of a
+    /// two-level file, or the binary kernel's where the file has no wide sections. In a one-level file,
+    /// [`BvhView::tracer`] on `path`'s wide kernel alone is [`BvhView::wide_tracer`].
+    pub fn tracer_on(&self, path: KernelPath) -> Tracer<'a> {
+        match self.wide_tracer(path) {
             Some(wide) => self.binary_tracer().with_wide(wide),
             None => self.binary_tracer(),
         }
     }
 
-    /// The binary kernel over the nodes and triangles sections: the reference traversal.
-    pub fn binary_tracer(&self) -> Tracer<'a> {
-        Tracer::new(self.nodes, self.triangles, self.triangle_ids)
-    }
-
     /// The wide kernel on `path` (the portable one where `path` is not supported), when the file has wide
-    /// sections.
+    /// sections. Over a two-level file it traces the sections as one tree, which they are not: use
+    /// [`BvhView::tracer_on`] there.
     pub fn wide_tracer(&self, path: KernelPath) -> Option<WideTracer<'a>> {
         let wide = self.wide?;
         let root = self.nodes.first()?;
@@ -194,10 +227,14 @@ impl<'a> BvhView<'a> {
             source_vertices: None,
             metadata: None,
             wide: None,
+            two_level: None,
             split_references: false,
         };
         let mut wide_nodes: Option<&[WideNode8]> = None;
         let mut packets: Option<&[TrianglePacket4]> = None;
+        let mut meshes: Option<&[MeshRecord]> = None;
+        let mut instances: Option<&[InstanceRecord]> = None;
+        let mut top_nodes: Option<&[PackedNode]> = None;
         for info in section_infos(bytes, &header) {
             let entry = &info.entry;
             let start = entry.section_byte_offset as usize;
@@ -225,12 +262,18 @@ impl<'a> BvhView<'a> {
                     }
                     Some(SectionKind::WideNodes) => wide_nodes = Some(std::slice::from_raw_parts(base.cast(), len)),
                     Some(SectionKind::TrianglePackets) => packets = Some(std::slice::from_raw_parts(base.cast(), len)),
+                    Some(SectionKind::Meshes) => meshes = Some(std::slice::from_raw_parts(base.cast(), len)),
+                    Some(SectionKind::Instances) => instances = Some(std::slice::from_raw_parts(base.cast(), len)),
+                    Some(SectionKind::TopNodes) => top_nodes = Some(std::slice::from_raw_parts(base.cast(), len)),
                     None => {}
                 }
             }
         }
         if let (Some(nodes), Some(packets)) = (wide_nodes, packets) {
             view.wide = Some(WideSections { nodes, packets });
+        }
+        if let (Some(meshes), Some(instances), Some(top_nodes)) = (meshes, instances, top_nodes) {
+            view.two_level = Some(TwoLevelSections { meshes, instances, top_nodes });
         }
         view
     }

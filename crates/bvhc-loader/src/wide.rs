@@ -116,6 +116,22 @@ impl<'a> WideTracer<'a> {
         WideTracer { sections: Sections { nodes, packets, root }, triangle_ids, avx2, interleave }
     }
 
+    /// The tracer over mesh `mesh`'s ranges of these sections (a two-level file's, whose indices inside a mesh
+    /// are relative to its ranges), inside `root_box` (the mesh's binary root box), its lanes' source ids in
+    /// `triangle_ids` (the mesh's range of them). `None` when the ranges lie outside the sections (a file that
+    /// breaks V41).
+    pub(crate) fn mesh(
+        &self,
+        mesh: &crate::format::MeshRecord,
+        root_box: ([f32; 3], [f32; 3]),
+        triangle_ids: Option<&'a [u32]>,
+    ) -> Option<WideTracer<'a>> {
+        let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
+        let nodes = self.sections.nodes.get(range(mesh.first_wide_node, mesh.wide_node_count))?;
+        let packets = self.sections.packets.get(range(mesh.first_packet, mesh.packet_count))?;
+        Some(WideTracer::over(nodes, packets, root_box, triangle_ids, self.path()))
+    }
+
     /// The path this tracer runs.
     pub fn path(&self) -> KernelPath {
         if self.avx2.is_some() { KernelPath::Avx2 } else { KernelPath::Portable }

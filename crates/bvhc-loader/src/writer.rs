@@ -15,6 +15,7 @@ use crate::format::{
     SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4,
     VERSION_MAJOR, WideNode8, align_up, written_minor,
 };
+use crate::instances::TwoLevelSections;
 
 /// Collects the parts of a `.bvh` file; [`BvhWriter::build`] lays them out.
 #[derive(Clone, Debug)]
@@ -27,6 +28,7 @@ pub struct BvhWriter<'a> {
     metadata: Option<&'a str>,
     split_references: bool,
     wide: Option<(&'a [WideNode8], &'a [TrianglePacket4])>,
+    two_level: Option<TwoLevelSections<'a>>,
     extra_sections: Vec<ExtraSection<'a>>,
 }
 
@@ -57,6 +59,7 @@ impl<'a> BvhWriter<'a> {
             metadata: None,
             split_references: false,
             wide: None,
+            two_level: None,
             extra_sections: Vec::new(),
         }
     }
@@ -100,9 +103,19 @@ impl<'a> BvhWriter<'a> {
         self
     }
 
-    /// The minor version the file will have: 2 with source vertices, else 1 with wide sections, else 0.
+    /// Makes the file two-level (format 1.3): the nodes, triangles (and their ids and source vertices) and wide
+    /// sections given to the other calls are the meshes' trees laid out as `sections.meshes` says (indices
+    /// relative to each mesh's ranges), placed in world space by `sections.instances` under the top-level
+    /// tree `sections.top_nodes` (`format-spec/bvh-1.md` 5.10-5.12). The file is then written as version 1.3.
+    pub fn two_level(mut self, sections: TwoLevelSections<'a>) -> Self {
+        self.two_level = Some(sections);
+        self
+    }
+
+    /// The minor version the file will have: 3 when two-level, else 2 with source vertices, else 1 with wide
+    /// sections, else 0.
     pub fn version_minor(&self) -> u16 {
-        written_minor(self.wide.is_some(), self.source_vertices.is_some())
+        written_minor(self.wide.is_some(), self.source_vertices.is_some(), self.two_level.is_some())
     }
 
     /// Appends a section of a kind that this version does not define. `required` sets its REQUIRED flag, which
@@ -152,6 +165,11 @@ impl<'a> BvhWriter<'a> {
         }
         if let Some(indices) = self.source_vertices {
             known(SectionKind::SourceVertices, bytemuck::cast_slice(indices), indices.len(), 0);
+        }
+        if let Some(two_level) = &self.two_level {
+            known(SectionKind::Meshes, bytemuck::cast_slice(two_level.meshes), two_level.meshes.len(), 0);
+            known(SectionKind::Instances, bytemuck::cast_slice(two_level.instances), two_level.instances.len(), 0);
+            known(SectionKind::TopNodes, bytemuck::cast_slice(two_level.top_nodes), two_level.top_nodes.len(), 0);
         }
         for extra in &self.extra_sections {
             if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {

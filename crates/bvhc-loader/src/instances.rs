@@ -1,0 +1,136 @@
+//! Traversal through instances (format 1.3, `format-spec/bvh-1.md` 11.3): the top-level tree over instance
+//! boxes in world space, and for each instance whose box the ray enters, the ray mapped into the mesh's object
+//! space ([`crate::instance_transform`]) and traced through the mesh's own tree by a one-level kernel, with the
+//! closest hit so far as its `t_max`.
+//!
+//! The walk is the binary kernel's (depth first, nearer child first, the same cull padding, a fixed stack of
+//! [`MAX_DEPTH`] entries, which rule V43 makes enough, and at most `top_node_count` visits), so it is safe on
+//! any input. Every kernel path (binary, wide AVX2, wide portable) runs it; they differ only in the mesh
+//! traversal, which gives the same hits (the tests check it).
+
+use crate::format::{InstanceRecord, MAX_DEPTH, MeshRecord, PackedNode};
+use crate::hit::{CULL_PADDING, Hit, TraversalCounter};
+use crate::instance_transform::{object_ray, world_normal};
+use crate::intersect::{PreparedRay, Ray};
+
+/// The three sections of a two-level file (1.3), which a file has together or not at all (rule V8).
+#[derive(Clone, Copy, Debug)]
+pub struct TwoLevelSections<'a> {
+    /// The `meshes` section: each mesh's ranges of the one-level sections.
+    pub meshes: &'a [MeshRecord],
+    /// The `instances` section; an instance's index here is what hits report.
+    pub instances: &'a [InstanceRecord],
+    /// The `top_nodes` section: a binary tree over the instances in world space, node 0 the root, each leaf
+    /// one instance (`index` the instance, `count` 1).
+    pub top_nodes: &'a [PackedNode],
+}
+
+impl<'a> TwoLevelSections<'a> {
+    /// The instance at `instance_index` and the mesh it places, when both exist.
+    pub fn placement(&self, instance_index: u32) -> Option<(&'a InstanceRecord, &'a MeshRecord)> {
+        let instance = self.instances.get(instance_index as usize)?;
+        Some((instance, self.meshes.get(instance.mesh_index as usize)?))
+    }
+
+    /// Triangles placed in world space: each instance's mesh's triangle records, summed.
+    pub fn placed_triangle_count(&self) -> u64 {
+        self.instances
+            .iter()
+            .filter_map(|i| self.meshes.get(i.mesh_index as usize))
+            .map(|m| u64::from(m.triangle_count))
+            .sum()
+    }
+}
+
+/// The closest hit (or with `ANY_HIT`, the first hit found) of `ray` among the instances of `sections`.
+/// `trace_mesh` traces an object-space ray through one mesh and returns its hit with the triangle index relative
+/// to the mesh; this function makes the index absolute, and adds the instance index and the world-space normal.
+/// With `ANY_HIT` the hit is returned as `trace_mesh` gave it, unchanged.
+#[inline(always)]
+#[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
+pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
+    sections: &TwoLevelSections<'_>,
+    ray: &Ray,
+    counter: &mut C,
+    mut trace_mesh: impl FnMut(&MeshRecord, &Ray, &mut C) -> Option<Hit>,
+) -> Option<Hit> {
+    let prepared = PreparedRay::new(ray);
+    let nodes = sections.top_nodes;
+    prepared.enter_box(nodes.first()?, ray.t_max)?;
+    let mut t_max = ray.t_max;
+    let mut found: Option<Hit> = None;
+    // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
+    let mut stack = [const { std::mem::MaybeUninit::<(u32, f32)>::uninit() }; MAX_DEPTH];
+    let mut stack_len = 0usize;
+    let mut current = 0u32;
+    let mut visits_left = nodes.len();
+    'walk: loop {
+        'visit: {
+            let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else {
+                return found; // only on a file that breaks V43
+            };
+            visits_left -= 1;
+            counter.node_visited();
+            if node.is_leaf() {
+                let Some((instance, mesh)) = sections.placement(node.index) else {
+                    break 'visit;
+                };
+                let object = object_ray(instance, &Ray { t_max, ..*ray });
+                if let Some(mut hit) = trace_mesh(mesh, &object, counter) {
+                    if ANY_HIT {
+                        return Some(hit);
+                    }
+                    hit.triangle_index = hit.triangle_index.wrapping_add(mesh.first_triangle);
+                    hit.instance_index = Some(node.index);
+                    hit.normal = world_normal(instance, hit.normal);
+                    t_max = hit.t;
+                    found = Some(hit);
+                }
+                break 'visit;
+            }
+            let first = node.index;
+            let Some(second) = first.checked_add(1).filter(|_| first > current) else {
+                break 'visit;
+            };
+            let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
+                break 'visit;
+            };
+            let t_cull = t_max * CULL_PADDING;
+            match (prepared.enter_box(left, t_cull), prepared.enter_box(right, t_cull)) {
+                (Some(t_left), Some(t_right)) => {
+                    let (near, far, t_far) =
+                        if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
+                    if let Some(slot) = stack.get_mut(stack_len) {
+                        slot.write((far, t_far));
+                        stack_len += 1;
+                    }
+                    current = near;
+                    continue 'walk;
+                }
+                (Some(_), None) => {
+                    current = first;
+                    continue 'walk;
+                }
+                (None, Some(_)) => {
+                    current = second;
+                    continue 'walk;
+                }
+                (None, None) => {}
+            }
+        }
+        // Pop the nearest pending node that may still hold a closer hit.
+        loop {
+            if stack_len == 0 {
+                return found;
+            }
+            stack_len -= 1;
+            // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
+            // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
+            let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
+            if t_entry <= t_max * CULL_PADDING {
+                current = node;
+                break;
+            }
+        }
+    }
+}

@@ -1,0 +1,198 @@
+//! The rules of the two-level sections (format 1.3): V41-V45, and their clauses of V8, V9, V10 and V13. Each
+//! test changes one thing in a good two-level scene and expects exactly that rule, the message naming the part.
+
+use bvhc::instancing::TwoLevelScene;
+use bvhc::loader::{BvhFile, Rule, SourceRange};
+
+use crate::common::*;
+use crate::corrupt::{broken_rule, entry, read_u32, refresh_checksums, write_u32};
+use crate::instances::{test_placements, two_level, write_two_level};
+
+/// A good scene: two meshes (the second a copy of the first, so their boxes agree), wide sections, the test
+/// placements (mesh 0 and 1 alternating).
+fn good() -> (TwoLevelScene, Vec<SourceRange>) {
+    let mesh = random_triangles(4101, 40, 1.0);
+    two_level(&[mesh.clone(), mesh], &test_placements(), true)
+}
+
+/// The rule `edit` breaks, and the message.
+fn edited(edit: impl FnOnce(&mut TwoLevelScene)) -> (Option<Rule>, String) {
+    let (mut scene, sources) = good();
+    assert!(write_two_level(&scene, &sources).is_ok());
+    edit(&mut scene);
+    match write_two_level(&scene, &sources) {
+        Ok(_) => (None, String::new()),
+        Err(error) => (error.rule(), error.to_string()),
+    }
+}
+
+fn expect(rule: Rule, needle: &str, edit: impl FnOnce(&mut TwoLevelScene)) {
+    let (got, message) = edited(edit);
+    assert_eq!(got, Some(rule), "{message}");
+    assert!(message.contains(needle), "expected {needle:?} in {message}");
+}
+
+#[test]
+fn v41_mesh_table() {
+    expect(Rule::MeshTable, "mesh 1: nodes start at", |s| s.meshes[1].first_node += 2);
+    expect(Rule::MeshTable, "mesh 0: ", |s| {
+        // Two nodes moved from mesh 0 to mesh 1: mesh 0 keeps an odd count, but its tree now references nodes
+        // beyond its range (V14 within the mesh), and mesh 1 an even count.
+        s.meshes[0].node_count -= 1;
+        s.meshes[1].first_node -= 1;
+        s.meshes[1].node_count += 1;
+    });
+    expect(Rule::MeshTable, "the meshes cover", |s| s.meshes[1].triangle_count -= 1);
+    expect(Rule::MeshTable, "mesh 1: wide_nodes start at", |s| s.meshes[1].first_wide_node += 1);
+    // A packet moved from mesh 1 to mesh 0 keeps the table tiled; mesh 0's wide tree then has a packet in
+    // no leaf (V31, within the mesh).
+    expect(Rule::PacketPartition, "mesh 0: packet", |s| {
+        s.meshes[0].packet_count += 1;
+        s.meshes[1].first_packet += 1;
+        s.meshes[1].packet_count -= 1;
+    });
+    // Wide ranges in a file without wide sections.
+    let mesh = random_triangles(4101, 40, 1.0);
+    let (mut scene, sources) = two_level(&[mesh.clone(), mesh], &test_placements(), false);
+    scene.meshes[0].wide_node_count = 1;
+    let error = write_two_level(&scene, &sources).unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::MeshTable), "{error}");
+    assert!(error.to_string().contains("wide_nodes 0..1 run past the section's 0 elements"), "{error}");
+    // One-level rules apply inside each mesh, naming it.
+    let (rule, message) = edited(|s| {
+        let root = s.meshes[1].first_node as usize;
+        s.nodes[root + 1].max[0] = s.nodes[root].max[0] + 1.0;
+    });
+    assert_eq!(rule, Some(Rule::ChildInParent), "{message}");
+    assert!(message.contains("mesh 1: node 1"), "{message}");
+    let (rule, message) = edited(|s| {
+        let first = s.meshes[1].first_triangle as usize;
+        s.triangles[first].vertices[0][0] += 100.0;
+    });
+    assert!(rule == Some(Rule::TriangleInLeaf) || rule == Some(Rule::PacketLanes), "{message}");
+    assert!(message.contains("mesh 1: "), "{message}");
+}
+
+#[test]
+fn v42_instance_transforms() {
+    expect(Rule::InstanceTransform, "instance 2: mesh_index 7", |s| s.instances[2].mesh_index = 7);
+    expect(Rule::InstanceTransform, "instance 3: object_to_world is singular", |s| {
+        s.instances[3].object_to_world[2] = [0.0; 4];
+    });
+    expect(Rule::InstanceTransform, "instance 1: world_to_object is not the inverse", |s| {
+        s.instances[1].world_to_object[0][3] += 0.01;
+    });
+    expect(Rule::InstanceTransform, "instance 0: object_to_world and world_to_object must be finite", |s| {
+        s.instances[0].world_to_object[1][1] = f32::NAN;
+    });
+}
+
+#[test]
+fn v43_top_tree() {
+    let leaf_of = |s: &TwoLevelScene, instance: u32| {
+        s.top_nodes.iter().position(|n| n.count == 1 && n.index == instance).unwrap()
+    };
+    expect(Rule::TopTree, "a leaf holds one instance", |s| {
+        let leaf = leaf_of(s, 4);
+        s.top_nodes[leaf].count = 2;
+    });
+    expect(Rule::TopTree, "is in a second leaf", |s| {
+        let leaf = leaf_of(s, 4);
+        s.top_nodes[leaf].index = 5;
+    });
+    expect(Rule::TopTree, "not inside parent", |s| {
+        let leaf = leaf_of(s, 0);
+        s.top_nodes[leaf].max[1] += 1000.0;
+    });
+    expect(Rule::TopTree, "must be finite", |s| s.top_nodes[0].min[0] = f32::NEG_INFINITY);
+}
+
+#[test]
+fn v44_instance_boxes_are_conservative() {
+    expect(Rule::InstanceBox, "does not contain instance 3's mesh box", |s| {
+        let leaf = s.top_nodes.iter().position(|n| n.count == 1 && n.index == 3).unwrap();
+        s.top_nodes[leaf].min[0] = s.top_nodes[leaf].min[0].next_up().max(s.top_nodes[leaf].min[0] + 1e-3);
+    });
+}
+
+#[test]
+fn v45_every_mesh_is_placed() {
+    // Mesh 1 is a copy of mesh 0 (same box), so its instances can name mesh 0 without breaking V44.
+    expect(Rule::MeshPlaced, "mesh 1 is placed by no instance", |s| {
+        for instance in &mut s.instances {
+            instance.mesh_index = 0;
+        }
+    });
+}
+
+#[test]
+fn v13_instance_reserved_is_zero() {
+    expect(Rule::ReservedZero, "instance 5: reserved", |s| s.instances[5].reserved = 1);
+}
+
+#[test]
+fn v10_top_node_count_follows_the_instances() {
+    expect(Rule::Counts, "top nodes 2 x instances - 1", |s| {
+        let extra = s.top_nodes[1];
+        s.top_nodes.push(extra);
+    });
+}
+
+/// The good file's bytes and the table positions of its meshes, instances and top_nodes sections.
+fn good_bytes_and_positions() -> (Vec<u8>, [usize; 3]) {
+    let (scene, sources) = good();
+    let bytes = write_two_level(&scene, &sources).unwrap().as_bytes().to_vec();
+    let count = read_u32(&bytes, 24) as usize;
+    let position = |kind: u32| (0..count).find(|&i| read_u32(&bytes, entry(i)) == kind).unwrap();
+    let positions = [position(9), position(10), position(11)];
+    (bytes, positions)
+}
+
+#[test]
+fn v7_v8_v9_two_level_sections_are_required_together_and_only_in_1_3() {
+    let (good, [meshes, instances, _]) = good_bytes_and_positions();
+    assert_eq!(broken_rule(&good), None);
+    // A reader of 1.2 does not know kinds 9-11; they are REQUIRED, so it refuses the file rather than tracing
+    // the meshes' object-space trees as a scene (simulated: kinds this reader does not know either).
+    let mut bytes = good.clone();
+    write_u32(&mut bytes, entry(meshes), 99);
+    refresh_checksums(&mut bytes);
+    assert_eq!(broken_rule(&bytes), Some(Rule::UnknownRequiredSection));
+    // The instances section unknown and optional: the other two alone break V8.
+    let mut bytes = good.clone();
+    write_u32(&mut bytes, entry(instances), 99);
+    write_u32(&mut bytes, entry(instances) + 4, 0);
+    refresh_checksums(&mut bytes);
+    assert_eq!(broken_rule(&bytes), Some(Rule::SectionMultiplicity));
+    let error = BvhFile::from_bytes(&bytes).unwrap_err().to_string();
+    assert!(error.contains("all of the meshes, instances and top_nodes sections or none"), "{error}");
+    // Relabelled 1.2: the sections came with 1.3.
+    let mut bytes = good.clone();
+    crate::corrupt::relabel_minor(&mut bytes, 3, 2);
+    assert_eq!(broken_rule(&bytes), Some(Rule::SectionMultiplicity));
+    // The REQUIRED flag cleared on the mesh table: V9.
+    let mut bytes = good;
+    write_u32(&mut bytes, entry(meshes) + 4, 0);
+    refresh_checksums(&mut bytes);
+    assert_eq!(broken_rule(&bytes), Some(Rule::SectionKindLayout));
+}
+
+#[test]
+fn v37_v38_costs_and_leaf_limits_are_not_defined_for_two_level_files() {
+    let (scene, sources) = good();
+    for metadata in [
+        r#"{"generator":"t","format_version":"1.3","cost":{"sah_cost":1.0}}"#,
+        r#"{"generator":"t","format_version":"1.3","build":{"max_leaf_size":4}}"#,
+    ] {
+        let error = bvhc::loader::BvhWriter::new(&scene.nodes, &scene.triangles)
+            .triangle_ids(&scene.triangle_ids)
+            .source_table(&sources)
+            .metadata(metadata)
+            .wide(&scene.wide_nodes, &scene.packets)
+            .two_level(scene.sections())
+            .build()
+            .unwrap_err();
+        assert!(matches!(error.rule(), Some(Rule::MetadataCost | Rule::MetadataBuild)), "{error}");
+        assert!(error.to_string().contains("two-level file"), "{error}");
+    }
+}
