@@ -46,6 +46,17 @@ fn every_field_name_is_in_the_spec() {
         "reserved",
         "child",
         "triangle_index",
+        "first_node",
+        "node_count",
+        "first_triangle",
+        "triangle_count",
+        "first_wide_node",
+        "wide_node_count",
+        "first_packet",
+        "packet_count",
+        "object_to_world",
+        "world_to_object",
+        "gpu_instance_index",
     ];
     for field in fields {
         assert!(SPEC.contains(&format!("`{field}`")), "{field}");
@@ -65,6 +76,13 @@ fn the_spec_constants_match_the_code() {
     assert!(SPEC.contains(&format!("`packet_count <= 2^{}`", MAX_PACKET_COUNT.trailing_zeros())));
     assert_eq!(size_of::<WideNode8>(), 256);
     assert_eq!(size_of::<TrianglePacket4>(), 160);
+    assert_eq!((size_of::<MeshRecord>(), size_of::<InstanceRecord>()), (32, 112));
+    assert_eq!(
+        (INVERSE_TOLERANCE, MIN_ORTHOGONALITY, INSTANCE_BOX_PADDING),
+        (2f64.powi(-13), 2f64.powi(-20), 2f64.powi(-20))
+    );
+    assert!(SPEC.contains("within `2^-13` of each entry's own scale") && SPEC.contains("`|det L| >= 2^-20 *"));
+    assert!(SPEC.contains("outward by `2^-20` of their magnitude"));
     for kind in SectionKind::ALL {
         let row = format!("| {} | `{}` |", kind.code(), kind.name());
         assert!(SPEC.contains(&row), "{row}");
