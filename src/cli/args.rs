@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use bvhc::builders::Builder;
 use bvhc::import::memory::{MemoryLimit, parse_size};
-use bvhc::import::{ImportLimits, SceneSelector};
+use bvhc::import::{ImportLimits, Instancing, SceneSelector};
 use bvhc::optimize::Selection;
 use bvhc::options::{OptimizeOver, Overrides, Preset, SplitMethod, SplitTriangles};
 use clap::{Args, Parser, Subcommand};
@@ -149,6 +149,11 @@ pub struct OptionArgs {
     /// untrusted asset cannot copy other files into the output.
     #[arg(long, help_heading = "Import")]
     pub allow_outside_buffers: bool,
+    /// Keep glTF meshes placed more than once as instances in a two-level file (format 1.3): auto when their
+    /// extra placements add a million triangles or more, or the flattened scene would not fit in memory;
+    /// always; or never (every placement flattened) [default: auto].
+    #[arg(long, value_enum, help_heading = "Import")]
+    pub instancing: Option<Instancing>,
     /// Initial builder (without split references or with --split-method pre-split) [default: binned-sah].
     #[arg(long, value_enum, help_heading = "Build")]
     pub builder: Option<Builder>,
@@ -217,6 +222,7 @@ impl OptionArgs {
                 max_memory: self.max_memory.unwrap_or(MemoryLimit::Detect),
             }),
             allow_buffers_outside_input_folder: self.allow_outside_buffers.then_some(true),
+            instancing: self.instancing,
             builder: self.builder,
             splits: given(self.no_splits),
             split_budget: self.split_budget,

@@ -68,6 +68,21 @@ fn tree_stats(nodes: &[PackedNode]) -> TreeStats {
     stats
 }
 
+/// [`tree_stats`] of every mesh's tree of a two-level file, together (the deepest mesh's depth).
+fn meshes_stats(nodes: &[PackedNode], meshes: &[bvhc::loader::MeshRecord]) -> TreeStats {
+    let mut stats = TreeStats { leaf_count: 0, max_depth: 0, leaf_sizes: BTreeMap::new() };
+    for mesh in meshes {
+        let start = mesh.first_node as usize;
+        let mesh_stats = tree_stats(&nodes[start..start + mesh.node_count as usize]);
+        stats.leaf_count += mesh_stats.leaf_count;
+        stats.max_depth = stats.max_depth.max(mesh_stats.max_depth);
+        for (size, count) in mesh_stats.leaf_sizes {
+            *stats.leaf_sizes.entry(size).or_default() += count;
+        }
+    }
+    stats
+}
+
 fn metadata(view: &BvhView<'_>) -> serde_json::Value {
     view.metadata_str()
         .and_then(|text| text.ok())
@@ -82,13 +97,18 @@ pub fn info(path: &Path, json: bool) -> Exit {
         Err(exit) => return exit,
     };
     let view = file.view();
-    let stats = tree_stats(view.nodes());
+    let two_level = view.two_level();
+    let stats = match &two_level {
+        None => tree_stats(view.nodes()),
+        Some(sections) => meshes_stats(view.nodes(), sections.meshes),
+    };
     let metadata = metadata(&view);
     let constants = SahConstants {
         traversal: metadata["cost"]["c_t"].as_f64().unwrap_or(SahConstants::default().traversal),
         intersection: metadata["cost"]["c_i"].as_f64().unwrap_or(SahConstants::default().intersection),
     };
-    let cost = sah_of_packed(view.nodes(), constants);
+    // A two-level file has no tree over the whole scene, so no cost (format-spec/bvh-1.md 6.2).
+    let cost = two_level.is_none().then(|| sah_of_packed(view.nodes(), constants));
     let (major, minor) = view.version();
     let sections: Vec<serde_json::Value> = view
         .sections()
@@ -105,7 +125,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
         .collect();
     let unique_triangles = unique_triangle_count(&view, &metadata);
     let wide_constants = &metadata["build"]["wide"];
-    let wide_cost = view.wide_sections().map(|wide| {
+    let wide_cost = view.wide_sections().filter(|_| two_level.is_none()).map(|wide| {
         let node_visit = wide_constants["node_visit"].as_f64().unwrap_or(1.0);
         let packet_test = wide_constants["packet_test"].as_f64().unwrap_or(1.0);
         bvhc::loader::cost::wide_cost(view.nodes().first(), wide.nodes, node_visit, packet_test)
@@ -128,12 +148,18 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "leaf_count": stats.leaf_count,
             "max_depth": stats.max_depth,
             "leaf_size_histogram": stats.leaf_sizes,
-            "sah_cost": cost.cost,
+            "sah_cost": cost.map(|c| c.cost),
             "c_t": constants.traversal,
             "c_i": constants.intersection,
-            "inner_area_ratio": cost.inner_area_ratio,
-            "leaf_area_ratio": cost.leaf_area_ratio,
+            "inner_area_ratio": cost.map(|c| c.inner_area_ratio),
+            "leaf_area_ratio": cost.map(|c| c.leaf_area_ratio),
             "wide_cost": wide_cost,
+            "two_level": two_level.map(|sections| serde_json::json!({
+                "mesh_count": sections.meshes.len(),
+                "instance_count": sections.instances.len(),
+                "top_node_count": sections.top_nodes.len(),
+                "placed_triangle_count": sections.placed_triangle_count(),
+            })),
             "metadata": metadata,
         });
         return print(&format!("{report:#}\n"), Exit::Success);
@@ -160,6 +186,18 @@ pub fn info(path: &Path, json: bool) -> Exit {
         stats.leaf_count,
         stats.max_depth
     );
+    if let Some(sections) = &two_level {
+        let placed = sections.placed_triangle_count();
+        outln!(
+            out,
+            "two-level: {} meshes placed by {} instances: {} triangle records stored, {placed} placed ({:.1}x); \
+             the tree line counts every mesh's trees, depth the deepest",
+            sections.meshes.len(),
+            sections.instances.len(),
+            view.triangles().len(),
+            placed as f64 / view.triangles().len().max(1) as f64
+        );
+    }
     if view.has_split_references() {
         outln!(
             out,
@@ -188,15 +226,18 @@ pub fn info(path: &Path, json: bool) -> Exit {
     }
     let histogram: Vec<String> = stats.leaf_sizes.iter().map(|(size, n)| format!("{size}: {n}")).collect();
     outln!(out, "leaf sizes (triangles: leaves): {}", histogram.join(", "));
-    outln!(
-        out,
-        "SAH cost {:.3} with (c_T, c_I) = ({}, {}): A_I {:.3}, A_L {:.3}",
-        cost.cost,
-        constants.traversal,
-        constants.intersection,
-        cost.inner_area_ratio,
-        cost.leaf_area_ratio
-    );
+    match cost {
+        Some(cost) => outln!(
+            out,
+            "SAH cost {:.3} with (c_T, c_I) = ({}, {}): A_I {:.3}, A_L {:.3}",
+            cost.cost,
+            constants.traversal,
+            constants.intersection,
+            cost.inner_area_ratio,
+            cost.leaf_area_ratio
+        ),
+        None => outln!(out, "SAH cost: not defined for a two-level file (no tree spans the scene)"),
+    }
     if !metadata.is_null() {
         outln!(out, "generator: {}", metadata["generator"].as_str().unwrap_or("?"));
         for input in metadata["inputs"].as_array().into_iter().flatten() {

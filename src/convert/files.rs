@@ -58,8 +58,11 @@ pub fn is_up_to_date(output: &Path, main_input: &Path, build: &BuildRecord) -> b
     }
     let Some(Ok(text)) = view.metadata_str() else { return false };
     let Ok(metadata) = serde_json::from_str::<Value>(text) else { return false };
-    let minor =
-        bvhc_loader::format::written_minor(!build["wide"].is_null(), build["write_source_vertices"] == true, false);
+    let minor = bvhc_loader::format::written_minor(
+        !build["wide"].is_null(),
+        build["write_source_vertices"] == true,
+        metadata["two_level"].is_object(),
+    );
     let version = format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR);
     if metadata["format_version"] != Value::String(version) || metadata["build"] != build {
         return false;

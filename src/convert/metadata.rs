@@ -1,6 +1,7 @@
 //! The metadata section's JSON (`format-spec/metadata.schema.json`), as serde types whose shape is the schema's:
 //! generator, format version, inputs (names relative to the input, content hashes), build options, cost, what
-//! became of the scene's triangles, the wide sections' sizes and cost, and the choice among candidate trees.
+//! became of the scene's triangles, the wide sections' sizes and cost, the choice among candidate trees, and
+//! what a two-level file instanced.
 //! The `build` object ([`BuildRecord`]) is also what the up-to-date check compares.
 //!
 //! Keys are written in alphabetical order (through `serde_json::Value`), so the bytes do not depend on the order
@@ -11,7 +12,7 @@ use serde::Serialize;
 use super::report::{Choice, WideSummary};
 use crate::builders::Builder;
 use crate::cost::SahCost;
-use crate::import::{ImportReport, SceneSelector};
+use crate::import::{ImportReport, Instancing, SceneSelector};
 use crate::layout::WideCosts;
 use crate::optimize::OptimizeParams;
 use crate::options::{ConvertOptions, LeafMerge, OptimizeOver, Preset, SplitOptions};
@@ -27,16 +28,59 @@ pub struct Metadata<'a> {
     pub inputs: &'a [InputEntry],
     /// The options the file was built with.
     pub build: BuildRecord,
-    /// The binary tree's SAH cost.
-    pub cost: CostRecord,
+    /// The binary tree's SAH cost (one-level files; 1.3 defines none for two-level files).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cost: Option<CostRecord>,
     /// What became of the scene's triangles.
     pub triangles: TrianglesRecord,
-    /// The wide sections' sizes and cost, when there are any.
+    /// The wide sections' sizes and (one-level files) cost, when there are any.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub wide: Option<WideSummary>,
-    /// How the written tree was chosen among candidates, when there were several.
+    pub wide: Option<WideRecord>,
+    /// How the written tree was chosen among candidates, when there were several (one-level files).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub choice: Option<&'a Choice>,
+    /// What a two-level file instanced.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub two_level: Option<TwoLevelRecord>,
+}
+
+/// The schema's `wide` object.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct WideRecord {
+    node_count: usize,
+    packet_count: usize,
+    /// Absent in two-level files.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cost: Option<f64>,
+}
+
+impl WideRecord {
+    /// A one-level file's wide sections, with their cost.
+    pub fn of(summary: &WideSummary) -> WideRecord {
+        WideRecord { node_count: summary.node_count, packet_count: summary.packet_count, cost: Some(summary.cost) }
+    }
+
+    /// A two-level file's wide sections: the meshes' together, without a cost.
+    pub fn counts(node_count: usize, packet_count: usize) -> WideRecord {
+        WideRecord { node_count, packet_count, cost: None }
+    }
+}
+
+/// The schema's `two_level` object: what a conversion instanced (format 1.3).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TwoLevelRecord {
+    /// The mode that decided (`build.instancing`, or `auto`).
+    pub instancing: Instancing,
+    /// The glTF meshes kept instanced, in the order of the file's meshes that place them.
+    pub instanced_meshes: Vec<u32>,
+    /// Meshes in the file: the instanced ones, and one more for the flattened rest when there is any.
+    pub mesh_count: usize,
+    /// Instances in the file.
+    pub instance_count: usize,
+    /// Triangles in the scene as placed (an instanced mesh's counted once a placement).
+    pub placed_triangle_count: u64,
+    /// Triangles flattened into world space (the file's first mesh when not 0).
+    pub flattened_triangle_count: u64,
 }
 
 impl Metadata<'_> {
@@ -69,6 +113,9 @@ pub struct BuildRecord {
     optimize_over: Option<OptimizeOver>,
     preset: Preset,
     skip_optimization: bool,
+    /// Absent for the default, `auto`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    instancing: Option<Instancing>,
     /// Absent without split references.
     #[serde(skip_serializing_if = "Option::is_none")]
     splits: Option<SplitOptions>,
@@ -99,6 +146,7 @@ impl BuildRecord {
                 keep_degenerate: options.import.keep_degenerate,
                 scene: options.import.scene.clone(),
             },
+            instancing: (options.import.instancing != Instancing::Auto).then_some(options.import.instancing),
             max_leaf_size,
             merge_leaves,
             optimize: options.optimize.clone(),

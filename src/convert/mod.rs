@@ -5,11 +5,15 @@
 pub mod candidates;
 pub mod files;
 pub mod metadata;
+mod part;
 pub mod pipeline;
+mod two_level;
 pub mod report;
 mod request;
 
 pub use candidates::merge_and_collapse;
 pub use pipeline::{convert, convert_with};
-pub use report::{CandidateCost, Choice, ConvertError, ConvertReport, Event, Stage, Timings, WideSummary};
+pub use report::{
+    CandidateCost, Choice, ConvertError, ConvertReport, Event, Stage, Timings, TwoLevelSummary, WideSummary,
+};
 pub use request::{Conversion, ConversionOutcome};

@@ -21,7 +21,7 @@ pub struct ConvertReport {
     pub import: ImportReport,
     /// The optimizer's report (absent when skipped).
     pub optimization: Option<OptimizeReport>,
-    /// Cost of the written tree.
+    /// Cost of the written tree (of a two-level file: its largest mesh's).
     pub cost: SahCost,
     /// Triangles written (distinct; with split references some are stored more than once).
     pub triangle_count: usize,
@@ -38,8 +38,23 @@ pub struct ConvertReport {
     /// Seconds per stage: import, build, optimize, merge, pack, write.
     pub timings: Timings,
     /// With [`SplitTriangles::Choose`] or [`OptimizeOver::Choose`]: the candidates' costs and the one written
-    /// (absent when a cancelled optimization ended the search at the first).
+    /// (absent when a cancelled optimization ended the search at the first, and in a two-level file).
     pub choice: Option<Choice>,
+    /// What a two-level file (format 1.3) holds; absent for a one-level file.
+    pub two_level: Option<TwoLevelSummary>,
+}
+
+/// The meshes and instances of a two-level file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct TwoLevelSummary {
+    /// Meshes written: the instanced ones, and the flattened rest when there is any.
+    pub mesh_count: usize,
+    /// Instances written.
+    pub instance_count: usize,
+    /// Triangles in the scene as placed.
+    pub placed_triangle_count: u64,
+    /// Triangles flattened into world space.
+    pub flattened_triangle_count: u64,
 }
 
 /// The wide sections of a conversion: their sizes and the collapsed tree's cost.
@@ -49,7 +64,8 @@ pub struct WideSummary {
     pub node_count: usize,
     /// Elements of `triangle_packets`.
     pub packet_count: usize,
-    /// The wide tree's cost under the collapse's constants ([`crate::layout::WideTree::cost`]).
+    /// The wide tree's cost under the collapse's constants ([`crate::layout::WideTree::cost`]; of a two-level
+    /// file: its largest mesh's).
     pub cost: f64,
 }
 

@@ -25,7 +25,7 @@ use super::metadata::BuildRecord;
 use super::pipeline::convert_with;
 use super::report::{ConvertError, ConvertReport, Event};
 use crate::builders::Builder;
-use crate::import::{ImportLimits, SceneSelector};
+use crate::import::{ImportLimits, Instancing, SceneSelector};
 use crate::optimize::Selection;
 use crate::options::{ConvertOptions, OptimizeOver, Overrides, Preset, SplitMethod, SplitTriangles, resolve};
 
@@ -107,6 +107,13 @@ impl Conversion {
     /// A wall-clock budget for the optimizer. Note: the result then depends on the machine's speed.
     pub fn time_budget(mut self, budget: Duration) -> Self {
         self.overrides.time_budget = Some(budget);
+        self
+    }
+
+    /// Which glTF meshes placed more than once stay instanced in a two-level file (format 1.3); default
+    /// [`Instancing::Auto`].
+    pub fn instancing(mut self, instancing: Instancing) -> Self {
+        self.overrides.instancing = Some(instancing);
         self
     }
 

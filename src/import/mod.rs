@@ -11,6 +11,7 @@
 //! ```
 
 mod gltf;
+mod instancing;
 mod limits;
 pub mod memory;
 mod obj;
@@ -22,6 +23,7 @@ mod soup;
 
 use std::path::{Path, PathBuf};
 
+pub use instancing::{AUTO_MIN_SAVED_TRIANGLES, InstancedMesh, Instancing, MeshPlacement};
 pub use limits::ImportLimits;
 pub use report::ImportReport;
 pub use soup::{Provenance, TriangleSoup, is_zero_area};
@@ -54,6 +56,10 @@ pub struct ImportOptions {
     /// untrusted asset must not copy bytes of other files into the output.
     #[serde(skip)]
     pub allow_buffers_outside_input_folder: bool,
+    /// Which glTF meshes placed more than once stay instanced (recorded in output files by the conversion's
+    /// `build` object, not here).
+    #[serde(skip)]
+    pub instancing: Instancing,
 }
 
 /// The file formats bvhc reads.
@@ -99,6 +105,9 @@ pub struct Import {
     pub report: ImportReport,
     /// The input's format.
     pub format: SceneFormat,
+    /// The meshes kept instanced (glTF only): their object-space triangles in the soup and their placements;
+    /// every other triangle of the soup is in world space. Empty for a flattened scene.
+    pub instanced: Vec<InstancedMesh>,
 }
 
 /// What kind of failure an [`ImportError`] is (the command line maps it to its exit code).
@@ -235,14 +244,22 @@ pub fn import_for_peak(
     })?;
     let mut builder = SoupBuilder::new(options.keep_degenerate, &options.limits, peak_bytes_per_triangle);
     let mut files_read = vec![path.to_path_buf()];
+    let mut instanced = Vec::new();
     let result = match format {
         SceneFormat::Gltf | SceneFormat::Glb => {
-            gltf::read(path, &bytes, options, &mut builder).map(|more| files_read.extend(more))
+            gltf::read(path, &bytes, options, &mut builder).map(|(more, meshes)| {
+                files_read.extend(more);
+                instanced = meshes;
+            })
         }
         SceneFormat::Obj => obj::read(&bytes, &options.limits, &mut builder),
         SceneFormat::Ply => ply::read(&bytes, &options.limits, &mut builder),
     };
     result.map_err(error)?;
-    let (soup, report) = builder.finish();
-    Ok(Import { soup, files_read, report, format })
+    let (soup, mut report) = builder.finish();
+    let in_meshes: usize = instanced.iter().map(|m| m.triangles.len()).sum();
+    report.placed_triangles = (soup.triangles.len() - in_meshes) as u64
+        + instanced.iter().map(|m| (m.triangles.len() * m.placements.len()) as u64).sum::<u64>();
+    report.instanced_meshes = instanced.len() as u64;
+    Ok(Import { soup, files_read, report, format, instanced })
 }

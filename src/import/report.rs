@@ -6,8 +6,12 @@ use serde::Serialize;
 /// instances counts once); the others count every placement.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct ImportReport {
-    /// Triangles in the soup.
+    /// Triangles in the soup (an instanced mesh's once).
     pub triangles: u64,
+    /// Triangles in the scene as placed: those of the soup, with an instanced mesh's counted once a placement.
+    pub placed_triangles: u64,
+    /// glTF meshes kept instanced (format 1.3); 0 for a flattened scene.
+    pub instanced_meshes: u64,
     /// Vertices in the soup (only those that kept triangles use).
     pub vertices: u64,
     /// Triangles of every placed primitive, before dropping degenerate ones.

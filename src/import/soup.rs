@@ -275,6 +275,11 @@ impl SoupBuilder {
         Ok(())
     }
 
+    /// Triangles in the soup so far.
+    pub fn triangle_count(&self) -> usize {
+        self.soup.triangles.len()
+    }
+
     /// The finished soup and report.
     pub fn finish(self) -> (TriangleSoup, ImportReport) {
         let mut report = self.report;

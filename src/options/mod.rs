@@ -7,6 +7,7 @@
 pub mod preset;
 mod resolve;
 
+pub use crate::import::Instancing;
 pub use preset::Preset;
 pub use resolve::{OptionsError, Overrides, resolve};
 

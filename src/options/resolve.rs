@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use super::{ConvertOptions, LeafMerge, OptimizeOver, Preset, SplitMethod, SplitOptions, SplitTriangles};
 use crate::builders::Builder;
-use crate::import::{ImportLimits, SceneSelector};
+use crate::import::{ImportLimits, Instancing, SceneSelector};
 use crate::optimize::Selection;
 
 /// What the user set; `None` leaves the preset's choice. The command line's flags map one to one onto these.
@@ -20,6 +20,8 @@ pub struct Overrides {
     pub limits: Option<ImportLimits>,
     /// Import: follow glTF buffer URIs that leave the scene's folder.
     pub allow_buffers_outside_input_folder: Option<bool>,
+    /// Import: which glTF meshes placed more than once stay instanced (format 1.3).
+    pub instancing: Option<Instancing>,
     /// Build: the initial builder.
     pub builder: Option<Builder>,
     /// Splits: `Some(false)` makes none whatever the preset; `Some(true)` needs a budget from the preset or
@@ -76,7 +78,8 @@ pub enum OptionsError {
 }
 
 impl OptionsError {
-    pub(super) fn inert(setting: &str, because: &str, advice: &str) -> OptionsError {
+    /// `setting` would do nothing because of `because`; `advice` says what to do.
+    pub(crate) fn inert(setting: &str, because: &str, advice: &str) -> OptionsError {
         OptionsError::Inert { setting: setting.into(), because: because.into(), advice: advice.into() }
     }
 
@@ -99,6 +102,7 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     }
     options.import.allow_buffers_outside_input_folder =
         o.allow_buffers_outside_input_folder.unwrap_or(options.import.allow_buffers_outside_input_folder);
+    options.import.instancing = o.instancing.unwrap_or(options.import.instancing);
     options.builder = o.builder.unwrap_or(options.builder);
     options.splits = resolve_splits(preset, o)?;
     options.reinsertion = resolve_reinsertion(preset, o)?;

@@ -11,6 +11,7 @@ mod compat;
 mod corrupt;
 mod example_ao;
 mod convert;
+mod convert_instances;
 mod golden;
 mod golden_two_level;
 mod hardening;

@@ -178,21 +178,28 @@ fn v7_v8_v9_two_level_sections_are_required_together_and_only_in_1_3() {
 }
 
 #[test]
-fn v37_v38_costs_and_leaf_limits_are_not_defined_for_two_level_files() {
+fn v37_v38_costs_are_not_defined_and_leaf_limits_apply_per_mesh_in_two_level_files() {
     let (scene, sources) = good();
-    for metadata in [
-        r#"{"generator":"t","format_version":"1.3","cost":{"sah_cost":1.0}}"#,
-        r#"{"generator":"t","format_version":"1.3","build":{"max_leaf_size":4}}"#,
-    ] {
-        let error = bvhc::loader::BvhWriter::new(&scene.nodes, &scene.triangles)
+    let write = |metadata: &str| {
+        bvhc::loader::BvhWriter::new(&scene.nodes, &scene.triangles)
             .triangle_ids(&scene.triangle_ids)
             .source_table(&sources)
             .metadata(metadata)
             .wide(&scene.wide_nodes, &scene.packets)
+            .source_vertices(&scene.source_vertices)
             .two_level(scene.sections())
             .build()
-            .unwrap_err();
-        assert!(matches!(error.rule(), Some(Rule::MetadataCost | Rule::MetadataBuild)), "{error}");
-        assert!(error.to_string().contains("two-level file"), "{error}");
-    }
+    };
+    let error = write(r#"{"generator":"t","format_version":"1.3","cost":{"sah_cost":1.0}}"#).unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::MetadataCost), "{error}");
+    assert!(error.to_string().contains("two-level file"), "{error}");
+    // The meshes' leaves hold up to 2 triangles (binary) and up to 8 (wide): limits checked per mesh, with the
+    // mesh's own indices.
+    assert!(write(r#"{"generator":"t","format_version":"1.3","build":{"max_leaf_size":2}}"#).is_ok());
+    let error = write(r#"{"generator":"t","format_version":"1.3","build":{"max_leaf_size":1}}"#).unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::MetadataBuild), "{error}");
+    assert!(error.to_string().contains("mesh 0: node"), "{error}");
+    let limited = r#"{"generator":"t","format_version":"1.3","build":{"wide":{"max_leaf_size":1}}}"#;
+    let error = write(limited).unwrap_err();
+    assert!(error.to_string().contains("mesh 0: wide node"), "{error}");
 }

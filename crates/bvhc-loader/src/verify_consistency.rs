@@ -11,7 +11,9 @@ use crate::json::{Map, Value};
 
 use crate::cost::{binary_cost, wide_cost};
 use crate::error::{Rule, Violation, violation};
-use crate::format::{EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedTriangle, UNUSED_LANE, WIDE, WideNode8};
+use crate::format::{
+    EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, TrianglePacket4, UNUSED_LANE, WIDE, WideNode8,
+};
 use crate::view::BvhView;
 
 /// Largest relative difference accepted between a cost in the metadata and the cost recomputed from the file
@@ -214,41 +216,82 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
         let has = if view.source_vertices().is_some() { "has" } else { "has no" };
         return fail(format!("write_source_vertices is {write}, but the file {has} source_vertices section"));
     }
-    let wide_limit_stated = object(build, "wide").is_some_and(|wide| wide.get("max_leaf_size").is_some());
-    if view.two_level().is_some() && (build.get("max_leaf_size").is_some() || wide_limit_stated) {
-        return fail("max_leaf_size or wide.max_leaf_size in a two-level file, for which 1.3 defines none".into());
-    }
     let mut identity = TriangleIdentity { view, ids: Vec::new(), records: Vec::new() };
+    // Each tree's ranges with the offset of its triangle indices: the file's, or each mesh's (6.2).
+    let trees: Vec<TreeRanges<'_>> = match view.two_level() {
+        None => vec![TreeRanges {
+            name: String::new(),
+            nodes: view.nodes(),
+            wide: view.wide_sections().map(|w| (w.nodes, w.packets)),
+            first_triangle: 0,
+        }],
+        Some(sections) => sections
+            .meshes
+            .iter()
+            .enumerate()
+            .map(|(m, mesh)| {
+                let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
+                let wide = view.wide_sections().map(|w| {
+                    let nodes = w.nodes.get(range(mesh.first_wide_node, mesh.wide_node_count)).unwrap_or(&[]);
+                    (nodes, w.packets.get(range(mesh.first_packet, mesh.packet_count)).unwrap_or(&[]))
+                });
+                TreeRanges {
+                    name: format!("mesh {m}: "),
+                    nodes: view.nodes().get(range(mesh.first_node, mesh.node_count)).unwrap_or(&[]),
+                    wide,
+                    first_triangle: mesh.first_triangle,
+                }
+            })
+            .collect(),
+    };
     if let Some(limit) = build.get("max_leaf_size").and_then(Value::as_u64) {
-        for (i, node) in view.nodes().iter().enumerate().filter(|(_, n)| n.count > 0) {
-            let range = node.index as usize..node.index as usize + node.count as usize;
-            let distinct = identity.distinct(range.map(|t| t as u32));
-            if distinct > limit {
-                return fail(format!("node {i} is a leaf of {distinct} distinct triangles, max_leaf_size {limit}"));
+        for tree in &trees {
+            for (i, node) in tree.nodes.iter().enumerate().filter(|(_, n)| n.count > 0) {
+                let first = tree.first_triangle.wrapping_add(node.index);
+                let distinct = identity.distinct((0..node.count).map(|k| first.wrapping_add(k)));
+                if distinct > limit {
+                    return fail(format!(
+                        "{}node {i} is a leaf of {distinct} distinct triangles, max_leaf_size {limit}",
+                        tree.name
+                    ));
+                }
             }
         }
     }
     let wide_limit = object(build, "wide").and_then(|wide| wide.get("max_leaf_size")).and_then(Value::as_u64);
-    if let (Some(limit), Some(sections)) = (wide_limit, view.wide_sections()) {
-        for (i, node) in sections.nodes.iter().enumerate() {
+    let Some(limit) = wide_limit else { return Ok(()) };
+    for tree in &trees {
+        let Some((nodes, packets)) = tree.wide else { continue };
+        for (i, node) in nodes.iter().enumerate() {
             for (slot, &child) in node.child.iter().enumerate() {
                 if child == EMPTY_SLOT || child & LEAF_BIT == 0 {
                     continue;
                 }
                 let (first, count) = WideNode8::leaf_packets(child);
-                let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
-                let lanes = packets.iter().flat_map(|p| p.triangle_index).filter(|&t| t != UNUSED_LANE);
-                let distinct = identity.distinct(lanes);
+                let leaf = packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
+                let lanes = leaf.iter().flat_map(|p| p.triangle_index).filter(|&t| t != UNUSED_LANE);
+                let distinct = identity.distinct(lanes.map(|t| tree.first_triangle.wrapping_add(t)));
                 if distinct > limit {
                     return fail(format!(
-                        "wide node {i} slot {slot} is a leaf of {distinct} distinct triangles, wide.max_leaf_size \
-                         {limit}"
+                        "{}wide node {i} slot {slot} is a leaf of {distinct} distinct triangles, wide.max_leaf_size \
+                         {limit}",
+                        tree.name
                     ));
                 }
             }
         }
     }
     Ok(())
+}
+
+/// One tree's nodes (binary and wide) and where its triangle indices start in the triangles section: the whole
+/// file's, or a mesh's in a two-level file.
+struct TreeRanges<'a> {
+    /// `"mesh m: "` in a two-level file, empty otherwise.
+    name: String,
+    nodes: &'a [PackedNode],
+    wide: Option<(&'a [WideNode8], &'a [TrianglePacket4])>,
+    first_triangle: u32,
 }
 
 /// Which records are the same triangle: the same source id with ids, the same vertex bits without; with one

@@ -71,6 +71,11 @@ impl WideBvh {
     pub fn packets(&self) -> &[TrianglePacket4] {
         &self.packets
     }
+
+    /// The nodes and packets, moved out (to lay several trees out in one file).
+    pub fn into_parts(self) -> (Vec<WideNode8>, Vec<TrianglePacket4>) {
+        (self.nodes, self.packets)
+    }
 }
 
 /// Closest-hit and any-hit queries over wide sections (a file's, or a [`WideBvh`]).

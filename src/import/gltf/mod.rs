@@ -4,7 +4,8 @@
 //! document; every index, enum and length is checked here, so a malformed file gives an error, never a panic.
 //! Transforms (`matrix` or T * R * S, and `EXT_mesh_gpu_instancing`'s per-instance T * R * S, applied before
 //! the node's) are accumulated in f64 with glam; a negative determinant reverses the winding. Images are never
-//! read or decoded.
+//! read or decoded. Meshes that [`choose_instanced`] keeps instanced are added once, in object space, at their
+//! first placement, and every placement of them becomes a [`MeshPlacement`].
 
 mod buffers;
 mod extensions;
@@ -16,17 +17,22 @@ use std::path::{Path, PathBuf};
 use glam::{DMat4, DQuat, DVec3};
 use gltf::json::Root;
 
+use bvhc_loader::format::NO_INDEX;
+use bvhc_loader::{Affine3x4, InstanceRecord};
+
 use self::buffers::Buffers;
+use super::instancing::{InstancedMesh, MeshPlacement, choose_instanced, stored_triangles};
 use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
 use super::{ErrorKind, ImportOptions, Located, SceneSelector};
 
-/// Reads a `.gltf` (JSON) or `.glb` file's scene into `builder`; returns the external files it read.
+/// Reads a `.gltf` (JSON) or `.glb` file's scene into `builder`; returns the external files it read and the
+/// meshes kept instanced.
 pub(super) fn read(
     path: &Path,
     bytes: &[u8],
     options: &ImportOptions,
     builder: &mut SoupBuilder,
-) -> Result<Vec<PathBuf>, Located> {
+) -> Result<(Vec<PathBuf>, Vec<InstancedMesh>), Located> {
     let scene = options.scene.as_ref();
     let (json, bin) = if bytes.starts_with(b"glTF") {
         let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| Located::new("GLB container", e.to_string()))?;
@@ -38,14 +44,28 @@ pub(super) fn read(
     extensions::check_required(&root)?;
     let roots = scene_roots(&root, scene)?;
     builder.report.file_mesh_triangles = primitive::file_mesh_triangles(&root);
-    // The whole scene's triangles, counted from the JSON before any accessor is decoded, against the memory
-    // budget: a small file that places a large mesh many times is refused here, in a moment.
-    let placed = placed_triangles(&root, &roots);
-    builder.check_memory(placed).map_err(|e| Located::of_kind(ErrorKind::Limit, "scene", e))?;
+    // The triangles the scene will store, counted from the JSON before any accessor is decoded, against the
+    // memory budget: a small file that places a large mesh many times (and does not instance it) is refused
+    // here, in a moment.
+    let placements = mesh_placements(&root, &roots);
+    let triangles: Vec<u64> = root.meshes.iter().map(|mesh| primitive::mesh_triangles(&root, mesh)).collect();
+    let instanced =
+        choose_instanced(options.instancing, &placements, &triangles, |stored| builder.check_memory(stored).is_ok());
+    let stored = stored_triangles(&placements, &triangles, &instanced);
+    builder.check_memory(stored).map_err(|e| Located::of_kind(ErrorKind::Limit, "scene", e))?;
     let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
-    let mut walker = Walker { root: &root, buffers: &mut buffers, builder, placed: HashSet::new() };
+    let mut walker = Walker {
+        root: &root,
+        buffers: &mut buffers,
+        builder,
+        placed: HashSet::new(),
+        instanced,
+        slot_of_mesh: vec![None; root.meshes.len()],
+        meshes: Vec::new(),
+    };
     walker.walk(&roots)?;
-    Ok(buffers.files_read)
+    let meshes = walker.meshes;
+    Ok((buffers.files_read, meshes))
 }
 
 /// The root nodes of the selected scene: the one asked for, else the default scene, else scene 0, else (a file
@@ -81,25 +101,24 @@ fn scene_roots(root: &Root, selector: Option<&SceneSelector>) -> Result<Vec<usiz
     }
 }
 
-/// The triangles the scene under `roots` places: each reachable node's mesh triangles times its instances
+/// How many times the scene under `roots` places each mesh: each reachable node's mesh once, or its instances
 /// (`EXT_mesh_gpu_instancing`'s declared count), from declared counts only. Nodes reached twice or missing
 /// are skipped here; the walk reports them.
-fn placed_triangles(root: &Root, roots: &[usize]) -> u64 {
+fn mesh_placements(root: &Root, roots: &[usize]) -> Vec<u64> {
     let mut visited = vec![false; root.nodes.len()];
     let mut stack = roots.to_vec();
-    let mut total = 0u64;
+    let mut placements = vec![0u64; root.meshes.len()];
     while let Some(index) = stack.pop() {
         let Some(node) = root.nodes.get(index) else { continue };
         if std::mem::replace(&mut visited[index], true) {
             continue;
         }
-        if let Some(mesh) = node.mesh.and_then(|m| root.meshes.get(m.value())) {
-            let instances = extensions::declared_instances(root, node).unwrap_or(1);
-            total = total.saturating_add(primitive::mesh_triangles(root, mesh).saturating_mul(instances));
+        if let Some(count) = node.mesh.and_then(|m| placements.get_mut(m.value())) {
+            *count = count.saturating_add(extensions::declared_instances(root, node).unwrap_or(1));
         }
         stack.extend(node.children.iter().flatten().map(|c| c.value()));
     }
-    total
+    placements
 }
 
 struct Walker<'r, 'b> {
@@ -108,6 +127,12 @@ struct Walker<'r, 'b> {
     builder: &'b mut SoupBuilder,
     /// (mesh, primitive) pairs placed so far, for the report's unique figures.
     placed: HashSet<(usize, usize)>,
+    /// Per glTF mesh: whether it stays instanced.
+    instanced: Vec<bool>,
+    /// Per glTF mesh: its index in `meshes` once its object-space triangles are in the soup.
+    slot_of_mesh: Vec<Option<usize>>,
+    /// The instanced meshes, in the order of their first placement.
+    meshes: Vec<InstancedMesh>,
 }
 
 impl Walker<'_, '_> {
@@ -136,10 +161,10 @@ impl Walker<'_, '_> {
                     self.builder.report.skinned_placements += instances.as_ref().map_or(1, Vec::len) as u64;
                 }
                 match instances {
-                    None => self.place_mesh(index, mesh.value(), None, world)?,
+                    None => self.place(index, mesh.value(), None, world)?,
                     Some(instances) => {
                         for (i, instance) in instances.into_iter().enumerate() {
-                            self.place_mesh(index, mesh.value(), Some(i), world * instance)?;
+                            self.place(index, mesh.value(), Some(i), world * instance)?;
                         }
                     }
                 }
@@ -151,10 +176,43 @@ impl Walker<'_, '_> {
         Ok(())
     }
 
+    /// One placement of mesh `mesh_index` by node `node` (and its instance): flattened into world space, or,
+    /// for a mesh kept instanced, as an instance of the mesh's object-space triangles (added at its first
+    /// placement). A placement whose transform is no valid instance (singular or not finite once rounded to
+    /// f32, rule V42) is flattened, where its triangles are dropped as zero-area after placement.
+    fn place(&mut self, node: usize, mesh_index: usize, instance: Option<usize>, world: DMat4) -> Result<(), Located> {
+        let placement = self.instanced.get(mesh_index).copied().unwrap_or(false).then(|| affine(&world)).flatten();
+        let Some(object_to_world) = placement else {
+            self.builder.report.mesh_placements += 1;
+            return self.place_mesh(node, mesh_index, Some(node), instance, world);
+        };
+        let slot = match self.slot_of_mesh[mesh_index] {
+            Some(slot) => slot,
+            None => {
+                let start = self.builder.triangle_count();
+                self.place_mesh(node, mesh_index, None, None, DMat4::IDENTITY)?;
+                let triangles = start..self.builder.triangle_count();
+                self.meshes.push(InstancedMesh { mesh_index: mesh_index as u32, triangles, placements: Vec::new() });
+                self.slot_of_mesh[mesh_index] = Some(self.meshes.len() - 1);
+                self.meshes.len() - 1
+            }
+        };
+        self.builder.report.mesh_placements += 1;
+        self.meshes[slot].placements.push(MeshPlacement {
+            object_to_world,
+            node_index: node as u32,
+            gpu_instance_index: instance.map_or(NO_INDEX, |i| i as u32),
+        });
+        Ok(())
+    }
+
+    /// Adds mesh `mesh_index`'s primitives placed by `world`, with provenance `provenance_node` (and
+    /// `instance`); `node` is the placing node, for messages.
     fn place_mesh(
         &mut self,
         node: usize,
         mesh_index: usize,
+        provenance_node: Option<usize>,
         instance: Option<usize>,
         world: DMat4,
     ) -> Result<(), Located> {
@@ -163,7 +221,6 @@ impl Walker<'_, '_> {
             .meshes
             .get(mesh_index)
             .ok_or_else(|| Located::new(&format!("node {node}"), format!("mesh {mesh_index} does not exist")))?;
-        self.builder.report.mesh_placements += 1;
         let flip_winding = world.determinant() < 0.0;
         let mut world_positions: Vec<[f32; 3]> = Vec::new();
         for (p, json_primitive) in mesh.primitives.iter().enumerate() {
@@ -185,10 +242,10 @@ impl Walker<'_, '_> {
                 world_positions.push(w);
             }
             let provenance = Provenance {
-                node_index: node as u32,
+                node_index: provenance_node.map_or(NO_INDEX, |n| n as u32),
                 mesh_index: mesh_index as u32,
                 primitive_index: p as u32,
-                instance_index: instance.map_or(bvhc_loader::format::NO_INDEX, |i| i as u32),
+                instance_index: instance.map_or(NO_INDEX, |i| i as u32),
             };
             let positions = &world_positions;
             let source = &geometry.positions.values;
@@ -210,6 +267,12 @@ impl Walker<'_, '_> {
         }
         Ok(())
     }
+}
+
+/// `world` as the rows of a 3x4 map rounded to f32, when that is a valid instance transform (rule V42).
+fn affine(world: &DMat4) -> Option<Affine3x4> {
+    let m: Affine3x4 = std::array::from_fn(|i| std::array::from_fn(|j| world.col(j)[i] as f32));
+    InstanceRecord::placing(0, m).map(|_| m)
 }
 
 /// A node's local transform: `matrix` (column-major), or T * R * S.
