@@ -96,12 +96,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let options = options()?;
     let file = BvhFile::read(&options.input)?;
     let view = file.view();
-    let Some(root) = view.nodes().first() else { return Err("the scene is empty".into()) };
-    let size = (0..3).map(|a| root.max[a] - root.min[a]).fold(0.0f32, f32::max);
+    let Some((min, max)) = view.scene_box() else { return Err("the scene is empty".into()) };
+    let size = (0..3).map(|a| max[a] - min[a]).fold(0.0f32, f32::max);
     let radius = options.radius.unwrap_or(0.2 * size);
     let tracer = view.tracer();
     let (width, height) = (options.width, options.height);
-    let rays = camera_rays(root.min, root.max, width, height);
+    let rays = camera_rays(min, max, width, height);
     let clock = Instant::now();
     let rows: Vec<(Vec<u8>, usize)> = rays
         .par_chunks(width)

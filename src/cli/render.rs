@@ -46,7 +46,7 @@ pub fn render(args: &RenderArgs) -> Exit {
     };
     let view = file.view();
     let (width, height) = (args.width.clamp(1, 16384) as usize, args.height.clamp(1, 16384) as usize);
-    let (min, max) = view.nodes().first().map_or((Vec3::ZERO, Vec3::ONE), |root| (root.min.into(), root.max.into()));
+    let (min, max) = view.scene_box().map_or((Vec3::ZERO, Vec3::ONE), |(min, max)| (min.into(), max.into()));
     let tracer = view.tracer();
     let (camera, inside) = match args.camera {
         Some(camera) => (camera, false),

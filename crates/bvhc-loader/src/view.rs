@@ -162,6 +162,16 @@ impl<'a> BvhView<'a> {
         self.wide
     }
 
+    /// The box of the whole scene in world space: the top-level root's in a two-level file, the root node's
+    /// otherwise; `None` for an empty file.
+    pub fn scene_box(&self) -> Option<([f32; 3], [f32; 3])> {
+        let root = match self.two_level {
+            Some(sections) => sections.top_nodes.first(),
+            None => self.nodes.first(),
+        };
+        root.map(|root| (root.min, root.max))
+    }
+
     /// The two-level sections (1.3), when the file places meshes by instances: its nodes, triangles and wide
     /// sections are then the meshes' trees, each in its object space, and the scene is the instances.
     pub fn two_level(&self) -> Option<TwoLevelSections<'a>> {
