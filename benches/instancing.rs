@@ -9,14 +9,23 @@
 //! files, medians of the rounds' speeds and of their ratios; every conversion's hits are checked against the
 //! flattened file's (a hit where it has one, `t` within the tolerance of `format-spec/bvh-1.md` 11.3, counted).
 //!
-//! `cargo bench --bench instancing`; `BVHC_INSTANCING_SCENES=dragon,engine` narrows the runs; `BVHC_SCENES`
-//! overrides the scenes folder.
+//! With `--features embree` (Debian's `libembree-dev` 3.13.5), Embree (HIGH quality, one thread, `rtcIntersect1`)
+//! traces the same rays over the same scene flattened and with instance geometries (each repeated mesh in a
+//! scene of its own, placed as bvhc places it), in the same interleaved rounds; ratios are to bvhc's flattened
+//! file.
+//!
+//! `cargo bench --bench instancing [--features embree]`; `BVHC_INSTANCING_SCENES=dragon,engine` narrows the
+//! runs; `BVHC_SCENES` overrides the scenes folder.
 
 #[path = "common/harness.rs"]
 mod harness;
 
 #[path = "common/grid_scene.rs"]
 mod grid_scene;
+
+#[cfg(feature = "embree")]
+#[path = "common/embree.rs"]
+mod embree;
 
 use std::path::Path;
 use std::time::Instant;
@@ -44,11 +53,13 @@ fn incoherent_rays(file: &BvhFile, seed: u64) -> Vec<Ray> {
         .collect()
 }
 
-/// Mrays/s of one round of single closest-hit rays over `rays` through `file`, and the hits.
-fn trace(file: &BvhFile, rays: &[Ray]) -> (f64, Vec<Option<Hit>>) {
-    let tracer = file.view().tracer();
+/// A closest-hit query: the `t` of the closest hit of a ray.
+type Query<'a> = Box<dyn Fn(&Ray) -> Option<f32> + 'a>;
+
+/// Mrays/s of one round of `query` over `rays`, and the `t`s.
+fn trace(query: &Query<'_>, rays: &[Ray]) -> (f64, Vec<Option<f32>>) {
     let start = Instant::now();
-    let hits: Vec<Option<Hit>> = rays.iter().map(|ray| tracer.closest_hit(ray)).collect();
+    let hits: Vec<Option<f32>> = rays.iter().map(query).collect();
     (rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6, hits)
 }
 
@@ -68,13 +79,13 @@ fn convert(input: &Path, output: &Path, instancing: Instancing) -> (BvhFile, usi
 
 /// Hits that differ from the reference's: a hit against a miss, or `t`s further apart than the tolerance of
 /// `format-spec/bvh-1.md` 11.3, `2^-16 (t + |origin|_inf / |direction|_inf)`.
-fn differing(rays: &[Ray], reference: &[Option<Hit>], hits: &[Option<Hit>]) -> usize {
+fn differing(rays: &[Ray], reference: &[Option<f32>], hits: &[Option<f32>]) -> usize {
     (0..rays.len())
-        .filter(|&r| match (&reference[r], &hits[r]) {
+        .filter(|&r| match (reference[r], hits[r]) {
             (Some(a), Some(b)) => {
                 let o = rays[r].origin.iter().fold(0f32, |m, c| m.max(c.abs()));
                 let d = rays[r].direction.iter().fold(0f32, |m, c| m.max(c.abs()));
-                (a.t - b.t).abs() > (a.t.abs() + o / d) / 65_536.0
+                (a - b).abs() > (a.abs() + o / d) / 65_536.0
             }
             (None, None) => false,
             _ => true,
@@ -88,7 +99,7 @@ fn main() {
     }
     let work = tempfile::tempdir().unwrap();
     println!(
-        "| scene | instancing | file MB | conversion s | meshes | instances | Mrays/s | ratio to never | hits differing from never |"
+        "| scene | tracer | file MB | conversion s | meshes | instances | Mrays/s | ratio to bvhc never | hits differing from bvhc never |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     let scenes =
@@ -102,8 +113,8 @@ fn main() {
         } else {
             (path, &[Instancing::Never, Instancing::Auto, Instancing::Always])
         };
-        // Every conversion first, then the rounds interleaved (one round of each file in turn), so that a slow
-        // spell of this shared machine falls on all files alike; ratios are medians of the rounds' ratios.
+        // Every conversion first, then the rounds interleaved (one round of each tracer in turn), so that a slow
+        // spell of this shared machine falls on all alike; ratios are medians of the rounds' ratios.
         let converted: Vec<(Instancing, BvhFile, usize, f64)> = modes
             .iter()
             .map(|&mode| {
@@ -113,27 +124,78 @@ fn main() {
             })
             .collect();
         let rays = incoherent_rays(&converted[0].1, 7);
-        let mut speeds = vec![Vec::new(); converted.len()];
-        let mut hits = vec![Vec::new(); converted.len()];
+        #[cfg(feature = "embree")]
+        let peers = embree_peers(&input);
+        // (row label, file MB, conversion s, meshes, instances, query)
+        #[cfg_attr(not(feature = "embree"), allow(unused_mut))] // Embree's rows are added with the feature
+        let mut rows: Vec<(String, String, String, usize, usize, Query<'_>)> = converted
+            .iter()
+            .map(|(mode, file, bytes, seconds)| {
+                let view = file.view();
+                let (meshes, instances) = view.two_level().map_or((1, 1), |s| (s.meshes.len(), s.instances.len()));
+                let tracer = view.tracer();
+                let query: Query<'_> = Box::new(move |ray: &Ray| tracer.closest_hit(ray).map(|hit: Hit| hit.t));
+                let (mb, s) = (format!("{:.1}", *bytes as f64 / 1e6), format!("{seconds:.2}"));
+                (mode.name().to_string(), mb, s, meshes, instances, query)
+            })
+            .collect();
+        #[cfg(feature = "embree")]
+        {
+            embree::set_flush_to_zero();
+            for (label, meshes, instances, peer) in &peers {
+                let query: Query<'_> = Box::new(move |ray: &Ray| peer.closest(ray).map(|(t, _)| t));
+                rows.push((label.to_string(), "-".into(), "-".into(), *meshes, *instances, query));
+            }
+        }
+        let mut speeds = vec![Vec::new(); rows.len()];
+        let mut hits = vec![Vec::new(); rows.len()];
         for _ in 0..ROUNDS {
-            for (k, (_, file, _, _)) in converted.iter().enumerate() {
-                let (speed, round_hits) = trace(file, &rays);
+            for (k, row) in rows.iter().enumerate() {
+                let (speed, round_hits) = trace(&row.5, &rays);
                 speeds[k].push(speed);
                 hits[k] = round_hits;
             }
         }
-        for (k, (mode, file, bytes, seconds)) in converted.iter().enumerate() {
-            let view = file.view();
-            let (meshes, instances) = view.two_level().map_or((1, 1), |s| (s.meshes.len(), s.instances.len()));
+        for (k, (label, mb, seconds, meshes, instances, _)) in rows.iter().enumerate() {
             let ratio = median((0..ROUNDS).map(|r| speeds[k][r] / speeds[0][r]).collect());
             println!(
-                "| {name} | {} | {:.1} | {seconds:.2} | {meshes} | {instances} | {:.3} | {ratio:.3} | {} of {} |",
-                mode.name(),
-                *bytes as f64 / 1e6,
+                "| {name} | {label} | {mb} | {seconds} | {meshes} | {instances} | {:.3} | {ratio:.3} | {} of {} |",
                 median(speeds[k].clone()),
                 differing(&rays, &hits[0], &hits[k]),
                 rays.len()
             );
         }
     }
+}
+
+/// Embree (HIGH quality) over the same scene: flattened (every placement's triangles in one mesh) and with
+/// instance geometries (each repeated mesh once, placed as bvhc's `always` places it).
+#[cfg(feature = "embree")]
+fn embree_peers(input: &Path) -> Vec<(&'static str, usize, usize, embree::Embree)> {
+    let flat = bvhc::import::import(input, &Default::default()).unwrap();
+    let options = bvhc::import::ImportOptions { instancing: Instancing::Always, ..Default::default() };
+    let split = bvhc::import::import(input, &options).unwrap();
+    let flattened = embree::Embree::new(&flat.soup.triangle_vertices(), false);
+    // The meshes as bvhc's two-level file has them: the flattened rest (when any) once, then each instanced one.
+    let mut in_mesh = vec![false; split.soup.triangles.len()];
+    for mesh in &split.instanced {
+        in_mesh[mesh.triangles.clone()].fill(true);
+    }
+    let rest: Vec<[[f32; 3]; 3]> =
+        (0..split.soup.triangles.len()).filter(|&t| !in_mesh[t]).map(|t| split.soup.vertices(t)).collect();
+    let identity = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+    let mut meshes = Vec::new();
+    let mut instances = Vec::new();
+    if !rest.is_empty() {
+        meshes.push(rest);
+        instances.push((0, identity));
+    }
+    for mesh in &split.instanced {
+        let index = meshes.len() as u32;
+        meshes.push(mesh.triangles.clone().map(|t| split.soup.vertices(t)).collect());
+        instances.extend(mesh.placements.iter().map(|p| (index, p.object_to_world)));
+    }
+    let (mesh_count, instance_count) = (meshes.len(), instances.len());
+    let instanced = embree::Embree::instanced(&meshes, &instances, false);
+    vec![("Embree flattened", 1, 1, flattened), ("Embree instances", mesh_count, instance_count, instanced)]
 }

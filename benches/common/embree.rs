@@ -3,9 +3,11 @@
 //! CI never need the library.
 //!
 //! One triangle mesh per scene, built with `RTC_BUILD_QUALITY_HIGH` (spatial splits), optionally with
-//! `RTC_SCENE_FLAG_ROBUST`; single rays through `rtcIntersect1` / `rtcOccluded1` and 8-wide packets through
+//! `RTC_SCENE_FLAG_ROBUST`, or meshes placed by instance geometries (`RTC_GEOMETRY_TYPE_INSTANCE`, a 3x4
+//! row-major transform each, Embree's two-level scenes); single rays through `rtcIntersect1` / `rtcOccluded1` and 8-wide packets through
 //! `rtcIntersect8` / `rtcOccluded8`. The calling thread gets flush-to-zero and denormals-are-zero, as Embree asks.
 #![allow(unsafe_code)] // FFI: every call's contract is stated beside it.
+#![allow(dead_code)] // each benchmark uses the part it needs
 
 use std::ffi::c_void;
 use std::os::raw::{c_char, c_int, c_uint};
@@ -17,6 +19,8 @@ type Scene = *mut c_void;
 type Geometry = *mut c_void;
 
 const GEOMETRY_TYPE_TRIANGLE: c_uint = 0;
+const GEOMETRY_TYPE_INSTANCE: c_uint = 121;
+const FORMAT_FLOAT3X4_ROW_MAJOR: c_uint = 0x9134;
 const BUFFER_TYPE_INDEX: c_uint = 0;
 const BUFFER_TYPE_VERTEX: c_uint = 1;
 const FORMAT_UINT3: c_uint = 0x5003;
@@ -128,6 +132,8 @@ unsafe extern "C" {
     fn rtcAttachGeometry(scene: Scene, geometry: Geometry) -> c_uint;
     fn rtcReleaseGeometry(geometry: Geometry);
     fn rtcCommitScene(scene: Scene);
+    fn rtcSetGeometryInstancedScene(geometry: Geometry, scene: Scene);
+    fn rtcSetGeometryTransform(geometry: Geometry, time_step: c_uint, format: c_uint, xfm: *const c_void);
     fn rtcIntersect1(scene: Scene, context: *mut RtcContext, rayhit: *mut RtcRayHit);
     fn rtcOccluded1(scene: Scene, context: *mut RtcContext, ray: *mut RtcRay);
     fn rtcIntersect8(valid: *const c_int, scene: Scene, context: *mut RtcContext, rayhit: *mut RtcRayHit8);
@@ -138,6 +144,8 @@ unsafe extern "C" {
 pub struct Embree {
     device: Device,
     scene: Scene,
+    /// The meshes' scenes of a two-level scene (empty otherwise), released after `scene`.
+    meshes: Vec<Scene>,
 }
 
 // SAFETY: a committed Embree scene may be traced from any thread (Embree's documented contract); it is only
@@ -148,38 +156,37 @@ impl Embree {
     /// Builds the scene: HIGH quality, robust traversal when asked, kernels of at most the instruction set
     /// [`max_isa`] names.
     pub fn new(triangles: &[[[f32; 3]; 3]], robust: bool) -> Embree {
-        let config = std::ffi::CString::new(format!("threads=1,max_isa={}", max_isa())).expect("no NUL");
-        // SAFETY: every pointer handed to Embree is valid for the call: the config string is NUL-terminated, the
-        // buffers Embree returns are sized by the counts we pass (plus Embree's own padding) and written within
-        // them; handles are checked for null before use and released once in `drop`.
+        let device = new_device();
+        // SAFETY: `device` is a live device; the scene is released once in `drop`.
+        let scene = unsafe { triangle_scene(device, triangles, robust) };
+        Embree { device, scene, meshes: Vec::new() }
+    }
+
+    /// A two-level scene: each of `meshes` in a scene of its own (as [`Embree::new`] builds it), placed by
+    /// `instances` (mesh index, 3x4 row-major object-to-world map) as instance geometries of a top scene of the
+    /// same quality and flags. Hits report the instance as `instID` (not read here).
+    pub fn instanced(meshes: &[Vec<[[f32; 3]; 3]>], instances: &[(u32, [[f32; 4]; 3])], robust: bool) -> Embree {
+        let device = new_device();
+        // SAFETY: as in `new`; each instance names a mesh scene built here, alive until `drop` (after the top
+        // scene, which references them); the transform is 12 floats, read during the call.
         unsafe {
-            let device = rtcNewDevice(config.as_ptr());
-            assert!(!device.is_null(), "rtcNewDevice failed");
+            let mesh_scenes: Vec<Scene> = meshes.iter().map(|m| triangle_scene(device, m, robust)).collect();
             let scene = rtcNewScene(device);
             rtcSetSceneBuildQuality(scene, quality());
             if robust {
                 rtcSetSceneFlags(scene, SCENE_FLAG_ROBUST);
             }
-            let geometry = rtcNewGeometry(device, GEOMETRY_TYPE_TRIANGLE);
-            rtcSetGeometryBuildQuality(geometry, quality());
-            let n = triangles.len();
-            let vertices =
-                rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, 12, 3 * n) as *mut f32;
-            let indices = rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, n) as *mut u32;
-            assert!(!vertices.is_null() && !indices.is_null(), "rtcSetNewGeometryBuffer failed");
-            let vertices = std::slice::from_raw_parts_mut(vertices, 9 * n);
-            let indices = std::slice::from_raw_parts_mut(indices, 3 * n);
-            for (t, triangle) in triangles.iter().enumerate() {
-                for (k, v) in triangle.iter().enumerate() {
-                    vertices[9 * t + 3 * k..9 * t + 3 * k + 3].copy_from_slice(v);
-                    indices[3 * t + k] = (3 * t + k) as u32;
-                }
+            for (mesh, transform) in instances {
+                let geometry = rtcNewGeometry(device, GEOMETRY_TYPE_INSTANCE);
+                assert!(!geometry.is_null(), "rtcNewGeometry(INSTANCE) failed");
+                rtcSetGeometryInstancedScene(geometry, mesh_scenes[*mesh as usize]);
+                rtcSetGeometryTransform(geometry, 0, FORMAT_FLOAT3X4_ROW_MAJOR, transform.as_ptr().cast());
+                rtcCommitGeometry(geometry);
+                rtcAttachGeometry(scene, geometry);
+                rtcReleaseGeometry(geometry);
             }
-            rtcCommitGeometry(geometry);
-            rtcAttachGeometry(scene, geometry);
-            rtcReleaseGeometry(geometry);
             rtcCommitScene(scene);
-            Embree { device, scene }
+            Embree { device, scene, meshes: mesh_scenes }
         }
     }
 
@@ -281,11 +288,61 @@ impl Embree {
 
 impl Drop for Embree {
     fn drop(&mut self) {
-        // SAFETY: both handles came from Embree in `new` and are released exactly once.
+        // SAFETY: every handle came from Embree in `new` or `instanced` and is released exactly once, the top
+        // scene before the mesh scenes it instances, the device last.
         unsafe {
             rtcReleaseScene(self.scene);
+            for &mesh in &self.meshes {
+                rtcReleaseScene(mesh);
+            }
             rtcReleaseDevice(self.device);
         }
+    }
+}
+
+/// A device with one thread and at most [`max_isa`]'s kernels.
+fn new_device() -> Device {
+    let config = std::ffi::CString::new(format!("threads=1,max_isa={}", max_isa())).expect("no NUL");
+    // SAFETY: the config string is NUL-terminated and lives for the call.
+    let device = unsafe { rtcNewDevice(config.as_ptr()) };
+    assert!(!device.is_null(), "rtcNewDevice failed");
+    device
+}
+
+/// A committed scene of one triangle geometry over `triangles`, HIGH quality (or `BVHC_EMBREE_QUALITY`), robust
+/// when asked.
+///
+/// # Safety
+///
+/// `device` must be a live Embree device; the caller releases the scene.
+unsafe fn triangle_scene(device: Device, triangles: &[[[f32; 3]; 3]], robust: bool) -> Scene {
+    // SAFETY: the buffers Embree returns are sized by the counts passed (plus Embree's own padding) and written
+    // within them; handles are checked for null before use.
+    unsafe {
+        let scene = rtcNewScene(device);
+        rtcSetSceneBuildQuality(scene, quality());
+        if robust {
+            rtcSetSceneFlags(scene, SCENE_FLAG_ROBUST);
+        }
+        let geometry = rtcNewGeometry(device, GEOMETRY_TYPE_TRIANGLE);
+        rtcSetGeometryBuildQuality(geometry, quality());
+        let n = triangles.len();
+        let vertices = rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, 12, 3 * n) as *mut f32;
+        let indices = rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, n) as *mut u32;
+        assert!(!vertices.is_null() && !indices.is_null(), "rtcSetNewGeometryBuffer failed");
+        let vertices = std::slice::from_raw_parts_mut(vertices, 9 * n);
+        let indices = std::slice::from_raw_parts_mut(indices, 3 * n);
+        for (t, triangle) in triangles.iter().enumerate() {
+            for (k, v) in triangle.iter().enumerate() {
+                vertices[9 * t + 3 * k..9 * t + 3 * k + 3].copy_from_slice(v);
+                indices[3 * t + k] = (3 * t + k) as u32;
+            }
+        }
+        rtcCommitGeometry(geometry);
+        rtcAttachGeometry(scene, geometry);
+        rtcReleaseGeometry(geometry);
+        rtcCommitScene(scene);
+        scene
     }
 }
 
