@@ -172,9 +172,11 @@ fn main() {
 /// instance geometries (each repeated mesh once, placed as bvhc's `always` places it).
 #[cfg(feature = "embree")]
 fn embree_peers(input: &Path) -> Vec<(&'static str, usize, usize, embree::Embree)> {
-    let flat = bvhc::import::import(input, &Default::default()).unwrap();
-    let options = bvhc::import::ImportOptions { instancing: Instancing::Always, ..Default::default() };
-    let split = bvhc::import::import(input, &options).unwrap();
+    let import = |instancing| {
+        let options = bvhc::import::ImportOptions { instancing, ..Default::default() };
+        bvhc::import::import(input, &options).unwrap()
+    };
+    let (flat, split) = (import(Instancing::Never), import(Instancing::Always));
     let flattened = embree::Embree::new(&flat.soup.triangle_vertices(), false);
     // The meshes as bvhc's two-level file has them: the flattened rest (when any) once, then each instanced one.
     let mut in_mesh = vec![false; split.soup.triangles.len()];
