@@ -47,6 +47,7 @@ extern "C" {
 #define BVH_KIND_MESHES 9u           /* since 1.3, REQUIRED */
 #define BVH_KIND_INSTANCES 10u       /* since 1.3, REQUIRED */
 #define BVH_KIND_TOP_NODES 11u       /* since 1.3, REQUIRED; elements are BvhPackedNode */
+#define BVH_KIND_TOP_WIDE_NODES 12u  /* since 1.3; elements are BvhWideNode8, leaf slots LEAF_BIT | instance */
 #define BVH_KIND_PRIVATE_FIRST 0x80000000u
 #define BVH_SECTION_FLAG_REQUIRED (1u << 0)
 #define BVH_SECTION_FLAG_SPLIT_REFERENCES (1u << 1) /* triangles only */

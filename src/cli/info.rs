@@ -158,6 +158,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
                 "mesh_count": sections.meshes.len(),
                 "instance_count": sections.instances.len(),
                 "top_node_count": sections.top_nodes.len(),
+                "top_wide_node_count": sections.top_wide_nodes.len(),
                 "placed_triangle_count": sections.placed_triangle_count(),
             })),
             "metadata": metadata,
@@ -190,10 +191,12 @@ pub fn info(path: &Path, json: bool) -> Exit {
         let placed = sections.placed_triangle_count();
         outln!(
             out,
-            "two-level: {} meshes placed by {} instances: {} triangle records stored, {placed} placed ({:.1}x); \
-             the tree line counts every mesh's trees, depth the deepest",
+            "two-level: {} meshes placed by {} instances under a top tree of {} nodes ({} 8-wide): {} triangle \
+             records stored, {placed} placed ({:.1}x); the tree line counts every mesh's trees, depth the deepest",
             sections.meshes.len(),
             sections.instances.len(),
+            sections.top_nodes.len(),
+            sections.top_wide_nodes.len(),
             view.triangles().len(),
             placed as f64 / view.triangles().len().max(1) as f64
         );

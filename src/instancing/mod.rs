@@ -1,9 +1,11 @@
 //! Two-level scenes (format 1.3): meshes built once in their object space, placed by instances under a
-//! top-level tree. [`top_tree`] builds the tree over the instances' world boxes; [`TwoLevelScene::assemble`]
+//! top-level tree. [`top_tree`] builds the tree over the instances' world boxes, [`top_wide`] its 8-wide form;
+//! [`TwoLevelScene::assemble`]
 //! lays the meshes' packed trees out as the file's sections (each mesh's indices relative to its own ranges,
 //! `format-spec/bvh-1.md` 5.10) beside the mesh table, the instances and the top tree.
 
 pub mod top_tree;
+pub mod top_wide;
 
 use bvhc_loader::{
     Affine3x4, InstanceRecord, MeshRecord, PackedNode, PackedTriangle, SourceVertexIndices, TrianglePacket4,
@@ -11,6 +13,7 @@ use bvhc_loader::{
 };
 
 pub use top_tree::build_top_tree;
+pub use top_wide::collapse_top_tree;
 
 /// One mesh's packed trees in its object space, in the one-level layout (root first, indices from 0).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -63,6 +66,8 @@ pub struct TwoLevelScene {
     pub instances: Vec<InstanceRecord>,
     /// The top-level tree.
     pub top_nodes: Vec<PackedNode>,
+    /// The top-level tree 8-wide (empty without wide sections).
+    pub top_wide_nodes: Vec<WideNode8>,
 }
 
 impl TwoLevelScene {
@@ -120,11 +125,22 @@ impl TwoLevelScene {
             return Err(format!("mesh {m} is placed by no placement"));
         }
         scene.top_nodes = build_top_tree(&boxes);
+        if !scene.wide_nodes.is_empty() {
+            if scene.instances.len() > 1 << 28 {
+                return Err(format!("{} instances: a wide top tree names at most 2^28", scene.instances.len()));
+            }
+            scene.top_wide_nodes = collapse_top_tree(&scene.top_nodes);
+        }
         Ok(scene)
     }
 
     /// The two-level sections, borrowed (for `BvhWriter::two_level`).
     pub fn sections(&self) -> TwoLevelSections<'_> {
-        TwoLevelSections { meshes: &self.meshes, instances: &self.instances, top_nodes: &self.top_nodes }
+        TwoLevelSections {
+            meshes: &self.meshes,
+            instances: &self.instances,
+            top_nodes: &self.top_nodes,
+            top_wide_nodes: &self.top_wide_nodes,
+        }
     }
 }

@@ -203,3 +203,57 @@ fn v37_v38_costs_are_not_defined_and_leaf_limits_apply_per_mesh_in_two_level_fil
     let error = write(limited).unwrap_err();
     assert!(error.to_string().contains("mesh 0: wide node"), "{error}");
 }
+
+/// The wide top tree's leaf slot of instance `instance`: (node, slot).
+fn wide_leaf_of(scene: &TwoLevelScene, instance: u32) -> (usize, usize) {
+    let flag = bvhc::loader::LEAF_BIT | instance;
+    scene
+        .top_wide_nodes
+        .iter()
+        .enumerate()
+        .find_map(|(i, n)| n.child.iter().position(|&c| c == flag).map(|slot| (i, slot)))
+        .unwrap()
+}
+
+#[test]
+fn v46_top_wide_tree() {
+    expect(Rule::TopWideTree, "in a second slot", |s| {
+        let (node, slot) = wide_leaf_of(s, 4);
+        s.top_wide_nodes[node].child[slot] = bvhc::loader::LEAF_BIT | 5;
+    });
+    expect(Rule::TopWideTree, "does not contain instance 3's mesh box", |s| {
+        let (node, slot) = wide_leaf_of(s, 3);
+        s.top_wide_nodes[node].min[0][slot] += 1e-3;
+    });
+    expect(Rule::TopWideTree, "after an empty slot", |s| {
+        // The last occupied slot emptied, its box kept: not the empty box.
+        let root = &mut s.top_wide_nodes[0];
+        let occupied = root.child.iter().take_while(|&&c| c != bvhc::loader::EMPTY_SLOT).count();
+        root.child[occupied - 1] = bvhc::loader::EMPTY_SLOT;
+    });
+    expect(Rule::TopWideTree, "out of range", |s| {
+        let (node, slot) = wide_leaf_of(s, 0);
+        s.top_wide_nodes[node].child[slot] = bvhc::loader::LEAF_BIT | 99;
+    });
+    expect(Rule::ReservedZero, "top wide node 0: reserved", |s| s.top_wide_nodes[0].reserved[2] = 1);
+}
+
+#[test]
+fn v8_v10_the_wide_top_tree_comes_exactly_with_a_two_level_file_s_wide_sections() {
+    let (mut scene, sources) = good();
+    let wide_top = std::mem::take(&mut scene.top_wide_nodes);
+    let error = write_two_level(&scene, &sources).unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::SectionMultiplicity), "{error}");
+    assert!(error.to_string().contains("top_wide_nodes section comes exactly with"), "{error}");
+    // More wide top nodes than instances (a node of one slot below the root): V10.
+    scene.top_wide_nodes = wide_top.clone();
+    scene.top_wide_nodes.extend(std::iter::repeat_n(bvhc::loader::WideNode8::EMPTY, scene.instances.len()));
+    let error = write_two_level(&scene, &sources).unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::Counts), "{error}");
+    // Without the wide sections, a wide top tree has nothing to go with.
+    let mesh = random_triangles(4101, 40, 1.0);
+    let (mut flat, sources) = two_level(&[mesh.clone(), mesh], &test_placements(), false);
+    flat.top_wide_nodes = wide_top;
+    let error = write_two_level(&flat, &sources).unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::SectionMultiplicity), "{error}");
+}

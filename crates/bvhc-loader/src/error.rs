@@ -106,11 +106,13 @@ pub enum Rule {
     InstanceBox,
     /// V45: every mesh is placed by at least one instance.
     MeshPlaced,
+    /// V46: the wide top tree is well formed, every instance in exactly one leaf slot, boxes conservative.
+    TopWideTree,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 45] = [
+    pub const ALL: [Rule; 46] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -156,6 +158,7 @@ impl Rule {
         Rule::TopTree,
         Rule::InstanceBox,
         Rule::MeshPlaced,
+        Rule::TopWideTree,
     ];
 
     /// The rule's number in the spec (1 for V1).

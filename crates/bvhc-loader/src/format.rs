@@ -90,11 +90,14 @@ pub enum SectionKind {
     /// The top-level tree of a two-level file ([`PackedNode`]s whose leaves hold one instance each), required,
     /// since 1.3.
     TopNodes,
+    /// The top-level tree in the 8-wide layout ([`WideNode8`]s whose leaf slots hold one instance each),
+    /// optional, since 1.3; in a two-level file exactly when it has the wide sections.
+    TopWideNodes,
 }
 
 impl SectionKind {
     /// Every kind defined by this version, in the order the writer stores them.
-    pub const ALL: [SectionKind; 11] = [
+    pub const ALL: [SectionKind; 12] = [
         SectionKind::Nodes,
         SectionKind::Triangles,
         SectionKind::TriangleIds,
@@ -106,6 +109,7 @@ impl SectionKind {
         SectionKind::Meshes,
         SectionKind::Instances,
         SectionKind::TopNodes,
+        SectionKind::TopWideNodes,
     ];
 
     /// The `kind` value stored in the section table.
@@ -122,6 +126,7 @@ impl SectionKind {
             SectionKind::Meshes => 9,
             SectionKind::Instances => 10,
             SectionKind::TopNodes => 11,
+            SectionKind::TopWideNodes => 12,
         }
     }
 
@@ -139,6 +144,7 @@ impl SectionKind {
             9 => Some(SectionKind::Meshes),
             10 => Some(SectionKind::Instances),
             11 => Some(SectionKind::TopNodes),
+            12 => Some(SectionKind::TopWideNodes),
             _ => None,
         }
     }
@@ -157,6 +163,7 @@ impl SectionKind {
             SectionKind::Meshes => size_of::<MeshRecord>() as u32,
             SectionKind::Instances => size_of::<InstanceRecord>() as u32,
             SectionKind::TopNodes => size_of::<PackedNode>() as u32,
+            SectionKind::TopWideNodes => size_of::<WideNode8>() as u32,
         }
     }
 
@@ -165,7 +172,7 @@ impl SectionKind {
         match self {
             SectionKind::WideNodes | SectionKind::TrianglePackets => 1,
             SectionKind::SourceVertices => 2,
-            SectionKind::Meshes | SectionKind::Instances | SectionKind::TopNodes => 3,
+            SectionKind::Meshes | SectionKind::Instances | SectionKind::TopNodes | SectionKind::TopWideNodes => 3,
             _ => 0,
         }
     }
@@ -205,6 +212,7 @@ impl SectionKind {
             SectionKind::Meshes => "meshes",
             SectionKind::Instances => "instances",
             SectionKind::TopNodes => "top_nodes",
+            SectionKind::TopWideNodes => "top_wide_nodes",
         }
     }
 }

@@ -3,15 +3,17 @@
 //! space ([`crate::instance_transform`]) and traced through the mesh's own tree by a one-level kernel, with the
 //! closest hit so far as its `t_max`.
 //!
-//! The walk is the binary kernel's (depth first, nearer child first, the same cull padding, a fixed stack of
-//! [`MAX_DEPTH`] entries, which rule V43 makes enough, and at most `top_node_count` visits), so it is safe on
-//! any input. Every kernel path (binary, wide AVX2, wide portable) runs it; they differ only in the mesh
-//! traversal, which gives the same hits (the tests check it).
+//! The binary kernel walks the binary top tree as it walks a mesh (depth first, nearer child first, the same
+//! cull padding, a fixed stack of [`MAX_DEPTH`] entries, which rule V43 makes enough, and at most
+//! `top_node_count` visits); the wide kernel walks the 8-wide top tree ([`WideInstanceWalk`]) as it walks a
+//! mesh's wide tree. Both are safe on any input, and give the same hits (the tests check it).
 
-use crate::format::{InstanceRecord, MAX_DEPTH, MeshRecord, PackedNode};
+use crate::format::{InstanceRecord, LEAF_BIT, MAX_DEPTH, MeshRecord, PackedNode, WIDE, WideNode8};
 use crate::hit::{CULL_PADDING, Hit, TraversalCounter};
 use crate::instance_transform::{object_ray, world_normal};
 use crate::intersect::{PreparedRay, Ray};
+use crate::simd::{Isa, Kernel};
+use crate::wide_walk::new_stack;
 
 /// The three sections of a two-level file (1.3), which a file has together or not at all (rule V8).
 #[derive(Clone, Copy, Debug)]
@@ -23,6 +25,9 @@ pub struct TwoLevelSections<'a> {
     /// The `top_nodes` section: a binary tree over the instances in world space, node 0 the root, each leaf
     /// one instance (`index` the instance, `count` 1).
     pub top_nodes: &'a [PackedNode],
+    /// The `top_wide_nodes` section: the same tree 8-wide, each leaf slot `LEAF_BIT | instance`; empty in a
+    /// file without wide sections.
+    pub top_wide_nodes: &'a [WideNode8],
 }
 
 impl<'a> TwoLevelSections<'a> {
@@ -130,6 +135,103 @@ pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
             if t_entry <= t_max * CULL_PADDING {
                 current = node;
                 break;
+            }
+        }
+    }
+}
+
+/// The walk of [`walk_instances`] over the 8-wide top tree (`top_wide_nodes`), its slots tested in the
+/// instruction set's lanes as the meshes' wide nodes are (`Isa::box_test`: the same robust slab test per lane):
+/// hit slots nearest first for a closest hit, in slot order for any hit. The same hits as the binary walk.
+pub(crate) struct WideInstanceWalk<'a, 'r, C, F, const ANY_HIT: bool> {
+    pub sections: &'a TwoLevelSections<'a>,
+    pub ray: &'r Ray,
+    pub counter: &'r mut C,
+    pub trace_mesh: F,
+}
+
+impl<C, F, const ANY_HIT: bool> Kernel for WideInstanceWalk<'_, '_, C, F, ANY_HIT>
+where
+    C: TraversalCounter,
+    F: FnMut(&MeshRecord, &Ray, &mut C) -> Option<Hit>,
+{
+    type Output = Option<Hit>;
+
+    #[inline(always)]
+    #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
+    fn run<I: Isa>(mut self, isa: I) -> Option<Hit> {
+        let (sections, ray) = (self.sections, self.ray);
+        let nodes = sections.top_wide_nodes;
+        let prepared = PreparedRay::new(ray);
+        prepared.enter_box(sections.top_nodes.first()?, ray.t_max)?;
+        let mut t_max = ray.t_max;
+        let mut found: Option<Hit> = None;
+        let mut stack = new_stack();
+        let mut stack_len = 0usize;
+        let mut current = 0u32;
+        let mut visits_left = nodes.len();
+        'walk: loop {
+            'visit: {
+                if current & LEAF_BIT != 0 {
+                    let index = current & !LEAF_BIT;
+                    let Some((instance, mesh)) = sections.placement(index) else { break 'visit };
+                    let object = object_ray(instance, &Ray { t_max, ..*ray });
+                    if let Some(mut hit) = (self.trace_mesh)(mesh, &object, self.counter) {
+                        if ANY_HIT {
+                            return Some(hit);
+                        }
+                        hit.triangle_index = hit.triangle_index.wrapping_add(mesh.first_triangle);
+                        hit.instance_index = Some(index);
+                        hit.normal = world_normal(instance, hit.normal);
+                        t_max = hit.t;
+                        found = Some(hit);
+                    }
+                    break 'visit;
+                }
+                let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else { break 'visit };
+                visits_left -= 1;
+                self.counter.node_visited();
+                let (mask, t_near) = isa.box_test(node, &prepared.slab_ray(), t_max * CULL_PADDING);
+                // The hit slots sorted farthest first (for any hit: in reverse slot order); all but the nearest
+                // onto the stack (at most 7 a level, so `STACK_LEN` entries suffice), the walk going on with it.
+                let mut order = [(0u32, 0f32); WIDE];
+                let mut count = 0;
+                for (slot, (&t_slot, &child)) in t_near.iter().zip(&node.child).enumerate() {
+                    if mask & (1 << slot) != 0 {
+                        let t = if ANY_HIT { slot as f32 } else { t_slot };
+                        let mut k = count;
+                        while k > 0 && order[k - 1].1 < t {
+                            order[k] = order[k - 1];
+                            k -= 1;
+                        }
+                        order[k] = (child, t);
+                        count += 1;
+                    }
+                }
+                let Some(&(nearest, _)) = order[..count].last() else { break 'visit };
+                for &(child, t) in &order[..count - 1] {
+                    let t = if ANY_HIT { f32::NEG_INFINITY } else { t };
+                    if let Some(entry) = stack.get_mut(stack_len) {
+                        entry.write((child, t));
+                        stack_len += 1;
+                    }
+                }
+                current = nearest;
+                continue 'walk;
+            }
+            // Pop the nearest pending entry that may still hold a closer hit.
+            loop {
+                if stack_len == 0 {
+                    return found;
+                }
+                stack_len -= 1;
+                // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
+                // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
+                let (child, t_entry) = unsafe { stack[stack_len].assume_init() };
+                if t_entry <= t_max * CULL_PADDING {
+                    current = child;
+                    break;
+                }
             }
         }
     }

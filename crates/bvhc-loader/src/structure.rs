@@ -77,6 +77,15 @@ pub(crate) fn check_structure(bytes: &[u8]) -> Result<(FileHeader, KnownSections
         )
         .into());
     }
+    let top_wide = sections.get(SectionKind::TopWideNodes).is_some();
+    let wide_two_level = two_level[0].is_some() && sections.get(SectionKind::WideNodes).is_some();
+    if top_wide != wide_two_level {
+        return Err(violation(
+            Rule::SectionMultiplicity,
+            "a top_wide_nodes section comes exactly with a two-level file's wide sections".to_string(),
+        )
+        .into());
+    }
     check_counts(&sections)?;
     Ok((header, sections))
 }
@@ -305,23 +314,30 @@ pub(crate) fn check_wide_counts(wide_node_count: u64, packet_count: u64, triangl
 
 /// V10 for the two-level sections (1.3): at least one mesh, at most one per triangle; at least one instance,
 /// fewer than 2^31 (so the top tree's `2 * instance_count - 1` nodes fit a `u32`); exactly that many top nodes,
-/// since every top leaf holds one instance.
+/// since every top leaf holds one instance; with a wide top tree at most 2^28 instances and 1 to
+/// `instance_count` wide top nodes.
 fn check_two_level_counts(sections: &KnownSections, triangle_count: u64) -> Result<(), Violation> {
     let mesh_count = sections.count(SectionKind::Meshes);
     let instance_count = sections.count(SectionKind::Instances);
     let top_node_count = sections.count(SectionKind::TopNodes);
+    let top_wide_count = sections.get(SectionKind::TopWideNodes).map(|e| e.element_count);
+    // A wide leaf slot names its instance in 28 bits; every wide node but the root has two slots or more.
+    let top_wide_ok =
+        top_wide_count.is_none_or(|count| instance_count <= 1 << 28 && (1..=instance_count).contains(&count));
     let ok = (1..=triangle_count).contains(&mesh_count)
         && (1..1 << 31).contains(&instance_count)
-        && top_node_count == 2 * instance_count - 1;
+        && top_node_count == 2 * instance_count - 1
+        && top_wide_ok;
     if ok {
         return Ok(());
     }
     Err(violation(
         Rule::Counts,
         format!(
-            "meshes count {mesh_count}, instances count {instance_count}, top_nodes count {top_node_count} for \
-             {triangle_count} triangles: meshes must number 1..=triangle_count, instances 1..2^31, top nodes \
-             2 x instances - 1"
+            "meshes count {mesh_count}, instances count {instance_count}, top_nodes count {top_node_count}, \
+             top_wide_nodes count {top_wide_count:?} for {triangle_count} triangles: meshes must number \
+             1..=triangle_count, instances 1..2^31 (2^28 with top_wide_nodes), top nodes 2 x instances - 1, top \
+             wide nodes 1..=instances"
         ),
     ))
 }

@@ -7,7 +7,7 @@
 
 use crate::format::{MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle};
 use crate::hit::{CULL_PADDING, Hit, TraversalCounter};
-use crate::instances::{TwoLevelSections, walk_instances};
+use crate::instances::{TwoLevelSections, WideInstanceWalk, walk_instances};
 use crate::intersect::{PreparedRay, Ray};
 use crate::simd::KernelPath;
 use crate::spawn::SurfacePoint;
@@ -110,9 +110,16 @@ impl<'a> Tracer<'a> {
     /// wide node visits and packet tests).
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
         if let Some(sections) = &self.instances {
-            return walk_instances::<_, false>(sections, ray, counter, |mesh, object_ray, counter| {
+            let trace_mesh = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
                 self.mesh_tracer(mesh)?.closest_hit_counted(object_ray, counter)
-            });
+            };
+            return match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
+                Some(wide) => {
+                    let walk = WideInstanceWalk::<_, _, false> { sections, ray, counter, trace_mesh };
+                    crate::simd::run(wide.avx2(), walk)
+                }
+                None => walk_instances::<_, false>(sections, ray, counter, trace_mesh),
+            };
         }
         let (triangle_index, hit) = match &self.wide {
             None => self.traverse::<false>(ray, counter)?,
@@ -189,7 +196,13 @@ impl<'a> Tracer<'a> {
             let occluding = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
                 self.mesh_tracer(mesh)?.any_hit_counted(object_ray, counter).then_some(Hit::OCCLUSION)
             };
-            return walk_instances::<_, true>(sections, ray, counter, occluding).is_some();
+            return match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
+                Some(wide) => {
+                    let walk = WideInstanceWalk::<_, _, true> { sections, ray, counter, trace_mesh: occluding };
+                    crate::simd::run(wide.avx2(), walk).is_some()
+                }
+                None => walk_instances::<_, true>(sections, ray, counter, occluding).is_some(),
+            };
         }
         match &self.wide {
             None => self.traverse::<true>(ray, counter).is_some(),

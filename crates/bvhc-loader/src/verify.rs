@@ -1,7 +1,7 @@
-//! The full verifier: rules V11-V45 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! The full verifier: rules V11-V46 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
 //! V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
 //! (the wide sections of 1.1) in `verify_wide`, V36-V39 (the metadata against the file) in
-//! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`, V41-V45 (the two-level
+//! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`, V41-V46 (the two-level
 //! sections of 1.3, and the one-level rules per mesh) in `verify_instances`.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
@@ -19,7 +19,7 @@ use crate::view::{BvhView, section_bytes};
 pub const PARALLEL_VERIFY_BYTES: usize = 64 << 20;
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V45; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V46; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke. A file of
     /// [`PARALLEL_VERIFY_BYTES`] or more has its wide sections (V29-V35, the last rules checked) checked on a
@@ -73,7 +73,7 @@ impl BvhView<'_> {
         }
     }
 
-    /// Rules V11-V28, V40 and V41-V45: everything but the wide sections and the metadata's consistency.
+    /// Rules V11-V28, V40 and V41-V46: everything but the wide sections and the metadata's consistency.
     fn verify_all_but_wide(&self) -> Result<(), Violation> {
         verify_checksums(self)?;
         verify_reserved_and_padding(self)?;
@@ -175,6 +175,10 @@ fn verify_reserved_and_padding(view: &BvhView<'_>) -> Result<(), Violation> {
     let instances = view.two_level().filter(|_| known_minor).map_or(&[][..], |sections| sections.instances);
     if let Some(i) = instances.iter().position(|instance| instance.reserved != 0) {
         return fail(format!("instance {i}: reserved must be zero"));
+    }
+    let top_wide = view.two_level().filter(|_| known_minor).map_or(&[][..], |sections| sections.top_wide_nodes);
+    if let Some(i) = top_wide.iter().position(|n| n.reserved != [0; 8]) {
+        return fail(format!("top wide node {i}: reserved must be zero"));
     }
     Ok(())
 }

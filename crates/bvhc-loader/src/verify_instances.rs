@@ -1,4 +1,4 @@
-//! Rules V41-V45 of `format-spec/bvh-1.md`: the two-level sections of format 1.3, and the one-level rules
+//! Rules V41-V46 of `format-spec/bvh-1.md`: the two-level sections of format 1.3, and the one-level rules
 //! applied to each mesh.
 //!
 //! * V41: the meshes tile the nodes, triangles and wide sections in order, each with the counts of a one-level
@@ -9,13 +9,15 @@
 //!   instance each, every instance in exactly one leaf (so each placement is reachable exactly once, and the
 //!   walk never recurses: a leaf names an instance, an instance a mesh, a mesh only triangles);
 //! * V44: a top leaf's box contains its instance's mesh root box mapped to world space (conservative);
-//! * V45: every mesh is placed by at least one instance.
+//! * V45: every mesh is placed by at least one instance;
+//! * V46: the wide top tree, where the file has one: a tree of wide nodes whose leaf slots hold every instance
+//!   once, with conservative boxes.
 //!
 //! Cost: O(top nodes + instances + meshes) beyond the per-mesh rules, whose cost is that of the one-level rules
 //! over the same sections. Memory: a bit per top node, instance and mesh.
 
 use crate::error::{Rule, Violation, violation};
-use crate::format::{MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle};
+use crate::format::{EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle, WideNode8};
 use crate::instance_transform::{check_transform, transformed_box};
 use crate::instances::TwoLevelSections;
 use crate::structure::check_wide_counts;
@@ -148,7 +150,7 @@ fn check_mesh_table(view: &BvhView<'_>, meshes: &[MeshRecord]) -> Result<(), Vio
     Ok(())
 }
 
-/// V42-V45.
+/// V42-V46.
 pub(crate) fn verify_instances(sections: &TwoLevelSections<'_>, nodes: &[PackedNode]) -> Result<(), Violation> {
     let mut placed = vec![false; sections.meshes.len()];
     for (i, instance) in sections.instances.iter().enumerate() {
@@ -169,7 +171,7 @@ pub(crate) fn verify_instances(sections: &TwoLevelSections<'_>, nodes: &[PackedN
     if let Some(m) = placed.iter().position(|&p| !p) {
         return Err(violation(Rule::MeshPlaced, format!("mesh {m} is placed by no instance")));
     }
-    Ok(())
+    check_top_wide_tree(sections, nodes)
 }
 
 /// V43, depth first (the tree's shape, boxes and leaves), then V44 on every leaf.
@@ -259,4 +261,82 @@ fn check_instance_box(
             leaf.min, leaf.max, leaf.index
         ),
     ))
+}
+
+/// V46: the wide top tree (`top_wide_nodes`), where the file has one. In node index order (children come after
+/// their parent, so a node's parent slot is known when the node is reached): slots well formed, each node but
+/// the root in exactly one slot, no node deeper than `MAX_DEPTH`, slot boxes finite and inside the box of the
+/// slot that references the node (the top root's box for node 0), each instance in exactly one leaf slot,
+/// whose box contains its mesh's root box mapped to world space (as V44 asks of the binary leaves; checked once
+/// the shape holds).
+fn check_top_wide_tree(sections: &TwoLevelSections<'_>, nodes: &[PackedNode]) -> Result<(), Violation> {
+    let wide = sections.top_wide_nodes;
+    let Some(root) = sections.top_nodes.first().filter(|_| !wide.is_empty()) else { return Ok(()) };
+    let fail = |detail: String| Err(violation(Rule::TopWideTree, detail));
+    let mut bound: Vec<Option<([f32; 3], [f32; 3])>> = vec![None; wide.len()];
+    let mut depth = vec![0usize; wide.len()];
+    bound[0] = Some((root.min, root.max));
+    let mut seen = vec![false; sections.instances.len()];
+    // (node, slot, instance, slot box) of every leaf slot, checked against the instances once the shape holds.
+    let mut leaves = Vec::new();
+    for (i, node) in wide.iter().enumerate() {
+        let Some((lo, hi)) = bound[i] else { return fail(format!("top wide node {i}: in no slot")) };
+        if depth[i] > MAX_DEPTH {
+            return fail(format!("top wide node {i}: depth {} exceeds {MAX_DEPTH}", depth[i]));
+        }
+        let occupied = node.child.iter().take_while(|&&c| c != EMPTY_SLOT).count();
+        if occupied < if i == 0 { 1 } else { 2 } {
+            return fail(format!("top wide node {i}: {occupied} occupied slots"));
+        }
+        for (slot, &child) in node.child.iter().enumerate() {
+            let (min, max) = slot_box(node, slot);
+            let at = format!("top wide node {i} slot {slot}");
+            if slot >= occupied {
+                let empty = min.iter().all(|c| c.to_bits() == f32::INFINITY.to_bits())
+                    && max.iter().all(|c| c.to_bits() == f32::NEG_INFINITY.to_bits());
+                if child != EMPTY_SLOT || !empty {
+                    return fail(format!("{at}: after an empty slot, must be EMPTY_SLOT with the box +inf..-inf"));
+                }
+                continue;
+            }
+            let finite = min.iter().chain(&max).all(|c| c.is_finite());
+            if !finite || (0..3).any(|a| !(lo[a] <= min[a] && min[a] <= max[a] && max[a] <= hi[a])) {
+                return fail(format!("{at}: box {min:?}..{max:?} must be finite, min <= max, inside {lo:?}..{hi:?}"));
+            }
+            if child & LEAF_BIT == 0 {
+                let c = child as usize;
+                if c <= i || c >= wide.len() || bound[c].is_some() {
+                    return fail(format!("{at}: child {c} must come after it, exist and have no other slot"));
+                }
+                bound[c] = Some((min, max));
+                depth[c] = depth[i] + 1;
+                continue;
+            }
+            let index = (child & !LEAF_BIT) as usize;
+            match seen.get_mut(index) {
+                Some(done) if !*done => *done = true,
+                _ => return fail(format!("{at}: leaf of instance {index}, which is out of range or in a second slot")),
+            }
+            leaves.push((i, slot, index as u32, (min, max)));
+        }
+    }
+    if let Some(index) = seen.iter().position(|&s| !s) {
+        return fail(format!("instance {index} is in no leaf slot of the wide top tree"));
+    }
+    for (i, slot, index, (min, max)) in leaves {
+        let Some((instance, mesh)) = sections.placement(index) else { continue };
+        let Some(mesh_root) = nodes.get(mesh.first_node as usize) else { continue };
+        let (need_lo, need_hi) = transformed_box(&instance.object_to_world, (mesh_root.min, mesh_root.max));
+        if (0..3).any(|a| !(f64::from(min[a]) <= need_lo[a] && need_hi[a] <= f64::from(max[a]))) {
+            return fail(format!(
+                "top wide node {i} slot {slot}: box {min:?}..{max:?} does not contain instance {index}'s mesh box \
+                 in world space {need_lo:?}..{need_hi:?}"
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn slot_box(node: &WideNode8, slot: usize) -> ([f32; 3], [f32; 3]) {
+    (std::array::from_fn(|a| node.min[a][slot]), std::array::from_fn(|a| node.max[a][slot]))
 }

@@ -76,6 +76,10 @@ impl<'a> BvhView<'a> {
                     meshes: cast_section(bytes, &meshes)?,
                     instances: cast_section(bytes, &instances)?,
                     top_nodes: cast_section(bytes, &top_nodes)?,
+                    top_wide_nodes: match sections.get(SectionKind::TopWideNodes) {
+                        Some(entry) => cast_section(bytes, &entry)?,
+                        None => &[],
+                    },
                 }),
                 _ => None,
             },
@@ -245,6 +249,7 @@ impl<'a> BvhView<'a> {
         let mut meshes: Option<&[MeshRecord]> = None;
         let mut instances: Option<&[InstanceRecord]> = None;
         let mut top_nodes: Option<&[PackedNode]> = None;
+        let mut top_wide_nodes: &[WideNode8] = &[];
         for info in section_infos(bytes, &header) {
             let entry = &info.entry;
             let start = entry.section_byte_offset as usize;
@@ -275,6 +280,7 @@ impl<'a> BvhView<'a> {
                     Some(SectionKind::Meshes) => meshes = Some(std::slice::from_raw_parts(base.cast(), len)),
                     Some(SectionKind::Instances) => instances = Some(std::slice::from_raw_parts(base.cast(), len)),
                     Some(SectionKind::TopNodes) => top_nodes = Some(std::slice::from_raw_parts(base.cast(), len)),
+                    Some(SectionKind::TopWideNodes) => top_wide_nodes = std::slice::from_raw_parts(base.cast(), len),
                     None => {}
                 }
             }
@@ -283,7 +289,7 @@ impl<'a> BvhView<'a> {
             view.wide = Some(WideSections { nodes, packets });
         }
         if let (Some(meshes), Some(instances), Some(top_nodes)) = (meshes, instances, top_nodes) {
-            view.two_level = Some(TwoLevelSections { meshes, instances, top_nodes });
+            view.two_level = Some(TwoLevelSections { meshes, instances, top_nodes, top_wide_nodes });
         }
         view
     }

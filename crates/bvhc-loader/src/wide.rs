@@ -137,6 +137,11 @@ impl<'a> WideTracer<'a> {
         Some(WideTracer::over(nodes, packets, root_box, triangle_ids, self.path()))
     }
 
+    /// The AVX2 token when the tracer runs the AVX2 path (for walks of other wide trees on the same path).
+    pub(crate) fn avx2(&self) -> Option<Avx2> {
+        self.avx2
+    }
+
     /// The path this tracer runs.
     pub fn path(&self) -> KernelPath {
         if self.avx2.is_some() { KernelPath::Avx2 } else { KernelPath::Portable }

@@ -106,7 +106,8 @@ impl<'a> BvhWriter<'a> {
     /// Makes the file two-level (format 1.3): the nodes, triangles (and their ids and source vertices) and wide
     /// sections given to the other calls are the meshes' trees laid out as `sections.meshes` says (indices
     /// relative to each mesh's ranges), placed in world space by `sections.instances` under the top-level
-    /// tree `sections.top_nodes` (`format-spec/bvh-1.md` 5.10-5.12). The file is then written as version 1.3.
+    /// tree `sections.top_nodes` (and its 8-wide form `sections.top_wide_nodes`, which a file with wide sections
+    /// needs; `format-spec/bvh-1.md` 5.10-5.13). The file is then written as version 1.3.
     pub fn two_level(mut self, sections: TwoLevelSections<'a>) -> Self {
         self.two_level = Some(sections);
         self
@@ -170,6 +171,10 @@ impl<'a> BvhWriter<'a> {
             known(SectionKind::Meshes, bytemuck::cast_slice(two_level.meshes), two_level.meshes.len(), 0);
             known(SectionKind::Instances, bytemuck::cast_slice(two_level.instances), two_level.instances.len(), 0);
             known(SectionKind::TopNodes, bytemuck::cast_slice(two_level.top_nodes), two_level.top_nodes.len(), 0);
+            if !two_level.top_wide_nodes.is_empty() {
+                let wide = two_level.top_wide_nodes;
+                known(SectionKind::TopWideNodes, bytemuck::cast_slice(wide), wide.len(), 0);
+            }
         }
         for extra in &self.extra_sections {
             if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {
