@@ -86,9 +86,20 @@ pub fn convert(args: &ConvertArgs) -> Exit {
                 let optimized = r.optimization.as_ref().map_or(String::new(), |o| {
                     format!(", optimized {:.2} -> {:.2} in {} batches", o.initial.cost, o.best.cost, o.batches)
                 });
+                // A two-level file has no cost of its own: its largest mesh's is shown, and says so.
+                let (cost_of, levels) = match &r.two_level {
+                    None => ("SAH cost", String::new()),
+                    Some(t) => (
+                        "largest mesh's SAH cost",
+                        format!(
+                            " in {} meshes placed by {} instances ({} triangles placed)",
+                            t.mesh_count, t.instance_count, t.placed_triangle_count
+                        ),
+                    ),
+                };
                 outln!(
                     out,
-                    "{}: {} triangles ({degenerate} degenerate {verdict}), {} nodes, SAH cost {:.2}{optimized}, {} bytes, {:.2} s",
+                    "{}: {} triangles{levels} ({degenerate} degenerate {verdict}), {} nodes, {cost_of} {:.2}{optimized}, {} bytes, {:.2} s",
                     output.display(),
                     r.triangle_count,
                     r.node_count,

@@ -159,7 +159,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
                 "instance_count": sections.instances.len(),
                 "top_node_count": sections.top_nodes.len(),
                 "top_wide_node_count": sections.top_wide_nodes.len(),
-                "placed_triangle_count": sections.placed_triangle_count(),
+                "placed_record_count": sections.placed_record_count(),
             })),
             "metadata": metadata,
         });
@@ -188,11 +188,11 @@ pub fn info(path: &Path, json: bool) -> Exit {
         stats.max_depth
     );
     if let Some(sections) = &two_level {
-        let placed = sections.placed_triangle_count();
+        let placed = sections.placed_record_count();
         outln!(
             out,
             "two-level: {} meshes placed by {} instances under a top tree of {} nodes ({} 8-wide): {} triangle \
-             records stored, {placed} placed ({:.1}x); the tree line counts every mesh's trees, depth the deepest",
+             records stored, {placed} records placed ({:.1}x); the tree line counts every mesh's trees, depth the deepest",
             sections.meshes.len(),
             sections.instances.len(),
             sections.top_nodes.len(),

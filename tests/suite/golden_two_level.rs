@@ -72,7 +72,7 @@ fn golden_v1_3_file_reads_verifies_and_traces_through_its_instances() {
     assert_eq!(kinds, expected.map(Some));
     let two_level = view.two_level().unwrap();
     assert_eq!((two_level.meshes.len(), two_level.instances.len(), two_level.top_nodes.len()), (2, 3, 5));
-    assert_eq!(two_level.placed_triangle_count(), 5);
+    assert_eq!(two_level.placed_record_count(), 5);
     let tracer = view.tracer();
     assert_eq!(tracer.kernel(), Kernel::Binary);
     let down = |x: f32, y: f32| tracer.closest_hit(&Ray::new([x, y, 1.0], [0.0, 0.0, -1.0]));

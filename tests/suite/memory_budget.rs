@@ -73,7 +73,7 @@ fn a_scene_over_the_memory_budget_is_refused_before_it_is_held() {
     let file = bvhc::loader::BvhFile::read(&output).unwrap();
     let two_level = file.view().two_level().expect("a two-level file");
     assert_eq!((two_level.meshes.len(), two_level.instances.len()), (1, 10_000));
-    assert_eq!(two_level.placed_triangle_count(), 42_320_000);
+    assert_eq!(two_level.placed_record_count(), 42_320_000);
     let tracer = file.view().tracer();
     for copy in [0u32, 4_321, 9_999] {
         // Straight down onto copy `copy`'s grid (copies are 92 units apart on x).

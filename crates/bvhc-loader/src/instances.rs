@@ -37,8 +37,9 @@ impl<'a> TwoLevelSections<'a> {
         Some((instance, self.meshes.get(instance.mesh_index as usize)?))
     }
 
-    /// Triangles placed in world space: each instance's mesh's triangle records, summed.
-    pub fn placed_triangle_count(&self) -> u64 {
+    /// Triangle records placed in world space: each instance's mesh's records, summed (with split references a
+    /// triangle has several records).
+    pub fn placed_record_count(&self) -> u64 {
         self.instances
             .iter()
             .filter_map(|i| self.meshes.get(i.mesh_index as usize))
