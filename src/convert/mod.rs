@@ -8,6 +8,7 @@ pub mod metadata;
 mod part;
 pub mod pipeline;
 mod two_level;
+mod write;
 pub mod report;
 mod request;
 

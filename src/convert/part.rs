@@ -15,10 +15,30 @@ use bvhc_loader::{SourceVertexIndices, WideBvh};
 use super::candidates::{Candidate, best_candidate, lap};
 use super::report::{Choice, ConvertError, Event, Stage, Timings, WideSummary};
 use crate::cost::SahCost;
-use crate::fallible::collect_exact;
+use crate::fallible::{collect_exact, probe};
 use crate::optimize::OptimizeReport;
 use crate::options::ConvertOptions;
 use crate::pack::{PackedTree, pack, pack_wide};
+
+/// Address space a worker thread may take when it first allocates, for the probe before the build: glibc's
+/// malloc reserves 64 MiB for each thread's arena, and a thread's stack is 8 MiB. Only reserved, never touched,
+/// so this matters only under an address-space limit (`ulimit -v`), where the probe would otherwise pass and a
+/// thread's first allocation abort the conversion (measured: `docs/scale.md`).
+const THREAD_ADDRESS_SPACE: usize = 72 << 20;
+
+/// The build and optimization of a tree over `triangle_count` triangles allocate many vectors without reporting
+/// failure: makes sure their estimated peak at `peak_bytes_per_triangle`, beyond the triangles held already, can
+/// be allocated before starting (see `crate::fallible`).
+pub(super) fn probe_working_set(
+    input: &Path,
+    triangle_count: usize,
+    peak_bytes_per_triangle: u64,
+) -> Result<(), ConvertError> {
+    let working_set = triangle_count.saturating_mul(peak_bytes_per_triangle as usize - size_of::<[[f32; 3]; 3]>());
+    let threads = rayon::current_num_threads().saturating_mul(THREAD_ADDRESS_SPACE);
+    probe(working_set.saturating_add(threads), "building and optimizing the tree")
+        .map_err(|e| out_of_memory(input, "building", e))
+}
 
 /// One tree, packed.
 pub(super) struct PackedPart {

@@ -7,23 +7,17 @@ use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
 
-use bvhc_loader::{AtomicOutput, BvhFile, BvhWriter};
+use bvhc_loader::BvhWriter;
 
 use super::candidates::lap;
 use super::files::{input_entries, refuse_output_among};
 use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord, WideRecord};
-use super::part::{PackedPart, build_part, out_of_memory};
+use super::part::{PackedPart, build_part, probe_working_set};
 use super::report::{ConvertError, ConvertReport, Event, Stage, Timings};
-use crate::fallible::probe;
+use super::write::{stream, verify_and_commit};
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES};
 use crate::import::{Instancing, SceneFormat, TriangleSoup, import_for_peak};
 use crate::options::{ConvertOptions, OptionsError};
-
-/// Address space a worker thread may take when it first allocates, for the probe before the build: glibc's
-/// malloc reserves 64 MiB for each thread's arena, and a thread's stack is 8 MiB. Only reserved, never touched,
-/// so this matters only under an address-space limit (`ulimit -v`), where the probe would otherwise pass and a
-/// thread's first allocation abort the conversion (measured: `docs/scale.md`).
-const THREAD_ADDRESS_SPACE: usize = 72 << 20;
 
 /// Converts `input` into the `.bvh` file `output` with the default options.
 pub fn convert(input: &Path, output: &Path) -> Result<ConvertReport, ConvertError> {
@@ -136,44 +130,6 @@ pub fn convert_with(
         choice,
         two_level: None,
     })
-}
-
-/// The build and optimization of a tree over `triangle_count` triangles allocate many vectors without reporting
-/// failure: makes sure their estimated peak at `peak_bytes_per_triangle`, beyond the triangles held already, can
-/// be allocated before starting (see `crate::fallible`).
-pub(super) fn probe_working_set(
-    input: &Path,
-    triangle_count: usize,
-    peak_bytes_per_triangle: u64,
-) -> Result<(), ConvertError> {
-    let working_set = triangle_count.saturating_mul(peak_bytes_per_triangle as usize - size_of::<[[f32; 3]; 3]>());
-    let threads = rayon::current_num_threads().saturating_mul(THREAD_ADDRESS_SPACE);
-    probe(working_set.saturating_add(threads), "building and optimizing the tree")
-        .map_err(|e| out_of_memory(input, "building", e))
-}
-
-/// Streams `writer`'s file to a temporary file beside `output`; returns it, not yet in place, and the file's
-/// length. The file is read back and verified by [`verify_and_commit`] once the caller has freed the arrays
-/// the writer borrowed, so the file is in memory once (laying it out in memory beside the arrays took twice its
-/// size); the output is replaced only by a verified file. Both transfers bypass the page cache where the system
-/// allows it (see `UncachedWriter`), which was most of the write stage's time for large files.
-pub(super) fn stream(writer: &BvhWriter<'_>, output: &Path) -> Result<(AtomicOutput, u64), ConvertError> {
-    let mut atomic = AtomicOutput::create(output)?;
-    let mut sink = atomic.uncached_writer();
-    writer.write_unverified(&mut sink, output)?;
-    let file_byte_len =
-        sink.finish().map_err(|source| bvhc_loader::Error::Io { path: output.to_path_buf(), source })?;
-    Ok((atomic, file_byte_len))
-}
-
-/// Reads the streamed file back, verifies every rule, and moves it into place.
-pub(super) fn verify_and_commit(atomic: AtomicOutput, input: &Path) -> Result<(), ConvertError> {
-    let file = BvhFile::read_uncached(atomic.temporary_path())
-        .map_err(|e| out_of_memory(input, "reading the written file back", e))?;
-    file.view().verify().map_err(bvhc_loader::Error::from)?;
-    drop(file);
-    atomic.commit()?;
-    Ok(())
 }
 
 /// `--instancing always` or `never` on an OBJ or PLY input, which place each model once, would do nothing.

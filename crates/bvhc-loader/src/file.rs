@@ -13,7 +13,7 @@ use crate::view::BvhView;
 #[derive(Clone, Copy)]
 struct Block([u8; 64]);
 
-crate::format::plain_data! { Block { [u8; 64] } }
+crate::plain_data::plain_data! { Block { [u8; 64] } }
 
 /// A heap buffer whose first byte is 64-byte aligned, as the sections' offsets assume.
 pub(crate) struct AlignedBuffer {

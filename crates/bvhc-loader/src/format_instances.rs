@@ -75,7 +75,7 @@ pub const INSTANCE_BOX_PADDING: f64 = 1.0 / 1_048_576.0;
 const _: () = assert!(size_of::<MeshRecord>() == 32);
 const _: () = assert!(size_of::<InstanceRecord>() == 112);
 
-crate::format::plain_data! {
+crate::plain_data::plain_data! {
     MeshRecord { u32, u32, u32, u32, u32, u32, u32, u32 }
     InstanceRecord { Affine3x4, Affine3x4, u32, u32, u32, u32 }
 }

@@ -48,10 +48,29 @@ impl<'a> TwoLevelSections<'a> {
     }
 }
 
+/// The hit of `ray` (with `t_max`, the closest hit so far) in instance `index`'s mesh: the ray mapped into the
+/// mesh's object space and traced by `trace_mesh`, whose hit (record index relative to the mesh) comes back with
+/// the absolute record index, the instance and the world-space normal. `None` for no hit or no such instance.
+#[inline(always)]
+fn visit_instance<C: TraversalCounter>(
+    sections: &TwoLevelSections<'_>,
+    index: u32,
+    ray: &Ray,
+    t_max: f32,
+    counter: &mut C,
+    trace_mesh: &mut impl FnMut(&MeshRecord, &Ray, &mut C) -> Option<Hit>,
+) -> Option<Hit> {
+    let (instance, mesh) = sections.placement(index)?;
+    let mut hit = trace_mesh(mesh, &object_ray(instance, &Ray { t_max, ..*ray }), counter)?;
+    hit.triangle_index = hit.triangle_index.wrapping_add(mesh.first_triangle);
+    hit.instance_index = Some(index);
+    hit.normal = world_normal(instance, hit.normal);
+    Some(hit)
+}
+
 /// The closest hit (or with `ANY_HIT`, the first hit found) of `ray` among the instances of `sections`.
 /// `trace_mesh` traces an object-space ray through one mesh and returns its hit with the triangle index relative
 /// to the mesh; this function makes the index absolute, and adds the instance index and the world-space normal.
-/// With `ANY_HIT` the hit is returned as `trace_mesh` gave it, unchanged.
 #[inline(always)]
 #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
 pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
@@ -78,17 +97,10 @@ pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
             visits_left -= 1;
             counter.node_visited();
             if node.is_leaf() {
-                let Some((instance, mesh)) = sections.placement(node.index) else {
-                    break 'visit;
-                };
-                let object = object_ray(instance, &Ray { t_max, ..*ray });
-                if let Some(mut hit) = trace_mesh(mesh, &object, counter) {
+                if let Some(hit) = visit_instance(sections, node.index, ray, t_max, counter, &mut trace_mesh) {
                     if ANY_HIT {
                         return Some(hit);
                     }
-                    hit.triangle_index = hit.triangle_index.wrapping_add(mesh.first_triangle);
-                    hit.instance_index = Some(node.index);
-                    hit.normal = world_normal(instance, hit.normal);
                     t_max = hit.t;
                     found = Some(hit);
                 }
@@ -175,15 +187,10 @@ where
             'visit: {
                 if current & LEAF_BIT != 0 {
                     let index = current & !LEAF_BIT;
-                    let Some((instance, mesh)) = sections.placement(index) else { break 'visit };
-                    let object = object_ray(instance, &Ray { t_max, ..*ray });
-                    if let Some(mut hit) = (self.trace_mesh)(mesh, &object, self.counter) {
+                    if let Some(hit) = visit_instance(sections, index, ray, t_max, self.counter, &mut self.trace_mesh) {
                         if ANY_HIT {
                             return Some(hit);
                         }
-                        hit.triangle_index = hit.triangle_index.wrapping_add(mesh.first_triangle);
-                        hit.instance_index = Some(index);
-                        hit.normal = world_normal(instance, hit.normal);
                         t_max = hit.t;
                         found = Some(hit);
                     }

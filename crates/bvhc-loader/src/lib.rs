@@ -58,6 +58,7 @@ mod instance_transform;
 mod instances;
 mod intersect;
 mod json;
+mod plain_data;
 mod simd;
 mod source_corners;
 mod spawn;
@@ -71,6 +72,7 @@ mod verify_instances;
 mod verify_metadata;
 mod verify_references;
 mod verify_source_vertices;
+mod verify_tree;
 mod verify_wide;
 mod view;
 mod watertight;
@@ -107,7 +109,8 @@ pub use structure::SectionInfo;
 pub use traverse::{Kernel, Tracer};
 #[cfg(feature = "write")]
 pub use uncached::UncachedWriter;
-pub use verify::{PARALLEL_VERIFY_BYTES, verify_tree};
+pub use verify::PARALLEL_VERIFY_BYTES;
+pub use verify_tree::verify_tree;
 pub use view::{BvhView, WideSections};
 pub use wide::{WideBvh, WideTracer};
 #[cfg(feature = "write")]

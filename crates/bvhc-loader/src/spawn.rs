@@ -47,6 +47,12 @@ const MAX_DOUBLINGS: u32 = 40;
 /// triangle.
 const RESOLUTION: f32 = 16.0;
 
+/// `n` scaled to length 1; zero when it has no finite, non-zero length (a degenerate record).
+fn unit(n: [f32; 3]) -> [f32; 3] {
+    let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if length > 0.0 && length.is_finite() { n.map(|c| c / length) } else { [0.0; 3] }
+}
+
 /// Where a ray met a surface, for spawning the next rays from it: see the module doc.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SurfacePoint {
@@ -85,9 +91,7 @@ impl SurfacePoint {
             .flat_map(|vertex| (0..3).map(move |a| (vertex[a] - position[a]).abs()))
             .fold(0.0f32, f32::max);
         let resolution = RESOLUTION * EPS * 3f32.sqrt() * reach;
-        let n = hit.normal;
-        let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        let normal = if length > 0.0 && length.is_finite() { n.map(|c| c / length) } else { [0.0; 3] };
+        let normal = unit(hit.normal);
         SurfacePoint {
             position,
             error,
@@ -115,18 +119,7 @@ impl SurfacePoint {
         });
         let frobenius: f64 = l.iter().flat_map(|row| &row[..3]).map(|&c| f64::from(c) * f64::from(c)).sum::<f64>();
         let resolution = (f64::from(object.resolution) * frobenius.sqrt()) as f32 * (1.0 + 4.0 * EPS);
-        let n = hit.normal;
-        let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        let normal = if length > 0.0 && length.is_finite() { n.map(|c| c / length) } else { [0.0; 3] };
-        SurfacePoint {
-            position,
-            error,
-            resolution,
-            normal,
-            front_face: hit.front_face,
-            triangle: *triangle,
-            instance: Some(*instance),
-        }
+        SurfacePoint { position, error, resolution, normal: unit(hit.normal), instance: Some(*instance), ..object }
     }
 
     /// The origin for a ray leaving the surface along `direction` (to either side): [`SurfacePoint::position`]

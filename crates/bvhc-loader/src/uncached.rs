@@ -27,7 +27,7 @@ const STAGE_PAGES: usize = 2048;
 #[derive(Clone, Copy)]
 struct Page([u8; PAGE_BYTE_LEN]);
 
-crate::format::plain_data! { Page { [u8; PAGE_BYTE_LEN] } }
+crate::plain_data::plain_data! { Page { [u8; PAGE_BYTE_LEN] } }
 
 /// A page-aligned buffer of `STAGE_PAGES` pages.
 struct Stage {

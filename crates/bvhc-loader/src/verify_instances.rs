@@ -21,8 +21,8 @@ use crate::format::{EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, MeshRecord, PackedNode, Pac
 use crate::instance_transform::{check_transform, transformed_box};
 use crate::instances::TwoLevelSections;
 use crate::structure::check_wide_counts;
-use crate::verify::verify_tree;
 use crate::verify_references::verify_references;
+use crate::verify_tree::verify_tree;
 use crate::verify_wide::{WideContext, verify_wide};
 use crate::view::{BvhView, WideSections};
 
