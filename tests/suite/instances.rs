@@ -256,9 +256,6 @@ fn check_against_oracle(tracer: &Tracer<'_>, file: &BvhFile, placed: &[Placed], 
                 let o = ray.origin.iter().fold(0.0f64, |m, c| m.max(f64::from(c.abs())));
                 let d = ray.direction.iter().fold(0.0f64, |m, c| m.max(f64::from(c.abs())));
                 let error = (f64::from(hit.t) - t).abs() / (t + o / d);
-                if error > worst && std::env::var_os("BVHC_SHOW_WORST").is_some() {
-                    eprintln!("ray {r} instance {instance} t {} exact {t} error {error:e} {ray:?}", hit.t);
-                }
                 worst = worst.max(error);
                 assert!(error <= T_TOLERANCE, "ray {r}: t {} against {t}: relative error {error:e}", hit.t);
                 checked += 1;
