@@ -110,16 +110,7 @@ impl<'a> Tracer<'a> {
     /// wide node visits and packet tests).
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
         if let Some(sections) = &self.instances {
-            let trace_mesh = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
-                self.mesh_tracer(mesh)?.closest_hit_counted(object_ray, counter)
-            };
-            return match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
-                Some(wide) => {
-                    let walk = WideInstanceWalk::<_, _, false> { sections, ray, counter, trace_mesh };
-                    crate::simd::run(wide.avx2(), walk)
-                }
-                None => walk_instances::<_, false>(sections, ray, counter, trace_mesh),
-            };
+            return self.closest_hit_through(sections, ray, counter);
         }
         let (triangle_index, hit) = match &self.wide {
             None => self.traverse::<false>(ray, counter)?,
@@ -193,20 +184,47 @@ impl<'a> Tracer<'a> {
     /// [`Tracer::any_hit`], counting as [`Tracer::closest_hit_counted`] does.
     pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
         if let Some(sections) = &self.instances {
-            let occluding = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
-                self.mesh_tracer(mesh)?.any_hit_counted(object_ray, counter).then_some(Hit::OCCLUSION)
-            };
-            return match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
-                Some(wide) => {
-                    let walk = WideInstanceWalk::<_, _, true> { sections, ray, counter, trace_mesh: occluding };
-                    crate::simd::run(wide.avx2(), walk).is_some()
-                }
-                None => walk_instances::<_, true>(sections, ray, counter, occluding).is_some(),
-            };
+            return self.any_hit_through(sections, ray, counter);
         }
         match &self.wide {
             None => self.traverse::<true>(ray, counter).is_some(),
             Some(wide) => wide.any_hit_counted(ray, counter),
+        }
+    }
+
+    /// [`Tracer::closest_hit_counted`] in a two-level file: the wide top tree with the wide kernel, else the binary
+    /// one. Out of line, so that the one-level kernel inlines as before.
+    #[inline(never)]
+    fn closest_hit_through(
+        &self,
+        sections: &TwoLevelSections<'a>,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+    ) -> Option<Hit> {
+        let trace_mesh = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
+            self.mesh_tracer(mesh)?.closest_hit_counted(object_ray, counter)
+        };
+        match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
+            Some(wide) => {
+                let walk = WideInstanceWalk::<_, _, false> { sections, ray, counter, trace_mesh };
+                crate::simd::run(wide.avx2(), walk)
+            }
+            None => walk_instances::<_, false>(sections, ray, counter, trace_mesh),
+        }
+    }
+
+    /// [`Tracer::any_hit_counted`] in a two-level file, as [`Tracer::closest_hit_through`].
+    #[inline(never)]
+    fn any_hit_through(&self, sections: &TwoLevelSections<'a>, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        let occluding = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
+            self.mesh_tracer(mesh)?.any_hit_counted(object_ray, counter).then_some(Hit::OCCLUSION)
+        };
+        match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
+            Some(wide) => {
+                let walk = WideInstanceWalk::<_, _, true> { sections, ray, counter, trace_mesh: occluding };
+                crate::simd::run(wide.avx2(), walk).is_some()
+            }
+            None => walk_instances::<_, true>(sections, ray, counter, occluding).is_some(),
         }
     }
 
