@@ -48,6 +48,8 @@ extern "C" {
 #define BVH_KIND_INSTANCES 10u       /* since 1.3, REQUIRED */
 #define BVH_KIND_TOP_NODES 11u       /* since 1.3, REQUIRED; elements are BvhPackedNode */
 #define BVH_KIND_TOP_WIDE_NODES 12u  /* since 1.3; elements are BvhWideNode8, leaf slots LEAF_BIT | instance */
+#define BVH_KIND_GPU_NODES 13u       /* since 1.4 */
+#define BVH_KIND_GPU_TRIANGLES 14u   /* since 1.4 */
 #define BVH_KIND_PRIVATE_FIRST 0x80000000u
 #define BVH_SECTION_FLAG_REQUIRED (1u << 0)
 #define BVH_SECTION_FLAG_SPLIT_REFERENCES (1u << 1) /* triangles only */
@@ -164,6 +166,33 @@ typedef struct BvhInstanceRecord {
     uint32_t reserved;
 } BvhInstanceRecord;
 
+/* Element of the gpu_nodes section (section 5.14, since 1.4): a compressed 8-wide node. A slot's box decodes per
+ * axis a as origin[a] + q * step[a] in binary32, step[a] the float with bits exponents[a] << 23; meta[s] is 0
+ * (empty), BVH_GPU_INNER_META(s) (inner: node child_base + popcount(inner_mask & ((1 << s) - 1))) or a leaf of
+ * 1-3 triangles in unary in the top three bits over an offset from triangle_base in the low five. */
+typedef struct BvhGpuNode {
+    float origin[3];
+    uint8_t exponents[3];
+    uint8_t inner_mask;
+    uint32_t child_base;
+    uint32_t triangle_base;
+    uint8_t meta[8];
+    uint8_t quantized_min[3][8];
+    uint8_t quantized_max[3][8];
+} BvhGpuNode;
+
+#define BVH_GPU_MAX_DEPTH 64
+#define BVH_GPU_INNER_META(slot) ((uint8_t)(0x20u | (24u + (slot))))
+/* For a leaf's meta byte: its triangle count (unary 0b001, 0b011, 0b111) and its offset from triangle_base. */
+#define BVH_GPU_LEAF_COUNT(meta) ((meta) >> 5 == 7u ? 3u : (meta) >> 5 == 3u ? 2u : 1u)
+#define BVH_GPU_LEAF_OFFSET(meta) ((meta) & 31u)
+
+/* Element of the gpu_triangles section (section 5.15, since 1.4): a leaf triangle with its record's vertices. */
+typedef struct BvhGpuTriangle {
+    float vertices[3][3];
+    uint32_t triangle_index;
+} BvhGpuTriangle;
+
 /* The layout is the spec's byte for byte. */
 static_assert(sizeof(float) == 4, "f32 is IEEE 754 binary32");
 static_assert(sizeof(BvhFileHeader) == 64, "FileHeader is 64 bytes");
@@ -238,6 +267,20 @@ static_assert(offsetof(BvhInstanceRecord, mesh_index) == 96, "mesh_index");
 static_assert(offsetof(BvhInstanceRecord, node_index) == 100, "node_index");
 static_assert(offsetof(BvhInstanceRecord, gpu_instance_index) == 104, "gpu_instance_index");
 static_assert(offsetof(BvhInstanceRecord, reserved) == 108, "reserved");
+
+static_assert(sizeof(BvhGpuNode) == 80, "GpuNode is 80 bytes");
+static_assert(offsetof(BvhGpuNode, origin) == 0, "origin");
+static_assert(offsetof(BvhGpuNode, exponents) == 12, "exponents");
+static_assert(offsetof(BvhGpuNode, inner_mask) == 15, "inner_mask");
+static_assert(offsetof(BvhGpuNode, child_base) == 16, "child_base");
+static_assert(offsetof(BvhGpuNode, triangle_base) == 20, "triangle_base");
+static_assert(offsetof(BvhGpuNode, meta) == 24, "meta");
+static_assert(offsetof(BvhGpuNode, quantized_min) == 32, "quantized_min");
+static_assert(offsetof(BvhGpuNode, quantized_max) == 56, "quantized_max");
+
+static_assert(sizeof(BvhGpuTriangle) == 40, "GpuTriangle is 40 bytes");
+static_assert(offsetof(BvhGpuTriangle, vertices) == 0, "vertices");
+static_assert(offsetof(BvhGpuTriangle, triangle_index) == 36, "triangle_index");
 
 #ifdef __cplusplus
 }

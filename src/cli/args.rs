@@ -76,6 +76,11 @@ pub struct TraceArgs {
     /// together (the same t for each ray; on a tie at it, possibly another triangle).
     #[arg(long)]
     pub coherent: bool,
+    /// Trace on the GPU: the loader's WGSL kernel over the file's GPU sections (written by `--gpu-layout`), on
+    /// the first wgpu adapter (a software one, such as lavapipe, included). The same hit records, `t` within
+    /// `format-spec/bvh-1.md` 11.4's bound.
+    #[arg(long, conflicts_with = "coherent")]
+    pub gpu: bool,
     /// Print one JSON object on stdout.
     #[arg(long)]
     pub json: bool,
@@ -193,6 +198,11 @@ pub struct OptionArgs {
     /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
     #[arg(long, help_heading = "Leaf layout")]
     pub no_wide: bool,
+    /// Also write the GPU sections of format 1.4: compressed 8-wide nodes (80 bytes) and their leaf triangles
+    /// with vertices (40 bytes each), which the WGSL kernel of the loader crate traces (`bvhc trace --gpu`).
+    /// One-level files only.
+    #[arg(long, help_heading = "Output")]
+    pub gpu_layout: bool,
     /// Omit the optional triangle_ids and source_table sections (and with them the source vertices).
     #[arg(long, help_heading = "Output")]
     pub no_ids: bool,
@@ -235,6 +245,7 @@ impl OptionArgs {
             merge_leaves: given(self.no_merge),
             max_leaf_size: self.max_leaf_size,
             wide: given(self.no_wide),
+            gpu_layout: self.gpu_layout.then_some(true),
             write_ids: given(self.no_ids),
             write_source_vertices: given(self.no_source_vertices),
         }

@@ -144,6 +144,9 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "node_count": view.nodes().len(),
             "wide_node_count": view.wide_sections().map(|w| w.nodes.len()),
             "packet_count": view.wide_sections().map(|w| w.packets.len()),
+            "gpu_node_count": view.gpu_sections().map(|g| g.nodes.len()),
+            "gpu_triangle_count": view.gpu_sections().map(|g| g.triangles.len()),
+            "gpu_byte_len": view.gpu_sections().map(|g| gpu_byte_len(&g)),
             "kernel": format!("{:?}", view.tracer().kernel()),
             "leaf_count": stats.leaf_count,
             "max_depth": stats.max_depth,
@@ -227,6 +230,22 @@ pub fn info(path: &Path, json: bool) -> Exit {
         ),
         None => outln!(out, "wide tree: none (traced by the binary kernel)"),
     }
+    match view.gpu_sections() {
+        Some(gpu) => {
+            let wide_bytes = view.wide_sections().map(|w| size_of_val(w.nodes) + size_of_val(w.packets));
+            let ratio = wide_bytes.map_or(String::new(), |b| {
+                format!(", {:.2}x the wide sections", gpu_byte_len(&gpu) as f64 / b.max(1) as f64)
+            });
+            outln!(
+                out,
+                "gpu layout: {} compressed 8-wide nodes, {} leaf triangles, {} bytes{ratio}; traced by `bvhc trace --gpu`",
+                gpu.nodes.len(),
+                gpu.triangles.len(),
+                gpu_byte_len(&gpu)
+            )
+        }
+        None => outln!(out, "gpu layout: none (convert with --gpu-layout to trace on a GPU)"),
+    }
     let histogram: Vec<String> = stats.leaf_sizes.iter().map(|(size, n)| format!("{size}: {n}")).collect();
     outln!(out, "leaf sizes (triangles: leaves): {}", histogram.join(", "));
     match cost {
@@ -298,4 +317,9 @@ fn unique_triangle_count(view: &bvhc::loader::BvhView<'_>, metadata: &serde_json
             }
         },
     }
+}
+
+/// Bytes of the two GPU sections.
+fn gpu_byte_len(gpu: &bvhc::loader::GpuSections<'_>) -> usize {
+    size_of_val(gpu.nodes) + size_of_val(gpu.triangles)
 }

@@ -1,6 +1,7 @@
-//! `bvhc trace FILE.bvh --rays RAYS.bin [-o HITS.bin] [--any-hit] [--json]`: traces a binary ray file through
-//! the loader's `Tracer` (the same kernel a renderer links), in parallel over fixed chunks of rays (so the hits
-//! do not depend on `--threads`), and reports rays per second of the tracing alone. Record layouts:
+//! `bvhc trace FILE.bvh --rays RAYS.bin [-o HITS.bin] [--any-hit] [--gpu] [--json]`: traces a binary ray file
+//! through the loader's `Tracer` (the same kernel a renderer links), in parallel over fixed chunks of rays (so
+//! the hits do not depend on `--threads`), or with `--gpu` through its WGSL kernel on the first wgpu adapter,
+//! and reports rays per second of the tracing alone. Record layouts:
 //! `format-spec/rays-and-hits.md`.
 
 use std::time::Instant;
@@ -95,6 +96,55 @@ pub fn trace(args: &TraceArgs) -> Exit {
         Err(message) => return fail(Exit::InvalidInput, format!("{}: {message}", args.rays.display())),
     };
     drop(bytes);
+    let traced = match args.gpu {
+        true => trace_on_gpu(&view, &rays, args.any_hit),
+        false => Ok(trace_on_cpu(&view, &rays, args)),
+    };
+    let Traced { records, hits, seconds, device } = match traced {
+        Ok(traced) => traced,
+        Err((exit, message)) => return fail(exit, format!("{}: {message}", args.file.display())),
+    };
+    if let Some(output) = &args.output
+        && let Err(error) = bvhc::loader::write_atomic(output, &records)
+    {
+        return fail(Exit::Io, error);
+    }
+    let rays_per_second = if seconds > 0.0 { rays.len() as f64 / seconds } else { 0.0 };
+    let text = if args.json {
+        let report = serde_json::json!({
+            "file": args.file,
+            "rays": rays.len(),
+            "hits": hits,
+            "any_hit": args.any_hit,
+            "coherent": args.coherent,
+            "device": device,
+            "threads": rayon::current_num_threads(),
+            "seconds": seconds,
+            "rays_per_second": rays_per_second,
+        });
+        format!("{report:#}\n")
+    } else {
+        format!(
+            "{}: {} rays, {hits} hit ({}), {seconds:.3} s tracing, {:.2} Mrays/s on {device}\n",
+            args.rays.display(),
+            rays.len(),
+            if args.any_hit { "any hit" } else { "closest hit" },
+            rays_per_second / 1e6,
+        )
+    };
+    print(&text, Exit::Success)
+}
+
+/// What a trace produced: the output records, the hits, the seconds of tracing, and what traced them.
+struct Traced {
+    records: Vec<u8>,
+    hits: usize,
+    seconds: f64,
+    device: String,
+}
+
+/// The records of `rays` traced by the loader's default CPU kernel on the thread pool.
+fn trace_on_cpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], args: &TraceArgs) -> Traced {
     let tracer = view.tracer();
     let start = Instant::now();
     let (records, hits): (Vec<u8>, usize) = if args.any_hit {
@@ -116,35 +166,32 @@ pub fn trace(args: &TraceArgs) -> Exit {
         (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
     };
     let seconds = start.elapsed().as_secs_f64();
-    if let Some(output) = &args.output
-        && let Err(error) = bvhc::loader::write_atomic(output, &records)
-    {
-        return fail(Exit::Io, error);
-    }
-    let rays_per_second = if seconds > 0.0 { rays.len() as f64 / seconds } else { 0.0 };
-    let text = if args.json {
-        let report = serde_json::json!({
-            "file": args.file,
-            "rays": rays.len(),
-            "hits": hits,
-            "any_hit": args.any_hit,
-            "coherent": args.coherent,
-            "threads": rayon::current_num_threads(),
-            "seconds": seconds,
-            "rays_per_second": rays_per_second,
-        });
-        format!("{report:#}\n")
+    Traced { records, hits, seconds, device: format!("{} threads", rayon::current_num_threads()) }
+}
+
+/// The records of `rays` traced by the loader's WGSL kernel on the first wgpu adapter; the seconds count the
+/// dispatches and readbacks, not the upload of the sections.
+fn trace_on_gpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], any_hit: bool) -> Result<Traced, (Exit, String)> {
+    use bvhc::loader::{GpuError, GpuTracer};
+    let tracer = GpuTracer::new(view).map_err(|e| match e {
+        GpuError::NoGpuSections => (Exit::InvalidInput, e.to_string()),
+        _ => (Exit::Io, e.to_string()),
+    })?;
+    let device = tracer.adapter_info().map_or("a GPU".to_string(), |a| format!("{} ({:?})", a.name, a.backend));
+    let trace = tracer.trace(rays, any_hit).map_err(|e| (Exit::Io, e.to_string()))?;
+    let (triangles, ids) = (view.triangles(), view.triangle_ids());
+    let (records, hits): (Vec<u8>, usize) = if any_hit {
+        let occluded: Vec<u8> =
+            trace.records.iter().map(|r| u8::from(r.triangle != bvhc::loader::gpu_shader::GPU_NO_HIT)).collect();
+        let hits = occluded.iter().filter(|&&o| o == 1).count();
+        (occluded, hits)
     } else {
-        format!(
-            "{}: {} rays, {hits} hit ({}), {seconds:.3} s tracing, {:.2} Mrays/s on {} threads\n",
-            args.rays.display(),
-            rays.len(),
-            if args.any_hit { "any hit" } else { "closest hit" },
-            rays_per_second / 1e6,
-            rayon::current_num_threads()
-        )
+        let found: Vec<Option<Hit>> =
+            rays.iter().zip(&trace.records).map(|(ray, r)| r.to_hit(ray, triangles, ids)).collect();
+        let hits = found.iter().filter(|h| h.is_some()).count();
+        (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
     };
-    print(&text, Exit::Success)
+    Ok(Traced { records, hits, seconds: trace.seconds, device })
 }
 
 /// The ray file's bytes: a regular file only.

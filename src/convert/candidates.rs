@@ -12,7 +12,7 @@ use super::report::{CandidateCost, Choice, ConvertError, Event, Stage, Timings};
 use crate::build_tree::BuildTree;
 use crate::builders::sbvh::{SbvhParams, build_sbvh};
 use crate::builders::split_triangles_with;
-use crate::layout::{WideCosts, WideTree, cluster_roots};
+use crate::layout::{WideCosts, WideTree, cluster_roots, collapse, collapse_references};
 use crate::optimize::{OptTree, OptimizeReport, Progress, StopReason, optimize, optimize_over_clusters};
 use crate::options::preset::CLUSTER_SIZE;
 use crate::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};
@@ -21,6 +21,8 @@ use crate::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, Sp
 pub(super) struct Candidate {
     pub final_tree: BuildTree,
     pub wide_tree: Option<(WideTree, WideCosts)>,
+    /// The GPU layout's collapse (leaves of at most 3), when the options write it.
+    pub gpu_tree: Option<WideTree>,
     /// The references the tree was built over.
     pub reference_count: usize,
     pub optimization: Option<OptimizeReport>,
@@ -159,10 +161,18 @@ fn optimize_and_merge(
     let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH);
     let repeats = reference_count > triangle_count;
-    let (final_tree, wide_tree) = merge_and_collapse(&tree, options, triangle_count, repeats);
+    let ((final_tree, wide_tree), gpu_tree) = rayon::join(
+        || merge_and_collapse(&tree, options, triangle_count, repeats),
+        || {
+            options.gpu.map(|gpu| match repeats {
+                true => collapse_references(&tree, &gpu.wide_costs()),
+                false => collapse(&tree, &gpu.wide_costs()),
+            })
+        },
+    );
     drop(tree);
     timings.merge += lap(clock);
-    Candidate { final_tree, wide_tree, reference_count, optimization }
+    Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization }
 }
 
 /// The merge stage of a conversion: [`crate::layout::merge_and_collapse`] with the options' leaf size and

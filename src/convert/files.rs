@@ -62,6 +62,7 @@ pub fn is_up_to_date(output: &Path, main_input: &Path, build: &BuildRecord) -> b
         !build["wide"].is_null(),
         build["write_source_vertices"] == true,
         metadata["two_level"].is_object(),
+        build["gpu"].is_object(),
     );
     let version = format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR);
     if metadata["format_version"] != Value::String(version) || metadata["build"] != build {

@@ -13,7 +13,7 @@ use super::report::{Choice, WideSummary};
 use crate::builders::Builder;
 use crate::cost::SahCost;
 use crate::import::{ImportReport, Instancing, SceneSelector};
-use crate::layout::WideCosts;
+use crate::layout::{GpuCosts, WideCosts};
 use crate::optimize::OptimizeParams;
 use crate::options::{ConvertOptions, LeafMerge, OptimizeOver, Preset, SplitOptions};
 
@@ -121,6 +121,9 @@ pub struct BuildRecord {
     splits: Option<SplitOptions>,
     /// `null` without wide sections.
     wide: Option<WideCosts>,
+    /// Absent without GPU sections.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    gpu: Option<GpuCosts>,
     write_ids: bool,
     write_source_vertices: bool,
 }
@@ -155,6 +158,7 @@ impl BuildRecord {
             skip_optimization: options.reinsertion.is_none(),
             splits: options.splits,
             wide: options.wide,
+            gpu: options.gpu,
             write_ids: options.write_ids,
             write_source_vertices: options.write_source_vertices,
         }

@@ -18,7 +18,7 @@ use crate::cost::SahCost;
 use crate::fallible::{collect_exact, probe};
 use crate::optimize::OptimizeReport;
 use crate::options::ConvertOptions;
-use crate::pack::{PackedTree, pack, pack_wide};
+use crate::pack::{GpuLayout, PackedTree, pack, pack_gpu, pack_wide};
 
 /// Address space a worker thread may take when it first allocates, for the probe before the build: glibc's
 /// malloc reserves 64 MiB for each thread's arena, and a thread's stack is 8 MiB. Only reserved, never touched,
@@ -50,6 +50,8 @@ pub(super) struct PackedPart {
     pub source_vertices: Vec<SourceVertexIndices>,
     /// The wide sections and their summary, with the options' wide layout.
     pub wide: Option<(WideBvh, WideSummary)>,
+    /// The GPU sections (format 1.4), with the options' GPU layout.
+    pub gpu: Option<GpuLayout>,
     /// The binary tree's SAH cost.
     pub cost: SahCost,
     /// The part's triangles (distinct; some stored more than once with split references).
@@ -74,7 +76,7 @@ pub(super) fn build_part(
     timings: &mut Timings,
 ) -> Result<PackedPart, ConvertError> {
     let (candidate, choice) = best_candidate(input, &triangles, options, observer, timings)?;
-    let Candidate { final_tree, wide_tree, reference_count, optimization } = candidate;
+    let Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization } = candidate;
     let over_references = reference_count > triangles.len();
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
@@ -122,8 +124,21 @@ pub(super) fn build_part(
         }
         None => None,
     };
+    let gpu = match gpu_tree {
+        Some(gpu_tree) => {
+            let split = stored_triangle_count > triangle_count;
+            let file_index_of = packed.file_index_of(triangle_count).map_err(|e| out_of_memory(input, "packing", e))?;
+            let record_of = |t: u32| file_index_of.get(t as usize).copied();
+            Some(
+                pack_gpu(&gpu_tree, &packed.triangles, &record_of, split)
+                    .map_err(|e| out_of_memory(input, "packing", e))?,
+            )
+        }
+        None => None,
+    };
     timings.pack += lap(clock);
     Ok(PackedPart {
+        gpu,
         packed,
         source_ids: mapped_ids,
         source_vertices: mapped_vertices,

@@ -13,7 +13,7 @@ use super::candidates::lap;
 use super::files::{input_entries, refuse_output_among};
 use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord, WideRecord};
 use super::part::{PackedPart, build_part, probe_working_set};
-use super::report::{ConvertError, ConvertReport, Event, Stage, Timings};
+use super::report::{ConvertError, ConvertReport, Event, GpuSummary, Stage, Timings};
 use super::write::{stream, verify_and_commit};
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES};
 use crate::import::{Instancing, SceneFormat, TriangleSoup, import_for_peak};
@@ -72,6 +72,7 @@ pub fn convert_with(
         source_ids,
         source_vertices,
         wide,
+        gpu,
         cost,
         triangle_count,
         reference_count,
@@ -83,7 +84,8 @@ pub fn convert_with(
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);
-    let minor = bvhc_loader::format::written_minor(summary.is_some(), options.write_source_vertices, false);
+    let minor =
+        bvhc_loader::format::written_minor(summary.is_some(), options.write_source_vertices, false, gpu.is_some());
     let metadata = Metadata {
         generator: concat!("bvhc ", env!("CARGO_PKG_VERSION")),
         format_version: format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR),
@@ -108,10 +110,16 @@ pub fn convert_with(
     if let Some((bvh, _)) = &wide {
         writer = writer.wide(bvh.nodes(), bvh.packets());
     }
+    if let Some(layout) = &gpu {
+        writer = writer.gpu(&layout.nodes, &layout.triangles);
+    }
     let (atomic, file_byte_len) = stream(&writer, output)?;
     let node_count = packed.nodes.len();
+    let gpu_summary = gpu
+        .as_ref()
+        .map(|layout| GpuSummary { node_count: layout.nodes.len(), triangle_count: layout.triangles.len() });
     drop(writer);
-    drop((packed, wide, source_ids, source_vertices));
+    drop((packed, wide, gpu, source_ids, source_vertices));
     verify_and_commit(atomic, input)?;
     timings.write = lap(clock);
     Ok(ConvertReport {
@@ -125,6 +133,7 @@ pub fn convert_with(
         stored_triangle_count,
         node_count,
         wide: summary,
+        gpu: gpu_summary,
         file_byte_len: file_byte_len as usize,
         timings,
         choice,

@@ -33,6 +33,8 @@ pub struct ConvertReport {
     pub node_count: usize,
     /// Wide nodes and triangle packets written (absent without wide sections).
     pub wide: Option<WideSummary>,
+    /// GPU nodes and triangles written (absent without GPU sections).
+    pub gpu: Option<GpuSummary>,
     /// Bytes written.
     pub file_byte_len: usize,
     /// Seconds per stage: import, build, optimize, merge, pack, write.
@@ -67,6 +69,23 @@ pub struct WideSummary {
     /// The wide tree's cost under the collapse's constants ([`crate::layout::WideTree::cost`]; of a two-level
     /// file: its largest mesh's).
     pub cost: f64,
+}
+
+/// The GPU sections of a conversion (format 1.4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct GpuSummary {
+    /// Elements of `gpu_nodes`.
+    pub node_count: usize,
+    /// Elements of `gpu_triangles`.
+    pub triangle_count: usize,
+}
+
+impl GpuSummary {
+    /// The two sections' bytes.
+    pub fn byte_len(&self) -> usize {
+        self.node_count * size_of::<bvhc_loader::format::GpuNode>()
+            + self.triangle_count * size_of::<bvhc_loader::format::GpuTriangle>()
+    }
 }
 
 /// Seconds spent per stage.

@@ -21,7 +21,7 @@ use super::write::{stream, verify_and_commit};
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES};
 use crate::import::{Import, TriangleSoup};
 use crate::instancing::{PackedMesh, Placement, TwoLevelScene};
-use crate::options::ConvertOptions;
+use crate::options::{ConvertOptions, OptionsError};
 
 /// The identity placement of the flattened part.
 const IDENTITY: bvhc_loader::Affine3x4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
@@ -35,6 +35,14 @@ pub(super) fn convert_two_level(
     mut timings: Timings,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
 ) -> Result<ConvertReport, ConvertError> {
+    if options.gpu.is_some() {
+        return Err(OptionsError::inert(
+            "--gpu-layout",
+            "instanced meshes (a two-level file)",
+            "the GPU sections of format 1.4 are for one-level files; add --instancing never",
+        )
+        .into());
+    }
     let Import { soup, files_read, report, instanced, .. } = imported;
     let peak_bytes_per_triangle =
         if options.candidate_count() > 1 { BYTES_PER_TRIANGLE_WITH_CANDIDATES } else { BYTES_PER_TRIANGLE };
@@ -89,7 +97,7 @@ pub(super) fn convert_two_level(
     let inputs = input_entries(input, &files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let wide = options.wide.map(|_| WideRecord::counts(scene.wide_nodes.len(), scene.packets.len()));
-    let minor = bvhc_loader::format::written_minor(wide.is_some(), options.write_source_vertices, true);
+    let minor = bvhc_loader::format::written_minor(wide.is_some(), options.write_source_vertices, true, false);
     let summary = TwoLevelSummary {
         mesh_count: scene.meshes.len(),
         instance_count: scene.instances.len(),
@@ -153,6 +161,7 @@ pub(super) fn convert_two_level(
         stored_triangle_count,
         node_count,
         wide: wide_summary,
+        gpu: None,
         file_byte_len: file_byte_len as usize,
         timings,
         choice: None,

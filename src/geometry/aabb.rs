@@ -40,6 +40,13 @@ impl Aabb {
         }
     }
 
+    /// The part of this box inside `clip` (f32 min/max, exact), or [`Aabb::EMPTY`] where they do not overlap.
+    pub fn clipped_to(&self, clip: &Aabb) -> Aabb {
+        let min: [f32; 3] = std::array::from_fn(|a| self.min[a].max(clip.min[a]));
+        let max: [f32; 3] = std::array::from_fn(|a| self.max[a].min(clip.max[a]));
+        if (0..3).all(|a| min[a] <= max[a]) { Aabb { min, max } } else { Aabb::EMPTY }
+    }
+
     /// Whether `other` lies inside this box (boundaries included).
     pub fn contains(&self, other: &Aabb) -> bool {
         (0..3).all(|a| self.min[a] <= other.min[a] && other.max[a] <= self.max[a])

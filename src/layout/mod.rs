@@ -11,7 +11,7 @@ pub mod wide_tree;
 
 pub use collapse::{collapse, collapse_references};
 pub use merge::{cluster_roots, merge_leaves, merge_leaves_of_references, merged_nodes};
-pub use wide_tree::{WideChild, WideCosts, WideNode, WideTree};
+pub use wide_tree::{GpuCosts, WideChild, WideCosts, WideNode, WideTree};
 
 use crate::build_tree::BuildTree;
 use crate::cost::SahConstants;

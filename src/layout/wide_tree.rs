@@ -93,3 +93,36 @@ impl WideCosts {
         self.packet_test * count.div_ceil(self.packet_width.max(1)) as f64
     }
 }
+
+/// The GPU layout's collapse (format 1.4): 8-wide, triangles tested one at a time, leaves of at most 3 (the
+/// compressed node's unary count), and the two costs of the GPU kernel that the dynamic program minimizes.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct GpuCosts {
+    /// Most triangles in one leaf, 1 to 3.
+    pub max_leaf_size: usize,
+    /// Cost of visiting one compressed node (decoding and testing its eight boxes).
+    pub node_visit: f64,
+    /// Cost of testing one triangle.
+    pub triangle_test: f64,
+}
+
+impl Default for GpuCosts {
+    /// Leaves of up to 3 triangles as in Ylitie et al. (2017), and a triangle test at 0.3 of a node visit
+    /// (`docs/gpu.md` compares the ratios on the GPU kernel's node visits and bytes read).
+    fn default() -> Self {
+        GpuCosts { max_leaf_size: 3, node_visit: 1.0, triangle_test: 0.3 }
+    }
+}
+
+impl GpuCosts {
+    /// The collapse's parameters for these costs.
+    pub fn wide_costs(&self) -> WideCosts {
+        WideCosts {
+            width: 8,
+            packet_width: 1,
+            max_leaf_size: self.max_leaf_size,
+            node_visit: self.node_visit,
+            packet_test: self.triangle_test,
+        }
+    }
+}

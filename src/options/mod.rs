@@ -14,7 +14,7 @@ pub use resolve::{OptionsError, Overrides, resolve};
 use crate::builders::Builder;
 use crate::builders::{MAX_BUDGET, WASTEFUL_RATIO_PRE_SPLIT, WASTEFUL_RATIO_SBVH};
 use crate::import::ImportOptions;
-use crate::layout::WideCosts;
+use crate::layout::{GpuCosts, WideCosts};
 use crate::optimize::OptimizeParams;
 
 /// Everything a conversion does, resolved and checked; [`ConvertOptions::preset`] (or [`resolve`] with
@@ -38,6 +38,9 @@ pub struct ConvertOptions {
     pub leaves: LeafMerge,
     /// Write the wide sections of format 1.1, collapsed with these constants; `None` writes a 1.0 file.
     pub wide: Option<WideCosts>,
+    /// Write the GPU sections of format 1.4 (compressed 8-wide nodes and their leaf triangles), collapsed with
+    /// these constants; `None` writes none.
+    pub gpu: Option<GpuCosts>,
     /// Write the triangle_ids and source_table sections.
     pub write_ids: bool,
     /// Write the source_vertices section of format 1.2 (each triangle's vertex indices in its source
@@ -100,6 +103,19 @@ impl ConvertOptions {
                 && wide.packet_test > 0.0;
             if !fits {
                 return Err(OptionsError::invalid("wide", format!("{wide:?} does not fit the 8-wide layout")));
+            }
+        }
+        if let Some(gpu) = self.gpu {
+            let fits = (1..=3).contains(&gpu.max_leaf_size) && gpu.node_visit > 0.0 && gpu.triangle_test > 0.0;
+            if !fits {
+                return Err(OptionsError::invalid("gpu", format!("{gpu:?} does not fit the GPU layout")));
+            }
+            if self.import.instancing == crate::import::Instancing::Always {
+                return Err(OptionsError::inert(
+                    "--gpu-layout",
+                    "--instancing always",
+                    "the GPU sections of format 1.4 are for one-level files; drop one of them",
+                ));
             }
         }
         Ok(())

@@ -100,6 +100,7 @@ impl Preset {
             reinsertion: Some(self.reinsertion()),
             leaves: LeafMerge::UpTo(MAX_LEAF_SIZE),
             wide: Some(WideCosts::default()),
+            gpu: None,
             write_ids: true,
             write_source_vertices: true,
         }

@@ -47,6 +47,8 @@ pub struct Overrides {
     pub max_leaf_size: Option<usize>,
     /// Output: write the wide sections.
     pub wide: Option<bool>,
+    /// Output: write the GPU sections (format 1.4).
+    pub gpu_layout: Option<bool>,
     /// Output: write the triangle_ids and source_table sections.
     pub write_ids: Option<bool>,
     /// Output: write the source_vertices section (needs the ids; leaving the ids out leaves it out too).
@@ -115,6 +117,9 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
         options.wide = None;
     } else if o.wide == Some(true) {
         options.wide = Some(options.wide.unwrap_or_default());
+    }
+    if let Some(gpu_layout) = o.gpu_layout {
+        options.gpu = gpu_layout.then(|| options.gpu.unwrap_or_default());
     }
     options.write_ids = o.write_ids.unwrap_or(options.write_ids);
     if o.write_source_vertices == Some(false) && o.write_ids == Some(false) {

@@ -17,6 +17,7 @@ int main(int argc, char **argv) {
            sizeof(BvhSectionEntry), sizeof(BvhPackedNode), sizeof(BvhPackedTriangle));
     printf("sizeof_source_range %zu\nsizeof_wide_node %zu\nsizeof_packet %zu\n", sizeof(BvhSourceRange),
            sizeof(BvhWideNode8), sizeof(BvhTrianglePacket4));
+    printf("sizeof_gpu_node %zu\nsizeof_gpu_triangle %zu\n", sizeof(BvhGpuNode), sizeof(BvhGpuTriangle));
     if (argc < 2) return 0;
     FILE *f = fopen(argv[1], "rb");
     if (!f) return fail("cannot open the file");
@@ -41,6 +42,8 @@ int main(int argc, char **argv) {
     const BvhPackedNode *nodes = NULL;
     uint64_t node_count = 0, triangle_count = 0, wide_count = 0, packet_count = 0;
     const BvhWideNode8 *wide = NULL;
+    const BvhGpuNode *gpu = NULL;
+    uint64_t gpu_count = 0, gpu_triangle_count = 0;
     for (uint32_t i = 0; i < header->section_count; i++) {
         const BvhSectionEntry *e =
             (const BvhSectionEntry *)(bytes + BVH_HEADER_BYTE_LEN + (uint64_t)i * header->section_entry_byte_len);
@@ -71,6 +74,15 @@ int main(int argc, char **argv) {
             if (e->element_byte_len != sizeof(BvhTrianglePacket4)) return fail("V9: packet size");
             packet_count = e->element_count;
             break;
+        case BVH_KIND_GPU_NODES:
+            if (e->element_byte_len != sizeof(BvhGpuNode)) return fail("V9: GPU node size");
+            gpu = data;
+            gpu_count = e->element_count;
+            break;
+        case BVH_KIND_GPU_TRIANGLES:
+            if (e->element_byte_len != sizeof(BvhGpuTriangle)) return fail("V9: GPU triangle size");
+            gpu_triangle_count = e->element_count;
+            break;
         default:
             break;
         }
@@ -87,6 +99,17 @@ int main(int argc, char **argv) {
         for (int s = 0; s < BVH_WIDE && wide[n].child[s] != BVH_EMPTY_SLOT; s++)
             if (wide[n].child[s] & BVH_LEAF_BIT) leaf_packets += BVH_LEAF_PACKET_COUNT(wide[n].child[s]);
     printf("leaf_packets %llu\n", (unsigned long long)leaf_packets);
+    uint64_t gpu_leaf_triangles = 0, gpu_inner = 0;
+    for (uint64_t n = 0; n < gpu_count; n++)
+        for (unsigned s = 0; s < 8; s++) {
+            uint8_t meta = gpu[n].meta[s];
+            if (meta == BVH_GPU_INNER_META(s)) gpu_inner++;
+            else if (meta != 0) gpu_leaf_triangles += BVH_GPU_LEAF_COUNT(meta);
+        }
+    printf("gpu_node_count %llu\ngpu_triangle_count %llu\n", (unsigned long long)gpu_count,
+           (unsigned long long)gpu_triangle_count);
+    printf("gpu_inner_slots %llu\ngpu_leaf_triangles %llu\n", (unsigned long long)gpu_inner,
+           (unsigned long long)gpu_leaf_triangles);
     free(words);
     return 0;
 }

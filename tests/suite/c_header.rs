@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use bvhc::loader::format::{GpuNode, GpuSlot, GpuTriangle};
 use bvhc::loader::{BvhFile, PackedNode, PackedTriangle, SourceRange, TrianglePacket4, WideNode8};
 
 fn repository() -> &'static Path {
@@ -62,16 +63,23 @@ fn the_c_header_compiles_and_reads_the_golden_files_as_the_rust_reader_does() {
         ("sizeof_source_range", size_of::<SourceRange>()),
         ("sizeof_wide_node", size_of::<WideNode8>()),
         ("sizeof_packet", size_of::<TrianglePacket4>()),
+        ("sizeof_gpu_node", size_of::<GpuNode>()),
+        ("sizeof_gpu_triangle", size_of::<GpuTriangle>()),
     ];
     let expected_sizes: Vec<(String, String)> =
         expected_sizes.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
     assert_eq!(sizes, expected_sizes);
-    for name in ["quad-v1.0.bvh", "quad-v1.1.bvh", "split-v1.1.bvh"] {
+    for name in ["quad-v1.0.bvh", "quad-v1.1.bvh", "split-v1.1.bvh", "gpu-v1.4.bvh"] {
         let path = repository().join("fixtures/golden").join(name);
         let file = BvhFile::read(&path).unwrap();
         let view = file.view();
         let (major, minor) = view.version();
         let wide = view.wide_sections();
+        let gpu = view.gpu_sections();
+        let slots = || gpu.iter().flat_map(|g| g.nodes.iter().flat_map(|n| (0..8).map(move |s| n.slot(s))));
+        let gpu_slots = |keep: fn(&GpuSlot) -> bool| slots().filter(keep).count();
+        let gpu_slots_sum =
+            || slots().map(|s| if let GpuSlot::Leaf { count, .. } = s { count } else { 0 }).sum::<u32>();
         let leaf_packets: u32 = wide
             .iter()
             .flat_map(|w| w.nodes.iter().flat_map(|n| n.child))
@@ -87,6 +95,10 @@ fn the_c_header_compiles_and_reads_the_golden_files_as_the_rust_reader_does() {
             ("packet_count", wide.map_or(0, |w| w.packets.len()).to_string()),
             ("leaf_count", view.nodes().iter().filter(|n| n.is_leaf()).count().to_string()),
             ("leaf_packets", leaf_packets.to_string()),
+            ("gpu_node_count", gpu.map_or(0, |g| g.nodes.len()).to_string()),
+            ("gpu_triangle_count", gpu.map_or(0, |g| g.triangles.len()).to_string()),
+            ("gpu_inner_slots", gpu_slots(|s| matches!(s, GpuSlot::Inner(_))).to_string()),
+            ("gpu_leaf_triangles", gpu_slots_sum().to_string()),
         ];
         let found: Vec<(String, String)> = read(&binary, Some(&path)).into_iter().skip(sizes.len()).collect();
         let expected: Vec<(String, String)> = expected.into_iter().map(|(k, v)| (k.to_string(), v)).collect();

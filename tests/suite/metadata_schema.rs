@@ -32,6 +32,11 @@ fn every_written_file_matches_the_metadata_schema() {
     for preset in Preset::ALL {
         convert_and_check(&teapot, &ConvertOptions::preset(preset));
     }
+    // The GPU sections of 1.4 and their `build.gpu` key.
+    let gpu = ConvertOptions { gpu: Some(bvhc::layout::GpuCosts::default()), ..ConvertOptions::default() };
+    let metadata = convert_and_check(&teapot, &gpu);
+    assert_eq!(metadata["format_version"], "1.4");
+    assert_eq!(metadata["build"]["gpu"]["max_leaf_size"], 3);
     let mut options = ConvertOptions::preset(Preset::Fast);
     options.builder = Builder::SpatialMedian;
     options.leaves = LeafMerge::Off;

@@ -35,12 +35,12 @@ const T_RELATIVE_ERROR: f64 = 1e-5;
 /// scene): the kernel works on `v - o` rounded to f32, so hits near an edge may be off by a few ulps of them.
 const FALSE_HIT_TOLERANCE: f64 = 4.0 * f32::EPSILON as f64;
 
-struct Case {
-    name: String,
-    triangles: Vec<Triangle>,
-    rays: Vec<Ray>,
+pub(crate) struct Case {
+    pub name: String,
+    pub triangles: Vec<Triangle>,
+    pub rays: Vec<Ray>,
     /// Rays that must hit (from inside a closed mesh).
-    must_hit: bool,
+    pub must_hit: bool,
 }
 
 #[derive(Default)]
@@ -314,8 +314,8 @@ fn run_case(case: &Case) -> Counts {
     counts
 }
 
-#[test]
-fn stability_under_stress() {
+/// Every stress case (also traced by the GPU kernels: `gpu_layout`, `gpu_shader`).
+pub(crate) fn stress_cases() -> Vec<Case> {
     let mut cases = vec![sphere_case("closed sphere at the origin (1,280 triangles)", 1.0, 0.0)];
     for offset in [1e4, 1e5, 1e6, 1e7] {
         cases.push(sphere_case(&format!("closed sphere, radius 1e3, at offset {offset:e}"), 1e3, offset));
@@ -324,6 +324,12 @@ fn stability_under_stress() {
         cases.push(sphere_case(&format!("closed sphere, radius {scale:e}"), scale, 0.0));
     }
     cases.extend([walls_case(), degenerate_case(), ray_length_case()]);
+    cases
+}
+
+#[test]
+fn stability_under_stress() {
+    let cases = stress_cases();
     println!("\n| case | rays | hits | misses | false hits | worst relative t error |\n|---|---|---|---|---|---|");
     let mut failures = Vec::new();
     for case in &cases {

@@ -108,11 +108,23 @@ pub enum Rule {
     MeshPlaced,
     /// V46: the wide top tree is well formed, every instance in exactly one leaf slot, boxes conservative.
     TopWideTree,
+    /// V47: the GPU nodes form one tree laid out breadth first, with meta bytes that agree with the inner masks
+    /// and leaves that tile the GPU triangles, no deeper than 64.
+    GpuTreeShape,
+    /// V48: every decoded GPU slot box is finite, ordered, free of subnormals and contains the decoded boxes of
+    /// its child node's slots.
+    GpuBox,
+    /// V49: every GPU triangle repeats its record's vertices, and every triangle is reachable (exactly once
+    /// without split references).
+    GpuTriangles,
+    /// V50: every GPU leaf's triangles lie inside its decoded box (with split references: overlap it, and the
+    /// leaves of a triangle cover it).
+    GpuLeafBox,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 46] = [
+    pub const ALL: [Rule; 50] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -159,6 +171,10 @@ impl Rule {
         Rule::InstanceBox,
         Rule::MeshPlaced,
         Rule::TopWideTree,
+        Rule::GpuTreeShape,
+        Rule::GpuBox,
+        Rule::GpuTriangles,
+        Rule::GpuLeafBox,
     ];
 
     /// The rule's number in the spec (1 for V1).

@@ -17,13 +17,20 @@ pub const MAGIC: [u8; 8] = *b"\x89BVHC\r\n\x1a";
 pub const VERSION_MAJOR: u16 = 1;
 /// Highest minor version this crate reads knowingly and writes. Readers accept any minor version of their
 /// major version.
-pub const VERSION_MINOR: u16 = 3;
+pub const VERSION_MINOR: u16 = 4;
 
-/// The minor version a writer stores: the lowest whose features the file uses (1.3 for the two-level sections,
-/// 1.2 for the `source_vertices` section, 1.1 for the wide sections, otherwise 1.0, so files without them stay
-/// readable as 1.0 byte for byte).
-pub const fn written_minor(has_wide_sections: bool, has_source_vertices: bool, has_instances: bool) -> u16 {
-    if has_instances {
+/// The minor version a writer stores: the lowest whose features the file uses (1.4 for the GPU sections, 1.3 for
+/// the two-level sections, 1.2 for the `source_vertices` section, 1.1 for the wide sections, otherwise 1.0, so
+/// files without them stay readable as 1.0 byte for byte).
+pub const fn written_minor(
+    has_wide_sections: bool,
+    has_source_vertices: bool,
+    has_instances: bool,
+    has_gpu_sections: bool,
+) -> u16 {
+    if has_gpu_sections {
+        4
+    } else if has_instances {
         3
     } else if has_source_vertices {
         2
@@ -57,6 +64,10 @@ pub const SECTION_FLAG_SPLIT_REFERENCES: u32 = 1 << 1;
 /// Marks an absent field in a [`SourceRange`] (for example the node of an OBJ group).
 pub const NO_INDEX: u32 = u32::MAX;
 
+pub use crate::format_gpu::{
+    GPU_MAX_DEPTH, GPU_MAX_LEAF_TRIANGLES, GPU_MAX_NODE_TRIANGLES, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, inner_meta,
+    leaf_meta,
+};
 pub use crate::format_instances::{
     Affine3x4, INSTANCE_BOX_PADDING, INVERSE_TOLERANCE, InstanceRecord, MIN_ORTHOGONALITY, MeshRecord,
 };
@@ -93,11 +104,15 @@ pub enum SectionKind {
     /// The top-level tree in the 8-wide layout ([`WideNode8`]s whose leaf slots hold one instance each),
     /// optional, since 1.3; in a two-level file exactly when it has the wide sections.
     TopWideNodes,
+    /// Compressed 8-wide nodes for GPU traversal ([`GpuNode`]), optional, since 1.4; comes with `GpuTriangles`.
+    GpuNodes,
+    /// The GPU nodes' leaf triangles with their vertices ([`GpuTriangle`]), optional, since 1.4.
+    GpuTriangles,
 }
 
 impl SectionKind {
     /// Every kind defined by this version, in the order the writer stores them.
-    pub const ALL: [SectionKind; 12] = [
+    pub const ALL: [SectionKind; 14] = [
         SectionKind::Nodes,
         SectionKind::Triangles,
         SectionKind::TriangleIds,
@@ -110,6 +125,8 @@ impl SectionKind {
         SectionKind::Instances,
         SectionKind::TopNodes,
         SectionKind::TopWideNodes,
+        SectionKind::GpuNodes,
+        SectionKind::GpuTriangles,
     ];
 
     /// The `kind` value stored in the section table.
@@ -127,6 +144,8 @@ impl SectionKind {
             SectionKind::Instances => 10,
             SectionKind::TopNodes => 11,
             SectionKind::TopWideNodes => 12,
+            SectionKind::GpuNodes => 13,
+            SectionKind::GpuTriangles => 14,
         }
     }
 
@@ -145,6 +164,8 @@ impl SectionKind {
             10 => Some(SectionKind::Instances),
             11 => Some(SectionKind::TopNodes),
             12 => Some(SectionKind::TopWideNodes),
+            13 => Some(SectionKind::GpuNodes),
+            14 => Some(SectionKind::GpuTriangles),
             _ => None,
         }
     }
@@ -164,6 +185,8 @@ impl SectionKind {
             SectionKind::Instances => size_of::<InstanceRecord>() as u32,
             SectionKind::TopNodes => size_of::<PackedNode>() as u32,
             SectionKind::TopWideNodes => size_of::<WideNode8>() as u32,
+            SectionKind::GpuNodes => size_of::<GpuNode>() as u32,
+            SectionKind::GpuTriangles => size_of::<GpuTriangle>() as u32,
         }
     }
 
@@ -173,6 +196,7 @@ impl SectionKind {
             SectionKind::WideNodes | SectionKind::TrianglePackets => 1,
             SectionKind::SourceVertices => 2,
             SectionKind::Meshes | SectionKind::Instances | SectionKind::TopNodes | SectionKind::TopWideNodes => 3,
+            SectionKind::GpuNodes | SectionKind::GpuTriangles => 4,
             _ => 0,
         }
     }
@@ -213,6 +237,8 @@ impl SectionKind {
             SectionKind::Instances => "instances",
             SectionKind::TopNodes => "top_nodes",
             SectionKind::TopWideNodes => "top_wide_nodes",
+            SectionKind::GpuNodes => "gpu_nodes",
+            SectionKind::GpuTriangles => "gpu_triangles",
         }
     }
 }

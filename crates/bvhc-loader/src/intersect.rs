@@ -187,10 +187,26 @@ impl PreparedRay {
     /// The watertight test: a hit with `t_min <= t <= t_max`, from either side of the triangle.
     #[inline(always)]
     pub fn intersect_triangle(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
+        self.intersect_triangle_with::<true>(triangle, t_max)
+    }
+
+    /// The GPU kernel's form of [`PreparedRay::intersect_triangle`]: f32 only, an edge function of exactly 0 kept
+    /// as computed rather than recomputed in f64 (`crate::gpu_layout` says what that changes).
+    #[inline(always)]
+    pub(crate) fn intersect_triangle_f32(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
+        self.intersect_triangle_with::<false>(triangle, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_triangle_with<const F64_EDGES: bool>(
+        &self,
+        triangle: &PackedTriangle,
+        t_max: f32,
+    ) -> Option<TriangleHit> {
         let r = self.relative(triangle);
         let p = sheared(&r, self.sx, self.sy);
         let mut e = edge_functions(p);
-        if has_zero_edge(e, 0.0) {
+        if F64_EDGES && has_zero_edge(e, 0.0) {
             e = edge_functions_f64(p);
         }
         if outside(e, 0.0) {

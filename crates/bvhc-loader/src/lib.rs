@@ -51,7 +51,12 @@ pub mod cost;
 mod error;
 mod file;
 pub mod format;
+mod format_gpu;
 mod format_instances;
+mod gpu_layout;
+pub mod gpu_shader;
+#[cfg(feature = "wgpu")]
+mod gpu_wgpu;
 mod hit;
 mod identity;
 mod instance_transform;
@@ -68,6 +73,7 @@ mod traverse;
 mod uncached;
 mod verify;
 mod verify_consistency;
+mod verify_gpu;
 mod verify_instances;
 mod verify_metadata;
 mod verify_references;
@@ -97,6 +103,9 @@ pub use format::{
     Affine3x4, EMPTY_SLOT, InstanceRecord, LEAF_BIT, MeshRecord, PACKET_LANES, PackedNode, PackedTriangle, SectionKind,
     SourceRange, SourceVertexIndices, TrianglePacket4, WIDE, WideNode8,
 };
+pub use gpu_layout::{GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer};
+#[cfg(feature = "wgpu")]
+pub use gpu_wgpu::{GPU_BATCH_RAYS, GpuError, GpuTrace, GpuTracer};
 pub use hit::{Hit, TraversalCounter, TraversalStats, geometric_normal};
 pub use identity::TriangleIdentities;
 pub use instance_transform::{instance_world_box, transformed_box};
@@ -111,7 +120,7 @@ pub use traverse::{Kernel, Tracer};
 pub use uncached::UncachedWriter;
 pub use verify::PARALLEL_VERIFY_BYTES;
 pub use verify_tree::verify_tree;
-pub use view::{BvhView, WideSections};
+pub use view::{BvhView, GpuSections, WideSections};
 pub use wide::{WideBvh, WideTracer};
 #[cfg(feature = "write")]
 pub use writer::BvhWriter;

@@ -5,7 +5,7 @@
 use crate::error::{Error, Rule, Violation, violation};
 use crate::format::{
     FileHeader, HEADER_BYTE_LEN, MAGIC, MAX_PACKET_COUNT, PACKET_LANES, SECTION_ALIGNMENT, SECTION_ENTRY_BYTE_LEN,
-    SECTION_FLAG_REQUIRED, SectionEntry, SectionKind, VERSION_MAJOR, is_known_minor,
+    SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, VERSION_MAJOR, is_known_minor,
 };
 
 /// One entry of the section table, with its kind decoded when this version defines it.
@@ -83,6 +83,21 @@ pub(crate) fn check_structure(bytes: &[u8]) -> Result<(FileHeader, KnownSections
         return Err(violation(
             Rule::SectionMultiplicity,
             "a top_wide_nodes section comes exactly with a two-level file's wide sections".to_string(),
+        )
+        .into());
+    }
+    let gpu = [SectionKind::GpuNodes, SectionKind::GpuTriangles].map(|k| sections.get(k).is_some());
+    if gpu[0] != gpu[1] {
+        return Err(violation(
+            Rule::SectionMultiplicity,
+            "a file has both gpu_nodes and gpu_triangles sections or neither".to_string(),
+        )
+        .into());
+    }
+    if gpu[0] && two_level[0].is_some() {
+        return Err(violation(
+            Rule::SectionMultiplicity,
+            "gpu_nodes and gpu_triangles are defined for one-level files only (1.4), not with meshes".to_string(),
         )
         .into());
     }
@@ -278,6 +293,11 @@ fn check_counts(sections: &KnownSections) -> Result<(), Violation> {
             ));
         }
     }
+    if let Some(entry) = sections.get(SectionKind::GpuNodes) {
+        let split =
+            sections.get(SectionKind::Triangles).is_some_and(|t| t.section_flags & SECTION_FLAG_SPLIT_REFERENCES != 0);
+        check_gpu_counts(entry.element_count, sections.count(SectionKind::GpuTriangles), triangle_count, split)?;
+    }
     if sections.get(SectionKind::WideNodes).is_some() {
         check_wide_counts(
             sections.count(SectionKind::WideNodes),
@@ -308,6 +328,34 @@ pub(crate) fn check_wide_counts(wide_node_count: u64, packet_count: u64, triangl
             "wide_nodes count {wide_node_count} and triangle_packets count {packet_count} for {triangle_count} \
              triangles: packets must number {min_packets}..={triangle_count} (at most 2^28), wide nodes 1..=packets \
              (none without triangles)"
+        ),
+    ))
+}
+
+/// V10 for the GPU sections (1.4): a root exactly when there are triangles; at least one GPU triangle per
+/// node (every node but the root has two slots or more, and no more leaves than triangles); below 2^32 GPU
+/// triangles; without split references exactly one GPU triangle per record (with them, at least one per
+/// distinct triangle, which V49 checks).
+fn check_gpu_counts(
+    node_count: u64,
+    gpu_triangle_count: u64,
+    triangle_count: u64,
+    split: bool,
+) -> Result<(), Violation> {
+    let ok = (node_count == 0) == (triangle_count == 0)
+        && node_count <= gpu_triangle_count.max(1)
+        && gpu_triangle_count <= u64::from(u32::MAX)
+        && (gpu_triangle_count == triangle_count || (split && gpu_triangle_count > 0))
+        && (gpu_triangle_count == 0) == (triangle_count == 0);
+    if ok {
+        return Ok(());
+    }
+    Err(violation(
+        Rule::Counts,
+        format!(
+            "gpu_nodes count {node_count} and gpu_triangles count {gpu_triangle_count} for {triangle_count} \
+             triangles: GPU triangles must number triangle_count (without SPLIT_REFERENCES) and below 2^32, GPU \
+             nodes 1..=GPU triangles (none without triangles)"
         ),
     ))
 }

@@ -1,8 +1,9 @@
-//! The full verifier: rules V11-V46 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! The full verifier: rules V11-V50 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
 //! V14-V20 (the binary tree) are in `verify_tree`, V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
 //! (the wide sections of 1.1) in `verify_wide`, V36-V39 (the metadata against the file) in
 //! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`, V41-V46 (the two-level
-//! sections of 1.3, and the one-level rules per mesh) in `verify_instances`.
+//! sections of 1.3, and the one-level rules per mesh) in `verify_instances`, V47-V50 (the GPU sections of 1.4) in
+//! `verify_gpu`.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
@@ -18,7 +19,7 @@ use crate::view::{BvhView, section_bytes};
 pub const PARALLEL_VERIFY_BYTES: usize = 64 << 20;
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V46; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V50; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke. A file of
     /// [`PARALLEL_VERIFY_BYTES`] or more has its wide sections (V29-V35, the last rules checked) checked on a
@@ -72,7 +73,7 @@ impl BvhView<'_> {
         }
     }
 
-    /// Rules V11-V28, V40 and V41-V46: everything but the wide sections and the metadata's consistency.
+    /// Rules V11-V28, V40, V41-V46 and V47-V50: everything but the wide sections and the metadata's consistency.
     fn verify_all_but_wide(&self) -> Result<(), Violation> {
         verify_checksums(self)?;
         verify_reserved_and_padding(self)?;
@@ -91,12 +92,22 @@ impl BvhView<'_> {
                 self.has_split_references(),
             )?,
         }
-        match (self.triangle_ids(), self.source_table(), self.source_vertices()) {
-            (Some(ids), Some(table), Some(vertices)) => {
-                let split = self.has_split_references();
-                crate::verify_source_vertices::verify_source_vertices(self.triangles(), ids, table, vertices, split)
+        if let (Some(ids), Some(table), Some(vertices)) =
+            (self.triangle_ids(), self.source_table(), self.source_vertices())
+        {
+            let split = self.has_split_references();
+            crate::verify_source_vertices::verify_source_vertices(self.triangles(), ids, table, vertices, split)?;
+        }
+        match self.gpu_sections() {
+            Some(gpu) => {
+                let context = crate::verify_gpu::GpuContext {
+                    triangles: self.triangles(),
+                    triangle_ids: self.triangle_ids(),
+                    split_references: self.has_split_references(),
+                };
+                crate::verify_gpu::verify_gpu(&gpu, &context)
             }
-            _ => Ok(()),
+            None => Ok(()),
         }
     }
 

@@ -4,7 +4,7 @@
 //!
 //! * V36 counts: `wide.node_count`, `wide.packet_count`, `wide: null`, and the `triangles` object;
 //! * V37 costs: `cost` (section 5.6) and `wide.cost` (section 6.1), recomputed from the file;
-//! * V38 build: `build.wide` and `build.write_ids` against the sections, leaf sizes against `max_leaf_size`;
+//! * V38 build: `build.wide`, `build.gpu` and `build.write_ids` against the sections, leaf sizes against `max_leaf_size`;
 //! * V39 choice: `choice.kept` is the first candidate of lowest cost, and that cost is the file's.
 
 use crate::json::{Map, Value};
@@ -215,6 +215,11 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     {
         let has = if view.source_vertices().is_some() { "has" } else { "has no" };
         return fail(format!("write_source_vertices is {write}, but the file {has} source_vertices section"));
+    }
+    match (build.get("gpu"), view.gpu_sections()) {
+        (Some(Value::Null), Some(_)) => return fail("gpu is null, but the file has GPU sections".into()),
+        (Some(Value::Object(_)), None) => return fail("gpu is an object, but the file has no GPU sections".into()),
+        _ => {}
     }
     let mut identity = TriangleIdentity { view, ids: Vec::new(), records: Vec::new() };
     // Each tree's ranges with the offset of its triangle indices: the file's, or each mesh's (6.2).

@@ -6,8 +6,9 @@
 
 use crate::error::{Error, Rule, Violation, violation};
 use crate::format::{
-    FileHeader, InstanceRecord, MeshRecord, PackedNode, PackedTriangle, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry,
-    SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
+    FileHeader, GpuNode, GpuTriangle, InstanceRecord, MeshRecord, PackedNode, PackedTriangle,
+    SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4,
+    WideNode8,
 };
 use crate::instances::TwoLevelSections;
 use crate::simd::KernelPath;
@@ -30,6 +31,7 @@ pub struct BvhView<'a> {
     source_vertices: Option<&'a [SourceVertexIndices]>,
     metadata: Option<&'a [u8]>,
     wide: Option<WideSections<'a>>,
+    gpu: Option<GpuSections<'a>>,
     two_level: Option<TwoLevelSections<'a>>,
     split_references: bool,
 }
@@ -41,6 +43,16 @@ pub struct WideSections<'a> {
     pub nodes: &'a [WideNode8],
     /// The `triangle_packets` section.
     pub packets: &'a [TrianglePacket4],
+}
+
+/// The GPU sections of a file (format 1.4): the compressed 8-wide nodes and their leaf triangles, which the
+/// WGSL kernel ([`crate::gpu_shader`]) traces; [`crate::GpuLayoutTracer`] traces them on the CPU the same way.
+#[derive(Clone, Copy, Debug)]
+pub struct GpuSections<'a> {
+    /// The `gpu_nodes` section; node 0 is the root.
+    pub nodes: &'a [GpuNode],
+    /// The `gpu_triangles` section, in leaf order.
+    pub triangles: &'a [GpuTriangle],
 }
 
 impl<'a> BvhView<'a> {
@@ -65,6 +77,13 @@ impl<'a> BvhView<'a> {
                 (Some(nodes), Some(packets)) => {
                     Some(WideSections { nodes: cast_section(bytes, &nodes)?, packets: cast_section(bytes, &packets)? })
                 }
+                _ => None,
+            },
+            gpu: match (sections.get(SectionKind::GpuNodes), sections.get(SectionKind::GpuTriangles)) {
+                (Some(nodes), Some(triangles)) => Some(GpuSections {
+                    nodes: cast_section(bytes, &nodes)?,
+                    triangles: cast_section(bytes, &triangles)?,
+                }),
                 _ => None,
             },
             two_level: match (
@@ -166,6 +185,11 @@ impl<'a> BvhView<'a> {
         self.wide
     }
 
+    /// The GPU layout's sections, when the file has them (1.4).
+    pub fn gpu_sections(&self) -> Option<GpuSections<'a>> {
+        self.gpu
+    }
+
     /// The box of the whole scene in world space: the top-level root's in a two-level file, the root node's
     /// otherwise; `None` for an empty file.
     pub fn scene_box(&self) -> Option<([f32; 3], [f32; 3])> {
@@ -241,6 +265,7 @@ impl<'a> BvhView<'a> {
             source_vertices: None,
             metadata: None,
             wide: None,
+            gpu: None,
             two_level: None,
             split_references: false,
         };
@@ -250,6 +275,8 @@ impl<'a> BvhView<'a> {
         let mut instances: Option<&[InstanceRecord]> = None;
         let mut top_nodes: Option<&[PackedNode]> = None;
         let mut top_wide_nodes: &[WideNode8] = &[];
+        let mut gpu_nodes: Option<&[GpuNode]> = None;
+        let mut gpu_triangles: Option<&[GpuTriangle]> = None;
         for info in section_infos(bytes, &header) {
             let entry = &info.entry;
             let start = entry.section_byte_offset as usize;
@@ -281,12 +308,19 @@ impl<'a> BvhView<'a> {
                     Some(SectionKind::Instances) => instances = Some(std::slice::from_raw_parts(base.cast(), len)),
                     Some(SectionKind::TopNodes) => top_nodes = Some(std::slice::from_raw_parts(base.cast(), len)),
                     Some(SectionKind::TopWideNodes) => top_wide_nodes = std::slice::from_raw_parts(base.cast(), len),
-                    None => {}
+                    Some(SectionKind::GpuNodes) => gpu_nodes = Some(std::slice::from_raw_parts(base.cast(), len)),
+                    Some(SectionKind::GpuTriangles) => {
+                        gpu_triangles = Some(std::slice::from_raw_parts(base.cast(), len))
+                    }
+                    _ => {}
                 }
             }
         }
         if let (Some(nodes), Some(packets)) = (wide_nodes, packets) {
             view.wide = Some(WideSections { nodes, packets });
+        }
+        if let (Some(nodes), Some(triangles)) = (gpu_nodes, gpu_triangles) {
+            view.gpu = Some(GpuSections { nodes, triangles });
         }
         if let (Some(meshes), Some(instances), Some(top_nodes)) = (meshes, instances, top_nodes) {
             view.two_level = Some(TwoLevelSections { meshes, instances, top_nodes, top_wide_nodes });

@@ -11,9 +11,9 @@ use crate::checksum::{header_checksum, section_checksum};
 use crate::error::Error;
 use crate::file::{AlignedBuffer, BvhFile};
 use crate::format::{
-    FileHeader, HEADER_BYTE_LEN, MAGIC, PackedNode, PackedTriangle, SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED,
-    SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4,
-    VERSION_MAJOR, WideNode8, align_up, written_minor,
+    FileHeader, GpuNode, GpuTriangle, HEADER_BYTE_LEN, MAGIC, PackedNode, PackedTriangle, SECTION_ENTRY_BYTE_LEN,
+    SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, SourceVertexIndices,
+    TrianglePacket4, VERSION_MAJOR, WideNode8, align_up, written_minor,
 };
 use crate::instances::TwoLevelSections;
 
@@ -28,6 +28,7 @@ pub struct BvhWriter<'a> {
     metadata: Option<&'a str>,
     split_references: bool,
     wide: Option<(&'a [WideNode8], &'a [TrianglePacket4])>,
+    gpu: Option<(&'a [GpuNode], &'a [GpuTriangle])>,
     two_level: Option<TwoLevelSections<'a>>,
     extra_sections: Vec<ExtraSection<'a>>,
 }
@@ -59,6 +60,7 @@ impl<'a> BvhWriter<'a> {
             metadata: None,
             split_references: false,
             wide: None,
+            gpu: None,
             two_level: None,
             extra_sections: Vec::new(),
         }
@@ -103,6 +105,13 @@ impl<'a> BvhWriter<'a> {
         self
     }
 
+    /// Adds the GPU sections (format 1.4): compressed 8-wide nodes and their leaf triangles over the same
+    /// triangles section (`format-spec/bvh-1.md` 5.14-5.15). The file is then written as version 1.4.
+    pub fn gpu(mut self, nodes: &'a [GpuNode], triangles: &'a [GpuTriangle]) -> Self {
+        self.gpu = Some((nodes, triangles));
+        self
+    }
+
     /// Makes the file two-level (format 1.3): the nodes, triangles (and their ids and source vertices) and wide
     /// sections given to the other calls are the meshes' trees laid out as `sections.meshes` says (indices
     /// relative to each mesh's ranges), placed in world space by `sections.instances` under the top-level
@@ -116,7 +125,7 @@ impl<'a> BvhWriter<'a> {
     /// The minor version the file will have: 3 when two-level, else 2 with source vertices, else 1 with wide
     /// sections, else 0.
     pub fn version_minor(&self) -> u16 {
-        written_minor(self.wide.is_some(), self.source_vertices.is_some(), self.two_level.is_some())
+        written_minor(self.wide.is_some(), self.source_vertices.is_some(), self.two_level.is_some(), self.gpu.is_some())
     }
 
     /// Appends a section of a kind that this version does not define. `required` sets its REQUIRED flag, which
@@ -175,6 +184,10 @@ impl<'a> BvhWriter<'a> {
                 let wide = two_level.top_wide_nodes;
                 known(SectionKind::TopWideNodes, bytemuck::cast_slice(wide), wide.len(), 0);
             }
+        }
+        if let Some((nodes, triangles)) = self.gpu {
+            known(SectionKind::GpuNodes, bytemuck::cast_slice(nodes), nodes.len(), 0);
+            known(SectionKind::GpuTriangles, bytemuck::cast_slice(triangles), triangles.len(), 0);
         }
         for extra in &self.extra_sections {
             if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {

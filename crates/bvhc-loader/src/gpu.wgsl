@@ -1,0 +1,289 @@
+// bvhc's GPU traversal kernel for the GPU sections of `.bvh` format 1.4 (format-spec/bvh-1.md 5.14, 5.15, 11.4):
+// closest hit and any hit of a batch of rays through compressed 8-wide nodes (Ylitie, Karras, Laine, "Efficient
+// Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", HPG 2017) with the robust slab test of the CPU
+// kernels (Ize 2013) and the watertight triangle test (Woop, Benthin, Wald 2013) in f32 only.
+//
+// The loader crate's `GpuLayoutTracer` runs these steps on the CPU; tests compare the two and the CPU kernel.
+//
+// Bindings (group 0), one invocation a ray, 64 a workgroup, entry points `closest_hit` and `any_hit`:
+//   0  gpu_nodes      storage, read        the `gpu_nodes` section's bytes (80 bytes a node, as array<vec4<u32>>)
+//   1  gpu_triangles  storage, read        the `gpu_triangles` section's bytes (40 bytes a triangle, array<vec2<u32>>)
+//   2  rays           storage, read        `Ray`s (32 bytes each); t_max must be finite (use 3.4e38 for "none")
+//   3  hits           storage, read_write  one `HitRecord` (16 bytes) per ray; `triangle` = 0xffffffff: no hit
+//   4  params         uniform              `Params`: how many rays
+// A hit names the record of the `triangles` section (its source id is `triangle_ids[triangle]`); `t`, `u`, `v` are
+// those of the CPU kernels (hit point `(1 - u - v) v0 + u v1 + v v2`). Any hit writes the first hit it finds.
+
+struct Ray {
+    origin: vec3<f32>,
+    t_min: f32,
+    direction: vec3<f32>,
+    t_max: f32,
+}
+
+struct HitRecord {
+    t: f32,
+    u: f32,
+    v: f32,
+    triangle: u32,
+}
+
+struct Params {
+    ray_count: u32,
+    reserved0: u32,
+    reserved1: u32,
+    reserved2: u32,
+}
+
+@group(0) @binding(0) var<storage, read> gpu_nodes: array<vec4<u32>>;
+@group(0) @binding(1) var<storage, read> gpu_triangles: array<vec2<u32>>;
+@group(0) @binding(2) var<storage, read> rays: array<Ray>;
+@group(0) @binding(3) var<storage, read_write> hits: array<HitRecord>;
+@group(0) @binding(4) var<uniform> params: Params;
+
+const NO_HIT: u32 = 0xffffffffu;
+// Slab exit distances are padded by 1 + 2^-19: Ize's bound for three correctly rounded operations, widened for
+// WGSL's division (2.5 ulp) and one more rounding.
+const EXIT_PADDING: f32 = 1.0000019073486328;
+// Boxes are culled at the closest hit so far times 1 + 2^-18, as on the CPU.
+const CULL_PADDING: f32 = 1.000003814697265625;
+const MIN_NORMAL: f32 = 1.1754943508222875e-38;
+const STACK_SIZE: u32 = 64u;
+const INNER_MASK: u32 = 0xff000000u;
+
+// A ray with what both tests need, computed once (as the CPU's PreparedRay).
+struct Prepared {
+    origin: vec3<f32>,
+    inverse: vec3<f32>,
+    exit_inverse: vec3<f32>,
+    negative: vec3<bool>,
+    flat: vec3<bool>,
+    t_min: f32,
+    k: vec3<u32>,
+    shear: vec3<f32>,
+}
+
+fn prepare(ray: Ray) -> Prepared {
+    var p: Prepared;
+    let d = ray.direction;
+    let a = abs(d);
+    var kz = 2u;
+    if (a.x >= a.y && a.x >= a.z) {
+        kz = 0u;
+    } else if (a.y >= a.z) {
+        kz = 1u;
+    }
+    var kx = (kz + 1u) % 3u;
+    var ky = (kz + 2u) % 3u;
+    if (d[kz] < 0.0) {
+        let swap = kx;
+        kx = ky;
+        ky = swap;
+    }
+    p.origin = ray.origin;
+    p.flat = a < vec3<f32>(MIN_NORMAL);
+    let safe = select(d, vec3<f32>(1.0), p.flat);
+    p.inverse = vec3<f32>(1.0) / safe;
+    p.exit_inverse = p.inverse * EXIT_PADDING;
+    p.negative = (bitcast<vec3<u32>>(d) >> vec3<u32>(31u)) == vec3<u32>(1u);
+    p.t_min = ray.t_min;
+    p.k = vec3<u32>(kx, ky, kz);
+    p.shear = vec3<f32>(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+    return p;
+}
+
+// `inv`: bit 2, 1, 0 set when the direction's x, y, z is >= 0.
+fn octant_inverse(d: vec3<f32>) -> u32 {
+    return select(0u, 4u, d.x >= 0.0) | select(0u, 2u, d.y >= 0.0) | select(0u, 1u, d.z >= 0.0);
+}
+
+fn byte_of(word: u32, index: u32) -> u32 {
+    return (word >> ((index & 3u) * 8u)) & 0xffu;
+}
+
+// Byte `slot` of an 8-byte row stored as two words.
+fn row_byte(low: u32, high: u32, slot: u32) -> u32 {
+    return byte_of(select(low, high, slot >= 4u), slot);
+}
+
+// The hit bits of node `n` within [t_min, far] (inner children at 24 + (slot ^ inv), leaves' triangles at their
+// offsets), the node's child base, triangle base and inner mask.
+fn visit_node(n: u32, ray: Prepared, inv: u32, far: f32) -> vec4<u32> {
+    let w0 = gpu_nodes[n * 5u];
+    let w1 = gpu_nodes[n * 5u + 1u];
+    let w2 = gpu_nodes[n * 5u + 2u];
+    let w3 = gpu_nodes[n * 5u + 3u];
+    let w4 = gpu_nodes[n * 5u + 4u];
+    let origin = bitcast<vec3<f32>>(w0.xyz);
+    let scale = bitcast<vec3<f32>>(vec3<u32>(byte_of(w0.w, 0u), byte_of(w0.w, 1u), byte_of(w0.w, 2u)) << vec3<u32>(23u));
+    var hits = 0u;
+    for (var slot = 0u; slot < 8u; slot++) {
+        let slot_meta = row_byte(w1.z, w1.w, slot);
+        if (slot_meta == 0u) {
+            continue;
+        }
+        let q_min = vec3<f32>(vec3<u32>(row_byte(w2.x, w2.y, slot), row_byte(w2.z, w2.w, slot), row_byte(w3.x, w3.y, slot)));
+        let q_max = vec3<f32>(vec3<u32>(row_byte(w3.z, w3.w, slot), row_byte(w4.x, w4.y, slot), row_byte(w4.z, w4.w, slot)));
+        // Exact products (a byte times a power of two), one rounding each.
+        let lo = origin + q_min * scale;
+        let hi = origin + q_max * scale;
+        var near = ray.t_min;
+        var far_slot = far;
+        var inside = true;
+        for (var axis = 0u; axis < 3u; axis++) {
+            let o = ray.origin[axis];
+            if (ray.flat[axis]) {
+                // A (near) zero direction component: the slab holds the origin or nothing.
+                inside = inside && o >= lo[axis] && o <= hi[axis];
+                continue;
+            }
+            let entry = select(lo[axis], hi[axis], ray.negative[axis]);
+            let exit = select(hi[axis], lo[axis], ray.negative[axis]);
+            let t_entry = (entry - o) * ray.inverse[axis];
+            let t_exit = (exit - o) * ray.exit_inverse[axis];
+            near = select(near, t_entry, t_entry > near);
+            far_slot = select(far_slot, t_exit, t_exit < far_slot);
+        }
+        if (inside && near <= far_slot) {
+            let is_inner = (slot_meta & 0x18u) == 0x18u;
+            let bit_index = select(slot_meta & 31u, (slot_meta & 31u) ^ inv, is_inner);
+            hits |= (slot_meta >> 5u) << bit_index;
+        }
+    }
+    return vec4<u32>(hits, w1.x, w1.y, w0.w >> 24u);
+}
+
+// The watertight test of GPU triangle `g` in f32: (t, u, v) and whether it hits within [t_min, t_max]. Edge
+// function signs come from comparing their two rounded products, so a shared edge gets opposite signs in its two
+// triangles however the compiler fuses the subtraction.
+fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
+    let r0 = gpu_triangles[g * 5u];
+    let r1 = gpu_triangles[g * 5u + 1u];
+    let r2 = gpu_triangles[g * 5u + 2u];
+    let r3 = gpu_triangles[g * 5u + 3u];
+    let r4 = gpu_triangles[g * 5u + 4u];
+    let v0 = bitcast<vec3<f32>>(vec3<u32>(r0.x, r0.y, r1.x));
+    let v1 = bitcast<vec3<f32>>(vec3<u32>(r1.y, r2.x, r2.y));
+    let v2 = bitcast<vec3<f32>>(vec3<u32>(r3.x, r3.y, r4.x));
+    let a3 = v0 - ray.origin;
+    let b3 = v1 - ray.origin;
+    let c3 = v2 - ray.origin;
+    let k = ray.k;
+    let az = a3[k.z];
+    let bz = b3[k.z];
+    let cz = c3[k.z];
+    let ax = a3[k.x] - ray.shear.x * az;
+    let ay = a3[k.y] - ray.shear.y * az;
+    let bx = b3[k.x] - ray.shear.x * bz;
+    let by = b3[k.y] - ray.shear.y * bz;
+    let cx = c3[k.x] - ray.shear.x * cz;
+    let cy = c3[k.y] - ray.shear.y * cz;
+    let u1 = cx * by;
+    let u2 = cy * bx;
+    let v1p = ax * cy;
+    let v2p = ay * cx;
+    let w1 = bx * ay;
+    let w2 = by * ax;
+    let negative = u1 < u2 || v1p < v2p || w1 < w2;
+    let positive = u1 > u2 || v1p > v2p || w1 > w2;
+    let miss = vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    if (negative && positive) {
+        return miss;
+    }
+    let e_u = u1 - u2;
+    let e_v = v1p - v2p;
+    let e_w = w1 - w2;
+    let det = e_u + e_v + e_w;
+    if (det == 0.0) {
+        return miss;
+    }
+    let t = (e_u * (ray.shear.z * az) + e_v * (ray.shear.z * bz) + e_w * (ray.shear.z * cz)) / det;
+    if (!(t >= ray.t_min && t <= t_max)) {
+        return miss;
+    }
+    let inverse_det = 1.0 / det;
+    return vec4<f32>(t, e_v * inverse_det, e_w * inverse_det, 1.0);
+}
+
+// One ray's walk (Ylitie et al. 2017, Algorithm 1, triangles tested as soon as their node is visited): the hit
+// record, for any hit the first found.
+fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
+    var record = HitRecord(0.0, 0.0, 0.0, NO_HIT);
+    let node_count = arrayLength(&gpu_nodes) / 5u;
+    if (node_count == 0u) {
+        return record;
+    }
+    let ray = prepare(ray_in);
+    let inv = octant_inverse(ray_in.direction);
+    let limit = ray_in.t_max;
+    var best_t = limit;
+    var found = false;
+    var stack: array<vec2<u32>, STACK_SIZE>;
+    var stack_len = 0u;
+    var visits = 0u;
+    // The root as the only inner child (slot 0) of a group based at node 0.
+    var node_group = vec2<u32>(0u, (1u << (24u + inv)) | 1u);
+    loop {
+        var triangle_group = vec2<u32>(0u, 0u);
+        if ((node_group.y & INNER_MASK) != 0u) {
+            let bit = 31u - countLeadingZeros(node_group.y);
+            node_group.y &= ~(1u << bit);
+            let slot = (bit - 24u) ^ inv;
+            let index = node_group.x + countOneBits(node_group.y & 0xffu & ((1u << slot) - 1u));
+            if ((node_group.y & INNER_MASK) != 0u) {
+                if (stack_len == STACK_SIZE) {
+                    break;
+                }
+                stack[stack_len] = node_group;
+                stack_len += 1u;
+            }
+            visits += 1u;
+            if (index >= node_count || visits > node_count) {
+                break;
+            }
+            var far = limit;
+            if (found) {
+                far = min(best_t * CULL_PADDING, limit);
+            }
+            let visited = visit_node(index, ray, inv, far);
+            node_group = vec2<u32>(visited.y, (visited.x & INNER_MASK) | visited.w);
+            triangle_group = vec2<u32>(visited.z, visited.x & ~INNER_MASK);
+        }
+        while (triangle_group.y != 0u) {
+            let bit = 31u - countLeadingZeros(triangle_group.y);
+            triangle_group.y &= ~(1u << bit);
+            let g = triangle_group.x + bit;
+            let hit = intersect_triangle(g, ray, best_t);
+            if (hit.w != 0.0) {
+                best_t = hit.x;
+                found = true;
+                record = HitRecord(hit.x, hit.y, hit.z, gpu_triangles[g * 5u + 4u].y);
+                if (any_hit) {
+                    return record;
+                }
+            }
+        }
+        if ((node_group.y & INNER_MASK) == 0u) {
+            if (stack_len == 0u) {
+                break;
+            }
+            stack_len -= 1u;
+            node_group = stack[stack_len];
+        }
+    }
+    return record;
+}
+
+@compute @workgroup_size(64)
+fn closest_hit(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x < params.ray_count) {
+        hits[id.x] = trace(rays[id.x], false);
+    }
+}
+
+@compute @workgroup_size(64)
+fn any_hit(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x < params.ray_count) {
+        hits[id.x] = trace(rays[id.x], true);
+    }
+}

@@ -1,0 +1,134 @@
+//! Quantization of a GPU node's child boxes (format 1.4, `format-spec/bvh-1.md` 5.14): per axis an origin and a
+//! power-of-two step such that 255 steps reach the node's box, and per slot the bytes whose decoded values
+//! (`origin + q * step` in f32, as every reader decodes them) enclose the slot's box, rounding outward: the
+//! minimum down, the maximum up. Decoded values are kept zero or normal (a GPU may flush subnormals to zero,
+//! which would move a bound inward), and finite (rule V48).
+
+use bvhc_loader::format::GpuNode;
+
+use crate::geometry::Aabb;
+
+/// The step exponent's bias (that of f32): a biased exponent `e` stands for the step `2^(e - 127)`.
+const EXPONENT_BIAS: i32 = 127;
+
+/// Whether `value` is something a GPU decodes as itself: finite, and zero or normal.
+fn usable(value: f32) -> bool {
+    value.is_finite() && (value == 0.0 || value.abs() >= f32::MIN_POSITIVE)
+}
+
+/// The decoded value of grid coordinate `q`, as [`GpuNode::decode`] computes it.
+fn decode(origin: f32, exponent: u8, q: u8) -> f32 {
+    origin + f32::from(q) * f32::from_bits(u32::from(exponent) << 23)
+}
+
+/// An origin at or below `min` that decodes as itself on a GPU: `min`, or for a subnormal `min` the zero or
+/// negative smallest normal below it.
+fn grid_origin(min: f32) -> f32 {
+    match min {
+        m if usable(m) => m,
+        m if m > 0.0 => 0.0,
+        _ => -f32::MIN_POSITIVE,
+    }
+}
+
+/// The bytes of one axis for every box in `boxes` on the grid (`origin`, `exponent`), or `None` when some bound
+/// cannot be enclosed by a usable decoded value on this grid (a coarser one is then needed).
+fn quantize_axis(boxes: &[Aabb], axis: usize, origin: f32, exponent: u8) -> Option<Vec<(u8, u8)>> {
+    let step = f64::from(f32::from_bits(u32::from(exponent) << 23));
+    let value = |q: u8| decode(origin, exponent, q);
+    boxes
+        .iter()
+        .map(|b| {
+            let (lo, hi) = (b.min[axis], b.max[axis]);
+            // Estimates in f64, then corrected on the exact f32 decode.
+            let guess = |v: f32| ((f64::from(v) - f64::from(origin)) / step).clamp(0.0, 255.0);
+            let mut q_lo = guess(lo).floor() as u8;
+            while q_lo > 0 && !(value(q_lo) <= lo && usable(value(q_lo))) {
+                q_lo -= 1;
+            }
+            let mut q_hi = guess(hi).ceil() as u8;
+            while q_hi < 255 && !(value(q_hi) >= hi && usable(value(q_hi))) {
+                q_hi += 1;
+            }
+            let fits = value(q_lo) <= lo && usable(value(q_lo)) && value(q_hi) >= hi && usable(value(q_hi));
+            fits.then_some((q_lo, q_hi))
+        })
+        .collect()
+}
+
+/// A node whose slots `0..boxes.len()` hold `boxes` (at most 8), quantized; the other fields are left for the
+/// caller. `None` when a coordinate is too large for any grid to enclose with finite values (magnitudes near
+/// `f32::MAX`).
+pub fn quantize_node(boxes: &[Aabb]) -> Option<GpuNode> {
+    let mut node = GpuNode {
+        origin: [0.0; 3],
+        exponents: [1; 3],
+        inner_mask: 0,
+        child_base: 0,
+        triangle_base: 0,
+        meta: [0; 8],
+        quantized_min: [[0; 8]; 3],
+        quantized_max: [[0; 8]; 3],
+    };
+    for axis in 0..3 {
+        let lo = boxes.iter().map(|b| b.min[axis]).fold(f32::INFINITY, f32::min);
+        let hi = boxes.iter().map(|b| b.max[axis]).fold(f32::NEG_INFINITY, f32::max);
+        let origin = grid_origin(lo);
+        // The smallest step with 255 steps reaching `hi`, then coarser while some bound does not fit.
+        let extent = (f64::from(hi) - f64::from(origin)).max(0.0) / 255.0;
+        let first = if extent > 0.0 { extent.log2().ceil() as i32 + EXPONENT_BIAS } else { 1 };
+        let fitted = (first.clamp(1, 254)..=254).find_map(|e| {
+            let exponent = e as u8;
+            (decode(origin, exponent, 255) >= hi)
+                .then(|| quantize_axis(boxes, axis, origin, exponent))
+                .flatten()
+                .map(|bytes| (exponent, bytes))
+        });
+        let (exponent, bytes) = fitted?;
+        node.origin[axis] = origin;
+        node.exponents[axis] = exponent;
+        for (slot, (q_lo, q_hi)) in bytes.into_iter().enumerate() {
+            node.quantized_min[axis][slot] = q_lo;
+            node.quantized_max[axis][slot] = q_hi;
+        }
+    }
+    Some(node)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn aabb(min: [f32; 3], max: [f32; 3]) -> Aabb {
+        Aabb { min, max }
+    }
+
+    /// Every decoded box encloses its box, whatever the magnitudes and offsets.
+    #[test]
+    fn decoded_boxes_enclose_their_boxes() {
+        let cases = [
+            vec![aabb([0.0; 3], [1.0; 3]), aabb([0.5; 3], [0.75; 3])],
+            vec![
+                aabb([1000.0, -3.0, 1e-30], [1000.001, -2.9999, 2e-30]),
+                aabb([1000.0005, -3.0, 1e-30], [1000.0007, -2.99995, 1.5e-30]),
+            ],
+            vec![aabb([-1e-40, 0.0, -5.0], [1e-40, 0.0, 5.0])],
+            vec![aabb([1e30, -1e30, 0.1], [2e30, 1e30, 0.1])],
+        ];
+        for boxes in cases {
+            let node = quantize_node(&boxes).expect("fits");
+            for (slot, b) in boxes.iter().enumerate() {
+                let (min, max) = node.slot_box(slot);
+                for a in 0..3 {
+                    assert!(min[a] <= b.min[a] && max[a] >= b.max[a], "{slot} axis {a}: {min:?}..{max:?} vs {b:?}");
+                    assert!(usable(min[a]) && usable(max[a]));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn coordinates_near_the_largest_float_are_refused() {
+        assert!(quantize_node(&[aabb([0.0; 3], [f32::MAX; 3])]).is_none());
+    }
+}
