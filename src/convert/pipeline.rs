@@ -15,7 +15,7 @@ use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord, WideRe
 use super::part::{PackedPart, build_part, probe_working_set};
 use super::report::{ConvertError, ConvertReport, Event, GpuSummary, Stage, Timings};
 use super::write::{stream, verify_and_commit};
-use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES};
+use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES, GPU_LAYOUT_BYTES_PER_TRIANGLE};
 use crate::import::{Instancing, SceneFormat, TriangleSoup, import_for_peak};
 use crate::options::{ConvertOptions, OptionsError};
 
@@ -41,6 +41,8 @@ pub fn convert_with(
     let clock = Instant::now();
     let peak_bytes_per_triangle =
         if options.candidate_count() > 1 { BYTES_PER_TRIANGLE_WITH_CANDIDATES } else { BYTES_PER_TRIANGLE };
+    let gpu_bytes_per_triangle = if options.gpu.is_some() { GPU_LAYOUT_BYTES_PER_TRIANGLE } else { 0 };
+    let peak_bytes_per_triangle = peak_bytes_per_triangle + gpu_bytes_per_triangle;
     let imported = import_for_peak(input, &options.import, peak_bytes_per_triangle)?;
     timings.import = lap(clock);
     refuse_output_among(output, &imported.files_read)?;

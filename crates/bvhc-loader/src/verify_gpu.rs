@@ -8,7 +8,7 @@
 
 use crate::error::{Rule, Violation, violation};
 use crate::format::{GPU_MAX_DEPTH, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, PackedTriangle, SectionKind, inner_meta};
-use crate::verify_references::verify_coverage;
+use crate::verify_references::{leaf_may_hold, verify_coverage};
 use crate::view::GpuSections;
 
 /// What the GPU sections are checked against: the file's triangles, ids, and split-references flag.
@@ -243,15 +243,7 @@ fn check_leaves(gpu: &GpuSections<'_>, context: &GpuContext<'_>) -> Result<(), V
             for g in first..first + count {
                 let triangle = &gpu.triangles[g as usize];
                 let v = &triangle.vertices;
-                let inside = if context.split_references {
-                    (0..3).all(|a| {
-                        let lo = v[0][a].min(v[1][a]).min(v[2][a]);
-                        let hi = v[0][a].max(v[1][a]).max(v[2][a]);
-                        lo <= max[a] && hi >= min[a]
-                    })
-                } else {
-                    v.iter().all(|p| (0..3).all(|a| min[a] <= p[a] && p[a] <= max[a]))
-                };
+                let inside = leaf_may_hold(&(min, max), v, context.split_references);
                 if !inside {
                     return Err(violation(
                         Rule::GpuLeafBox,

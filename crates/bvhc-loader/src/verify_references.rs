@@ -140,6 +140,17 @@ fn holds_point((min, max): &([f32; 3], [f32; 3]), v: &[f32; 3]) -> bool {
     (0..3).all(|a| min[a] <= v[a] && v[a] <= max[a])
 }
 
+/// Whether a leaf's box may hold the triangle (V19, V35, V50): all of it, or with split references (where a
+/// reference is clipped to its leaf) overlapping it.
+pub(crate) fn leaf_may_hold(aabb: &([f32; 3], [f32; 3]), vertices: &[[f32; 3]; 3], split_references: bool) -> bool {
+    if !split_references {
+        return holds_triangle(aabb, vertices);
+    }
+    let (min, max) = aabb;
+    let v = vertices;
+    (0..3).all(|a| v[0][a].min(v[1][a]).min(v[2][a]) <= max[a] && v[0][a].max(v[1][a]).max(v[2][a]) >= min[a])
+}
+
 /// Whether the box holds the triangle: its three corners, and so (being convex) all of it.
 fn holds_triangle(aabb: &([f32; 3], [f32; 3]), vertices: &[[f32; 3]; 3]) -> bool {
     vertices.iter().all(|v| holds_point(aabb, v))

@@ -17,7 +17,7 @@ use crate::format::{
     EMPTY_SLOT, LEAF_BIT, MAX_DEPTH, PACKET_LANES, PackedTriangle, TrianglePacket4, UNUSED_LANE,
     UNUSED_LANE_COORDINATE_BITS, WIDE, WideNode8,
 };
-use crate::verify_references::verify_coverage;
+use crate::verify_references::{leaf_may_hold, verify_coverage};
 
 /// What a wide tree is checked against: the triangles section and the binary root's box.
 pub(crate) struct WideContext<'a> {
@@ -213,15 +213,7 @@ fn check_boxes_and_leaves(
                 for lane in 0..packet.used_lanes() {
                     let t = packet.triangle_index[lane];
                     let v = &context.triangles[t as usize].vertices;
-                    let inside = if context.split_references {
-                        (0..3).all(|a| {
-                            let lo = v[0][a].min(v[1][a]).min(v[2][a]);
-                            let hi = v[0][a].max(v[1][a]).max(v[2][a]);
-                            lo <= max[a] && hi >= min[a]
-                        })
-                    } else {
-                        v.iter().all(|p| (0..3).all(|a| min[a] <= p[a] && p[a] <= max[a]))
-                    };
+                    let inside = leaf_may_hold(&(min, max), v, context.split_references);
                     if !inside {
                         return Err(violation(
                             Rule::LaneInLeaf,
