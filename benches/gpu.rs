@@ -14,7 +14,8 @@
 //! (any hit) per primary hit, and as many incoherent rays (origins in the box, uniform directions).
 //!
 //! `cargo bench --bench gpu`; `BVHC_GPU_SCENES=kitchen,dragon` narrows the scenes; `BVHC_GPU_ROUNDS` (default 3);
-//! `BVHC_GPU_TRIANGLE_TEST=0.5` converts with another triangle test cost in the GPU collapse (default 0.3).
+//! `BVHC_GPU_TRIANGLE_TEST=0.5` converts with another triangle test cost in the GPU collapse (default 0.3);
+//! `BVHC_GPU_TUNE_RAYS=65536` tunes the collapses to that many training rays (`--tune-rays`).
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -22,15 +23,6 @@ mod harness;
 #[path = "evaluate/ray_set.rs"]
 #[allow(dead_code)]
 mod ray_set;
-
-mod ours {
-    //! What `ray_set` needs of the evaluate benchmark's module of that name.
-    pub fn timed<T>(f: impl FnOnce() -> T) -> (T, std::time::Duration) {
-        let start = std::time::Instant::now();
-        let value = f();
-        (value, start.elapsed())
-    }
-}
 
 use std::ops::ControlFlow;
 use std::time::Duration;
@@ -73,6 +65,9 @@ fn main() {
             resolve(preset, &Overrides { gpu_layout: Some(true), ..Overrides::default() }).expect("valid options");
         if let (Some(gpu), Some(cost)) = (&mut options.gpu, env_number("BVHC_GPU_TRIANGLE_TEST")) {
             gpu.triangle_test = cost;
+        }
+        if let Some(rays) = env_number("BVHC_GPU_TUNE_RAYS") {
+            options.ray_tuning = Some(bvhc::sampling::RayTuning { rays: rays as usize, ..Default::default() });
         }
         convert_with(&path, &output, &options, &mut |_| ControlFlow::Continue(())).expect("converts");
         let file = BvhFile::read(&output).expect("reads");

@@ -18,6 +18,7 @@ pub mod import;
 pub mod builders;
 pub mod optimize;
 pub mod layout;
+pub mod sampling;
 pub mod pack;
 pub mod instancing;
 // Options and the pipeline over the stages.

@@ -198,6 +198,10 @@ pub struct OptionArgs {
     /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
     #[arg(long, help_heading = "Leaf layout")]
     pub no_wide: bool,
+    /// Tune the wide (and GPU) collapses to COUNT sampled training rays (camera, ambient-occlusion and uniform rays
+    /// made from the scene): each node is weighed by the rays that reach it instead of by its surface area.
+    #[arg(long, value_name = "COUNT", help_heading = "Output")]
+    pub tune_rays: Option<usize>,
     /// Also write the GPU sections of format 1.4: compressed 8-wide nodes (80 bytes) and their leaf triangles
     /// with vertices (40 bytes each), which the WGSL kernel of the loader crate traces (`bvhc trace --gpu`).
     /// One-level files only.
@@ -246,6 +250,7 @@ impl OptionArgs {
             max_leaf_size: self.max_leaf_size,
             wide: given(self.no_wide),
             gpu_layout: self.gpu_layout.then_some(true),
+            tune_rays: self.tune_rays,
             write_ids: given(self.no_ids),
             write_source_vertices: given(self.no_source_vertices),
         }

@@ -12,7 +12,7 @@ use super::report::{CandidateCost, Choice, ConvertError, Event, Stage, Timings};
 use crate::build_tree::BuildTree;
 use crate::builders::sbvh::{SbvhParams, build_sbvh};
 use crate::builders::split_triangles_with;
-use crate::layout::{WideCosts, WideTree, cluster_roots, collapse, collapse_references};
+use crate::layout::{WideCosts, WideTree, cluster_roots, collapse, collapse_by, collapse_references};
 use crate::optimize::{OptTree, OptimizeReport, Progress, StopReason, optimize, optimize_over_clusters};
 use crate::options::preset::CLUSTER_SIZE;
 use crate::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};
@@ -74,8 +74,7 @@ pub(super) fn best_candidate(
             // The last candidate of this build takes the tree; the others optimize a copy.
             let tree = if k + 1 < over_clusters.len() { built.clone() } else { built.take() };
             let Some(tree) = tree else { unreachable!("the built tree is taken by the last candidate only") };
-            let candidate =
-                optimize_and_merge(tree, reference_count, triangles.len(), &shared, clusters, observer, timings);
+            let candidate = optimize_and_merge(tree, reference_count, triangles, &shared, clusters, observer, timings);
             let score = candidate.score(options);
             let cancelled = candidate.optimization.as_ref().is_some_and(|r| r.stop == StopReason::Cancelled);
             costs.push(CandidateCost {
@@ -141,7 +140,7 @@ fn build_stage(
 fn optimize_and_merge(
     mut tree: OptTree,
     reference_count: usize,
-    triangle_count: usize,
+    triangles: &[[[f32; 3]; 3]],
     options: &ConvertOptions,
     clusters: bool,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
@@ -160,13 +159,31 @@ fn optimize_and_merge(
     timings.optimize += lap(clock);
     let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH);
+    let triangle_count = triangles.len();
     let repeats = reference_count > triangle_count;
+    // With ray tuning, the collapses weigh nodes by the training rays that reach them (the binary leaves are
+    // merged by SAH either way).
+    let weights = options.ray_tuning.map(|tuning| crate::sampling::tuned_weights(&tree, triangles, &tuning));
+    let weights = weights.as_deref();
+    let constants = options.optimize.constants;
     let ((final_tree, wide_tree), gpu_tree) = rayon::join(
-        || merge_and_collapse(&tree, options, triangle_count, repeats),
         || {
-            options.gpu.map(|gpu| match repeats {
-                true => collapse_references(&tree, &gpu.wide_costs()),
-                false => collapse(&tree, &gpu.wide_costs()),
+            let leaf_size = options.max_leaf_size();
+            crate::layout::merge_and_collapse(
+                &tree,
+                constants,
+                leaf_size,
+                options.wide,
+                triangle_count,
+                repeats,
+                weights,
+            )
+        },
+        || {
+            options.gpu.map(|gpu| match (weights, repeats) {
+                (Some(w), _) => collapse_by(&tree, &gpu.wide_costs(), w, repeats),
+                (None, true) => collapse_references(&tree, &gpu.wide_costs()),
+                (None, false) => collapse(&tree, &gpu.wide_costs()),
             })
         },
     );
@@ -184,7 +201,8 @@ pub fn merge_and_collapse(
     repeats: bool,
 ) -> (BuildTree, Option<(WideTree, WideCosts)>) {
     let constants = options.optimize.constants;
-    crate::layout::merge_and_collapse(tree, constants, options.max_leaf_size(), options.wide, triangle_count, repeats)
+    let leaf_size = options.max_leaf_size();
+    crate::layout::merge_and_collapse(tree, constants, leaf_size, options.wide, triangle_count, repeats, None)
 }
 
 pub(super) fn lap(start: Instant) -> f64 {

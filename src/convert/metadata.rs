@@ -124,6 +124,9 @@ pub struct BuildRecord {
     /// Absent without GPU sections.
     #[serde(skip_serializing_if = "Option::is_none")]
     gpu: Option<GpuCosts>,
+    /// Absent when the collapses weigh nodes by surface area.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ray_tuning: Option<crate::sampling::RayTuning>,
     write_ids: bool,
     write_source_vertices: bool,
 }
@@ -159,6 +162,7 @@ impl BuildRecord {
             splits: options.splits,
             wide: options.wide,
             gpu: options.gpu,
+            ray_tuning: options.ray_tuning,
             write_ids: options.write_ids,
             write_source_vertices: options.write_source_vertices,
         }

@@ -67,17 +67,25 @@ type CostRow = [f64; 16];
 
 /// Collapses `tree` (the optimizer's binary tree, one triangle per leaf) into a `costs.width`-wide tree.
 pub fn collapse(tree: &OptTree, costs: &WideCosts) -> WideTree {
-    collapse_with(tree, costs, false)
+    collapse_with(tree, costs, false, None)
 }
 
 /// [`collapse`] for a tree over split references, where several leaves may hold pieces of one triangle: a wide
 /// leaf holds each triangle once (see [`super::records`]), so `t(n)` counts the distinct triangles of
 /// `n`'s subtree. The same tree as [`collapse`] where no triangle repeats.
 pub fn collapse_references(tree: &OptTree, costs: &WideCosts) -> WideTree {
-    collapse_with(tree, costs, true)
+    collapse_with(tree, costs, true, None)
 }
 
-fn collapse_with(tree: &OptTree, costs: &WideCosts, distinct: bool) -> WideTree {
+/// [`collapse`] (or with `references`, [`collapse_references`]) with each binary node's surface area replaced by
+/// `weights[n]` in the costs: the probability that a ray reaches the node, as sampled rays measure it
+/// (`crate::sampling::ray_weights`; Gu, He, Blelloch 2015 contract by the same measure). `weights` has one entry
+/// per node of `tree`; weights proportional to the areas give the SAH collapse's tree.
+pub fn collapse_by(tree: &OptTree, costs: &WideCosts, weights: &[f64], references: bool) -> WideTree {
+    collapse_with(tree, costs, references, Some(weights))
+}
+
+fn collapse_with(tree: &OptTree, costs: &WideCosts, distinct: bool, weights: Option<&[f64]>) -> WideTree {
     let width = costs.width.clamp(2, 16);
     let costs = WideCosts {
         width,
@@ -89,7 +97,11 @@ fn collapse_with(tree: &OptTree, costs: &WideCosts, distinct: bool) -> WideTree 
     if tree.root == NONE {
         return wide;
     }
-    let table = fill_table(tree, &costs, distinct);
+    let weight = |n: u32| match weights {
+        Some(w) => w.get(n as usize).copied().unwrap_or(0.0),
+        None => tree.nodes[n as usize].aabb.surface_area(),
+    };
+    let table = fill_table(tree, &costs, distinct, &weight);
     wide.root_box = tree.nodes[tree.root as usize].aabb;
     let root = tree.root;
     // The root is stored as a wide node either way: with one leaf child (cost node + leaf) or with the DP's
@@ -97,7 +109,7 @@ fn collapse_with(tree: &OptTree, costs: &WideCosts, distinct: bool) -> WideTree 
     let root_node = tree.nodes[root as usize];
     let root_as_leaf = root_node.left == NONE
         || (table.root_triangles <= costs.max_leaf_size
-            && costs.leaf(table.root_triangles) * root_node.aabb.surface_area() <= table.root_distribution.0);
+            && costs.leaf(table.root_triangles) * weight(root) <= table.root_distribution.0);
     if root_as_leaf {
         // The whole scene is cheapest as one leaf: a root node with that single leaf child.
         let mut children = Vec::new();
@@ -140,7 +152,7 @@ fn collapse_with(tree: &OptTree, costs: &WideCosts, distinct: bool) -> WideTree 
 /// triangle counts wait on a stack (the left child's on top), and only those of subtrees whose parent is not
 /// done yet are held, at most the tree's depth plus one (a full table of costs took 64 bytes a node, about the
 /// size of the optimizer's tree).
-fn fill_table(tree: &OptTree, costs: &WideCosts, distinct: bool) -> Table {
+fn fill_table(tree: &OptTree, costs: &WideCosts, distinct: bool, weight: &dyn Fn(u32) -> f64) -> Table {
     let width = costs.width;
     let mut table = Table {
         width,
@@ -152,7 +164,7 @@ fn fill_table(tree: &OptTree, costs: &WideCosts, distinct: bool) -> Table {
     let mut counts = LeafCounts::new(costs.max_leaf_size, distinct);
     for node_index in tree.children_first() {
         let node = tree.nodes[node_index as usize];
-        let area = node.aabb.surface_area();
+        let area = weight(node_index);
         let mut row = [f64::INFINITY; 16];
         if node.left == NONE {
             row[..width].fill(costs.leaf(1) * area);

@@ -9,7 +9,7 @@ pub mod merge;
 pub mod records;
 pub mod wide_tree;
 
-pub use collapse::{collapse, collapse_references};
+pub use collapse::{collapse, collapse_by, collapse_references};
 pub use merge::{cluster_roots, merge_leaves, merge_leaves_of_references, merged_nodes};
 pub use wide_tree::{GpuCosts, WideChild, WideCosts, WideNode, WideTree};
 
@@ -23,6 +23,8 @@ use crate::optimize::OptTree;
 /// split references) both count a triangle once a leaf, and leaves that gathered several pieces of a triangle
 /// then hold it once, with the two trees' record counts kept equal (where the wide leaves have no room for
 /// that, both keep every piece); without repeats that is the plain count, which the plain programs get faster.
+/// With `weights` (one per node: sampled ray probabilities, `crate::sampling`) the collapse weighs nodes by them
+/// instead of by surface area ([`collapse_by`]).
 pub fn merge_and_collapse(
     tree: &OptTree,
     constants: SahConstants,
@@ -30,13 +32,15 @@ pub fn merge_and_collapse(
     wide: Option<WideCosts>,
     triangle_count: usize,
     repeats: bool,
+    weights: Option<&[f64]>,
 ) -> (BuildTree, Option<(WideTree, WideCosts)>) {
     let leaf_size = max_leaf_size.max(1);
     let (mut wide_tree, mut final_tree) = rayon::join(
         || {
-            wide.map(|costs| match repeats {
-                true => (collapse_references(tree, &costs), costs),
-                false => (collapse(tree, &costs), costs),
+            wide.map(|costs| match (weights, repeats) {
+                (Some(w), _) => (collapse_by(tree, &costs, w, repeats), costs),
+                (None, true) => (collapse_references(tree, &costs), costs),
+                (None, false) => (collapse(tree, &costs), costs),
             })
         },
         || match repeats {

@@ -8,6 +8,7 @@ pub mod preset;
 mod resolve;
 
 pub use crate::import::Instancing;
+pub use crate::sampling::RayTuning;
 pub use preset::Preset;
 pub use resolve::{OptionsError, Overrides, resolve};
 
@@ -41,6 +42,8 @@ pub struct ConvertOptions {
     /// Write the GPU sections of format 1.4 (compressed 8-wide nodes and their leaf triangles), collapsed with
     /// these constants; `None` writes none.
     pub gpu: Option<GpuCosts>,
+    /// Tune the wide and GPU collapses to sampled rays (`crate::sampling`); `None`: by surface area.
+    pub ray_tuning: Option<RayTuning>,
     /// Write the triangle_ids and source_table sections.
     pub write_ids: bool,
     /// Write the source_vertices section of format 1.2 (each triangle's vertex indices in its source
@@ -103,6 +106,21 @@ impl ConvertOptions {
                 && wide.packet_test > 0.0;
             if !fits {
                 return Err(OptionsError::invalid("wide", format!("{wide:?} does not fit the 8-wide layout")));
+            }
+        }
+        if let Some(tuning) = self.ray_tuning {
+            if tuning.rays == 0 || tuning.prior.is_nan() || tuning.prior <= 0.0 {
+                return Err(OptionsError::invalid(
+                    "--tune-rays",
+                    format!("{tuning:?}: at least one ray and a positive prior"),
+                ));
+            }
+            if self.wide.is_none() && self.gpu.is_none() {
+                return Err(OptionsError::inert(
+                    "--tune-rays",
+                    "--no-wide without --gpu-layout",
+                    "ray tuning steers the wide and GPU collapses; drop --no-wide or add --gpu-layout",
+                ));
             }
         }
         if let Some(gpu) = self.gpu {

@@ -101,6 +101,7 @@ impl Preset {
             leaves: LeafMerge::UpTo(MAX_LEAF_SIZE),
             wide: Some(WideCosts::default()),
             gpu: None,
+            ray_tuning: None,
             write_ids: true,
             write_source_vertices: true,
         }

@@ -49,6 +49,8 @@ pub struct Overrides {
     pub wide: Option<bool>,
     /// Output: write the GPU sections (format 1.4).
     pub gpu_layout: Option<bool>,
+    /// Leaves: tune the wide and GPU collapses to this many sampled training rays.
+    pub tune_rays: Option<usize>,
     /// Output: write the triangle_ids and source_table sections.
     pub write_ids: Option<bool>,
     /// Output: write the source_vertices section (needs the ids; leaving the ids out leaves it out too).
@@ -117,6 +119,9 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
         options.wide = None;
     } else if o.wide == Some(true) {
         options.wide = Some(options.wide.unwrap_or_default());
+    }
+    if let Some(rays) = o.tune_rays {
+        options.ray_tuning = Some(crate::sampling::RayTuning { rays, ..Default::default() });
     }
     if let Some(gpu_layout) = o.gpu_layout {
         options.gpu = gpu_layout.then(|| options.gpu.unwrap_or_default());

@@ -32,6 +32,7 @@ mod mutation;
 mod optimize;
 mod options;
 mod optimize_property;
+mod ray_tuning;
 mod roundtrip;
 mod rules;
 mod rules_gpu;

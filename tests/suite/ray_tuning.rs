@@ -1,0 +1,82 @@
+//! Ray-tuned collapses (`--tune-rays`, `bvhc::sampling`): the sample rays' traversal finds the brute-force
+//! closest hit, the visit counts are the same for any thread count, weights proportional to the areas give the
+//! SAH collapse's tree, and a tuned conversion verifies, records its training and is the same bytes on 1 and 2
+//! threads.
+
+use std::ops::ControlFlow;
+
+use bvhc::convert::convert_with;
+use bvhc::layout::{WideCosts, collapse, collapse_by};
+use bvhc::loader::BvhFile;
+use bvhc::optimize::OptTree;
+use bvhc::options::{Overrides, Preset, resolve};
+use bvhc::sampling::{node_visits, ray_weights, trace_counting, training_rays};
+
+use crate::common::{brute_force_closest, in_pool, random_triangles};
+
+fn tree_of(triangles: &[[[f32; 3]; 3]]) -> OptTree {
+    OptTree::from_build_tree(&bvhc::builders::build_binned_sah(triangles, 1), triangles)
+}
+
+#[test]
+fn sample_rays_find_the_brute_force_closest_hit_and_count_the_same_on_any_thread_count() {
+    let triangles = random_triangles(81, 2000, 5.0);
+    let tree = tree_of(&triangles);
+    let rays = training_rays(&tree, &triangles, 6000, 7);
+    assert_eq!(rays.len(), 6000);
+    assert_eq!(rays, training_rays(&tree, &triangles, 6000, 7), "deterministic");
+    let mut visits = vec![0u32; tree.nodes.len()];
+    for ray in &rays {
+        let hit = trace_counting(&tree, &triangles, ray, &mut visits);
+        assert_eq!(hit.map(|h| h.t), brute_force_closest(&triangles, ray).map(|(t, _)| t), "{ray:?}");
+    }
+    let one = in_pool(1, || node_visits(&tree, &triangles, &rays));
+    let two = in_pool(2, || node_visits(&tree, &triangles, &rays));
+    assert_eq!(one, visits);
+    assert_eq!(one, two);
+    // A ray that enters a child entered its parent.
+    for (n, node) in tree.nodes.iter().enumerate() {
+        if node.left != bvhc::optimize::NONE {
+            for child in [node.left, node.right] {
+                assert!(one[child as usize] <= one[n], "node {n}");
+            }
+        }
+    }
+}
+
+#[test]
+fn weights_proportional_to_the_areas_give_the_sah_collapse() {
+    let triangles = random_triangles(82, 3000, 5.0);
+    let tree = tree_of(&triangles);
+    let areas: Vec<f64> = tree.nodes.iter().map(|n| n.aabb.surface_area()).collect();
+    let costs = WideCosts::default();
+    assert_eq!(collapse_by(&tree, &costs, &areas, false), collapse(&tree, &costs));
+    // No sample ray: the blended weights are the areas' shares.
+    let weights = ray_weights(&tree, &vec![0; tree.nodes.len()], 32.0);
+    let root_area = areas[tree.root as usize];
+    for (w, a) in weights.iter().zip(&areas) {
+        assert!((w - a / root_area).abs() <= 1e-12 * (a / root_area).max(1.0));
+    }
+}
+
+#[test]
+fn a_tuned_conversion_verifies_records_its_training_and_does_not_depend_on_threads() {
+    let input = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let dir = tempfile::tempdir().unwrap();
+    let overrides = Overrides { tune_rays: Some(4096), gpu_layout: Some(true), ..Overrides::default() };
+    let options = resolve(Preset::Balanced, &overrides).unwrap();
+    let bytes = |threads: usize| {
+        let output = dir.path().join(format!("{threads}.bvh"));
+        in_pool(threads, || convert_with(&input, &output, &options, &mut |_| ControlFlow::Continue(())).unwrap());
+        std::fs::read(&output).unwrap()
+    };
+    let one = bytes(1);
+    assert_eq!(one, bytes(2));
+    let file = BvhFile::from_bytes(&one).unwrap();
+    file.view().verify().unwrap();
+    let metadata = crate::common::assert_metadata_matches_schema(&file);
+    assert_eq!(metadata["build"]["ray_tuning"]["rays"], 4096);
+    // Nothing to tune without a wide or GPU collapse.
+    let inert = Overrides { tune_rays: Some(4096), wide: Some(false), ..Overrides::default() };
+    assert!(resolve(Preset::Balanced, &inert).unwrap_err().to_string().contains("--tune-rays"));
+}
