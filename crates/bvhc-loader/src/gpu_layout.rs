@@ -1,7 +1,6 @@
 //! [`GpuLayoutTracer`]: the GPU kernel's traversal of the compressed 8-wide sections (format 1.4), run on the
 //! CPU step for step as `gpu.wgsl` runs it on a GPU. It is the shader's reference (tests compare the two), the
-//! model a benchmark counts node visits and bytes read with, and a CPU tracer for files with only these
-//! sections' worth of tree.
+//! model a benchmark counts node visits and bytes read with, and a CPU tracer over these sections.
 //!
 //! The walk is Ylitie, Karras, Laine (HPG 2017), Algorithm 1, without the postponed triangle groups: a **node
 //! group** is (first child node, hit bits 24-31 | the parent's inner mask in bits 0-7); visiting a node tests

@@ -52,6 +52,7 @@ mod error;
 mod file;
 pub mod format;
 mod format_gpu;
+mod format_header;
 mod format_instances;
 mod gpu_layout;
 pub mod gpu_shader;
