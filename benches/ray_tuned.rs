@@ -22,7 +22,7 @@ use bvhc::convert::convert_with;
 use bvhc::loader::{BvhFile, GpuLayoutTracer, Ray, TraversalStats};
 use bvhc::optimize::OptTree;
 use bvhc::options::{Overrides, Preset, resolve};
-use bvhc::sampling::{RayTuning, training_rays};
+use bvhc::sampling::{RayTuning, TrainingRays, training_rays};
 
 const SCENES: [(&str, &str); 7] = [
     ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
@@ -51,22 +51,32 @@ fn main() {
     );
     for (name, path) in scenes {
         let dir = tempfile::tempdir().expect("a temporary folder");
-        let convert = |tuned: bool| {
+        let convert = |tuned: bool, user: Option<&[Ray]>| {
             let overrides =
                 Overrides { gpu_layout: Some(true), tune_rays: tuned.then_some(tuning.rays), ..Overrides::default() };
             let mut options = resolve(Preset::Balanced, &overrides).expect("valid options");
             if let Some(t) = &mut options.ray_tuning {
                 t.prior = tuning.prior;
             }
-            let output = dir.path().join(if tuned { "tuned.bvh" } else { "sah.bvh" });
+            if let Some(rays) = user {
+                options.ray_tuning = Some(RayTuning { rays: rays.len(), seed: 0, training_file: Some(0), ..tuning });
+                options.training_rays = Some(TrainingRays { rays: rays.into(), content_hash: 0 });
+            }
+            let name = match (tuned, user.is_some()) {
+                (_, true) => "user.bvh",
+                (true, false) => "tuned.bvh",
+                (false, false) => "sah.bvh",
+            };
+            let output = dir.path().join(name);
             let start = Instant::now();
             convert_with(&path, &output, &options, &mut |_| ControlFlow::Continue(())).expect("converts");
             (BvhFile::read(&output).expect("reads"), start.elapsed().as_secs_f64())
         };
-        let ((sah, sah_seconds), (tuned, tuned_seconds)) = (convert(false), convert(true));
+        let ((sah, sah_seconds), (tuned, tuned_seconds)) = (convert(false, None), convert(true, None));
         let held_out = held_out_rays(&sah, if full { 1 << 17 } else { 4096 });
         let (min, max) = sah.view().scene_box().expect("a scene");
         let other = ray_set::ray_set(&sah.view().tracer(), min, max);
+        let camera = other.primary.clone();
         let other: Vec<Ray> = [other.primary, other.ao, other.incoherent].concat();
         let other = if full { other } else { other[..4096.min(other.len())].to_vec() };
         for (set, rays) in [("same distribution, seed 99", &held_out), ("evaluate set", &other)] {
@@ -83,6 +93,22 @@ fn main() {
                 gb / ga
             );
         }
+        // The user's own rays: trained on the evaluate set's camera rays, measured on the same rays.
+        let (user, _) = convert(true, Some(&camera));
+        let camera = if full { camera } else { camera[..4096.min(camera.len())].to_vec() };
+        let (a, b) = (wide_counts(&sah, &camera), wide_counts(&user, &camera));
+        let ratio = time_ratio(&sah, &user, &camera, if full { 5 } else { 1 });
+        let (ga, gb) = (gpu_visits(&sah, &camera), gpu_visits(&user, &camera));
+        println!(
+            "| {name} | its camera rays, trained on them (--train-rays) | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | \
+             {ratio:.3} | {ga:.2} | {gb:.2} | {:.3} |",
+            a.0,
+            b.0,
+            b.0 / a.0,
+            a.1,
+            b.1,
+            gb / ga
+        );
         println!(
             "| {name} | conversion s: SAH {sah_seconds:.2}, tuned {tuned_seconds:.2} |  |  |  |  |  |  |  |  |  |"
         );

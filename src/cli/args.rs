@@ -202,6 +202,10 @@ pub struct OptionArgs {
     /// made from the scene): each node is weighed by the rays that reach it instead of by its surface area.
     #[arg(long, value_name = "COUNT", help_heading = "Output")]
     pub tune_rays: Option<usize>,
+    /// Tune the wide (and GPU) collapses to your own rays: a ray file of `bvhc trace` (32-byte records; a
+    /// renderer can dump a frame's rays). The file's hash is recorded, so a changed file converts again.
+    #[arg(long, value_name = "RAYS.bin", help_heading = "Output")]
+    pub train_rays: Option<PathBuf>,
     /// Also write the GPU sections of format 1.4: compressed 8-wide nodes (80 bytes) and their leaf triangles
     /// with vertices (40 bytes each), which the WGSL kernel of the loader crate traces (`bvhc trace --gpu`).
     /// One-level files only.
@@ -218,10 +222,12 @@ pub struct OptionArgs {
 }
 
 impl OptionArgs {
-    /// The flags as overrides of the preset: a flag not given leaves the preset's choice.
-    pub fn overrides(&self) -> Overrides {
+    /// The flags as overrides of the preset: a flag not given leaves the preset's choice. Fails with a message
+    /// naming the file when `--train-rays` cannot be read or holds a bad ray.
+    pub fn overrides(&self) -> Result<Overrides, String> {
         let given = |flag: bool| flag.then_some(false);
-        Overrides {
+        let train_rays = self.train_rays.as_deref().map(bvhc::sampling::TrainingRays::read).transpose()?;
+        Ok(Overrides {
             scene: self.scene.as_ref().map(|scene| match scene.parse::<usize>() {
                 Ok(index) => SceneSelector::Index(index),
                 Err(_) => SceneSelector::Name(scene.clone()),
@@ -251,9 +257,10 @@ impl OptionArgs {
             wide: given(self.no_wide),
             gpu_layout: self.gpu_layout.then_some(true),
             tune_rays: self.tune_rays,
+            train_rays,
             write_ids: given(self.no_ids),
             write_source_vertices: given(self.no_source_vertices),
-        }
+        })
     }
 }
 

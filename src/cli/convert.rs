@@ -18,10 +18,11 @@ pub fn convert(args: &ConvertArgs) -> Exit {
     let (Some(input), Some(output)) = (&args.input, &args.output) else {
         return fail(Exit::Usage, "INPUT and -o OUTPUT are required");
     };
-    let conversion = Conversion::new(input, output)
-        .preset(args.options.preset)
-        .overrides(args.options.overrides())
-        .force(args.force);
+    let overrides = match args.options.overrides() {
+        Ok(overrides) => overrides,
+        Err(message) => return fail(Exit::InvalidInput, message),
+    };
+    let conversion = Conversion::new(input, output).preset(args.options.preset).overrides(overrides).force(args.force);
     let bar = (std::io::stderr().is_terminal() && !args.quiet).then(|| {
         let bar = ProgressBar::new_spinner();
         bar.set_style(

@@ -11,7 +11,11 @@ use super::{Exit, fail};
 
 /// Prints the resolved options.
 pub fn options(args: &OptionsArgs) -> Exit {
-    match resolve(args.options.preset, &args.options.overrides()) {
+    let overrides = match args.options.overrides() {
+        Ok(overrides) => overrides,
+        Err(message) => return fail(Exit::InvalidInput, message),
+    };
+    match resolve(args.options.preset, &overrides) {
         Ok(options) => {
             let mut out = String::new();
             outln!(out, "{:#}", BuildRecord::of(&options).to_value());

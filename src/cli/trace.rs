@@ -9,57 +9,19 @@ use std::time::Instant;
 use bvhc::loader::{Hit, Ray};
 use rayon::prelude::*;
 
+use bvhc::sampling::{parse_rays, read_ray_file};
+
 use super::args::TraceArgs;
 use super::info::read_verified;
 use super::output::print;
 use super::{Exit, fail};
 
-/// Bytes of one ray record.
-pub const RAY_RECORD_BYTE_LEN: usize = 32;
 /// Bytes of one closest-hit record.
 pub const HIT_RECORD_BYTE_LEN: usize = 24;
 /// `triangle_index` and `source_triangle_id` of a miss, and `source_triangle_id` of a file without ids.
 pub const NO_INDEX: u32 = u32::MAX;
 /// Rays per parallel chunk.
 const CHUNK: usize = 4096;
-/// The smallest magnitude of a ray's largest direction component (`format-spec/rays-and-hits.md`): `2^-64`,
-/// which keeps the hit test's `1 / d_kz` at most `2^64`.
-const MIN_DIRECTION_COMPONENT: f32 = 1.0 / (1u128 << 64) as f32;
-
-/// Parses ray records; the error names the first bad ray and the rule it breaks.
-pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
-    if !bytes.len().is_multiple_of(RAY_RECORD_BYTE_LEN) {
-        return Err(format!("{} bytes is not a whole number of {RAY_RECORD_BYTE_LEN}-byte ray records", bytes.len()));
-    }
-    let mut rays = Vec::new();
-    rays.try_reserve_exact(bytes.len() / RAY_RECORD_BYTE_LEN).map_err(|_| "out of memory for the rays".to_string())?;
-    for (i, record) in bytes.chunks_exact(RAY_RECORD_BYTE_LEN).enumerate() {
-        let f: [f32; 8] = std::array::from_fn(|k| {
-            f32::from_le_bytes([record[4 * k], record[4 * k + 1], record[4 * k + 2], record[4 * k + 3]])
-        });
-        let ray = Ray { origin: [f[0], f[1], f[2]], direction: [f[3], f[4], f[5]], t_min: f[6], t_max: f[7] };
-        let finite = f[..7].iter().all(|v| v.is_finite()) && !ray.t_max.is_nan();
-        if !finite {
-            return Err(format!("ray {i}: origin, direction and t_min must be finite, t_max not NaN"));
-        }
-        if ray.direction == [0.0; 3] {
-            return Err(format!("ray {i}: the direction is zero"));
-        }
-        let longest = ray.direction.iter().fold(0.0f32, |m, c| m.max(c.abs()));
-        if longest < MIN_DIRECTION_COMPONENT {
-            return Err(format!(
-                "ray {i}: the direction's largest component {longest:e} is below 2^-64 in magnitude (the hit \
-                 test's shear would overflow); scale the direction up"
-            ));
-        }
-        if !(0.0 <= ray.t_min && ray.t_min <= ray.t_max) {
-            return Err(format!("ray {i}: needs 0 <= t_min <= t_max (t_min {}, t_max {})", ray.t_min, ray.t_max));
-        }
-        rays.push(ray);
-    }
-    Ok(rays)
-}
-
 /// The 24-byte record of a closest-hit result.
 pub fn hit_record(hit: Option<&Hit>) -> [u8; HIT_RECORD_BYTE_LEN] {
     let (t, triangle, source, u, v) = match hit {
@@ -192,13 +154,4 @@ fn trace_on_gpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], any_hit: bool) -
         (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
     };
     Ok(Traced { records, hits, seconds: trace.seconds, device })
-}
-
-/// The ray file's bytes: a regular file only.
-fn read_ray_file(path: &std::path::Path) -> Result<Vec<u8>, String> {
-    let metadata = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
-    if !metadata.is_file() {
-        return Err("cannot read: not a regular file".to_string());
-    }
-    std::fs::read(path).map_err(|e| format!("cannot read: {e}"))
 }

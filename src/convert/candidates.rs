@@ -163,7 +163,8 @@ fn optimize_and_merge(
     let repeats = reference_count > triangle_count;
     // With ray tuning, the collapses weigh nodes by the training rays that reach them (the binary leaves are
     // merged by SAH either way).
-    let weights = options.ray_tuning.map(|tuning| crate::sampling::tuned_weights(&tree, triangles, &tuning));
+    let user_rays = options.training_rays.as_ref();
+    let weights = options.ray_tuning.map(|tuning| crate::sampling::tuned_weights(&tree, triangles, &tuning, user_rays));
     let weights = weights.as_deref();
     let constants = options.optimize.constants;
     let ((final_tree, wide_tree), gpu_tree) = rayon::join(

@@ -8,7 +8,7 @@ pub mod preset;
 mod resolve;
 
 pub use crate::import::Instancing;
-pub use crate::sampling::RayTuning;
+pub use crate::sampling::{RayTuning, TrainingRays};
 pub use preset::Preset;
 pub use resolve::{OptionsError, Overrides, resolve};
 
@@ -44,6 +44,9 @@ pub struct ConvertOptions {
     pub gpu: Option<GpuCosts>,
     /// Tune the wide and GPU collapses to sampled rays (`crate::sampling`); `None`: by surface area.
     pub ray_tuning: Option<RayTuning>,
+    /// The user's training rays (`--train-rays`), which replace the built-in ones; `ray_tuning` then names
+    /// their file's hash.
+    pub training_rays: Option<TrainingRays>,
     /// Write the triangle_ids and source_table sections.
     pub write_ids: bool,
     /// Write the source_vertices section of format 1.2 (each triangle's vertex indices in its source
@@ -108,6 +111,13 @@ impl ConvertOptions {
                 return Err(OptionsError::invalid("wide", format!("{wide:?} does not fit the 8-wide layout")));
             }
         }
+        let file_hash = self.training_rays.as_ref().map(|t| t.content_hash);
+        if self.ray_tuning.map_or(file_hash.is_some(), |t| t.training_file != file_hash) {
+            return Err(OptionsError::invalid(
+                "--train-rays",
+                "the training rays and ray_tuning.training_file disagree",
+            ));
+        }
         if let Some(tuning) = self.ray_tuning {
             if tuning.rays == 0 || tuning.prior.is_nan() || tuning.prior <= 0.0 {
                 return Err(OptionsError::invalid(
@@ -116,8 +126,9 @@ impl ConvertOptions {
                 ));
             }
             if self.wide.is_none() && self.gpu.is_none() {
+                let setting = if file_hash.is_some() { "--train-rays" } else { "--tune-rays" };
                 return Err(OptionsError::inert(
-                    "--tune-rays",
+                    setting,
                     "--no-wide without --gpu-layout",
                     "ray tuning steers the wide and GPU collapses; drop --no-wide or add --gpu-layout",
                 ));

@@ -102,6 +102,7 @@ impl Preset {
             wide: Some(WideCosts::default()),
             gpu: None,
             ray_tuning: None,
+            training_rays: None,
             write_ids: true,
             write_source_vertices: true,
         }

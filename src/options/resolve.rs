@@ -51,6 +51,8 @@ pub struct Overrides {
     pub gpu_layout: Option<bool>,
     /// Leaves: tune the wide and GPU collapses to this many sampled training rays.
     pub tune_rays: Option<usize>,
+    /// Leaves: tune the wide and GPU collapses to the user's rays (a ray file, read).
+    pub train_rays: Option<crate::sampling::TrainingRays>,
     /// Output: write the triangle_ids and source_table sections.
     pub write_ids: Option<bool>,
     /// Output: write the source_vertices section (needs the ids; leaving the ids out leaves it out too).
@@ -120,8 +122,23 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     } else if o.wide == Some(true) {
         options.wide = Some(options.wide.unwrap_or_default());
     }
-    if let Some(rays) = o.tune_rays {
-        options.ray_tuning = Some(crate::sampling::RayTuning { rays, ..Default::default() });
+    match (o.tune_rays, &o.train_rays) {
+        (Some(_), Some(_)) => {
+            return Err(OptionsError::inert(
+                "--tune-rays",
+                "--train-rays",
+                "the training rays come from the file; drop --tune-rays",
+            ));
+        }
+        (Some(rays), None) => options.ray_tuning = Some(crate::sampling::RayTuning { rays, ..Default::default() }),
+        (None, Some(file)) => {
+            let training_file = Some(file.content_hash);
+            let rays = file.rays.len();
+            options.ray_tuning =
+                Some(crate::sampling::RayTuning { rays, seed: 0, training_file, ..Default::default() });
+            options.training_rays = Some(file.clone());
+        }
+        (None, None) => {}
     }
     if let Some(gpu_layout) = o.gpu_layout {
         options.gpu = gpu_layout.then(|| options.gpu.unwrap_or_default());

@@ -4,13 +4,16 @@
 //! Forum 34(7), 2015; Bittner and Havran, "RDH: Ray Distribution Heuristics", SCCG 2009). Where few sample rays
 //! reach a node, its estimate leans on the surface-area one, as RSC blends them.
 //!
-//! [`training_rays`] makes the built-in distribution from the scene and a seed; [`node_visits`] counts, per
+//! [`training_rays`] makes the built-in distribution from the scene and a seed ([`TrainingRays`] reads a
+//! user's ray file instead); [`node_visits`] counts, per
 //! node, the rays that reached it (in parallel, with the same counts for any thread count: counts are integer
 //! sums); [`ray_weights`] turns counts into the collapse's weights.
 
+mod ray_file;
 mod rays;
 mod trace;
 
+pub use ray_file::{RAY_RECORD_BYTE_LEN, TrainingRays, parse_rays, read_ray_file};
 pub use rays::training_rays;
 pub use trace::{SampleHit, trace_counting};
 
@@ -28,12 +31,24 @@ pub struct RayTuning {
     pub seed: u64,
     /// The surface-area estimate's weight, in sample rays, in each node's blended probability ([`ray_weights`]).
     pub prior: f64,
+    /// With a user's ray file (`--train-rays`) instead of the built-in rays: the XXH3-64 of its bytes, recorded
+    /// as `xxh3-64:<16 hex digits>` (`rays` is then the file's count and `seed` 0).
+    #[serde(skip_serializing_if = "Option::is_none", serialize_with = "content_hash")]
+    pub training_file: Option<u64>,
+}
+
+/// `xxh3-64:<16 hex digits>`, as the metadata's input hashes are written.
+fn content_hash<S: serde::Serializer>(hash: &Option<u64>, serializer: S) -> Result<S::Ok, S::Error> {
+    match hash {
+        Some(h) => serializer.serialize_str(&format!("xxh3-64:{h:016x}")),
+        None => serializer.serialize_none(),
+    }
 }
 
 impl Default for RayTuning {
     /// 2^16 rays, seed 1, a prior worth 32 rays.
     fn default() -> Self {
-        RayTuning { rays: 1 << 16, seed: 1, prior: 32.0 }
+        RayTuning { rays: 1 << 16, seed: 1, prior: 32.0, training_file: None }
     }
 }
 
@@ -75,8 +90,17 @@ pub fn ray_weights(tree: &OptTree, visits: &[u32], prior: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The weights of `tuning`'s training rays through `tree` ([`training_rays`], [`node_visits`], [`ray_weights`]).
-pub fn tuned_weights(tree: &OptTree, triangles: &[[[f32; 3]; 3]], tuning: &RayTuning) -> Vec<f64> {
-    let rays = training_rays(tree, triangles, tuning.rays, tuning.seed);
-    ray_weights(tree, &node_visits(tree, triangles, &rays), tuning.prior)
+/// The weights of the training rays through `tree`: the user's `rays` when given, else `tuning`'s built-in
+/// ones ([`training_rays`], [`node_visits`], [`ray_weights`]).
+pub fn tuned_weights(
+    tree: &OptTree,
+    triangles: &[[[f32; 3]; 3]],
+    tuning: &RayTuning,
+    rays: Option<&TrainingRays>,
+) -> Vec<f64> {
+    let visits = match rays {
+        Some(user) => node_visits(tree, triangles, &user.rays),
+        None => node_visits(tree, triangles, &training_rays(tree, triangles, tuning.rays, tuning.seed)),
+    };
+    ray_weights(tree, &visits, tuning.prior)
 }

@@ -80,3 +80,58 @@ fn a_tuned_conversion_verifies_records_its_training_and_does_not_depend_on_threa
     let inert = Overrides { tune_rays: Some(4096), wide: Some(false), ..Overrides::default() };
     assert!(resolve(Preset::Balanced, &inert).unwrap_err().to_string().contains("--tune-rays"));
 }
+
+/// 32-byte ray records (`format-spec/rays-and-hits.md`).
+fn ray_file(rays: &[bvhc::loader::Ray]) -> Vec<u8> {
+    rays.iter()
+        .flat_map(|r| {
+            let values = [
+                r.origin[0],
+                r.origin[1],
+                r.origin[2],
+                r.direction[0],
+                r.direction[1],
+                r.direction[2],
+                r.t_min,
+                r.t_max,
+            ];
+            values.into_iter().flat_map(f32::to_le_bytes)
+        })
+        .collect()
+}
+
+#[test]
+fn a_conversion_trains_on_the_users_ray_file_and_records_its_hash() {
+    let input = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let dir = tempfile::tempdir().unwrap();
+    let rays: Vec<bvhc::loader::Ray> = (0..500)
+        .map(|i| bvhc::loader::Ray::new([0.0, 1.0, 10.0], [(i % 25) as f32 * 0.02 - 0.25, -0.1, -1.0]))
+        .collect();
+    let rays_path = dir.path().join("frame.rays");
+    std::fs::write(&rays_path, ray_file(&rays)).unwrap();
+    let output = dir.path().join("teapot.bvh");
+    let run = |extra: &[&str]| {
+        let mut args: Vec<&str> = vec![input.to_str().unwrap(), "-o", output.to_str().unwrap(), "-q"];
+        args.extend_from_slice(extra);
+        let args: Vec<&dyn AsRef<std::ffi::OsStr>> = args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>).collect();
+        crate::cli::bvhc(&args)
+    };
+    let done = run(&["--train-rays", rays_path.to_str().unwrap()]);
+    assert!(done.status.success(), "{}", String::from_utf8_lossy(&done.stderr));
+    let file = BvhFile::read(&output).unwrap();
+    let metadata = crate::common::assert_metadata_matches_schema(&file);
+    let hash = format!("xxh3-64:{:016x}", xxhash_rust::xxh3::xxh3_64(&std::fs::read(&rays_path).unwrap()));
+    assert_eq!(metadata["build"]["ray_tuning"]["training_file"], hash.as_str());
+    assert_eq!(metadata["build"]["ray_tuning"]["rays"], 500);
+    // A bad record: the error names the file and the ray; both flags at once: refused as inert.
+    let mut bad = ray_file(&rays);
+    bad[32 * 7 + 12..32 * 7 + 24].fill(0);
+    std::fs::write(&rays_path, bad).unwrap();
+    let failed = run(&["--train-rays", rays_path.to_str().unwrap(), "--force"]);
+    let message = String::from_utf8_lossy(&failed.stderr);
+    assert_eq!(failed.status.code(), Some(1), "{message}");
+    assert!(message.contains("frame.rays") && message.contains("ray 7"), "{message}");
+    std::fs::write(&rays_path, ray_file(&rays)).unwrap();
+    let both = run(&["--train-rays", rays_path.to_str().unwrap(), "--tune-rays", "100", "--force"]);
+    assert_eq!(both.status.code(), Some(2), "{}", String::from_utf8_lossy(&both.stderr));
+}
