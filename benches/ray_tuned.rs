@@ -79,40 +79,34 @@ fn main() {
         let camera = other.primary.clone();
         let other: Vec<Ray> = [other.primary, other.ao, other.incoherent].concat();
         let other = if full { other } else { other[..4096.min(other.len())].to_vec() };
+        let rounds = if full { 5 } else { 1 };
         for (set, rays) in [("same distribution, seed 99", &held_out), ("evaluate set", &other)] {
-            let (a, b) = (wide_counts(&sah, rays), wide_counts(&tuned, rays));
-            let ratio = time_ratio(&sah, &tuned, rays, if full { 5 } else { 1 });
-            let (ga, gb) = (gpu_visits(&sah, rays), gpu_visits(&tuned, rays));
-            println!(
-                "| {name} | {set} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | {ratio:.3} | {ga:.2} | {gb:.2} | {:.3} |",
-                a.0,
-                b.0,
-                b.0 / a.0,
-                a.1,
-                b.1,
-                gb / ga
-            );
+            print_row(name, set, (&sah, &tuned), rays, rounds);
         }
         // The user's own rays: trained on the evaluate set's camera rays, measured on the same rays.
         let (user, _) = convert(true, Some(&camera));
         let camera = if full { camera } else { camera[..4096.min(camera.len())].to_vec() };
-        let (a, b) = (wide_counts(&sah, &camera), wide_counts(&user, &camera));
-        let ratio = time_ratio(&sah, &user, &camera, if full { 5 } else { 1 });
-        let (ga, gb) = (gpu_visits(&sah, &camera), gpu_visits(&user, &camera));
-        println!(
-            "| {name} | its camera rays, trained on them (--train-rays) | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | \
-             {ratio:.3} | {ga:.2} | {gb:.2} | {:.3} |",
-            a.0,
-            b.0,
-            b.0 / a.0,
-            a.1,
-            b.1,
-            gb / ga
-        );
+        print_row(name, "its camera rays, trained on them (--train-rays)", (&sah, &user), &camera, rounds);
         println!(
             "| {name} | conversion s: SAH {sah_seconds:.2}, tuned {tuned_seconds:.2} |  |  |  |  |  |  |  |  |  |"
         );
     }
+}
+
+/// One table row: `tuned` against `sah` on `rays` (wide visits and packet tests, time ratio, GPU visits).
+fn print_row(name: &str, set: &str, (sah, tuned): (&BvhFile, &BvhFile), rays: &[Ray], rounds: usize) {
+    let (a, b) = (wide_counts(sah, rays), wide_counts(tuned, rays));
+    let ratio = time_ratio(sah, tuned, rays, rounds);
+    let (ga, gb) = (gpu_visits(sah, rays), gpu_visits(tuned, rays));
+    println!(
+        "| {name} | {set} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | {ratio:.3} | {ga:.2} | {gb:.2} | {:.3} |",
+        a.0,
+        b.0,
+        b.0 / a.0,
+        a.1,
+        b.1,
+        gb / ga
+    );
 }
 
 /// Rays of the training distribution from seed 99, made over a plain SAH tree of the file's records (the

@@ -9,5 +9,4 @@ mod wide;
 
 pub use binary::{PackedTree, RecordCursor, pack};
 pub use gpu::{GpuLayout, pack_gpu};
-pub use quantize::quantize_node;
 pub use wide::pack_wide;

@@ -112,7 +112,7 @@ fn v47_empty_slot_with_box_bytes() {
 
 #[test]
 fn v47_a_node_with_one_slot_below_the_root() {
-    expect_gpu(Rule::GpuTreeShape, |nodes, triangles| {
+    expect_gpu(Rule::GpuTreeShape, |nodes, _| {
         // The last node keeps only its first occupied slot: too few, and the triangles no longer tile.
         let last = nodes.len() - 1;
         let keep = (0..8).find(|&s| nodes[last].meta[s] != 0).unwrap();
@@ -123,7 +123,6 @@ fn v47_a_node_with_one_slot_below_the_root() {
                 nodes[last].quantized_max[a][slot] = 0;
             }
         }
-        let _ = triangles;
     });
 }
 
