@@ -3,7 +3,9 @@
 //! different one (the evaluate benchmark's single camera, its ambient-occlusion rays and incoherent rays). Per
 //! scene and ray set: the wide kernel's node visits and packet tests per ray (AVX2 path, counted), its time on
 //! one thread (median of 5 interleaved rounds, ratio tuned / SAH per round), and the GPU kernel's node visits
-//! (its CPU model) over the GPU sections of the same conversions.
+//! (its CPU model) over the GPU sections of the same conversions. A last row a scene: both conversions' times and
+//! which candidate the tuned ones kept by their sampled cost on held-out rays (the build unoptimized or optimized
+//! over clusters), with each candidate's cost.
 //!
 //! `cargo bench --bench ray_tuned`; `BVHC_TUNED_SCENES=kitchen,bunny`; `BVHC_TUNED_RAYS` (training rays, default
 //! 65536) and `BVHC_TUNED_PRIOR` (default 32).
@@ -69,10 +71,16 @@ fn main() {
             };
             let output = dir.path().join(name);
             let start = Instant::now();
-            convert_with(&path, &output, &options, &mut |_| ControlFlow::Continue(())).expect("converts");
-            (BvhFile::read(&output).expect("reads"), start.elapsed().as_secs_f64())
+            let report = convert_with(&path, &output, &options, &mut |_| ControlFlow::Continue(())).expect("converts");
+            let seconds = start.elapsed().as_secs_f64();
+            let kept = report.choice.map_or("-".to_string(), |c| {
+                let costs: Vec<String> = c.candidates.iter().map(|k| format!("{:.3}", k.cost)).collect();
+                let kept = c.candidates[c.kept];
+                format!("{}/{} of [{}]", kept.split_triangles, kept.optimize_over, costs.join(", "))
+            });
+            (BvhFile::read(&output).expect("reads"), seconds, kept)
         };
-        let ((sah, sah_seconds), (tuned, tuned_seconds)) = (convert(false, None), convert(true, None));
+        let ((sah, sah_seconds, _), (tuned, tuned_seconds, kept)) = (convert(false, None), convert(true, None));
         let held_out = held_out_rays(&sah, if full { 1 << 17 } else { 4096 });
         let (min, max) = sah.view().scene_box().expect("a scene");
         let other = ray_set::ray_set(&sah.view().tracer(), min, max);
@@ -84,11 +92,13 @@ fn main() {
             print_row(name, set, (&sah, &tuned), rays, rounds);
         }
         // The user's own rays: trained on the evaluate set's camera rays, measured on the same rays.
-        let (user, _) = convert(true, Some(&camera));
+        let (user, _, user_kept) = convert(true, Some(&camera));
         let camera = if full { camera } else { camera[..4096.min(camera.len())].to_vec() };
         print_row(name, "its camera rays, trained on them (--train-rays)", (&sah, &user), &camera, rounds);
         println!(
-            "| {name} | conversion s: SAH {sah_seconds:.2}, tuned {tuned_seconds:.2} |  |  |  |  |  |  |  |  |  |"
+            "| {name} | conversion s: SAH {sah_seconds:.2}, tuned {tuned_seconds:.2} ({:.2}x); kept by sampled cost: \
+             {kept}; with the camera rays: {user_kept} |  |  |  |  |  |  |  |  |  |",
+            tuned_seconds / sah_seconds
         );
     }
 }

@@ -10,7 +10,9 @@
 //! With `--features embree` (Debian's `libembree-dev` 3.13.5 installed), a second table compares with Embree:
 //! same triangles, same rays, single thread, Embree HIGH without and with `RTC_SCENE_FLAG_ROBUST`, single rays
 //! (`rtcIntersect1` / `rtcOccluded1`) and 8-wide packets on the primary set, on the kitchen, the dragon, the
-//! 2CylinderEngine and the toy car; hit counts are printed so any disagreement shows.
+//! 2CylinderEngine and the toy car; hit counts are printed so any disagreement shows. Its `tuned` columns trace a
+//! second file converted with `--tune-rays` (trained on the built-in distribution, not on these rays) through
+//! the best wide path.
 //!
 //! `cargo bench --bench traversal [--features embree]`; `BVHC_SCENES` overrides the scenes folder,
 //! `BVHC_BENCH_RAYS` the ray count, `BVHC_TRAVERSAL_SCENES=kitchen,engine` picks scenes; `BVHC_EMBREE_QUALITY=medium`
@@ -69,10 +71,19 @@ impl Obvhs {
 
 /// The scene at `path`, converted with the default options into `out`.
 fn converted_scene(path: &std::path::Path, out: &std::path::Path) -> BvhFile {
-    let output = out.join("scene.bvh");
+    converted_scene_with(path, out, false)
+}
+
+/// The scene at `path`, converted with the default options, with `tuned` also `--tune-rays` at its default
+/// budget, into `out`.
+fn converted_scene_with(path: &std::path::Path, out: &std::path::Path, tuned: bool) -> BvhFile {
+    let output = out.join(if tuned { "tuned.bvh" } else { "scene.bvh" });
     let mut options = ConvertOptions::default();
     if std::env::var_os("BVHC_TRAVERSAL_NO_SPLITS").is_some() {
         options.splits = None;
+    }
+    if tuned {
+        options.ray_tuning = Some(bvhc::sampling::RayTuning::default());
     }
     convert_with(path, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
     BvhFile::read(&output).unwrap()
@@ -192,10 +203,10 @@ fn against_embree() {
         "incoherent rays (closest: primary_rays, any: shadow_rays) and a 1024x768 primary set (packets: 8 pixels of a row).\n"
     );
     println!(
-        "| scene | rays | query | Embree | Embree robust | Embree 8-packets | bvhc binary | bvhc wide portable | bvhc wide {:?} | bvhc wide stream | bvhc wide 8-packets | wide / Embree | wide / robust | stream / Embree | packets / Embree 8-packets | hits Embree / robust / bvhc |",
+        "| scene | rays | query | Embree | Embree robust | Embree 8-packets | bvhc binary | bvhc wide portable | bvhc wide {:?} | bvhc wide stream | bvhc wide 8-packets | wide / Embree | wide / robust | stream / Embree | packets / Embree 8-packets | bvhc wide tuned | tuned / Embree | tuned / wide | hits Embree / robust / bvhc |",
         KernelPath::best()
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, path) in harness::scenes(
         &[
             ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
@@ -210,6 +221,9 @@ fn against_embree() {
         let binary = view.binary_tracer();
         let portable = binary.with_wide(view.wide_tracer(KernelPath::Portable).expect("a converted file is wide"));
         let best = view.tracer();
+        let tuned_file = converted_scene_with(&path, out.path(), true);
+        let tuned_view = tuned_file.view();
+        let tuned = tuned_view.tracer();
         let triangles: Vec<[[f32; 3]; 3]> = view.triangles().iter().map(|t| t.vertices).collect();
         let root = view.nodes()[0];
         let sets = [
@@ -227,6 +241,8 @@ fn against_embree() {
                 }
             };
             let (ours_binary, ours_portable, (ours_best, our_hits)) = (ours(&binary).0, ours(&portable).0, ours(&best));
+            let (ours_tuned, tuned_hits) = ours(&tuned);
+            assert_eq!(tuned_hits, our_hits, "{name} {set} {query}: the tuned file finds other hits");
             let ours_stream = harness::batch_speed(rays, &best, closest, false, 5);
             let ours_packets = harness::batch_speed(rays, &best, closest, true, 5);
             let embree_runs = std::thread::scope(|scope| {
@@ -253,7 +269,7 @@ fn against_embree() {
             });
             let [(plain, plain8), (robust, _)] = embree_runs;
             println!(
-                "| {name} | {set} | {query} | {:.2} | {:.2} | {:.2} | {ours_binary:.2} | {ours_portable:.2} | {ours_best:.2} | {ours_stream:.2} | {ours_packets:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} / {} / {our_hits} |",
+                "| {name} | {set} | {query} | {:.2} | {:.2} | {:.2} | {ours_binary:.2} | {ours_portable:.2} | {ours_best:.2} | {ours_stream:.2} | {ours_packets:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {ours_tuned:.2} | {:.2} | {:.3} | {} / {} / {our_hits} |",
                 plain.0,
                 robust.0,
                 plain8.0,
@@ -261,6 +277,8 @@ fn against_embree() {
                 ours_best / robust.0,
                 ours_stream / plain.0,
                 ours_packets / plain8.0,
+                ours_tuned / plain.0,
+                ours_tuned / ours_best,
                 plain.1,
                 robust.1
             );

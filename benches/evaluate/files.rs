@@ -1,4 +1,5 @@
-//! The files table: what a user of `bvhc` gets, files converted under each split and optimizer setting and
+//! The files table: what a user of `bvhc` gets, files converted under each split and optimizer setting (and two
+//! with `--tune-rays`, trained on the built-in distribution, measured here on another: this table's rays) and
 //! obvhs's tree finished as conversions finish theirs, traced through each file's default kernel.
 
 use std::time::Duration;
@@ -11,6 +12,7 @@ use bvhc::optimize::OptTree;
 use bvhc::options::Preset;
 use bvhc::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};
 use bvhc::pack::{pack, pack_wide};
+use bvhc::sampling::RayTuning;
 use obvhs::BvhBuildParams;
 
 use crate::Triangle;
@@ -73,25 +75,33 @@ pub fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, 
     let sbvh = |budget| Some(SplitOptions::with_budget(budget));
     let cut = |triangles| Some(SplitOptions { triangles, ..SplitOptions::with_budget(0.3) });
     let default_splits = Preset::Balanced.splits();
+    // (splits, what reinsertion optimizes over, ray tuning with the default budget)
     let settings = [
-        (None, OptimizeOver::References),
+        (None, OptimizeOver::References, false),
         (
             Some(SplitOptions { method: SplitMethod::PreSplit, ..SplitOptions::with_budget(0.1) }),
             OptimizeOver::References,
+            false,
         ),
-        (sbvh(0.1), OptimizeOver::References),
-        (sbvh(0.3), OptimizeOver::References),
-        (cut(SplitTriangles::Any), OptimizeOver::References),
-        (cut(SplitTriangles::Choose), OptimizeOver::References),
-        (default_splits, OptimizeOver::Clusters),
-        (default_splits, OptimizeOver::Choose),
-        (cut(SplitTriangles::Choose), OptimizeOver::Choose),
+        (sbvh(0.1), OptimizeOver::References, false),
+        (sbvh(0.3), OptimizeOver::References, false),
+        (cut(SplitTriangles::Any), OptimizeOver::References, false),
+        (cut(SplitTriangles::Choose), OptimizeOver::References, false),
+        (default_splits, OptimizeOver::Clusters, false),
+        (default_splits, OptimizeOver::Clusters, true),
+        (default_splits, OptimizeOver::Choose, false),
+        (cut(SplitTriangles::Choose), OptimizeOver::Choose, false),
+        (cut(SplitTriangles::Choose), OptimizeOver::Choose, true),
     ];
     let mut files = Vec::new();
-    for (i, (splits, optimize_over)) in settings.iter().enumerate() {
+    for (i, &(splits, optimize_over, tuned)) in settings.iter().enumerate() {
         let output = dir.path().join(format!("scene-{i}.bvh"));
-        let options =
-            ConvertOptions { splits: *splits, reinsertion: Some(*optimize_over), ..ConvertOptions::default() };
+        let options = ConvertOptions {
+            splits,
+            reinsertion: Some(optimize_over),
+            ray_tuning: tuned.then(RayTuning::default),
+            ..ConvertOptions::default()
+        };
         let report = convert_with(scene, &output, &options, &mut |_| std::ops::ControlFlow::Continue(())).unwrap();
         files.push((report, BvhFile::read(&output).unwrap()));
     }
@@ -102,12 +112,17 @@ pub fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, 
         .map(|f| f.view().tracer())
         .collect();
     let renders = render_in_rounds(&tracers, rays, FILE_ROUNDS);
-    for (i, ((splits, optimize_over), (report, _))) in settings.iter().zip(&files).enumerate() {
+    for (i, ((splits, optimize_over, tuned), (report, _))) in settings.iter().zip(&files).enumerate() {
         let (steps, tests) = traversal_counts(&tracers[i], rays);
-        let over = match optimize_over {
+        let mut over = match optimize_over {
             OptimizeOver::References => String::new(),
             other => format!(" --optimize-over {}", other.name()),
         };
+        if *tuned {
+            let kept = report.choice.as_ref().map(|c| c.candidates[c.kept]);
+            let kept = kept.map_or(String::new(), |c| format!(" (kept {}/{})", c.split_triangles, c.optimize_over));
+            over.push_str(&format!(" --tune-rays {}{kept}", RayTuning::default().rays));
+        }
         println!(
             "| {}{over} | {} | {:.1} | {:.2} | {} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
             splits.map_or("--no-splits".to_string(), |s| format!(

@@ -198,12 +198,16 @@ pub struct OptionArgs {
     /// Omit the wide sections (8-wide nodes and triangle packets for the SIMD kernel): a format 1.0 file.
     #[arg(long, help_heading = "Leaf layout")]
     pub no_wide: bool,
-    /// Tune the wide (and GPU) collapses to COUNT sampled training rays (camera, ambient-occlusion and uniform rays
-    /// made from the scene): each node is weighed by the rays that reach it instead of by its surface area.
+    /// Tune the tree to COUNT sampled training rays (camera, ambient-occlusion and uniform rays made from the
+    /// scene; at most 16 a triangle): the leaf merge and the wide (and GPU) collapses weigh each node by the rays
+    /// that reach it instead of by its surface area, and the candidate trees (each build also unoptimized; with
+    /// `--split-triangles choose` also without splits) are judged on as many held-out rays. Scenes of fewer than
+    /// 1024 triangles are not sampled (the file says so).
     #[arg(long, value_name = "COUNT", help_heading = "Output")]
     pub tune_rays: Option<usize>,
-    /// Tune the wide (and GPU) collapses to your own rays: a ray file of `bvhc trace` (32-byte records; a
-    /// renderer can dump a frame's rays). The file's hash is recorded, so a changed file converts again.
+    /// Tune the tree to your own rays, as --tune-rays does: a ray file of `bvhc trace` (32-byte records; a
+    /// renderer can dump a frame's rays), its even-numbered rays for training and its odd-numbered ones held out
+    /// to judge the candidates. The file's hash is recorded, so a changed file converts again.
     #[arg(long, value_name = "RAYS.bin", help_heading = "Output")]
     pub train_rays: Option<PathBuf>,
     /// Also write the GPU sections of format 1.4: compressed 8-wide nodes (80 bytes) and their leaf triangles

@@ -274,15 +274,23 @@ pub fn info(path: &Path, json: bool) -> Exit {
         let choice = &metadata["choice"];
         if let (Some(candidates), Some(kept)) = (choice["candidates"].as_array(), choice["kept"].as_u64()) {
             let name = |c: &serde_json::Value| {
-                format!(
-                    "{} triangles cut, over {}",
-                    c["split_triangles"].as_str().unwrap_or("?"),
-                    c["optimize_over"].as_str().unwrap_or("?")
-                )
+                let optimized = match c["optimize_over"].as_str().unwrap_or("?") {
+                    "none" => "not optimized".to_string(),
+                    over => format!("over {over}"),
+                };
+                format!("{} triangles cut, {optimized}", c["split_triangles"].as_str().unwrap_or("?"))
             };
             let costs: Vec<String> = candidates.iter().map(|c| format!("{}: {}", name(c), c["cost"])).collect();
             let kept = candidates.get(kept as usize).map_or("?".to_string(), name);
             outln!(out, "choice by {}: kept {kept} ({})", choice["measure"].as_str().unwrap_or("?"), costs.join("; "));
+        }
+        let sampling = &metadata["sampling"];
+        if let Some(why) = sampling["skipped"].as_str() {
+            outln!(out, "ray sampling: skipped ({why})");
+        } else if let Some(training) = sampling["training_rays"].as_u64() {
+            let held_out = sampling["held_out_rays"].as_u64().unwrap_or(0);
+            let seed = sampling["held_out_seed"].as_u64().map_or(String::new(), |s| format!(", seed {s}"));
+            outln!(out, "ray sampling: {training} training rays, {held_out} held-out rays{seed}");
         }
         outln!(
             out,

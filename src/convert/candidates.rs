@@ -1,6 +1,8 @@
 //! The conversion's stages from the triangles to the two trees before packing: build (with split references
 //! where the options allow them), optimize, leaf layout. Where the options ask to choose (which triangles to
-//! cut, what reinsertion moves), each candidate is made and the one whose wide cost is lowest is kept.
+//! cut, what reinsertion moves), each candidate is made and the one whose cost is lowest is kept: the wide cost,
+//! or with ray tuning the work a wide kernel does for held-out sample rays, which also judges whether
+//! optimization and (with `choose`) splits pay.
 
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -16,6 +18,7 @@ use crate::layout::{WideCosts, WideTree, cluster_roots, collapse, collapse_by, c
 use crate::optimize::{OptTree, OptimizeReport, Progress, StopReason, optimize, optimize_over_clusters};
 use crate::options::preset::CLUSTER_SIZE;
 use crate::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};
+use crate::sampling::{MIN_SAMPLED_TRIANGLES, RaySample, SamplingSummary, sampled_wide_work, tuned_weights};
 
 /// A conversion's tree before packing: built, optimized and merged.
 pub(super) struct Candidate {
@@ -26,21 +29,53 @@ pub(super) struct Candidate {
     /// The references the tree was built over.
     pub reference_count: usize,
     pub optimization: Option<OptimizeReport>,
+    /// With ray tuning: the wide kernel's mean cost for the held-out rays (of the GPU kernel without wide
+    /// sections).
+    pub sampled_cost: Option<f64>,
 }
 
 impl Candidate {
-    /// What a [`Choice`] compares: the wide tree's cost, or the binary SAH without wide sections.
+    /// What a [`Choice`] compares: the sampled cost, else the wide tree's cost, else the binary SAH.
     fn score(&self, options: &ConvertOptions) -> f64 {
-        match &self.wide_tree {
-            Some((wide, costs)) => wide.cost(costs),
-            None => self.final_tree.sah_cost(options.optimize.constants).cost,
+        match (&self.sampled_cost, &self.wide_tree) {
+            (Some(cost), _) => *cost,
+            (None, Some((wide, costs))) => wide.cost(costs),
+            (None, None) => self.final_tree.sah_cost(options.optimize.constants).cost,
+        }
+    }
+}
+
+/// The tree a conversion writes, how it was chosen, and what its ray sampling did.
+pub(super) struct Chosen {
+    pub candidate: Candidate,
+    pub choice: Option<Choice>,
+    /// With ray tuning: the sample's sizes, or why it was skipped.
+    pub sampling: Option<SamplingSummary>,
+}
+
+/// The candidates made so far and the lowest-scoring one.
+struct Contest {
+    /// (candidate, its score, its index in `costs`)
+    best: Option<(Candidate, f64, usize)>,
+    costs: Vec<CandidateCost>,
+}
+
+impl Contest {
+    /// Enters `candidate`, made with `split_triangles` and `optimize_over` (see [`CandidateCost`]); it becomes the
+    /// best when it scores strictly lower (the first is kept on a tie).
+    fn enter(&mut self, candidate: Candidate, options: &ConvertOptions, labels: (&'static str, &'static str)) {
+        let score = candidate.score(options);
+        self.costs.push(CandidateCost { split_triangles: labels.0, optimize_over: labels.1, cost: score });
+        if self.best.as_ref().is_none_or(|(_, lowest, _)| score < *lowest) {
+            self.best = Some((candidate, score, self.costs.len() - 1));
         }
     }
 }
 
 /// Every candidate the options ask for (which triangles may be cut, what the optimizer's leaves are: one each
-/// unless told to choose), built, optimized and merged, and the one whose [`Candidate::score`] is lowest (the
-/// first on a tie), with the costs of all when there were several. A time budget is shared equally; a
+/// unless told to choose; with ray tuning also each build unoptimized, and with `choose` a build without
+/// splits), built, optimized and merged, and the one whose [`Candidate::score`] is lowest (the first on a tie),
+/// with the costs of all when there were several. A time budget is shared equally among the optimizations; a
 /// cancelled optimization ends the search (its tree competes with those made before it).
 pub(super) fn best_candidate(
     input: &Path,
@@ -48,72 +83,88 @@ pub(super) fn best_candidate(
     options: &ConvertOptions,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
-) -> Result<(Candidate, Option<Choice>), ConvertError> {
-    let cut_any: &[bool] = match options.splits.map(|s| s.triangles) {
-        Some(SplitTriangles::Choose) => &[false, true],
-        Some(SplitTriangles::Any) => &[true],
-        _ => &[false],
+) -> Result<Chosen, ConvertError> {
+    // Scenes too small to sample are converted as without tuning (the sample says it skipped them).
+    let judged_by_rays = options.ray_tuning.is_some() && triangles.len() >= MIN_SAMPLED_TRIANGLES;
+    // Each build as the triangles it may cut: none (no splits), or whether any triangle may be cut.
+    let builds: &[Option<bool>] = match options.splits.map(|s| s.triangles) {
+        None => &[None],
+        Some(SplitTriangles::Choose) if judged_by_rays => &[None, Some(false), Some(true)],
+        Some(SplitTriangles::Choose) => &[Some(false), Some(true)],
+        Some(SplitTriangles::Any) => &[Some(true)],
+        Some(SplitTriangles::Wasteful) => &[Some(false)],
     };
-    // Without optimization there is one tree.
+    // Without optimization there is one tree a build.
     let over_clusters: &[bool] = match options.reinsertion {
         None | Some(OptimizeOver::References) => &[false],
         Some(OptimizeOver::Clusters) => &[true],
         Some(OptimizeOver::Choose) => &[false, true],
     };
+    let unoptimized_too = judged_by_rays && options.reinsertion.is_some();
     let mut shared = options.clone();
-    let count = options.candidate_count() as u32;
-    debug_assert_eq!(count as usize, cut_any.len() * over_clusters.len());
-    shared.optimize.time_budget = options.optimize.time_budget.map(|t| t / count);
-    // (candidate, its score, its index in `costs`)
-    let mut best: Option<(Candidate, f64, usize)> = None;
-    let mut costs = Vec::new();
-    'search: for &any_triangle in cut_any {
-        let (built, reference_count) = build_stage(input, triangles, &shared, any_triangle, observer, timings)?;
+    let optimizations = (builds.len() * over_clusters.len()) as u32;
+    shared.optimize.time_budget = options.optimize.time_budget.map(|t| t / optimizations);
+    let mut sample: Option<RaySample> = None;
+    let mut contest = Contest { best: None, costs: Vec::new() };
+    'search: for &cut in builds {
+        let (mut built, reference_count) = build_stage(input, triangles, &shared, cut, observer, timings)?;
+        let cut_label = match cut {
+            None => "none",
+            Some(false) => SplitTriangles::Wasteful.name(),
+            Some(true) => SplitTriangles::Any.name(),
+        };
+        if unoptimized_too {
+            // Whether optimizing pays: this build as it is, judged beside its optimized trees.
+            let clock = Instant::now();
+            built.limit_depth(MAX_DEPTH);
+            let candidate = merge_stage(&built, reference_count, triangles, options, None, &mut sample);
+            timings.merge += lap(clock);
+            contest.enter(candidate, options, (cut_label, "none"));
+        }
         let mut built = Some(built);
         for (k, &clusters) in over_clusters.iter().enumerate() {
             // The last candidate of this build takes the tree; the others optimize a copy.
             let tree = if k + 1 < over_clusters.len() { built.clone() } else { built.take() };
             let Some(tree) = tree else { unreachable!("the built tree is taken by the last candidate only") };
-            let candidate = optimize_and_merge(tree, reference_count, triangles, &shared, clusters, observer, timings);
-            let score = candidate.score(options);
+            let candidate =
+                optimize_and_merge(tree, reference_count, triangles, &shared, clusters, &mut sample, observer, timings);
             let cancelled = candidate.optimization.as_ref().is_some_and(|r| r.stop == StopReason::Cancelled);
-            costs.push(CandidateCost {
-                split_triangles: if any_triangle { SplitTriangles::Any } else { SplitTriangles::Wasteful },
-                optimize_over: if clusters { OptimizeOver::Clusters } else { OptimizeOver::References },
-                cost: score,
-            });
-            if best.as_ref().is_none_or(|(_, lowest, _)| score < *lowest) {
-                best = Some((candidate, score, costs.len() - 1));
-            }
+            let over = if clusters { OptimizeOver::Clusters } else { OptimizeOver::References };
+            contest.enter(candidate, options, (cut_label, over.name()));
             if cancelled {
                 break 'search;
             }
         }
     }
-    let Some((kept, _, kept_index)) = best else { unreachable!("at least one candidate is made") };
-    let choice = (costs.len() > 1).then(|| Choice {
-        measure: if options.wide.is_some() { "wide_cost" } else { "sah_cost" },
-        kept: kept_index,
-        candidates: costs,
-    });
-    Ok((kept, choice))
+    let Contest { best, costs } = contest;
+    let Some((candidate, _, kept)) = best else { unreachable!("at least one candidate is made") };
+    let measure = match (judged_by_rays, options.wide.is_some()) {
+        (true, _) => "sampled_cost",
+        (false, true) => "wide_cost",
+        (false, false) => "sah_cost",
+    };
+    let choice = (costs.len() > 1).then_some(Choice { measure, kept, candidates: costs });
+    // Made by the first merge whenever the options tune by rays.
+    let sampling = sample.map(|sample| sample.summary);
+    Ok(Chosen { candidate, choice, sampling })
 }
 
-/// The build stage: the initial tree, cutting split references (where `options.splits` allows them) in any
-/// triangle worth cutting when `any_triangle`, else only in triangles that waste a large part of their box;
-/// and the number of references it holds.
+/// The build stage: the initial tree and the number of references it holds. `cut` is `None` for a build without
+/// split references, else whether any triangle worth cutting may be cut (else only triangles that waste a large
+/// part of their box); split references need `options.splits`.
 fn build_stage(
     input: &Path,
     triangles: &[[[f32; 3]; 3]],
     options: &ConvertOptions,
-    any_triangle: bool,
+    cut: Option<bool>,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
 ) -> Result<(OptTree, usize), ConvertError> {
     let _ = observer(Event::Stage(Stage::Build));
     let clock = Instant::now();
     let too_large = |count: usize| ConvertError::TooLarge { path: input.to_path_buf(), count };
-    let (build, reference_count) = match options.splits {
+    let any_triangle = cut == Some(true);
+    let (build, reference_count) = match cut.and(options.splits) {
         Some(SplitOptions { budget, method: SplitMethod::PreSplit, .. }) => {
             let ratio = if any_triangle { 0.0 } else { SplitMethod::PreSplit.wasteful_ratio() };
             let references = split_triangles_with(triangles, budget, ratio);
@@ -137,12 +188,14 @@ fn build_stage(
 
 /// The optimize and merge stages of a conversion (their times added to `timings`): reinsertion over one
 /// reference a leaf, or with `clusters` over the built tree's small subtrees ([`optimize_over_clusters`]).
+#[allow(clippy::too_many_arguments)]
 fn optimize_and_merge(
     mut tree: OptTree,
     reference_count: usize,
     triangles: &[[[f32; 3]; 3]],
     options: &ConvertOptions,
     clusters: bool,
+    sample: &mut Option<RaySample>,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
 ) -> Candidate {
@@ -159,19 +212,40 @@ fn optimize_and_merge(
     timings.optimize += lap(clock);
     let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH);
+    let candidate = merge_stage(&tree, reference_count, triangles, options, optimization, sample);
+    drop(tree);
+    timings.merge += lap(clock);
+    candidate
+}
+
+/// The merge stage of one candidate: the binary leaves merged, the wide and GPU collapses, and with ray tuning
+/// the sample (made over this tree when it is the first), the collapses weighed by its training rays and the
+/// candidate's [`Candidate::sampled_cost`] on its held-out rays.
+fn merge_stage(
+    tree: &OptTree,
+    reference_count: usize,
+    triangles: &[[[f32; 3]; 3]],
+    options: &ConvertOptions,
+    optimization: Option<OptimizeReport>,
+    sample: &mut Option<RaySample>,
+) -> Candidate {
     let triangle_count = triangles.len();
     let repeats = reference_count > triangle_count;
-    // With ray tuning, the collapses weigh nodes by the training rays that reach them (the binary leaves are
-    // merged by SAH either way).
-    let user_rays = options.training_rays.as_ref();
-    let weights = options.ray_tuning.map(|tuning| crate::sampling::tuned_weights(&tree, triangles, &tuning, user_rays));
+    let sample = options.ray_tuning.map(|tuning| {
+        &*sample.get_or_insert_with(|| RaySample::new(tree, triangles, &tuning, options.training_rays.as_ref()))
+    });
+    let sample = sample.filter(|s| s.is_sampled());
+    let weights = match (options.ray_tuning, sample) {
+        (Some(tuning), Some(sample)) => Some(tuned_weights(tree, triangles, &tuning, sample)),
+        _ => None,
+    };
     let weights = weights.as_deref();
     let constants = options.optimize.constants;
     let ((final_tree, wide_tree), gpu_tree) = rayon::join(
         || {
             let leaf_size = options.max_leaf_size();
             crate::layout::merge_and_collapse(
-                &tree,
+                tree,
                 constants,
                 leaf_size,
                 options.wide,
@@ -182,15 +256,22 @@ fn optimize_and_merge(
         },
         || {
             options.gpu.map(|gpu| match (weights, repeats) {
-                (Some(w), _) => collapse_by(&tree, &gpu.wide_costs(), w, repeats),
-                (None, true) => collapse_references(&tree, &gpu.wide_costs()),
-                (None, false) => collapse(&tree, &gpu.wide_costs()),
+                (Some(w), _) => collapse_by(tree, &gpu.wide_costs(), w, repeats),
+                (None, true) => collapse_references(tree, &gpu.wide_costs()),
+                (None, false) => collapse(tree, &gpu.wide_costs()),
             })
         },
     );
-    drop(tree);
-    timings.merge += lap(clock);
-    Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization }
+    // Judged by the kernel the file is for: the CPU wide layout, else the GPU one.
+    let sampled_cost = sample.and_then(|sample| {
+        let (wide, costs) = match (&wide_tree, &gpu_tree, options.gpu) {
+            (Some((wide, costs)), _, _) => (wide, *costs),
+            (None, Some(gpu_tree), Some(gpu)) => (gpu_tree, gpu.wide_costs()),
+            _ => return None,
+        };
+        Some(sampled_wide_work(wide, triangles, &sample.held_out, costs.packet_width).cost_per_ray(&costs))
+    });
+    Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, sampled_cost }
 }
 
 /// The merge stage of a conversion: [`crate::layout::merge_and_collapse`] with the options' leaf size and

@@ -39,6 +39,9 @@ pub struct Metadata<'a> {
     /// How the written tree was chosen among candidates, when there were several (one-level files).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub choice: Option<&'a Choice>,
+    /// With ray tuning (one-level files): the sample's sizes, or why it was skipped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sampling: Option<&'a crate::sampling::SamplingSummary>,
     /// What a two-level file instanced.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub two_level: Option<TwoLevelRecord>,

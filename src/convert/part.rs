@@ -12,13 +12,14 @@ use std::time::Instant;
 
 use bvhc_loader::{SourceVertexIndices, WideBvh};
 
-use super::candidates::{Candidate, best_candidate, lap};
+use super::candidates::{Candidate, Chosen, best_candidate, lap};
 use super::report::{Choice, ConvertError, Event, Stage, Timings, WideSummary};
 use crate::cost::SahCost;
 use crate::fallible::{collect_exact, probe};
 use crate::optimize::OptimizeReport;
 use crate::options::ConvertOptions;
 use crate::pack::{GpuLayout, PackedTree, pack, pack_gpu, pack_wide};
+use crate::sampling::SamplingSummary;
 
 /// Address space a worker thread may take when it first allocates, for the probe before the build: glibc's
 /// malloc reserves 64 MiB for each thread's arena, and a thread's stack is 8 MiB. Only reserved, never touched,
@@ -62,6 +63,8 @@ pub(super) struct PackedPart {
     pub optimization: Option<OptimizeReport>,
     /// The candidates' costs, when the options asked to choose.
     pub choice: Option<Choice>,
+    /// With ray tuning: the sample's sizes, or why it was skipped.
+    pub sampling: Option<SamplingSummary>,
 }
 
 /// Builds, optimizes, lays out and packs one tree over `triangles`, whose source ids are `source_ids` and source
@@ -75,8 +78,8 @@ pub(super) fn build_part(
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
 ) -> Result<PackedPart, ConvertError> {
-    let (candidate, choice) = best_candidate(input, &triangles, options, observer, timings)?;
-    let Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization } = candidate;
+    let Chosen { candidate, choice, sampling } = best_candidate(input, &triangles, options, observer, timings)?;
+    let Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, .. } = candidate;
     let over_references = reference_count > triangles.len();
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
@@ -148,6 +151,7 @@ pub(super) fn build_part(
         reference_count,
         optimization,
         choice,
+        sampling,
     })
 }
 

@@ -80,6 +80,7 @@ pub fn convert_with(
         reference_count,
         optimization,
         choice,
+        sampling,
     } = part;
     let stored_triangle_count = packed.triangles.len();
     let clock = Instant::now();
@@ -97,6 +98,7 @@ pub fn convert_with(
         triangles: TrianglesRecord::of(&imported.report, options.import.keep_degenerate),
         wide: summary.as_ref().map(WideRecord::of),
         choice: choice.as_ref(),
+        sampling: sampling.as_ref(),
         two_level: None,
     }
     .to_json();
@@ -139,6 +141,7 @@ pub fn convert_with(
         file_byte_len: file_byte_len as usize,
         timings,
         choice,
+        sampling,
         two_level: None,
     })
 }

@@ -8,7 +8,8 @@ use serde::Serialize;
 use crate::cost::SahCost;
 use crate::import::ImportReport;
 use crate::optimize::{OptimizeReport, Progress};
-use crate::options::{OptimizeOver, OptionsError, SplitTriangles};
+use crate::options::OptionsError;
+use crate::sampling::SamplingSummary;
 
 /// What a conversion produced and measured.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -39,9 +40,11 @@ pub struct ConvertReport {
     pub file_byte_len: usize,
     /// Seconds per stage: import, build, optimize, merge, pack, write.
     pub timings: Timings,
-    /// With [`SplitTriangles::Choose`] or [`OptimizeOver::Choose`]: the candidates' costs and the one written
+    /// With `choose` for split triangles or reinsertion, or ray tuning: the candidates' costs and the one written
     /// (absent when a cancelled optimization ended the search at the first, and in a two-level file).
     pub choice: Option<Choice>,
+    /// With ray tuning: the sample's sizes, or why it was skipped (absent without tuning and in a two-level file).
+    pub sampling: Option<SamplingSummary>,
     /// What a two-level file (format 1.3) holds; absent for a one-level file.
     pub two_level: Option<TwoLevelSummary>,
 }
@@ -183,11 +186,14 @@ pub enum Event<'a> {
     Batch(&'a Progress),
 }
 
-/// How a conversion chose among candidate trees ([`SplitTriangles::Choose`], [`OptimizeOver::Choose`]).
+/// How a conversion chose among candidate trees (`choose` for split triangles or reinsertion
+/// ([`crate::options::SplitTriangles`], [`crate::options::OptimizeOver`]), or ray tuning).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Choice {
-    /// What was compared: `wide_cost` (the wide collapse's cost, [`crate::layout::WideTree::cost`]) or `sah_cost`
-    /// (the binary tree's, for files without wide sections).
+    /// What was compared: `sampled_cost` (with ray tuning: the wide kernel's mean cost for the held-out sample
+    /// rays, [`crate::sampling::WideWork::cost_per_ray`], or the GPU kernel's without wide sections),
+    /// `wide_cost` (the wide collapse's cost, [`crate::layout::WideTree::cost`]) or `sah_cost` (the binary
+    /// tree's, for files without wide sections).
     pub measure: &'static str,
     /// Every candidate made, in the order made.
     pub candidates: Vec<CandidateCost>,
@@ -198,10 +204,12 @@ pub struct Choice {
 /// One candidate of a [`Choice`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct CandidateCost {
-    /// Which triangles it could cut: [`SplitTriangles::Wasteful`] or [`SplitTriangles::Any`].
-    pub split_triangles: SplitTriangles,
-    /// What its optimizer's leaves were: [`OptimizeOver::References`] or [`OptimizeOver::Clusters`].
-    pub optimize_over: OptimizeOver,
+    /// Which triangles it could cut: `wasteful` or `any` ([`crate::options::SplitTriangles::name`]), or `none`
+    /// (built without split references).
+    pub split_triangles: &'static str,
+    /// What its optimizer's leaves were: `references` or `clusters` ([`crate::options::OptimizeOver::name`]), or
+    /// `none` (not optimized).
+    pub optimize_over: &'static str,
     /// Its cost under the choice's measure.
     pub cost: f64,
 }

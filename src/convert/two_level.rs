@@ -113,6 +113,7 @@ pub(super) fn convert_two_level(
         triangles: TrianglesRecord::of(&report, options.import.keep_degenerate),
         wide,
         choice: None,
+        sampling: None,
         two_level: Some(TwoLevelRecord {
             instancing: options.import.instancing,
             instanced_meshes: instanced.iter().map(|m| m.mesh_index).collect(),
@@ -165,6 +166,7 @@ pub(super) fn convert_two_level(
         file_byte_len: file_byte_len as usize,
         timings,
         choice: None,
+        sampling: None,
         two_level: Some(summary),
     })
 }

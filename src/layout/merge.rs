@@ -22,6 +22,21 @@ pub fn merge_leaves_of_references(tree: &OptTree, constants: SahConstants, max_l
     merge(tree, constants, max_leaf_size, true)
 }
 
+/// [`merge_leaves`] (or with `distinct`, [`merge_leaves_of_references`]) with each node's surface area replaced by
+/// `weights[n]` in the costs: the sampled probability that a ray reaches it (`crate::sampling::ray_weights`), so
+/// leaf sizes follow where rays go. Weights proportional to the areas give [`merge_leaves`]'s tree.
+pub fn merge_leaves_by(
+    tree: &OptTree,
+    constants: SahConstants,
+    max_leaf_size: usize,
+    distinct: bool,
+    weights: &[f64],
+) -> BuildTree {
+    let weight = |n: u32| weights.get(n as usize).copied().unwrap_or(0.0);
+    let collapse = merged_nodes_weighed(tree, constants, max_leaf_size, distinct, &weight);
+    tree.to_build_tree_with_leaves(&|i| collapse[i as usize])
+}
+
 fn merge(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct: bool) -> BuildTree {
     let collapse = merged_nodes(tree, constants, max_leaf_size, distinct);
     tree.to_build_tree_with_leaves(&|i| collapse[i as usize])
@@ -30,6 +45,18 @@ fn merge(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct
 /// For every node, whether the merge makes its whole subtree one leaf (true for the nodes below such a node
 /// too): the dynamic program above, with `distinct` counting a triangle once a leaf.
 pub fn merged_nodes(tree: &OptTree, constants: SahConstants, max_leaf_size: usize, distinct: bool) -> Vec<bool> {
+    let area = |n: u32| tree.nodes[n as usize].aabb.surface_area();
+    merged_nodes_weighed(tree, constants, max_leaf_size, distinct, &area)
+}
+
+/// [`merged_nodes`] with `weight(n)` in place of node `n`'s surface area.
+fn merged_nodes_weighed(
+    tree: &OptTree,
+    constants: SahConstants,
+    max_leaf_size: usize,
+    distinct: bool,
+    weight: &dyn Fn(u32) -> f64,
+) -> Vec<bool> {
     // Children first: the subtrees' (cost, triangle count) pairs wait on a stack, the left child's on top, so
     // only those of nodes whose parent is not done yet are held (at most the depth plus one), not 12 bytes a node.
     let mut collapse = vec![false; tree.nodes.len()];
@@ -37,7 +64,7 @@ pub fn merged_nodes(tree: &OptTree, constants: SahConstants, max_leaf_size: usiz
     let mut counts = LeafCounts::new(max_leaf_size, distinct);
     for i in tree.children_first() {
         let node = &tree.nodes[i as usize];
-        let a = node.aabb.surface_area();
+        let a = weight(i);
         if node.left == NONE {
             pending.push((constants.intersection * a, counts.leaf(node.right)));
             continue;

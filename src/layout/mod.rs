@@ -10,7 +10,7 @@ pub mod records;
 pub mod wide_tree;
 
 pub use collapse::{collapse, collapse_by, collapse_references};
-pub use merge::{cluster_roots, merge_leaves, merge_leaves_of_references, merged_nodes};
+pub use merge::{cluster_roots, merge_leaves, merge_leaves_by, merge_leaves_of_references, merged_nodes};
 pub use wide_tree::{GpuCosts, WideChild, WideCosts, WideNode, WideTree};
 
 use crate::build_tree::BuildTree;
@@ -23,8 +23,8 @@ use crate::optimize::OptTree;
 /// split references) both count a triangle once a leaf, and leaves that gathered several pieces of a triangle
 /// then hold it once, with the two trees' record counts kept equal (where the wide leaves have no room for
 /// that, both keep every piece); without repeats that is the plain count, which the plain programs get faster.
-/// With `weights` (one per node: sampled ray probabilities, `crate::sampling`) the collapse weighs nodes by them
-/// instead of by surface area ([`collapse_by`]).
+/// With `weights` (one per node: sampled ray probabilities, `crate::sampling`) both weigh nodes by them instead
+/// of by surface area ([`collapse_by`], [`merge_leaves_by`]).
 pub fn merge_and_collapse(
     tree: &OptTree,
     constants: SahConstants,
@@ -43,9 +43,10 @@ pub fn merge_and_collapse(
                 (None, false) => (collapse(tree, &costs), costs),
             })
         },
-        || match repeats {
-            true => merge_leaves_of_references(tree, constants, leaf_size),
-            false => merge_leaves(tree, constants, leaf_size),
+        || match (weights, repeats) {
+            (Some(w), _) => merge_leaves_by(tree, constants, leaf_size, repeats, w),
+            (None, true) => merge_leaves_of_references(tree, constants, leaf_size),
+            (None, false) => merge_leaves(tree, constants, leaf_size),
         },
     );
     if repeats {

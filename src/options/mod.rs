@@ -66,12 +66,20 @@ impl ConvertOptions {
         preset.options()
     }
 
-    /// How many candidate trees the conversion builds and compares: two for each `choose` setting in use
-    /// (split triangles: wasteful or any; reinsertion: over references or clusters), else one.
+    /// How many candidate trees the conversion may build and compare: two for each `choose` setting in use
+    /// (split triangles: wasteful or any; reinsertion: over references or clusters), else one; with ray tuning
+    /// (on scenes large enough to sample) each build is also a candidate unoptimized, and `choose` for split
+    /// triangles also builds without splits.
     pub fn candidate_count(&self) -> usize {
-        let cut_choices = if self.splits.is_some_and(|s| s.triangles == SplitTriangles::Choose) { 2 } else { 1 };
+        let tuned = self.ray_tuning.is_some();
+        let cut_choices = match self.splits.map(|s| s.triangles) {
+            Some(SplitTriangles::Choose) if tuned => 3,
+            Some(SplitTriangles::Choose) => 2,
+            _ => 1,
+        };
         let over_choices = if self.reinsertion == Some(OptimizeOver::Choose) { 2 } else { 1 };
-        cut_choices * over_choices
+        let unoptimized = usize::from(tuned && self.reinsertion.is_some());
+        cut_choices * (over_choices + unoptimized)
     }
 
     /// Checks the values: a leaf size of at least 1, a split budget from 0 to [`MAX_BUDGET`], wide constants the

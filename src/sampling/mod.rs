@@ -4,18 +4,24 @@
 //! Forum 34(7), 2015; Bittner and Havran, "RDH: Ray Distribution Heuristics", SCCG 2009). Where few sample rays
 //! reach a node, its estimate leans on the surface-area one, as RSC blends them.
 //!
-//! [`training_rays`] makes the built-in distribution from the scene and a seed ([`TrainingRays`] reads a
-//! user's ray file instead); [`node_visits`] counts, per
-//! node, the rays that reached it (in parallel, with the same counts for any thread count: counts are integer
-//! sums); [`ray_weights`] turns counts into the collapse's weights.
+//! [`RaySample`] holds a conversion's rays: training rays of the built-in distribution ([`training_rays`], made
+//! from the scene and a seed) or of a user's ray file ([`TrainingRays`]), and held-out rays that no collapse was
+//! trained on, which judge the candidate trees by the work a wide kernel does for them ([`sampled_wide_work`]).
+//! Tiny scenes are not sampled. [`node_visits`] counts, per node, the rays that reached it (in parallel, with
+//! the same counts for any thread count: counts are integer sums); [`ray_weights`] turns counts into the
+//! collapse's weights.
 
 mod ray_file;
 mod rays;
+mod sample;
 mod trace;
+mod wide_cost;
 
 pub use ray_file::{RAY_RECORD_BYTE_LEN, TrainingRays, parse_rays, read_ray_file};
 pub use rays::training_rays;
+pub use sample::{MAX_RAYS_PER_TRIANGLE, MIN_SAMPLED_TRIANGLES, RaySample, SamplingSummary, held_out_seed};
 pub use trace::{SampleHit, trace_counting};
+pub use wide_cost::{WideWork, sampled_wide_work};
 
 use bvhc_loader::Ray;
 use rayon::prelude::*;
@@ -90,17 +96,8 @@ pub fn ray_weights(tree: &OptTree, visits: &[u32], prior: f64) -> Vec<f64> {
         .collect()
 }
 
-/// The weights of the training rays through `tree`: the user's `rays` when given, else `tuning`'s built-in
-/// ones ([`training_rays`], [`node_visits`], [`ray_weights`]).
-pub fn tuned_weights(
-    tree: &OptTree,
-    triangles: &[[[f32; 3]; 3]],
-    tuning: &RayTuning,
-    rays: Option<&TrainingRays>,
-) -> Vec<f64> {
-    let visits = match rays {
-        Some(user) => node_visits(tree, triangles, &user.rays),
-        None => node_visits(tree, triangles, &training_rays(tree, triangles, tuning.rays, tuning.seed)),
-    };
-    ray_weights(tree, &visits, tuning.prior)
+/// The collapse weights of `tree`: the visits of `sample`'s training rays ([`node_visits`]) blended with the
+/// surface areas by `tuning.prior` ([`ray_weights`]).
+pub fn tuned_weights(tree: &OptTree, triangles: &[[[f32; 3]; 3]], tuning: &RayTuning, sample: &RaySample) -> Vec<f64> {
+    ray_weights(tree, &node_visits(tree, triangles, &sample.training), tuning.prior)
 }

@@ -63,6 +63,6 @@ pub fn trace_counting(tree: &OptTree, triangles: &[[[f32; 3]; 3]], ray: &Ray, vi
 }
 
 /// An [`Aabb`] as the loader's box type (the slab test's input).
-fn packed(aabb: &Aabb) -> PackedNode {
+pub(super) fn packed(aabb: &Aabb) -> PackedNode {
     PackedNode { min: aabb.min, max: aabb.max, index: 0, count: 0 }
 }
