@@ -3,7 +3,8 @@
 //! different one (the evaluate benchmark's single camera, its ambient-occlusion rays and incoherent rays). Per
 //! scene and ray set: the wide kernel's node visits and packet tests per ray (AVX2 path, counted), its time on
 //! one thread (median of 5 interleaved rounds, ratio tuned / SAH per round), and the GPU kernel's node visits
-//! (its CPU model) over the GPU sections of the same conversions. A last row a scene: both conversions' times and
+//! (its CPU model) over the GPU sections of the same conversions, and the binary kernel's steps and triangle
+//! tests over the binary sections. A last row a scene: both conversions' times and
 //! which candidate the tuned ones kept by their sampled cost on held-out rays (the build unoptimized or optimized
 //! over clusters), with each candidate's cost.
 //!
@@ -49,7 +50,7 @@ fn main() {
     println!("training: {tuning:?}");
     println!(
         "| scene | rays | SAH visits / ray | tuned | ratio | SAH packet tests / ray | tuned | time tuned / SAH | GPU visits \
-         SAH | tuned | ratio |\n|---|---|---|---|---|---|---|---|---|---|---|"
+         SAH | tuned | ratio | binary kernel steps / tests SAH | tuned | ratios |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for (name, path) in scenes {
         let dir = tempfile::tempdir().expect("a temporary folder");
@@ -97,7 +98,7 @@ fn main() {
         print_row(name, "its camera rays, trained on them (--train-rays)", (&sah, &user), &camera, rounds);
         println!(
             "| {name} | conversion s: SAH {sah_seconds:.2}, tuned {tuned_seconds:.2} ({:.2}x); kept by sampled cost: \
-             {kept}; with the camera rays: {user_kept} |  |  |  |  |  |  |  |  |  |",
+             {kept}; with the camera rays: {user_kept} |  |  |  |  |  |  |  |  |  |  |  |  |",
             tuned_seconds / sah_seconds
         );
     }
@@ -108,14 +109,22 @@ fn print_row(name: &str, set: &str, (sah, tuned): (&BvhFile, &BvhFile), rays: &[
     let (a, b) = (wide_counts(sah, rays), wide_counts(tuned, rays));
     let ratio = time_ratio(sah, tuned, rays, rounds);
     let (ga, gb) = (gpu_visits(sah, rays), gpu_visits(tuned, rays));
+    let (ba, bb) = (binary_counts(sah, rays), binary_counts(tuned, rays));
     println!(
-        "| {name} | {set} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | {ratio:.3} | {ga:.2} | {gb:.2} | {:.3} |",
+        "| {name} | {set} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | {ratio:.3} | {ga:.2} | {gb:.2} | {:.3} | {:.2} / \
+         {:.2} | {:.2} / {:.2} | {:.3} / {:.3} |",
         a.0,
         b.0,
         b.0 / a.0,
         a.1,
         b.1,
-        gb / ga
+        gb / ga,
+        ba.0,
+        ba.1,
+        bb.0,
+        bb.1,
+        bb.0 / ba.0,
+        bb.1 / ba.1
     );
 }
 
@@ -130,6 +139,17 @@ fn held_out_rays(file: &BvhFile, count: usize) -> Vec<Ray> {
 /// Wide-kernel node visits and packet tests per ray (closest hits).
 fn wide_counts(file: &BvhFile, rays: &[Ray]) -> (f64, f64) {
     let tracer = file.view().tracer();
+    let mut stats = TraversalStats::default();
+    for ray in rays {
+        tracer.closest_hit_counted(ray, &mut stats);
+    }
+    (stats.node_visits as f64 / rays.len() as f64, stats.triangle_tests as f64 / rays.len() as f64)
+}
+
+/// The binary kernel's traversal steps and triangle tests per ray (closest hits) over the binary sections, whose
+/// leaves the tuned conversion merges by the sampled weights.
+fn binary_counts(file: &BvhFile, rays: &[Ray]) -> (f64, f64) {
+    let tracer = file.view().binary_tracer();
     let mut stats = TraversalStats::default();
     for ray in rays {
         tracer.closest_hit_counted(ray, &mut stats);

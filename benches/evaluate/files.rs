@@ -66,8 +66,9 @@ fn file_of_single_leaf_tree(tree: BuildTree, triangles: &[Triangle]) -> (BvhFile
 /// Converts the scene with the default options and each split setting, and traces `rays` through each file's
 /// default kernel: [`FILE_ROUNDS`] rounds that render every file once in turn, so that the machine's drift
 /// falls on all files alike; a file's time is its median, its ratio the median of its per-round ratios to the
-/// unsplit file.
-pub fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhFile, f64)>) {
+/// unsplit file. Returns the unsplit file's median seconds (with `--features embree`, Embree's rows compare
+/// with it).
+pub fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, BvhFile, f64)>) -> f64 {
     let dir = tempfile::tempdir().unwrap();
     println!(
         "\n| file (defaults) | records | file MB | SAH | wide cost | render s | vs unsplit | wide steps | packets |\n|---|---|---|---|---|---|---|---|---|"
@@ -151,6 +152,42 @@ pub fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, 
         println!(
             "| {name} | {records} | {bytes:.1} | {sah:.2} | {wide_cost:.2} | {:.3} | {:.3} | {steps:.2} | {tests:.2} |",
             renders[i].0, renders[i].1,
+        );
+    }
+    renders[0].0
+}
+
+/// With `--features embree`: rows of the files table for Embree 3 (HIGH, plain and robust) over the same
+/// triangles, rendering `rays` as the files are rendered (all threads, chunks of 1024, closest hits for the
+/// primary and incoherent rays, any hit for the AO rays), in [`FILE_ROUNDS`] rounds, on rayon threads with
+/// flush-to-zero set as Embree asks. Its ratio is its median over `unsplit_seconds`, the unsplit file's median
+/// from the rounds just before (not interleaved with them).
+#[cfg(feature = "embree")]
+pub fn embree_rows(triangles: &[Triangle], rays: &RaySet, unsplit_seconds: f64) {
+    use rayon::prelude::*;
+
+    use crate::embree::{Embree, set_flush_to_zero};
+    let pool = rayon::ThreadPoolBuilder::new().start_handler(|_| set_flush_to_zero()).build().expect("a pool");
+    for robust in [false, true] {
+        let scene = Embree::new(triangles, robust);
+        let render = || {
+            let start = std::time::Instant::now();
+            let closest = |set: &[bvhc::loader::Ray]| {
+                set.par_chunks(1024).map(|c| c.iter().filter(|r| scene.closest(r).is_some()).count()).sum::<usize>()
+            };
+            let hits = closest(&rays.primary) + closest(&rays.incoherent);
+            let occluded = rays.ao.par_chunks(1024).map(|c| c.iter().filter(|r| scene.any(r)).count()).sum::<usize>();
+            std::hint::black_box((hits, occluded));
+            start.elapsed().as_secs_f64()
+        };
+        let mut times: Vec<f64> = (0..FILE_ROUNDS).map(|_| pool.install(render)).collect();
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        let name = if robust { "Embree 3 HIGH, robust" } else { "Embree 3 HIGH" };
+        println!(
+            "| {name} (its own tree and kernel) | {} | - | - | - | {median:.3} | {:.3} | - | - |",
+            triangles.len(),
+            median / unsplit_seconds
         );
     }
 }

@@ -19,13 +19,18 @@
 //! options under each split setting (`--no-splits`, `--split-budget`, `--split-method`, `--split-triangles`)
 //! and optimizer setting (`--optimize-over`), and obvhs's one-a-leaf tree finished into a file as conversions
 //! finish theirs, traced through each file's default kernel (the wide one) with the same rays, in rounds;
-//! steps and isect there count wide node visits and packet tests.
+//! steps and isect there count wide node visits and packet tests. Two of its files are converted with
+//! `--tune-rays` (trained on the built-in distribution, so these rays are another distribution to them); with
+//! `--features embree` Embree 3's rows (HIGH, plain and robust, its own tree and kernel) close it.
 //!
-//! `cargo bench --bench evaluate [--features tinybvh]` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks
+//! `cargo bench --bench evaluate [--features tinybvh] [--features embree]` prints Markdown. `BVHC_EVAL_SCENES=kitchen,dragon` picks
 //! scenes, `BVHC_EVAL_FILES_ONLY=1` prints only the second table, `BVHC_SCENES` overrides the folder.
 
 #[path = "../common/harness.rs"]
 mod harness;
+#[cfg(feature = "embree")]
+#[path = "../common/embree.rs"]
+mod embree;
 #[cfg(feature = "tinybvh")]
 #[path = "../common/tinybvh.rs"]
 mod tinybvh;
@@ -80,7 +85,9 @@ fn main() {
             let tracer = Tracer::new(&start.nodes, &start.triangles, None);
             let rays = ray_set(&tracer, start.nodes[0].min, start.nodes[0].max);
             println!("\n### {name} ({} triangles)", triangles.len());
-            files_table(&path, &rays, other_files(&triangles));
+            let _unsplit_seconds = files_table(&path, &rays, other_files(&triangles));
+            #[cfg(feature = "embree")]
+            files::embree_rows(&triangles, &rays, _unsplit_seconds);
             continue;
         }
         let mut methods = ours::methods(&triangles);
@@ -129,6 +136,8 @@ fn main() {
         println!("\n{tree_notes}");
         print_kernel_fit(&samples, rays.primary.len() + rays.ao.len() + rays.incoherent.len());
         merge_constants_table(&triangles, &rays);
-        files_table(&path, &rays, other_files(&triangles));
+        let _unsplit_seconds = files_table(&path, &rays, other_files(&triangles));
+        #[cfg(feature = "embree")]
+        files::embree_rows(&triangles, &rays, _unsplit_seconds);
     }
 }
