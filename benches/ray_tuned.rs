@@ -22,7 +22,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use bvhc::convert::convert_with;
-use bvhc::loader::{BvhFile, GpuLayoutTracer, Ray, TraversalStats};
+use bvhc::loader::{BvhFile, GpuLayoutTracer, Ray, Tracer, TraversalStats};
 use bvhc::optimize::OptTree;
 use bvhc::options::{Overrides, Preset, resolve};
 use bvhc::sampling::{RayTuning, TrainingRays, training_rays};
@@ -138,18 +138,17 @@ fn held_out_rays(file: &BvhFile, count: usize) -> Vec<Ray> {
 
 /// Wide-kernel node visits and packet tests per ray (closest hits).
 fn wide_counts(file: &BvhFile, rays: &[Ray]) -> (f64, f64) {
-    let tracer = file.view().tracer();
-    let mut stats = TraversalStats::default();
-    for ray in rays {
-        tracer.closest_hit_counted(ray, &mut stats);
-    }
-    (stats.node_visits as f64 / rays.len() as f64, stats.triangle_tests as f64 / rays.len() as f64)
+    counts_per_ray(&file.view().tracer(), rays)
 }
 
 /// The binary kernel's traversal steps and triangle tests per ray (closest hits) over the binary sections, whose
 /// leaves the tuned conversion merges by the sampled weights.
 fn binary_counts(file: &BvhFile, rays: &[Ray]) -> (f64, f64) {
-    let tracer = file.view().binary_tracer();
+    counts_per_ray(&file.view().binary_tracer(), rays)
+}
+
+/// `tracer`'s node visits and triangle (or packet) tests per ray of `rays` (closest hits).
+fn counts_per_ray(tracer: &Tracer<'_>, rays: &[Ray]) -> (f64, f64) {
     let mut stats = TraversalStats::default();
     for ray in rays {
         tracer.closest_hit_counted(ray, &mut stats);
