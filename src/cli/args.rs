@@ -199,7 +199,7 @@ pub struct OptionArgs {
     #[arg(long, help_heading = "Leaf layout")]
     pub no_wide: bool,
     /// Tune the tree to COUNT sampled training rays (camera, ambient-occlusion and uniform rays made from the
-    /// scene; at most 16 a triangle): the leaf merge and the wide (and GPU) collapses weigh each node by the rays
+    /// scene; at most one a triangle): the leaf merge and the wide (and GPU) collapses weigh each node by the rays
     /// that reach it instead of by its surface area, and the candidate trees (each build also unoptimized; with
     /// `--split-triangles choose` also without splits) are judged on as many held-out rays. Scenes of fewer than
     /// 1024 triangles are not sampled (the file says so).

@@ -7,14 +7,16 @@ use serde::Serialize;
 use super::{RayTuning, TrainingRays, training_rays};
 use crate::optimize::OptTree;
 
-/// Scenes with fewer triangles are not sampled: sampling costs 20-40 ms at the default budget (rays made and
-/// traced twice), more than the whole conversion of such a scene, and its wide tree has too few nodes for the
-/// weights to change much (`docs/ray-tuning.md`).
+/// Scenes with fewer triangles are not sampled: their wide tree has a few dozen nodes at most, too few for the
+/// weights to change it, and at most as many rays as triangles ([`MAX_RAYS_PER_TRIANGLE`]) would weigh little
+/// against the prior of 32 rays (`docs/ray-tuning.md`).
 pub const MIN_SAMPLED_TRIANGLES: usize = 1024;
 
-/// Built-in training rays a triangle at most: smaller scenes get fewer rays than the budget, so sampling stays a
-/// small part of their conversion.
-pub const MAX_RAYS_PER_TRIANGLE: usize = 16;
+/// Built-in training rays a triangle at most: scenes of fewer triangles than the budget get fewer rays, so that
+/// sampling stays a small part of their conversion: a ray costs about 1.3 us on the fandisk (made, and traced
+/// through each of the balanced preset's two candidates), and at one ray a triangle scenes of 4k-13k triangles convert in 1.13-1.3x
+/// their time, at two 1.17-1.5x, at sixteen 1.9-2.3x (`docs/ray-tuning.md`).
+pub const MAX_RAYS_PER_TRIANGLE: usize = 1;
 
 /// The held-out rays' seed for built-in training rays of seed `seed`: the next one.
 pub fn held_out_seed(seed: u64) -> u64 {
@@ -58,7 +60,7 @@ impl RaySample {
     /// The sample of a conversion with `tuning`, made over `tree` (any tree of the scene: the built-in rays use
     /// it only to find the camera rays' hits): none for a scene of fewer than [`MIN_SAMPLED_TRIANGLES`]
     /// triangles; else with the user's `rays`, their even-numbered rays (counted from 0) for training and the
-    /// odd-numbered ones held out; else `min(tuning.rays, 16 * triangles)` built-in rays from `tuning.seed` and as
+    /// odd-numbered ones held out; else `min(tuning.rays, triangles)` built-in rays from `tuning.seed` and as
     /// many from [`held_out_seed`].
     pub fn new(tree: &OptTree, triangles: &[[[f32; 3]; 3]], tuning: &RayTuning, rays: Option<&TrainingRays>) -> Self {
         if triangles.len() < MIN_SAMPLED_TRIANGLES {
