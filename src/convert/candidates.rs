@@ -115,19 +115,18 @@ pub(super) fn best_candidate(
         };
         if unoptimized_too {
             // Whether optimizing pays: this build as it is, judged beside its optimized trees.
-            let clock = Instant::now();
             built.limit_depth(MAX_DEPTH);
-            let candidate = merge_stage(&built, reference_count, triangles, options, None, &mut sample);
-            timings.merge += lap(clock);
+            let candidate = merge_stage(&built, reference_count, triangles, options, None, &mut sample, timings);
             contest.enter(candidate, options, (cut_label, "none"));
         }
         let mut built = Some(built);
         for (k, &clusters) in over_clusters.iter().enumerate() {
             // The last candidate of this build takes the tree; the others optimize a copy.
             let tree = if k + 1 < over_clusters.len() { built.clone() } else { built.take() };
-            let Some(tree) = tree else { unreachable!("the built tree is taken by the last candidate only") };
-            let candidate =
-                optimize_and_merge(tree, reference_count, triangles, &shared, clusters, &mut sample, observer, timings);
+            let Some(mut tree) = tree else { unreachable!("the built tree is taken by the last candidate only") };
+            let optimization = optimize_stage(&mut tree, &shared, clusters, observer, timings);
+            let candidate = merge_stage(&tree, reference_count, triangles, &shared, optimization, &mut sample, timings);
+            drop(tree);
             let cancelled = candidate.optimization.as_ref().is_some_and(|r| r.stop == StopReason::Cancelled);
             let over = if clusters { OptimizeOver::Clusters } else { OptimizeOver::References };
             contest.enter(candidate, options, (cut_label, over.name()));
@@ -186,41 +185,34 @@ fn build_stage(
     Ok((tree, reference_count))
 }
 
-/// The optimize and merge stages of a conversion (their times added to `timings`): reinsertion over one
-/// reference a leaf, or with `clusters` over the built tree's small subtrees ([`optimize_over_clusters`]).
-#[allow(clippy::too_many_arguments)]
-fn optimize_and_merge(
-    mut tree: OptTree,
-    reference_count: usize,
-    triangles: &[[[f32; 3]; 3]],
+/// The optimize stage of a conversion (its time added to `timings`): reinsertion over one reference a leaf, or
+/// with `clusters` over the built tree's small subtrees ([`optimize_over_clusters`]), none without reinsertion;
+/// the tree is then limited to the format's depth.
+fn optimize_stage(
+    tree: &mut OptTree,
     options: &ConvertOptions,
     clusters: bool,
-    sample: &mut Option<RaySample>,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
-) -> Candidate {
+) -> Option<OptimizeReport> {
     let _ = observer(Event::Stage(Stage::Optimize));
     let clock = Instant::now();
     let mut progress = |p: &Progress| observer(Event::Batch(p));
     let optimization = options.reinsertion.is_some().then(|| match clusters {
         true => {
-            let roots = cluster_roots(&tree, options.optimize.constants, CLUSTER_SIZE);
-            optimize_over_clusters(&mut tree, &options.optimize, &roots, &mut progress)
+            let roots = cluster_roots(tree, options.optimize.constants, CLUSTER_SIZE);
+            optimize_over_clusters(tree, &options.optimize, &roots, &mut progress)
         }
-        false => optimize(&mut tree, &options.optimize, &mut progress),
+        false => optimize(tree, &options.optimize, &mut progress),
     });
     timings.optimize += lap(clock);
-    let clock = Instant::now();
     tree.limit_depth(MAX_DEPTH);
-    let candidate = merge_stage(&tree, reference_count, triangles, options, optimization, sample);
-    drop(tree);
-    timings.merge += lap(clock);
-    candidate
+    optimization
 }
 
-/// The merge stage of one candidate: the binary leaves merged, the wide and GPU collapses, and with ray tuning
-/// the sample (made over this tree when it is the first), the collapses weighed by its training rays and the
-/// candidate's [`Candidate::sampled_cost`] on its held-out rays.
+/// The merge stage of one candidate (its time added to `timings`): the binary leaves merged, the wide and GPU
+/// collapses, and with ray tuning the sample (made over this tree when it is the first), the collapses weighed by
+/// its training rays and the candidate's [`Candidate::sampled_cost`] on its held-out rays.
 fn merge_stage(
     tree: &OptTree,
     reference_count: usize,
@@ -228,7 +220,9 @@ fn merge_stage(
     options: &ConvertOptions,
     optimization: Option<OptimizeReport>,
     sample: &mut Option<RaySample>,
+    timings: &mut Timings,
 ) -> Candidate {
+    let clock = Instant::now();
     let triangle_count = triangles.len();
     let repeats = reference_count > triangle_count;
     let sample = options.ray_tuning.map(|tuning| {
@@ -271,6 +265,7 @@ fn merge_stage(
         };
         Some(sampled_wide_work(wide, triangles, &sample.held_out, costs.packet_width).cost_per_ray(&costs))
     });
+    timings.merge += lap(clock);
     Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, sampled_cost }
 }
 
