@@ -1,5 +1,6 @@
 //! An experiment for issue 28's last lever: reinsertion judged by sampled rays instead of surface area. Starting
-//! from the balanced preset's SAH-optimized binary tree (binned SAH, reinsertion, no splits), nodes move to
+//! from the default conversion's optimized binary tree (SBVH at budget 0.3, the balanced preset's reinsertion over
+//! clusters; with `BVHC_REINSERT_START=sah` a binned SAH build optimized without splits), nodes move to
 //! where they lower the **sampled cost**: over the inner nodes, the number of training ray segments
 //! `[t_min, t_hit]` that enter the node's box (Bittner and Havran, "RDH: Ray Distribution Heuristics", SCCG 2009:
 //! the ray-count measure of a box, which the order of a traversal only lowers), plus a prior worth
@@ -27,11 +28,14 @@ mod ray_set;
 use std::time::Instant;
 
 use bvhc::builders::Builder;
+use bvhc::builders::sbvh::{SbvhParams, build_sbvh};
 use bvhc::convert::merge_and_collapse;
 use bvhc::geometry::Aabb;
 use bvhc::import::{ImportOptions, import};
+use bvhc::layout::cluster_roots;
 use bvhc::loader::{BvhFile, BvhWriter, Ray, TraversalStats};
-use bvhc::optimize::{NONE, OptTree, optimize};
+use bvhc::optimize::{NONE, OptTree, optimize, optimize_over_clusters};
+use bvhc::options::preset::CLUSTER_SIZE;
 use bvhc::options::{ConvertOptions, Preset};
 use bvhc::pack::{pack, pack_wide};
 use bvhc::sampling::{trace_counting, training_rays};
@@ -188,17 +192,23 @@ fn main() {
     let (ray_count, node_budget, passes) =
         (number("BVHC_REINSERT_RAYS", 16_384), number("BVHC_REINSERT_NODES", 5_000), number("BVHC_REINSERT_PASSES", 1));
     let prior = number("BVHC_REINSERT_PRIOR", 32) as f32;
+    let default_start = std::env::var("BVHC_REINSERT_START").map_or(true, |v| v != "sah");
     let (ray_count, node_budget) = if full { (ray_count, node_budget) } else { (256, 200) };
     println!(
-        "training rays {ray_count} (seed 1), prior {prior} rays, nodes tried a pass {node_budget}, passes {passes}"
+        "training rays {ray_count} (seed 1), prior {prior} rays, nodes tried a pass {node_budget}, passes {passes}, \
+         start: {}",
+        if default_start {
+            "SBVH 0.3 optimized over clusters (the default conversion's)"
+        } else {
+            "binned SAH optimized, no splits"
+        }
     );
     println!(
         "| scene | sampled cost SAH tree | moved | moves | seconds | rays | wide visits SAH | moved | ratio | packet tests SAH | moved | ratio |\n|---|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for (name, path) in scenes {
         let triangles = import(&path, &ImportOptions::default()).expect("imports").soup.triangle_vertices();
-        let mut tree = OptTree::from_build(Builder::BinnedSah.build(&triangles, 1), &triangles);
-        optimize(&mut tree, &Preset::Balanced.optimize_params(), &mut |_| std::ops::ControlFlow::Continue(()));
+        let (tree, repeats) = start_tree(&triangles, default_start);
         let segments = Segments::new(&tree, &triangles, &training_rays(&tree, &triangles, ray_count, 1), prior);
         let before = sampled_cost(&tree, &segments);
         let mut moved = tree.clone();
@@ -222,7 +232,7 @@ fn main() {
         }
         let seconds = start.elapsed().as_secs_f64();
         let after = sampled_cost(&moved, &segments);
-        let (sah_file, moved_file) = (file_of(&tree, &triangles), file_of(&moved, &triangles));
+        let (sah_file, moved_file) = (file_of(&tree, &triangles, repeats), file_of(&moved, &triangles, repeats));
         let held_out = training_rays(&tree, &triangles, if full { 1 << 17 } else { 2048 }, 99);
         let (min, max) = sah_file.view().scene_box().expect("a scene");
         let other = ray_set::ray_set(&sah_file.view().tracer(), min, max);
@@ -242,15 +252,39 @@ fn main() {
     }
 }
 
+/// The tree the experiment starts from: the balanced preset's reinsertion over a binned SAH build, or with
+/// `default_start` over the default conversion's SBVH (budget 0.3, split references) and clusters; and whether
+/// its leaves repeat triangles.
+fn start_tree(triangles: &[Triangle], default_start: bool) -> (OptTree, bool) {
+    let params = Preset::Balanced.optimize_params();
+    let mut go = |_: &bvhc::optimize::Progress| std::ops::ControlFlow::Continue(());
+    if !default_start {
+        let mut tree = OptTree::from_build(Builder::BinnedSah.build(triangles, 1), triangles);
+        optimize(&mut tree, &params, &mut go);
+        return (tree, false);
+    }
+    let build = build_sbvh(triangles, &SbvhParams::with_budget(0.3));
+    let repeats = build.triangle_order.len() > triangles.len();
+    let mut tree = OptTree::from_build(build, triangles);
+    let roots = cluster_roots(&tree, params.constants, CLUSTER_SIZE);
+    optimize_over_clusters(&mut tree, &params, &roots, &mut go);
+    (tree, repeats)
+}
+
 /// An in-memory file of `tree` finished as conversions finish theirs (default options: SAH leaf merge, wide
-/// collapse, both packed).
-fn file_of(tree: &OptTree, triangles: &[Triangle]) -> BvhFile {
-    let (binary, wide) = merge_and_collapse(tree, &ConvertOptions::default(), triangles.len(), false);
+/// collapse, both packed; with `repeats`, split references held once a leaf).
+fn file_of(tree: &OptTree, triangles: &[Triangle], repeats: bool) -> BvhFile {
+    let (binary, wide) = merge_and_collapse(tree, &ConvertOptions::default(), triangles.len(), repeats);
     let (wide, _) = wide.expect("the default options collapse a wide tree");
     let packed = pack(&binary, triangles).expect("memory for the packed tree");
-    let file_index_of = packed.file_index_of(triangles.len()).expect("memory");
-    let bvh = pack_wide(&wide, &packed.triangles, &mut |t| file_index_of.get(t as usize).copied(), false).unwrap();
-    BvhWriter::new(&packed.nodes, &packed.triangles).wide(bvh.nodes(), bvh.packets()).build().unwrap()
+    let split = packed.triangles.len() > triangles.len();
+    let mut records = packed.record_cursor(triangles.len()).expect("memory");
+    let bvh = pack_wide(&wide, &packed.triangles, &mut |t| records.next(t), split).unwrap();
+    BvhWriter::new(&packed.nodes, &packed.triangles)
+        .split_references(split)
+        .wide(bvh.nodes(), bvh.packets())
+        .build()
+        .unwrap()
 }
 
 /// Wide-kernel node visits and packet tests per ray (closest hits).
