@@ -18,7 +18,7 @@ use crate::layout::{WideCosts, WideTree, cluster_roots, collapse, collapse_by, c
 use crate::optimize::{OptTree, OptimizeReport, Progress, StopReason, optimize, optimize_over_clusters};
 use crate::options::preset::CLUSTER_SIZE;
 use crate::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};
-use crate::sampling::{MIN_SAMPLED_TRIANGLES, RaySample, SamplingSummary, sampled_wide_work, tuned_weights};
+use crate::sampling::{RaySample, SamplingSummary, sampled_wide_work, scene_is_sampled, tuned_weights};
 
 /// A conversion's tree before packing: built, optimized and merged.
 pub(super) struct Candidate {
@@ -85,7 +85,7 @@ pub(super) fn best_candidate(
     timings: &mut Timings,
 ) -> Result<Chosen, ConvertError> {
     // Scenes too small to sample are converted as without tuning (the sample says it skipped them).
-    let judged_by_rays = options.ray_tuning.is_some() && triangles.len() >= MIN_SAMPLED_TRIANGLES;
+    let judged_by_rays = options.ray_tuning.is_some() && scene_is_sampled(triangles.len());
     // Each build as the triangles it may cut: none (no splits), or whether any triangle may be cut.
     let builds: &[Option<bool>] = match options.splits.map(|s| s.triangles) {
         None => &[None],

@@ -19,7 +19,9 @@ mod wide_cost;
 
 pub use ray_file::{RAY_RECORD_BYTE_LEN, TrainingRays, parse_rays, read_ray_file};
 pub use rays::training_rays;
-pub use sample::{MAX_RAYS_PER_TRIANGLE, MIN_SAMPLED_TRIANGLES, RaySample, SamplingSummary, held_out_seed};
+pub use sample::{
+    MAX_RAYS_PER_TRIANGLE, MIN_SAMPLED_TRIANGLES, RaySample, SamplingSummary, held_out_seed, scene_is_sampled,
+};
 pub use trace::{SampleHit, trace_counting};
 pub use wide_cost::{WideWork, sampled_wide_work};
 

@@ -14,9 +14,15 @@ pub const MIN_SAMPLED_TRIANGLES: usize = 1024;
 
 /// Built-in training rays a triangle at most: scenes of fewer triangles than the budget get fewer rays, so that
 /// sampling stays a small part of their conversion: a ray costs about 1.3 us on the fandisk (made, and traced
-/// through each of the balanced preset's two candidates), and at one ray a triangle scenes of 4k-13k triangles convert in 1.13-1.3x
-/// their time, at two 1.17-1.5x, at sixteen 1.9-2.3x (`docs/ray-tuning.md`).
+/// through each of the balanced preset's two candidates), and at one ray a triangle scenes of 4k-13k triangles
+/// convert in 1.13-1.3x their time, at two 1.17-1.5x, at sixteen 1.9-2.3x (`docs/ray-tuning.md`).
 pub const MAX_RAYS_PER_TRIANGLE: usize = 1;
+
+/// Whether a conversion with ray tuning samples a scene of `triangle_count` triangles (at least
+/// [`MIN_SAMPLED_TRIANGLES`]); the others are converted as without tuning.
+pub fn scene_is_sampled(triangle_count: usize) -> bool {
+    triangle_count >= MIN_SAMPLED_TRIANGLES
+}
 
 /// The held-out rays' seed for built-in training rays of seed `seed`: the next one.
 pub fn held_out_seed(seed: u64) -> u64 {
@@ -63,9 +69,9 @@ impl RaySample {
     /// odd-numbered ones held out; else `min(tuning.rays, triangles)` built-in rays from `tuning.seed` and as
     /// many from [`held_out_seed`].
     pub fn new(tree: &OptTree, triangles: &[[[f32; 3]; 3]], tuning: &RayTuning, rays: Option<&TrainingRays>) -> Self {
-        if triangles.len() < MIN_SAMPLED_TRIANGLES {
+        if !scene_is_sampled(triangles.len()) {
             let skipped = format!(
-                "{} triangles, fewer than {MIN_SAMPLED_TRIANGLES}: sampling would cost more than the conversion",
+                "{} triangles, fewer than {MIN_SAMPLED_TRIANGLES}: too few for sampled rays to change the tree",
                 triangles.len()
             );
             let summary = SamplingSummary { skipped: Some(skipped), ..SamplingSummary::default() };
