@@ -25,6 +25,7 @@ mod import_gltf;
 mod import_mutation;
 mod import_scenes;
 mod instances;
+mod instances_exact;
 mod lean;
 mod memory_budget;
 mod metadata_schema;

@@ -45,9 +45,10 @@ const NO_HIT: u32 = 0xffffffffu;
 // Slab exit distances are padded by 1 + 2^-19: Ize's bound for three correctly rounded operations, widened for
 // WGSL's division (2.5 ulp) and one more rounding.
 const EXIT_PADDING: f32 = 1.0000019073486328;
-// Boxes are culled at the closest hit so far times 1 + 2^-18, as on the CPU.
+// Boxes are culled at the closest hit so far (or t_max) times 1 + 2^-18, as on the CPU.
 const CULL_PADDING: f32 = 1.000003814697265625;
 const MIN_NORMAL: f32 = 1.1754943508222875e-38;
+const F32_MAX: f32 = 3.4028234663852886e38;
 const STACK_SIZE: u32 = 64u;
 const INNER_MASK: u32 = 0xff000000u;
 
@@ -215,9 +216,7 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
     }
     let ray = prepare(ray_in);
     let inv = octant_inverse(ray_in.direction);
-    let limit = ray_in.t_max;
-    var best_t = limit;
-    var found = false;
+    var best_t = ray_in.t_max;
     var stack: array<vec2<u32>, STACK_SIZE>;
     var stack_len = 0u;
     var visits = 0u;
@@ -241,10 +240,9 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
             if (index >= node_count || visits > node_count) {
                 break;
             }
-            var far = limit;
-            if (found) {
-                far = min(best_t * CULL_PADDING, limit);
-            }
+            // Culled at the closest hit so far (or t_max), padded: a box's entry distance can round above the t
+            // of a hit inside it. Kept finite: WGSL may assume that no infinity occurs.
+            let far = select(best_t * CULL_PADDING, best_t, best_t > F32_MAX / CULL_PADDING);
             let visited = visit_node(index, ray, inv, far);
             node_group = vec2<u32>(visited.y, (visited.x & INNER_MASK) | visited.w);
             triangle_group = vec2<u32>(visited.z, visited.x & ~INNER_MASK);
@@ -256,7 +254,6 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
             let hit = intersect_triangle(g, ray, best_t);
             if (hit.w != 0.0) {
                 best_t = hit.x;
-                found = true;
                 record = HitRecord(hit.x, hit.y, hit.z, gpu_triangles[g * 5u + 4u].y);
                 if (any_hit) {
                     return record;

@@ -89,8 +89,7 @@ impl<'a> GpuLayoutTracer<'a> {
         }
         let prepared = PreparedRay::new(ray);
         let inv = octant_inverse(&ray.direction);
-        let limit = ray.t_max.min(f32::MAX);
-        let mut best_t = limit;
+        let mut best_t = ray.t_max.min(f32::MAX);
         let mut found: Option<(u32, TriangleHit)> = None;
         let mut stack = [(0u32, 0u32); GPU_MAX_DEPTH];
         let mut stack_len = 0;
@@ -114,7 +113,9 @@ impl<'a> GpuLayoutTracer<'a> {
                 let node = self.nodes.get(index as usize)?;
                 visits_left = visits_left.checked_sub(1)?;
                 counter.node_visited();
-                let far = if found.is_some() { (best_t * CULL_PADDING).min(limit) } else { limit };
+                // Culled at the closest hit so far, or `t_max` before one is found, padded (a box's entry
+                // distance can round above the `t` of a hit inside it); kept finite for WGSL.
+                let far = if best_t > f32::MAX / CULL_PADDING { best_t } else { best_t * CULL_PADDING };
                 let hits = node_hits(node, &prepared, &ray.direction, inv, far);
                 node_group = (node.child_base, (hits & INNER_MASK) | u32::from(node.inner_mask));
                 triangle_group = (node.triangle_base, hits & !INNER_MASK);

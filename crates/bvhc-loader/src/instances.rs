@@ -81,7 +81,7 @@ pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
 ) -> Option<Hit> {
     let prepared = PreparedRay::new(ray);
     let nodes = sections.top_nodes;
-    prepared.enter_box(nodes.first()?, ray.t_max)?;
+    prepared.enter_box(nodes.first()?, ray.t_max * CULL_PADDING)?;
     let mut t_max = ray.t_max;
     let mut found: Option<Hit> = None;
     // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
@@ -176,7 +176,7 @@ where
         let (sections, ray) = (self.sections, self.ray);
         let nodes = sections.top_wide_nodes;
         let prepared = PreparedRay::new(ray);
-        prepared.enter_box(sections.top_nodes.first()?, ray.t_max)?;
+        prepared.enter_box(sections.top_nodes.first()?, ray.t_max * CULL_PADDING)?;
         let mut t_max = ray.t_max;
         let mut found: Option<Hit> = None;
         let mut stack = new_stack();

@@ -234,7 +234,7 @@ impl<'a> Tracer<'a> {
         let prepared = PreparedRay::new(ray);
         let nodes = self.nodes;
         let root = nodes.first()?;
-        prepared.enter_box(root, ray.t_max)?;
+        prepared.enter_box(root, ray.t_max * CULL_PADDING)?;
         let mut t_max = ray.t_max;
         let mut found: Found = None;
         // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.

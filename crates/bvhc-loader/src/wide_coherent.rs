@@ -96,7 +96,7 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, I: Isa>(
             lanes.shared_axes = None;
         }
         if !sections.nodes.is_empty()
-            && let Some(t) = p.enter_box(&sections.root, ray.t_max)
+            && let Some(t) = p.enter_box(&sections.root, ray.t_max * CULL_PADDING)
         {
             root.rays |= 1 << l;
             root.t_near[l] = t;

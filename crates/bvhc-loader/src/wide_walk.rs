@@ -63,7 +63,7 @@ impl Walk {
     #[inline(always)]
     pub(crate) fn start(sections: &Sections<'_>, ray: &Ray) -> Option<Walk> {
         let prepared = PreparedRay::new(ray);
-        if sections.nodes.is_empty() || prepared.enter_box(&sections.root, ray.t_max).is_none() {
+        if sections.nodes.is_empty() || prepared.enter_box(&sections.root, ray.t_max * CULL_PADDING).is_none() {
             return None;
         }
         Some(Walk {
