@@ -18,15 +18,23 @@ use super::{Exit, fail};
 
 /// Bytes of one closest-hit record.
 pub const HIT_RECORD_BYTE_LEN: usize = 24;
-/// `triangle_index` and `source_triangle_id` of a miss, and `source_triangle_id` of a file without ids.
+/// `triangle_index`, `source_triangle_id` and `instance_index` of a miss, `source_triangle_id` of a file without
+/// ids, and `instance_index` of a one-level file's hit.
 pub const NO_INDEX: u32 = u32::MAX;
 /// Rays per parallel chunk.
 const CHUNK: usize = 4096;
 /// The 24-byte record of a closest-hit result.
 pub fn hit_record(hit: Option<&Hit>) -> [u8; HIT_RECORD_BYTE_LEN] {
-    let (t, triangle, source, u, v) = match hit {
-        Some(h) => (h.t, h.triangle_index, h.source_triangle_id.unwrap_or(NO_INDEX), h.u, h.v),
-        None => (f32::INFINITY, NO_INDEX, NO_INDEX, 0.0, 0.0),
+    let (t, triangle, source, u, v, instance) = match hit {
+        Some(h) => (
+            h.t,
+            h.triangle_index,
+            h.source_triangle_id.unwrap_or(NO_INDEX),
+            h.u,
+            h.v,
+            h.instance_index.unwrap_or(NO_INDEX),
+        ),
+        None => (f32::INFINITY, NO_INDEX, NO_INDEX, 0.0, 0.0, NO_INDEX),
     };
     let mut record = [0u8; HIT_RECORD_BYTE_LEN];
     record[0..4].copy_from_slice(&t.to_le_bytes());
@@ -34,6 +42,7 @@ pub fn hit_record(hit: Option<&Hit>) -> [u8; HIT_RECORD_BYTE_LEN] {
     record[8..12].copy_from_slice(&source.to_le_bytes());
     record[12..16].copy_from_slice(&u.to_le_bytes());
     record[16..20].copy_from_slice(&v.to_le_bytes());
+    record[20..24].copy_from_slice(&instance.to_le_bytes());
     record
 }
 

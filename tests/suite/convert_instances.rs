@@ -14,7 +14,7 @@ use crate::common::*;
 mod grid_scene;
 
 /// The teapot placed `copies` times in a grid of one GLB, written into `dir`.
-fn teapot_grid(dir: &Path, copies: usize) -> PathBuf {
+pub fn teapot_grid(dir: &Path, copies: usize) -> PathBuf {
     let soup = bvhc::import::import(&crate::convert::teapot(), &Default::default()).unwrap().soup;
     let glb = dir.join(format!("teapots-x{copies}.glb"));
     grid_scene::write_grid_glb(&soup.positions, &soup.triangles, copies, &glb).unwrap();

@@ -72,7 +72,7 @@ fn overlapping_placements() -> Vec<Placement> {
 
 /// The object-space ray of 11.3, from the spec's words: `r = o - t` per axis in binary64, then the row sums
 /// `W_i0 r_0 + W_i1 r_1 + W_i2 r_2` in that order in binary64, rounded to binary32; likewise `W d`.
-fn spec_object_ray(instance: &InstanceRecord, ray: &Ray) -> Ray {
+pub fn spec_object_ray(instance: &InstanceRecord, ray: &Ray) -> Ray {
     let w = instance.world_to_object.map(|row| row.map(f64::from));
     let row_sums = |r: [f64; 3]| -> [f32; 3] {
         std::array::from_fn(|i| (w[i][0] * r[0] + w[i][1] * r[1] + w[i][2] * r[2]) as f32)

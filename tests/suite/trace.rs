@@ -60,7 +60,7 @@ fn trace_writes_what_the_tracer_finds() {
                 }
                 None => assert_eq!((t, triangle, source), (f32::INFINITY, u32::MAX, u32::MAX)),
             }
-            assert_eq!(word(record, 20), [0; 4]);
+            assert_eq!(u32::from_le_bytes(word(record, 20)), u32::MAX, "a one-level file's hits name no instance");
         }
         assert_eq!(report["hits"], hit_count);
         assert!(hit_count > 100, "the rays hit the teapot");
@@ -84,6 +84,49 @@ fn trace_writes_what_the_tracer_finds() {
     let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &coherent, &"--coherent", &"--any-hit"]);
     assert!(run.status.success(), "{}", stderr(&run));
     assert_eq!(std::fs::read(&coherent).unwrap(), expected);
+}
+
+#[test]
+fn two_level_hit_records_name_their_instance_and_its_record_gives_them_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = crate::convert_instances::teapot_grid(dir.path(), 4);
+    let bvh = dir.path().join("grid.bvh");
+    let run = bvhc(&[&glb, &"-o", &bvh, &"-q", &"--preset", &"fast", &"--instancing", &"always"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let file = BvhFile::read(&bvh).unwrap();
+    let view = file.view();
+    let sections = view.two_level().expect("a two-level file");
+    let (lo, hi) = view.scene_box().unwrap();
+    let extent = (0..3).map(|a| hi[a] - lo[a]).fold(0.0f32, f32::max);
+    let center: [f32; 3] = std::array::from_fn(|a| (lo[a] + hi[a]) / 2.0);
+    let rays: Vec<Ray> = random_rays(93, 4_000, extent / 2.0)
+        .into_iter()
+        .map(|r| Ray { origin: std::array::from_fn(|a| r.origin[a] + center[a]), ..r })
+        .collect();
+    let ray_file = dir.path().join("rays.bin");
+    std::fs::write(&ray_file, ray_bytes(&rays)).unwrap();
+    let hits = dir.path().join("hits.bin");
+    let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &hits]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let bytes = std::fs::read(&hits).unwrap();
+    let (mut hit_count, mut instances_seen) = (0, std::collections::BTreeSet::new());
+    for (ray, record) in rays.iter().zip(bytes.chunks_exact(24)) {
+        let (triangle, instance) = (u32::from_le_bytes(word(record, 4)), u32::from_le_bytes(word(record, 20)));
+        let hit = view.tracer().closest_hit(ray);
+        assert_eq!(instance, hit.and_then(|h| h.instance_index).unwrap_or(u32::MAX));
+        let Some(hit) = hit else { continue };
+        // What a reader does with the record: map the ray into the named instance and test the named record.
+        let object = crate::instances_exact::spec_object_ray(&sections.instances[instance as usize], ray);
+        let own =
+            bvhc::loader::PreparedRay::new(&object).intersect_triangle(&view.triangles()[triangle as usize], ray.t_max);
+        let own = own.expect("the named record is hit in the named instance");
+        let stated = [0, 12, 16].map(|at| f32::from_le_bytes(word(record, at)));
+        assert_eq!(stated, [own.t, own.u, own.v]);
+        assert_eq!(stated[0], hit.t);
+        hit_count += 1;
+        instances_seen.insert(instance);
+    }
+    assert!(hit_count > 200 && instances_seen.len() == 4, "{hit_count} hits in instances {instances_seen:?}");
 }
 
 #[test]
