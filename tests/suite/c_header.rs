@@ -105,3 +105,17 @@ fn the_c_header_compiles_and_reads_the_golden_files_as_the_rust_reader_does() {
         assert_eq!(found, expected, "{name}");
     }
 }
+
+#[test]
+fn the_c_header_states_the_current_version_and_rules() {
+    // Checked on the text, so it holds without a C compiler too.
+    let header = include_str!("../../format-spec/bvh.h");
+    let minor = bvhc::loader::format::VERSION_MINOR;
+    assert!(header.contains(&format!("#define BVH_VERSION_MINOR {minor} ")), "BVH_VERSION_MINOR is {minor}");
+    assert!(header.contains(&format!("(format-spec/bvh-1.md,\n * version 1.{minor})")), "the comment's version");
+    let last = bvhc::loader::Rule::ALL.len();
+    assert!(header.contains(&format!("V1-V10 (and V11-V{last} to trust")), "the comment names V11-V{last}");
+    for declared in ["BvhMeshRecord", "BvhInstanceRecord", "BvhGpuNode", "BvhGpuTriangle"] {
+        assert!(header.contains(&format!("}} {declared};")), "{declared} is declared");
+    }
+}

@@ -175,3 +175,18 @@ fn v13_reserved_zero() {
         true,
     );
 }
+
+#[test]
+fn v51_the_version_is_the_lowest_the_sections_need() {
+    // The good file has no section of 1.1-1.4: labelled 1.2 or 1.4 (the metadata following, V28), it claims
+    // features it does not use.
+    for minor in [2, 4] {
+        let mut bytes = good_bytes();
+        relabel_minor(&mut bytes, 0, minor);
+        assert_eq!(broken_rule(&bytes), Some(Rule::LowestMinor), "labelled 1.{minor}");
+    }
+    // A minor this reader does not know may need the label for features it cannot see: not judged.
+    let mut bytes = good_bytes();
+    relabel_minor(&mut bytes, 0, 9);
+    assert_eq!(broken_rule(&bytes), None);
+}

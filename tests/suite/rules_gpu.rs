@@ -23,8 +23,9 @@ fn sections_of(bytes: &[u8]) -> (Vec<GpuNode>, Vec<GpuTriangle>) {
     (gpu.nodes.to_vec(), gpu.triangles.to_vec())
 }
 
-/// Corrupts the good file's GPU nodes or triangles with `corrupt`, repairs the checksums, expects `rule`.
-fn expect_gpu(rule: Rule, corrupt: impl FnOnce(&mut Vec<GpuNode>, &mut Vec<GpuTriangle>)) {
+/// Corrupts the good file's GPU nodes or triangles with `corrupt`, repairs the checksums, expects `rule`;
+/// returns what the verifier said.
+fn expect_gpu(rule: Rule, corrupt: impl FnOnce(&mut Vec<GpuNode>, &mut Vec<GpuTriangle>)) -> String {
     let mut bytes = good_gpu_bytes();
     assert_eq!(broken_rule(&bytes), None);
     let (mut nodes, mut triangles) = sections_of(&bytes);
@@ -39,6 +40,7 @@ fn expect_gpu(rule: Rule, corrupt: impl FnOnce(&mut Vec<GpuNode>, &mut Vec<GpuTr
     let file = BvhFile::from_bytes(&bytes).expect("GPU rules are not structural");
     let error = file.view().verify().expect_err("the corruption is caught");
     assert_eq!(error.rule, rule, "expected {rule}, got {error}");
+    error.detail
 }
 
 /// The first (node, slot) holding a leaf, and one holding an inner child.
@@ -151,12 +153,58 @@ fn v48_decoded_box_min_above_max() {
 
 #[test]
 fn v48_subnormal_decoded_bound() {
-    expect_gpu(Rule::GpuBox, |nodes, _| {
+    let detail = expect_gpu(Rule::GpuBox, |nodes, _| {
         let (i, slot) = first_slot(nodes, true);
-        nodes[i].origin[1] = f32::from_bits(1);
+        // A normal origin and grid step whose sum is subnormal: -1.5 * 2^-126 + 1 * 2^-126 = -2^-127.
+        nodes[i].origin[1] = -1.5 * f32::MIN_POSITIVE;
         nodes[i].exponents[1] = 1;
-        nodes[i].quantized_min[1][slot] = 0;
+        nodes[i].quantized_min[1][slot] = 1;
+        nodes[i].quantized_max[1][slot] = 1;
     });
+    assert!(detail.contains("decoded box"), "{detail}");
+}
+
+#[test]
+fn v48_the_values_empty_slots_decode_to_are_zero_or_normal() {
+    // An empty slot's box bytes are 0, so it decodes to the node's origin, which must then be zero or normal.
+    let detail = expect_gpu(Rule::GpuBox, |nodes, _| {
+        let i = (nodes.iter().position(|n| n.meta.contains(&0))).expect("a node with an empty slot");
+        nodes[i].origin[2] = f32::from_bits(1);
+    });
+    assert!(detail.contains("origin"), "{detail}");
+}
+
+#[test]
+fn v38_gpu_leaves_hold_at_most_max_leaf_size_triangles() {
+    let file = gpu_file(&random_triangles(74, 300, 1.0));
+    let view = file.view();
+    let gpu = view.gpu_sections().unwrap();
+    let largest = (gpu.nodes.iter())
+        .flat_map(|n| (0..8).map(move |s| n.slot(s)))
+        .filter_map(|slot| match slot {
+            GpuSlot::Leaf { count, .. } => Some(count),
+            _ => None,
+        })
+        .max()
+        .unwrap();
+    assert!(largest >= 2, "the good file has a GPU leaf of {largest} triangles");
+    let metadata = |limit: u32| {
+        format!(
+            r#"{{"generator":"bvhc tests","format_version":"1.4","build":{{"gpu":{{"max_leaf_size":{limit},"node_visit":1.0,"triangle_test":0.3}}}}}}"#
+        )
+    };
+    let written = |limit: u32| {
+        bvhc::loader::BvhWriter::new(view.nodes(), view.triangles())
+            .triangle_ids(view.triangle_ids().unwrap())
+            .source_table(view.source_table().unwrap())
+            .metadata(&metadata(limit))
+            .gpu(gpu.nodes, gpu.triangles)
+            .build()
+    };
+    assert!(written(largest).is_ok());
+    let error = written(largest - 1).unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::MetadataBuild), "{error}");
+    assert!(error.to_string().contains("gpu.max_leaf_size"), "{error}");
 }
 
 #[test]

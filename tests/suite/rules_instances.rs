@@ -204,6 +204,51 @@ fn v37_v38_costs_are_not_defined_and_leaf_limits_apply_per_mesh_in_two_level_fil
     assert!(error.to_string().contains("mesh 0: wide node"), "{error}");
 }
 
+#[test]
+fn v36_the_two_level_counts_are_the_file_s() {
+    let (scene, sources) = good();
+    let write = |two_level: &str| {
+        let metadata = format!(r#"{{"generator":"t","format_version":"1.3","two_level":{two_level}}}"#);
+        bvhc::loader::BvhWriter::new(&scene.nodes, &scene.triangles)
+            .triangle_ids(&scene.triangle_ids)
+            .source_table(&sources)
+            .metadata(&metadata)
+            .wide(&scene.wide_nodes, &scene.packets)
+            .source_vertices(&scene.source_vertices)
+            .two_level(scene.sections())
+            .build()
+            .err()
+            .map(|e| (e.rule(), e.to_string()))
+    };
+    // Two meshes of 40 triangles, the first placed 5 times and the second 3 times: 320 placed triangles. Both
+    // meshes listed as instanced glTF meshes flatten nothing; one listed makes mesh 0 the flattened rest.
+    let counts = |meshes: u32, instances: u32, placed: u32, listed: &str, flattened: u32| {
+        format!(
+            r#"{{"instancing":"always","instanced_meshes":{listed},"mesh_count":{meshes},"instance_count":{instances},"placed_triangle_count":{placed},"flattened_triangle_count":{flattened}}}"#
+        )
+    };
+    assert_eq!(write(&counts(2, 8, 320, "[3, 5]", 0)), None);
+    assert_eq!(write(&counts(2, 8, 320, "[5]", 40)), None);
+    for (two_level, needle) in [
+        (counts(3, 8, 320, "[3, 5]", 0), "mesh_count 3, but the section holds 2"),
+        (counts(2, 9, 320, "[3, 5]", 0), "instance_count 9, but the section holds 8"),
+        (counts(2, 8, 321, "[3, 5]", 0), "placed_triangle_count 321, but the instances place 320"),
+        (counts(2, 8, 320, "[3, 5]", 40), "every mesh is a listed instanced mesh"),
+        (counts(2, 8, 320, "[5]", 0), "mesh 0, the flattened rest, holds 40"),
+        (counts(2, 8, 320, "[]", 0), "2 meshes, but instanced_meshes lists 0"),
+    ] {
+        let (rule, message) = write(&two_level).unwrap_or_else(|| panic!("accepted: {two_level}"));
+        assert_eq!(rule, Some(Rule::MetadataCounts), "{message}");
+        assert!(message.contains(needle), "expected {needle:?} in {message}");
+    }
+    // The key says the file is two-level: a one-level file with it breaks the rule.
+    let tree = packed_tree(&random_triangles(4102, 20, 1.0), 2);
+    let one_level = r#"{"generator":"t","format_version":"1.0","two_level":{"mesh_count":1}}"#;
+    let error = bvhc::loader::BvhWriter::new(&tree.nodes, &tree.triangles).metadata(one_level).build().unwrap_err();
+    assert_eq!(error.rule(), Some(Rule::MetadataCounts), "{error}");
+    assert!(error.to_string().contains("not two-level"), "{error}");
+}
+
 /// The wide top tree's leaf slot of instance `instance`: (node, slot).
 fn wide_leaf_of(scene: &TwoLevelScene, instance: u32) -> (usize, usize) {
     let flag = bvhc::loader::LEAF_BIT | instance;

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 /// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
 ///
-/// V1-V10 are structural and checked by every open; V11-V40 are checked by `BvhView::verify`
-/// (V29-V35, the wide sections of 1.1, only when a file has them).
+/// V1-V10 are structural and checked by every open; V11-V51 are checked by `BvhView::verify` (the rules of a
+/// section kind only when a file has it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
 pub enum Rule {
@@ -120,11 +120,13 @@ pub enum Rule {
     /// V50: every GPU leaf's triangles lie inside its decoded box (with split references: overlap it, and the
     /// leaves of a triangle cover it).
     GpuLeafBox,
+    /// V51: a file of a minor version this reader knows has the lowest minor version its sections need.
+    LowestMinor,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 50] = [
+    pub const ALL: [Rule; 51] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -175,6 +177,7 @@ impl Rule {
         Rule::GpuBox,
         Rule::GpuTriangles,
         Rule::GpuLeafBox,
+        Rule::LowestMinor,
     ];
 
     /// The rule's number in the spec (1 for V1).

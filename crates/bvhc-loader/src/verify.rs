@@ -1,16 +1,16 @@
-//! The full verifier: rules V11-V50 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! The full verifier: rules V11-V51 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
 //! V14-V20 (the binary tree) are in `verify_tree`, V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
 //! (the wide sections of 1.1) in `verify_wide`, V36-V39 (the metadata against the file) in
 //! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`, V41-V46 (the two-level
 //! sections of 1.3, and the one-level rules per mesh) in `verify_instances`, V47-V50 (the GPU sections of 1.4) in
-//! `verify_gpu`.
+//! `verify_gpu`; V51 (the version a file's sections need) here.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
 
 use crate::checksum::{header_checksum, section_checksum};
 use crate::error::{Rule, Violation, violation};
-use crate::format::{FileHeader, HEADER_BYTE_LEN, SECTION_ENTRY_BYTE_LEN, is_known_minor};
+use crate::format::{FileHeader, HEADER_BYTE_LEN, SECTION_ENTRY_BYTE_LEN, is_known_minor, written_minor};
 use crate::verify_tree::verify_tree;
 use crate::view::{BvhView, section_bytes};
 
@@ -19,19 +19,21 @@ use crate::view::{BvhView, section_bytes};
 pub const PARALLEL_VERIFY_BYTES: usize = 64 << 20;
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V50; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V51; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke. A file of
     /// [`PARALLEL_VERIFY_BYTES`] or more has its wide sections (V29-V35, the last rules checked) checked on a
     /// second, scoped thread beside the other rules, and the first broken rule in the same order is returned;
     /// where no thread can be started, everything runs on the caller's. The metadata's consistency with the
-    /// file (V36-V39) is checked last, on a file whose structure every other rule has proven.
+    /// file (V36-V39) is checked after the structure, then the version (V51), so a file whose only fault is its
+    /// version label reports V51 (what a reader of a lower minor, which does not judge it, sees as valid).
     pub fn verify(&self) -> Result<(), Violation> {
         if self.bytes().len() < PARALLEL_VERIFY_BYTES {
             return self
                 .verify_all_but_wide()
                 .and_then(|()| self.verify_wide_sections())
-                .and_then(|()| self.verify_consistency());
+                .and_then(|()| self.verify_consistency())
+                .and_then(|()| verify_lowest_minor(self));
         }
         self.verify_in_parallel()
     }
@@ -49,7 +51,10 @@ impl BvhView<'_> {
     /// be started, everything runs on the caller's thread.
     pub fn verify_in_parallel(&self) -> Result<(), Violation> {
         if self.wide_sections().is_none() {
-            return self.verify_all_but_wide().and_then(|()| self.verify_consistency());
+            return self
+                .verify_all_but_wide()
+                .and_then(|()| self.verify_consistency())
+                .and_then(|()| verify_lowest_minor(self));
         }
         std::thread::scope(|scope| {
             let Ok(wide_check) = std::thread::Builder::new().spawn_scoped(scope, || self.verify_wide_sections()) else {
@@ -60,6 +65,7 @@ impl BvhView<'_> {
             rest.and(wide_result)
         })
         .and_then(|()| self.verify_consistency())
+        .and_then(|()| verify_lowest_minor(self))
     }
 
     /// Rules V29-V35: the wide sections, where the file has them (per mesh in a two-level file).
@@ -73,7 +79,8 @@ impl BvhView<'_> {
         }
     }
 
-    /// Rules V11-V28, V40, V41-V46 and V47-V50: everything but the wide sections and the metadata's consistency.
+    /// Rules V11-V28, V40, V41-V46 and V47-V50: everything but the wide sections, the metadata's consistency and
+    /// the version.
     fn verify_all_but_wide(&self) -> Result<(), Violation> {
         verify_checksums(self)?;
         verify_reserved_and_padding(self)?;
@@ -189,6 +196,29 @@ fn verify_reserved_and_padding(view: &BvhView<'_>) -> Result<(), Violation> {
     let top_wide = view.two_level().filter(|_| known_minor).map_or(&[][..], |sections| sections.top_wide_nodes);
     if let Some(i) = top_wide.iter().position(|n| n.reserved != [0; 8]) {
         return fail(format!("top wide node {i}: reserved must be zero"));
+    }
+    Ok(())
+}
+
+/// V51: a file whose minor version this reader knows has the lowest minor its sections need (section 2), so a
+/// reader can tell from the header alone which sections to expect. A higher minor may need it for features this
+/// reader cannot see, so it is not judged.
+fn verify_lowest_minor(view: &BvhView<'_>) -> Result<(), Violation> {
+    let minor = view.header().version_minor;
+    let needed = written_minor(
+        view.wide_sections().is_some(),
+        view.source_vertices().is_some(),
+        view.two_level().is_some(),
+        view.gpu_sections().is_some(),
+    );
+    if is_known_minor(minor) && minor != needed {
+        return Err(violation(
+            Rule::LowestMinor,
+            format!(
+                "header: version_minor {minor}, but the file's sections need version 1.{needed}, the lowest minor \
+                 version whose features it uses (section 2)"
+            ),
+        ));
     }
     Ok(())
 }

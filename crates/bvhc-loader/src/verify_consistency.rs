@@ -2,9 +2,11 @@
 //! applies only to the keys a file has (metadata is optional, and so is every key), so a writer that records
 //! less is never judged by what it left out.
 //!
-//! * V36 counts: `wide.node_count`, `wide.packet_count`, `wide: null`, and the `triangles` object;
+//! * V36 counts: `wide.node_count`, `wide.packet_count`, `wide: null`, the `triangles` object, and a two-level
+//!   file's `two_level` object;
 //! * V37 costs: `cost` (section 5.6) and `wide.cost` (section 6.1), recomputed from the file;
-//! * V38 build: `build.wide`, `build.gpu` and `build.write_ids` against the sections, leaf sizes against `max_leaf_size`;
+//! * V38 build: `build.wide`, `build.gpu` and `build.write_ids` against the sections, leaf sizes against the
+//!   `max_leaf_size`s (binary, wide and GPU);
 //! * V39 choice: `choice.kept` is the first candidate of lowest cost, and that cost is the file's.
 
 use crate::json::{Map, Value};
@@ -12,7 +14,8 @@ use crate::json::{Map, Value};
 use crate::cost::{binary_cost, wide_cost};
 use crate::error::{Rule, Violation, violation};
 use crate::format::{
-    EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, TrianglePacket4, UNUSED_LANE, WIDE, WideNode8,
+    EMPTY_SLOT, GPU_WIDE, GpuSlot, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, TrianglePacket4, UNUSED_LANE,
+    WIDE, WideNode8,
 };
 use crate::view::BvhView;
 
@@ -24,6 +27,7 @@ pub const COST_TOLERANCE: f64 = 1e-9;
 pub(crate) fn verify_consistency(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     verify_wide_counts(view, metadata)?;
     verify_triangle_counts(view, metadata)?;
+    verify_two_level_counts(view, metadata)?;
     verify_costs(view, metadata)?;
     verify_build(view, metadata)?;
     verify_choice(metadata)
@@ -112,6 +116,75 @@ fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Viol
     Ok(())
 }
 
+/// V36, the `two_level` object: only in a two-level file; `mesh_count` and `instance_count` are the sections'
+/// element counts; `placed_triangle_count` sums, over the instances, the distinct triangles of each one's mesh;
+/// `flattened_triangle_count` is 0 when the meshes are exactly the listed `instanced_meshes`, else the distinct
+/// triangles of mesh 0 (the flattened rest). Distinct as in V38; without ids in a split file, where a repeated
+/// reference and two source triangles with the same vertices look alike, between the distinct vertex triples and
+/// the records.
+fn verify_two_level_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
+    let Some(record) = object(metadata, "two_level") else { return Ok(()) };
+    let fail = |detail: String| Err(violation(Rule::MetadataCounts, format!("metadata two_level: {detail}")));
+    let Some(sections) = view.two_level() else {
+        return fail("present, but the file is not two-level".into());
+    };
+    let count = |key: &str| record.get(key).and_then(Value::as_u64);
+    for (key, actual) in [("mesh_count", sections.meshes.len()), ("instance_count", sections.instances.len())] {
+        if let Some(stated) = record.get(key)
+            && stated.as_u64() != Some(actual as u64)
+        {
+            return fail(format!("{key} {stated}, but the section holds {actual}"));
+        }
+    }
+    let mut identity = TriangleIdentity { view, ids: Vec::new(), records: Vec::new() };
+    let bounded = view.triangle_ids().is_none() && view.has_split_references();
+    let per_mesh: Vec<(u64, u64)> = (sections.meshes.iter())
+        .map(|mesh| {
+            let first = mesh.first_triangle;
+            let distinct = identity.distinct((0..mesh.triangle_count).map(|k| first.wrapping_add(k)));
+            (distinct, if bounded { u64::from(mesh.triangle_count) } else { distinct })
+        })
+        .collect();
+    let in_range = |stated: u64, (low, high): (u64, u64)| (low..=high).contains(&stated);
+    let describe = |(low, high): (u64, u64)| if low == high { format!("{low}") } else { format!("{low} to {high}") };
+    if let Some(stated) = count("placed_triangle_count") {
+        let placed = (sections.instances.iter())
+            .filter_map(|instance| per_mesh.get(instance.mesh_index as usize))
+            .fold((0u64, 0u64), |(low, high), &(l, h)| (low.saturating_add(l), high.saturating_add(h)));
+        if !in_range(stated, placed) {
+            return fail(format!(
+                "placed_triangle_count {stated}, but the instances place {} distinct triangles",
+                describe(placed)
+            ));
+        }
+    }
+    let listed = record.get("instanced_meshes").and_then(Value::as_array).map(Vec::len);
+    if let (Some(stated), Some(listed)) = (count("flattened_triangle_count"), listed) {
+        let meshes = sections.meshes.len();
+        let flattened = match meshes.checked_sub(listed) {
+            Some(0) => (0, 0),
+            Some(1) => per_mesh[0],
+            _ => {
+                return fail(format!(
+                    "{meshes} meshes, but instanced_meshes lists {listed}: the meshes are the listed ones and, when \
+                     there is any, the flattened rest"
+                ));
+            }
+        };
+        if !in_range(stated, flattened) {
+            return fail(format!(
+                "flattened_triangle_count {stated}, but {}",
+                if meshes == listed {
+                    "every mesh is a listed instanced mesh, so none is flattened".to_string()
+                } else {
+                    format!("mesh 0, the flattened rest, holds {} distinct triangles", describe(flattened))
+                }
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn distinct_count<T: Ord>(mut keys: Vec<T>) -> u64 {
     keys.sort_unstable();
     keys.dedup();
@@ -185,8 +258,8 @@ fn verify_costs(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     Ok(())
 }
 
-/// V38: `build.wide`, `build.write_ids` and `build.write_source_vertices` agree with the sections; leaves hold at most `max_leaf_size`
-/// distinct triangles.
+/// V38: `build.wide`, `build.gpu`, `build.write_ids` and `build.write_source_vertices` agree with the sections;
+/// binary, wide and GPU leaves hold at most their `max_leaf_size` distinct triangles.
 fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     let Some(build) = object(metadata, "build") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataBuild, format!("metadata build: {detail}")));
@@ -219,6 +292,22 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     match (build.get("gpu"), view.gpu_sections()) {
         (Some(Value::Null), Some(_)) => return fail("gpu is null, but the file has GPU sections".into()),
         (Some(Value::Object(_)), None) => return fail("gpu is an object, but the file has no GPU sections".into()),
+        (Some(Value::Object(gpu)), Some(sections)) => {
+            // A GPU leaf holds each of its triangles once (6.3), so its GPU triangles are distinct triangles.
+            if let Some(limit) = gpu.get("max_leaf_size").and_then(Value::as_u64) {
+                for (i, node) in sections.nodes.iter().enumerate() {
+                    for slot in 0..GPU_WIDE {
+                        if let GpuSlot::Leaf { count, .. } = node.slot(slot)
+                            && u64::from(count) > limit
+                        {
+                            return fail(format!(
+                                "gpu node {i} slot {slot} is a leaf of {count} triangles, gpu.max_leaf_size {limit}"
+                            ));
+                        }
+                    }
+                }
+            }
+        }
         _ => {}
     }
     let mut identity = TriangleIdentity { view, ids: Vec::new(), records: Vec::new() };

@@ -109,7 +109,8 @@ fn check_shape(nodes: &[GpuNode], gpu_triangle_count: usize) -> Result<(), Viola
     Ok(())
 }
 
-/// V48: grid steps in the normal range; every occupied slot's decoded box finite, zero or normal and ordered;
+/// V48: grid steps in the normal range; every decoded value finite, zero or normal (the origin, which empty slots
+/// decode to, and every occupied slot's box), occupied boxes ordered;
 /// and every inner slot's decoded box containing its child node's **content**, the union of the child's
 /// occupied slots' contents: an inner slot's is its child's content, a leaf's the bounds of its triangles (with
 /// split references, each clipped to the leaf's decoded box). Computed children first (in reverse node order,
@@ -120,9 +121,16 @@ fn check_boxes(gpu: &GpuSections<'_>, split_references: bool) -> Result<(), Viol
         if let Some(a) = (0..3).find(|&a| !(1..=254).contains(&node.exponents[a])) {
             return fail(format!("gpu node {i}: exponent {} of axis {a} is not 1..=254", node.exponents[a]));
         }
+        let usable = |v: f32| v.is_finite() && (v == 0.0 || v.abs() >= f32::MIN_POSITIVE);
+        // An empty slot's box bytes are 0 (V47), so its decoded values are the origin's.
+        if !node.origin.iter().all(|&v| usable(v)) {
+            return fail(format!(
+                "gpu node {i}: origin {:?} (the decoded values of its empty slots) must be finite, zero or normal",
+                node.origin
+            ));
+        }
         for slot in (0..GPU_WIDE).filter(|&s| node.meta[s] != 0) {
             let (min, max) = node.slot_box(slot);
-            let usable = |v: f32| v.is_finite() && (v == 0.0 || v.abs() >= f32::MIN_POSITIVE);
             if !min.iter().chain(&max).all(|&v| usable(v)) || (0..3).any(|a| min[a] > max[a]) {
                 return fail(format!(
                     "gpu node {i} slot {slot}: decoded box {min:?}..{max:?} must be finite, zero or normal, min <= max"
