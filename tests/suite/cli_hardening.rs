@@ -243,6 +243,66 @@ fn signals_leave_no_temporary_file_and_stale_ones_are_swept() {
     assert!(!stale.exists() || !cfg!(target_os = "linux"), "stale temporary file swept");
 }
 
+/// Whether process `pid` holds a file open beside `output`, in its folder, other than `output` itself (its
+/// descriptors in `/proc`, Linux): the temporary file of the output being written, named or unnamed (an
+/// `O_TMPFILE` file shows as `folder/#inode (deleted)`).
+#[cfg(target_os = "linux")]
+fn writes_beside(pid: u32, output: &Path) -> bool {
+    let Ok(descriptors) = std::fs::read_dir(format!("/proc/{pid}/fd")) else { return false };
+    let folder = output.parent().unwrap();
+    descriptors
+        .flatten()
+        .any(|fd| std::fs::read_link(fd.path()).is_ok_and(|target| target.parent() == Some(folder) && target != output))
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn sigkill_while_the_output_is_written_leaves_nothing_behind() {
+    // SIGKILL runs no handler: only an unnamed temporary file (O_TMPFILE) leaves nothing. The conversion is
+    // killed the moment it holds its temporary file open beside the output, that is while it writes it.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = slow_scene(dir.path());
+    let out_dir = dir.path().join("out").canonicalize().unwrap_or_else(|_| {
+        std::fs::create_dir(dir.path().join("out")).unwrap();
+        dir.path().join("out").canonicalize().unwrap()
+    });
+    let output = out_dir.join("slow.bvh");
+    std::fs::write(&output, b"previous").unwrap();
+    let mut caught = 0;
+    for _ in 0..5 {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_bvhc"))
+            .arg(&scene)
+            .arg("-o")
+            .arg(&output)
+            .args(["--preset", "fast", "--force", "-q"])
+            .spawn()
+            .unwrap();
+        while child.try_wait().unwrap().is_none() {
+            if writes_beside(child.id(), &output) {
+                child.kill().unwrap(); // SIGKILL
+                caught += 1;
+                break;
+            }
+        }
+        let status = child.wait().unwrap();
+        if status.success() {
+            // It finished before the poll saw the write: the output is the new file; start again from "previous".
+            std::fs::write(&output, b"previous").unwrap();
+            continue;
+        }
+        assert_eq!(files_in(&out_dir), ["slow.bvh"], "no temporary file left by SIGKILL during the write");
+        assert_eq!(std::fs::read(&output).unwrap(), b"previous", "the output is untouched");
+        if caught >= 2 {
+            break;
+        }
+    }
+    if caught == 0 {
+        eprintln!("SKIPPED: the write was never seen in progress (the output folder's file system or a fast disk)");
+    } else {
+        eprintln!("{caught} conversions killed while writing their output");
+    }
+}
+
 /// Decodes an RGB8 PNG written by `bvhc render`.
 fn read_png(path: &Path) -> (usize, usize, Vec<u8>) {
     let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
