@@ -15,7 +15,7 @@ use bvhc::options::{ConvertOptions, Overrides, Preset, resolve};
 use rand::RngExt;
 
 use crate::common::{random_rays, random_triangles, rng, scene};
-use crate::gpu_compare::{Agreement, TABLE_HEADER, Tally, compare, gpu_file};
+use crate::gpu_compare::{Tally, compare, gpu_file, table_header};
 
 /// Compares the GPU model with the file's CPU kernel on every ray.
 pub fn tally(view: &BvhView<'_>, rays: &[Ray]) -> Tally {
@@ -28,14 +28,16 @@ pub fn tally(view: &BvhView<'_>, rays: &[Ray]) -> Tally {
         tally.hits += usize::from(c.is_some());
         let agreement = compare(view, ray, c, g, &mut tally.worst_t);
         tally.add(agreement);
-        if cpu.any_hit(ray) != model.any_hit(ray) && agreement != Agreement::F32Edge {
+        if cpu.any_hit(ray) != model.any_hit(ray) {
             tally.any_hit_differs += 1;
         }
     }
     tally
 }
 
-/// Asserts what 11.4 promises: no ray differs otherwise, and any hit agrees except through an f32 edge.
+/// Asserts what 11.4 promises: every closest hit is the CPU's record bit for bit, the same triangle or a tie at
+/// a `t` within the bound (never a miss, a farther hit or a record the CPU's test rejects), and every any-hit
+/// answer is the CPU's.
 pub fn assert_within_classes(name: &str, tally: &Tally) {
     assert_eq!(tally.differs, 0, "{name}: {tally}");
     assert_eq!(tally.any_hit_differs, 0, "{name}: {tally}");
@@ -43,7 +45,7 @@ pub fn assert_within_classes(name: &str, tally: &Tally) {
 
 #[test]
 fn the_model_of_the_gpu_kernel_agrees_with_the_cpu_kernel_under_stress() {
-    println!("\n{TABLE_HEADER}");
+    println!("\n{}", table_header(&[]));
     for case in crate::stress::stress_cases() {
         let file = gpu_file(&case.triangles);
         let view = file.view();
@@ -127,7 +129,7 @@ pub const REAL_SCENES: [&str; 5] = [
 
 #[test]
 fn the_model_agrees_on_real_scenes_converted_with_the_gpu_layout() {
-    println!("\n{TABLE_HEADER}");
+    println!("\n{}", table_header(&[]));
     for relative in REAL_SCENES {
         let Some(input) = scene(relative) else { continue };
         let dir = tempfile::tempdir().unwrap();

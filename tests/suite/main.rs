@@ -15,6 +15,7 @@ mod convert_instances;
 mod golden;
 mod golden_gpu;
 mod golden_two_level;
+mod gpu_arithmetic;
 mod gpu_compare;
 mod gpu_layout;
 mod gpu_shader;

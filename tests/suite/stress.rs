@@ -33,7 +33,7 @@ use crate::common::{Triangle, brute_force_closest, rng, unit_icosphere};
 const T_RELATIVE_ERROR: f64 = 1e-5;
 /// How far a hit may lie from its triangle, relative to the magnitude of the coordinates involved (origin and
 /// scene): the kernel works on `v - o` rounded to f32, so hits near an edge may be off by a few ulps of them.
-const FALSE_HIT_TOLERANCE: f64 = 4.0 * f32::EPSILON as f64;
+pub(crate) const FALSE_HIT_TOLERANCE: f64 = 4.0 * f32::EPSILON as f64;
 
 pub(crate) struct Case {
     pub name: String,
@@ -231,6 +231,13 @@ fn distance_to_triangle(p: [f64; 3], tri: &Triangle) -> f64 {
             return dot(q, n).abs() / nn.sqrt();
         }
     }
+    distance_to_edges(p, tri)
+}
+
+/// Distance from `p` to the nearest point of the triangle's three edges.
+fn distance_to_edges(p: [f64; 3], tri: &Triangle) -> f64 {
+    let v = tri.map(|x| x.map(f64::from));
+    let sub = |a: [f64; 3], b: [f64; 3]| -> [f64; 3] { std::array::from_fn(|k| a[k] - b[k]) };
     (0..3)
         .map(|i| {
             let (a, b) = (v[i], v[(i + 1) % 3]);

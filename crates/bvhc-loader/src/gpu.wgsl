@@ -154,9 +154,129 @@ fn visit_node(n: u32, ray: Prepared, inv: u32, far: f32) -> vec4<u32> {
     return vec4<u32>(hits, w1.x, w1.y, w0.w >> 24u);
 }
 
-// The watertight test of GPU triangle `g` in f32: (t, u, v) and whether it hits within [t_min, t_max]. Edge
-// function signs come from comparing their two rounded products, so a shared edge gets opposite signs in its two
-// triangles however the compiler fuses the subtraction.
+// A 48-bit integer as (bits 24-47, bits 0-23): the exact product of two significands below 2^24, from 12-bit
+// halves (every partial sum stays below 2^26).
+fn product48(a: u32, b: u32) -> vec2<u32> {
+    let ah = a >> 12u;
+    let al = a & 0xfffu;
+    let bh = b >> 12u;
+    let bl = b & 0xfffu;
+    let middle = ah * bl + al * bh;
+    let low = al * bl + ((middle & 0xfffu) << 12u);
+    return vec2<u32>(ah * bh + (middle >> 12u) + (low >> 24u), low & 0xffffffu);
+}
+
+// A nonzero 48-bit integer shifted left until bit 47 is set: (bits 24-47, bits 0-23, the shift).
+fn normalize48(p: vec2<u32>) -> vec3<u32> {
+    var high = p.x;
+    var low = p.y;
+    var shift = 0u;
+    if (high == 0u) {
+        high = low;
+        low = 0u;
+        shift = 24u;
+    }
+    let s = countLeadingZeros(high) - 8u;
+    if (s > 0u) {
+        high = ((high << s) | (low >> (24u - s))) & 0xffffffu;
+        low = (low << s) & 0xffffffu;
+    }
+    return vec3<u32>(high, low, shift + s);
+}
+
+// A finite f32 x as (significand m below 2^24, exponent e) with x = +-m 2^e.
+fn split(x: f32) -> vec2<i32> {
+    let bits = bitcast<u32>(x);
+    let field = (bits >> 23u) & 0xffu;
+    if (field == 0u) {
+        return vec2<i32>(i32(bits & 0x7fffffu), -149);
+    }
+    return vec2<i32>(i32((bits & 0x7fffffu) | 0x800000u), i32(field) - 150);
+}
+
+// a b - c d rounded once to f32, for products whose f32 roundings are equal and normal: what the CPU kernels'
+// f64 recomputation gives an edge function that is exactly 0 in f32 (11.1), and the loader's CPU model computes
+// (watertight.rs, exact_product_difference), here with integers since WGSL has no f64. The exact products then
+// differ by at most an ulp of their rounding, so aligned on the finer one's last bit their difference fits in
+// 27 bits. Below the normal range the result is +-2^-126 with the exact sign (a subnormal could be flushed).
+fn exact_product_difference(a: f32, b: f32, c: f32, d: f32) -> f32 {
+    let sa = split(a);
+    let sb = split(b);
+    let sc = split(c);
+    let sd = split(d);
+    let n1 = normalize48(product48(u32(sa.x), u32(sb.x)));
+    let n2 = normalize48(product48(u32(sc.x), u32(sd.x)));
+    var e1 = sa.y + sb.y - i32(n1.z);
+    var e2 = sc.y + sd.y - i32(n2.z);
+    var h1 = n1.x;
+    var l1 = n1.y;
+    var h2 = n2.x;
+    var l2 = n2.y;
+    if (abs(e1 - e2) > 1) {
+        return 0.0; // not reached: equal roundings put the leading bits at most one place apart
+    }
+    if (e1 > e2) {
+        h1 = (h1 << 1u) | (l1 >> 23u);
+        l1 = (l1 << 1u) & 0xffffffu;
+    } else if (e2 > e1) {
+        h2 = (h2 << 1u) | (l2 >> 23u);
+        l2 = (l2 << 1u) & 0xffffffu;
+    }
+    let high = i32(h1) - i32(h2);
+    if (abs(high) > 8) {
+        return 0.0; // not reached, as above
+    }
+    let difference = high * 16777216 + (i32(l1) - i32(l2));
+    if (difference == 0) {
+        return 0.0;
+    }
+    // The products' common sign flips the difference's.
+    let negative = (difference < 0) != (((bitcast<u32>(a) ^ bitcast<u32>(b)) >> 31u) == 1u);
+    var q = u32(abs(difference));
+    var exponent = min(e1, e2);
+    let top = 31u - countLeadingZeros(q);
+    if (top > 23u) {
+        // To 24 significant bits, to nearest, ties to even.
+        let shift = top - 23u;
+        let rest = q & ((1u << shift) - 1u);
+        let half = 1u << (shift - 1u);
+        q = q >> shift;
+        exponent += i32(shift);
+        if (rest > half || (rest == half && (q & 1u) == 1u)) {
+            q += 1u;
+        }
+        if (q == 0x1000000u) {
+            q = 0x800000u;
+            exponent += 1;
+        }
+    } else {
+        q = q << (23u - top);
+        exponent -= i32(23u - top);
+    }
+    let sign = select(0u, 0x80000000u, negative);
+    let biased = exponent + 150;
+    if (biased <= 0) {
+        return bitcast<f32>(sign | 0x800000u);
+    }
+    return bitcast<f32>(sign | (u32(biased) << 23u) | (q & 0x7fffffu));
+}
+
+// The edge function a b - c d: the f32 difference of the two rounded products, whose sign is exact when they
+// differ (rounding is monotone; a compiler that fuses the subtraction keeps that sign), and where they are
+// equal, so the f32 value is 0, the exact value (exact_product_difference) when the products are normal.
+fn edge_function(a: f32, b: f32, c: f32, d: f32) -> f32 {
+    let p = a * b;
+    let q = c * d;
+    let field = (bitcast<u32>(p) >> 23u) & 0xffu;
+    if (p == q && field != 0u && field != 255u) {
+        return exact_product_difference(a, b, c, d);
+    }
+    return p - q;
+}
+
+// The watertight test of GPU triangle `g` in f32: (t, u, v) and whether it hits within [t_min, t_max]. Every
+// edge function has its exact sign (edge_function), as with the CPU kernels' f64 recomputation, so a ray through
+// a shared edge hits at least one of its triangles and a ray just outside a silhouette misses.
 fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
     let r0 = gpu_triangles[g * 5u];
     let r1 = gpu_triangles[g * 5u + 1u];
@@ -179,21 +299,15 @@ fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
     let by = b3[k.y] - ray.shear.y * bz;
     let cx = c3[k.x] - ray.shear.x * cz;
     let cy = c3[k.y] - ray.shear.y * cz;
-    let u1 = cx * by;
-    let u2 = cy * bx;
-    let v1p = ax * cy;
-    let v2p = ay * cx;
-    let w1 = bx * ay;
-    let w2 = by * ax;
-    let negative = u1 < u2 || v1p < v2p || w1 < w2;
-    let positive = u1 > u2 || v1p > v2p || w1 > w2;
+    let e_u = edge_function(cx, by, cy, bx);
+    let e_v = edge_function(ax, cy, ay, cx);
+    let e_w = edge_function(bx, ay, by, ax);
     let miss = vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    let negative = e_u < 0.0 || e_v < 0.0 || e_w < 0.0;
+    let positive = e_u > 0.0 || e_v > 0.0 || e_w > 0.0;
     if (negative && positive) {
         return miss;
     }
-    let e_u = u1 - u2;
-    let e_v = v1p - v2p;
-    let e_w = w1 - w2;
     let det = e_u + e_v + e_w;
     if (det == 0.0) {
         return miss;

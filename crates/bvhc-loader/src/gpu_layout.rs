@@ -17,12 +17,12 @@
 //! ([`GPU_EXIT_PADDING`]: WGSL's division is within 2.5 ulp, not correctly rounded), except that a direction
 //! component below the smallest normal f32 is treated as zero (GPUs flush subnormals): that slab holds the
 //! origin or nothing, decided by comparisons, so no infinity is formed; boxes are culled against the closest
-//! hit times the CPU kernels' padding. Triangles: Woop et al.'s watertight test in f32 only: WGSL has no f64,
-//! so where an edge function is exactly 0 the CPU kernels' f64 recomputation is replaced by the f32 value. The
-//! edge functions of a shared edge are computed from the same two rounded products with opposite signs, so a
-//! ray through the edge still hits at least one of its triangles (no hole); what is lost is the f64's tie
-//! decision, so a ray within rounding of an edge may report the neighbouring triangle at the same `t`
-//! (`format-spec/bvh-1.md` 11.4 states the bound).
+//! hit (or `t_max`) times the CPU kernels' padding. Triangles: Woop et al.'s watertight test in f32 only: WGSL has
+//! no f64, so where an edge function is exactly 0 the CPU kernels' f64 recomputation of all three is replaced by
+//! that edge's exact value (computed here in f64, which is exact for it; the shader gets the same bits from
+//! integer arithmetic), the other two keeping their f32 values, whose signs are exact already. Every hit-or-miss
+//! decision is then the CPU kernels' for the same arithmetic; `t`, `u`, `v` can differ by a few ulps on rays with
+//! such an edge (`format-spec/bvh-1.md` 11.4).
 
 use crate::format::{GPU_MAX_DEPTH, GPU_WIDE, GpuNode, GpuTriangle, PackedTriangle};
 use crate::hit::{CULL_PADDING, Hit, TraversalCounter};

@@ -21,7 +21,7 @@ use crate::format::{PackedNode, PackedTriangle, WIDE};
 use crate::simd::SlabRay;
 use crate::watertight::{
     RelativeTriangle, barycentrics, determinant, distance, edge_functions, edge_functions_f64, has_zero_edge, outside,
-    sheared,
+    sheared, zero_edges_exact,
 };
 
 /// Machine epsilon for f32 rounding, 2^-24.
@@ -190,8 +190,9 @@ impl PreparedRay {
         self.intersect_triangle_with::<true>(triangle, t_max)
     }
 
-    /// The GPU kernel's form of [`PreparedRay::intersect_triangle`]: f32 only, an edge function of exactly 0 kept
-    /// as computed rather than recomputed in f64 (`crate::gpu_layout` says what that changes).
+    /// The GPU kernel's form of [`PreparedRay::intersect_triangle`]: without f64, an edge function of exactly 0
+    /// becomes its exact value ([`zero_edges_exact`]: what the f64 recomputation gives that edge) while the other
+    /// two keep their f32 values (`crate::gpu_layout` says what that changes).
     #[inline(always)]
     pub(crate) fn intersect_triangle_f32(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
         self.intersect_triangle_with::<false>(triangle, t_max)
@@ -206,8 +207,8 @@ impl PreparedRay {
         let r = self.relative(triangle);
         let p = sheared(&r, self.sx, self.sy);
         let mut e = edge_functions(p);
-        if F64_EDGES && has_zero_edge(e, 0.0) {
-            e = edge_functions_f64(p);
+        if has_zero_edge(e, 0.0) {
+            e = if F64_EDGES { edge_functions_f64(p) } else { zero_edges_exact(p, e) };
         }
         if outside(e, 0.0) {
             return None;

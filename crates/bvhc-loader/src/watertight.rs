@@ -89,3 +89,40 @@ pub(crate) fn edge_functions_f64([[ax, ay], [bx, by], [cx, cy]]: [[f32; 2]; 3]) 
         |px: f32, py: f32, qx: f32, qy: f32| (f64::from(px) * f64::from(qy) - f64::from(py) * f64::from(qx)) as f32;
     [edge(cx, cy, bx, by), edge(ax, ay, cx, cy), edge(bx, by, ax, ay)]
 }
+
+/// The GPU kernel's replacement for [`edge_functions_f64`] (`format-spec/bvh-1.md` 11.4): each edge function
+/// that is exactly 0 in `e` (its two rounded products are equal) becomes the exact difference of its products
+/// rounded to f32 ([`exact_product_difference`]), which is what 11.1's f64 recomputation gives that edge; the
+/// others keep their f32 values, whose signs are already exact (rounding is monotone, so two distinct rounded
+/// products are ordered as the exact ones). So every edge function has its exact sign, as in 11.1.
+#[inline]
+pub(crate) fn zero_edges_exact([[ax, ay], [bx, by], [cx, cy]]: [[f32; 2]; 3], mut e: [f32; 3]) -> [f32; 3] {
+    let operands = [(cx, by, cy, bx), (ax, cy, ay, cx), (bx, ay, by, ax)];
+    for (value, (a, b, c, d)) in e.iter_mut().zip(operands) {
+        if *value == 0.0 {
+            *value = exact_product_difference(a, b, c, d);
+        }
+    }
+    e
+}
+
+/// `a b - c d` rounded once to f32, for products whose f32 roundings are equal and normal (their exact
+/// difference then spans at most 27 bits, so the binary64 difference below is exact): 0 when they are equal,
+/// `+-2^-126` with the exact sign where the difference is below the normal range (a GPU would flush a subnormal to
+/// zero and lose the sign). Products that round to zero, a subnormal or an infinity are left to the f32
+/// difference. The WGSL kernel computes the same value with integer arithmetic (`exact_product_difference` in
+/// `gpu.wgsl`), since WGSL has no f64.
+pub(crate) fn exact_product_difference(a: f32, b: f32, c: f32, d: f32) -> f32 {
+    let (p, q) = (a * b, c * d);
+    if p != q || !p.is_normal() {
+        return p - q;
+    }
+    let x = f64::from(a) * f64::from(b) - f64::from(c) * f64::from(d);
+    if x == 0.0 {
+        0.0
+    } else if x.abs() < f64::from(f32::MIN_POSITIVE) {
+        f32::MIN_POSITIVE.copysign(x as f32)
+    } else {
+        x as f32
+    }
+}
