@@ -11,7 +11,6 @@
 mod harness;
 
 #[path = "common/rays.rs"]
-#[allow(dead_code)] // only primary_rays is used here
 mod rays;
 
 use std::ops::ControlFlow;

@@ -23,7 +23,7 @@ mod harness;
 #[path = "common/grid_scene.rs"]
 mod grid_scene;
 
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 #[path = "common/embree.rs"]
 mod embree;
 
@@ -124,10 +124,11 @@ fn main() {
             })
             .collect();
         let rays = incoherent_rays(&converted[0].1, 7);
-        #[cfg(feature = "embree")]
+        #[cfg(any(feature = "embree", feature = "embree4"))]
         let peers = embree_peers(&input);
         // (row label, file MB, conversion s, meshes, instances, query)
-        #[cfg_attr(not(feature = "embree"), allow(unused_mut))] // Embree's rows are added with the feature
+        #[cfg_attr(not(any(feature = "embree", feature = "embree4")), allow(unused_mut))]
+        // Embree's rows are added with the feature
         let mut rows: Vec<(String, String, String, usize, usize, Query<'_>)> = converted
             .iter()
             .map(|(mode, file, bytes, seconds)| {
@@ -139,7 +140,7 @@ fn main() {
                 (mode.name().to_string(), mb, s, meshes, instances, query)
             })
             .collect();
-        #[cfg(feature = "embree")]
+        #[cfg(any(feature = "embree", feature = "embree4"))]
         {
             embree::set_flush_to_zero();
             for (label, meshes, instances, peer) in &peers {
@@ -170,7 +171,7 @@ fn main() {
 
 /// Embree (HIGH quality) over the same scene: flattened (every placement's triangles in one mesh) and with
 /// instance geometries (each repeated mesh once, placed as bvhc's `always` places it).
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 fn embree_peers(input: &Path) -> Vec<(&'static str, usize, usize, embree::Embree)> {
     let import = |instancing| {
         let options = bvhc::import::ImportOptions { instancing, ..Default::default() };

@@ -25,7 +25,7 @@ mod harness;
 #[path = "common/rays.rs"]
 mod rays;
 
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 #[path = "common/embree.rs"]
 mod embree;
 
@@ -105,7 +105,7 @@ fn main() {
     if !harness::benchmarking("traversal") {
         return;
     }
-    #[cfg(feature = "embree")]
+    #[cfg(any(feature = "embree", feature = "embree4"))]
     against_embree();
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let out = tempfile::tempdir().unwrap();
@@ -167,7 +167,7 @@ fn main() {
 }
 
 /// Mrays/s of `f` over `rays` on this thread (median of 5).
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 fn single_thread_speed(rays: &[Ray], f: impl Fn(&Ray) -> bool) -> (f64, usize) {
     let hits = rays.iter().filter(|r| f(r)).count();
     let time = harness::median_time(5, || {
@@ -177,7 +177,7 @@ fn single_thread_speed(rays: &[Ray], f: impl Fn(&Ray) -> bool) -> (f64, usize) {
 }
 
 /// Mrays/s of 8-ray packets over `rays` on this thread (median of 5); `f` returns the hits in a packet.
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 fn packet_speed(rays: &[Ray], f: impl Fn(&[Ray]) -> usize) -> (f64, usize) {
     let hits = rays.chunks(8).map(&f).sum();
     let time = harness::median_time(5, || {
@@ -190,13 +190,14 @@ fn packet_speed(rays: &[Ray], f: impl Fn(&[Ray]) -> usize) -> (f64, usize) {
 /// denormals-are-zero set, as it asks; bvhc on the main thread with the default floating-point mode. bvhc's
 /// kernels: the binary reference, and the wide kernel on the portable and the best SIMD path (the one `Tracer`
 /// picks for a converted file).
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 fn against_embree() {
     use bvhc::loader::KernelPath;
     let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
     let out = tempfile::tempdir().unwrap();
     println!(
-        "Embree 3 (HIGH, max_isa={}) against bvhc's kernels, one thread, Mrays/s, medians of 5 in this run; {ray_count}",
+        "{} (HIGH, isa {}) against bvhc's kernels, one thread, Mrays/s, medians of 5 in this run; {ray_count}",
+        embree::VERSION,
         embree::max_isa()
     );
     println!(

@@ -1,5 +1,7 @@
 //! Ray sets shared by the benchmarks: camera-like rays and occlusion rays over a scene's box, from fixed seeds.
 
+#![allow(dead_code)] // each benchmark uses the sets it needs
+
 use bvhc::loader::{PackedNode, Ray};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
@@ -41,9 +43,33 @@ pub fn shadow_rays(root: &PackedNode, count: usize) -> Vec<Ray> {
         .collect()
 }
 
+/// Incoherent rays as an outside user makes them, independently of the other sets: origins uniform in the
+/// scene's box, directions uniform on the unit sphere (normalized Gaussian triples), `t` unbounded.
+pub fn uniform_rays(root: &PackedNode, count: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let mut gaussian = move || {
+        // Box-Muller from two uniforms in (0, 1].
+        let (u, v) = (1.0 - rng.random::<f64>(), rng.random::<f64>());
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    };
+    let mut rng = Pcg64Mcg::seed_from_u64(seed ^ 0x5eed);
+    (0..count)
+        .map(|_| {
+            let origin: [f32; 3] = std::array::from_fn(|a| rng.random_range(root.min[a]..=root.max[a]));
+            let direction = loop {
+                let d: [f64; 3] = std::array::from_fn(|_| gaussian());
+                let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                if length > 1e-9 {
+                    break d.map(|c| (c / length) as f32);
+                }
+            };
+            Ray::new(origin, direction)
+        })
+        .collect()
+}
+
 /// A `width` x `height` primary ray set in pixel order (rows top to bottom): a pinhole camera with a 45 degree
 /// vertical field of view, from above and to the side of the scene's box (as `bvhc render`'s outside view).
-#[allow(dead_code)] // used by the benchmarks built with the `embree` feature
 pub fn camera_rays(root: &PackedNode, width: usize, height: usize) -> Vec<Ray> {
     let center: [f32; 3] = std::array::from_fn(|a| 0.5 * (root.min[a] + root.max[a]));
     let extent: [f32; 3] = std::array::from_fn(|a| root.max[a] - root.min[a]);

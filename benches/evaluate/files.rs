@@ -157,12 +157,12 @@ pub fn files_table(scene: &std::path::Path, rays: &RaySet, others: Vec<(String, 
     renders[0].0
 }
 
-/// With `--features embree`: rows of the files table for Embree 3 (HIGH, plain and robust) over the same
+/// With `--features embree` or `embree4`: rows of the files table for Embree (HIGH, plain and robust) over the same
 /// triangles, rendering `rays` as the files are rendered (all threads, chunks of 1024, closest hits for the
 /// primary and incoherent rays, any hit for the AO rays), in [`FILE_ROUNDS`] rounds, on rayon threads with
 /// flush-to-zero set as Embree asks. Its ratio is its median over `unsplit_seconds`, the unsplit file's median
 /// from the rounds just before (not interleaved with them).
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 pub fn embree_rows(triangles: &[Triangle], rays: &RaySet, unsplit_seconds: f64) {
     use rayon::prelude::*;
 
@@ -183,7 +183,8 @@ pub fn embree_rows(triangles: &[Triangle], rays: &RaySet, unsplit_seconds: f64) 
         let mut times: Vec<f64> = (0..FILE_ROUNDS).map(|_| pool.install(render)).collect();
         times.sort_by(f64::total_cmp);
         let median = times[times.len() / 2];
-        let name = if robust { "Embree 3 HIGH, robust" } else { "Embree 3 HIGH" };
+        let version = crate::embree::VERSION;
+        let name = if robust { format!("{version} HIGH, robust") } else { format!("{version} HIGH") };
         println!(
             "| {name} (its own tree and kernel) | {} | - | - | - | {median:.3} | {:.3} | - | - |",
             triangles.len(),

@@ -28,7 +28,7 @@
 
 #[path = "../common/harness.rs"]
 mod harness;
-#[cfg(feature = "embree")]
+#[cfg(any(feature = "embree", feature = "embree4"))]
 #[path = "../common/embree.rs"]
 mod embree;
 #[cfg(feature = "tinybvh")]
@@ -86,7 +86,7 @@ fn main() {
             let rays = ray_set(&tracer, start.nodes[0].min, start.nodes[0].max);
             println!("\n### {name} ({} triangles)", triangles.len());
             let _unsplit_seconds = files_table(&path, &rays, other_files(&triangles));
-            #[cfg(feature = "embree")]
+            #[cfg(any(feature = "embree", feature = "embree4"))]
             files::embree_rows(&triangles, &rays, _unsplit_seconds);
             continue;
         }
@@ -137,7 +137,7 @@ fn main() {
         print_kernel_fit(&samples, rays.primary.len() + rays.ao.len() + rays.incoherent.len());
         merge_constants_table(&triangles, &rays);
         let _unsplit_seconds = files_table(&path, &rays, other_files(&triangles));
-        #[cfg(feature = "embree")]
+        #[cfg(any(feature = "embree", feature = "embree4"))]
         files::embree_rows(&triangles, &rays, _unsplit_seconds);
     }
 }

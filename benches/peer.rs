@@ -1,0 +1,349 @@
+//! bvhc's single-ray kernel against Embree on the same rays, one thread, as an outside user would compare them:
+//! Embree 4.4 with `--features embree4` (run `scripts/embree4.sh` first), or Embree 3.13.5 with
+//! `--features embree` (Debian's `libembree-dev`). Without either feature it only says so.
+//!
+//! Per scene: bvhc's default conversion traced by `view.tracer()` (the wide kernel on the best path), and Embree
+//! over the scene's triangles (HIGH quality: spatial splits), plain and robust (`RTC_SCENE_FLAG_ROBUST`), each
+//! on AVX2 kernels (`isa=avx2`, bvhc's instruction set) and on Embree's native choice for this CPU. Ray sets:
+//! 1,000,000 incoherent rays (origins uniform in the scene's box, directions uniform on the sphere, a seed of
+//! this benchmark's own) and the 786,432 primary rays of a 1024x768 camera; closest hit and any hit. Every
+//! contender traces the whole set once a round, the contenders in turn, for `BVHC_PEER_ROUNDS` rounds (5):
+//! the table shows each one's median Mrays/s and bvhc's ratios to them, and how many rays bvhc and plain AVX2
+//! Embree answer differently (a hit against a miss, or `t` more than 1e-4 apart relative). Embree runs with
+//! flush-to-zero and denormals-are-zero, as it asks, set around its passes only. A second table compares the
+//! coherent entry points on the primary rays: bvhc's 8-ray packets (`closest_hits_coherent`) against Embree's
+//! `rtcIntersect8` and `rtcIntersect16`.
+//!
+//! `cargo bench --bench peer --features embree4`; `BVHC_PEER_SCENES=kitchen,engine` picks scenes,
+//! `BVHC_BENCH_RAYS` the incoherent ray count, `BVHC_PEER_CAMERA=256x192` the camera's size. Instruction counts: `BVHC_PEER_ONLY=bvhc` (or `embree`,
+//! `embree-robust`) with `BVHC_PEER_QUERY=closest|any` and `BVHC_PEER_SET=incoherent|primary` traces that one
+//! pass once inside `measured_pass`, for `valgrind --tool=callgrind --toggle-collect='*measured_pass*'`
+//! (Embree's AVX2 kernels; docs/kernel-peer.md has the commands); with `BVHC_PEER_ROUNDS` set as well, it
+//! also times that pass that many times (a quick A/B of one contender).
+
+#[path = "common/harness.rs"]
+mod harness;
+
+#[path = "common/rays.rs"]
+mod rays;
+
+#[cfg(any(feature = "embree", feature = "embree4"))]
+#[path = "common/embree.rs"]
+mod embree;
+
+fn main() {
+    if !harness::benchmarking("peer") {
+        return;
+    }
+    #[cfg(any(feature = "embree", feature = "embree4"))]
+    peer::run();
+    #[cfg(not(any(feature = "embree", feature = "embree4")))]
+    println!("peer: needs --features embree4 (after scripts/embree4.sh) or --features embree (libembree-dev)");
+}
+
+#[cfg(any(feature = "embree", feature = "embree4"))]
+mod peer {
+    use std::time::Instant;
+
+    use bvhc::loader::{BvhFile, Ray, Tracer};
+
+    use crate::embree::{self, Embree, FlushToZero};
+    use crate::{harness, rays};
+
+    /// The seed of the incoherent set (not the other benchmarks' `RAY_SEED`).
+    const UNIFORM_SEED: u64 = 4_404;
+
+    /// What one contender answers for a ray set: `t` of each closest hit, or each any-hit flag.
+    enum Answers {
+        Closest(Vec<Option<f32>>),
+        Any(Vec<bool>),
+    }
+
+    /// A contender: bvhc's tracer, or an Embree scene (run with flush-to-zero).
+    enum Contender<'a> {
+        Bvhc(Tracer<'a>),
+        Embree(Embree),
+    }
+
+    impl Contender<'_> {
+        /// Traces `rays` once; the answers, and the number of hits (kept from the optimizer).
+        fn answers(&self, rays: &[Ray], closest: bool) -> Answers {
+            let _ftz = matches!(self, Contender::Embree(_)).then(FlushToZero::set);
+            match (self, closest) {
+                (Contender::Bvhc(t), true) => {
+                    Answers::Closest(rays.iter().map(|r| t.closest_hit(r).map(|h| h.t)).collect())
+                }
+                (Contender::Bvhc(t), false) => Answers::Any(rays.iter().map(|r| t.any_hit(r)).collect()),
+                (Contender::Embree(e), true) => {
+                    Answers::Closest(rays.iter().map(|r| e.closest(r).map(|h| h.0)).collect())
+                }
+                (Contender::Embree(e), false) => Answers::Any(rays.iter().map(|r| e.any(r)).collect()),
+            }
+        }
+    }
+
+    /// One timed pass: the hits found (so the work is not optimized away). Out of line, so that callgrind can
+    /// count exactly its instructions (`--toggle-collect='*measured_pass*'`).
+    #[inline(never)]
+    fn measured_pass(contender: &Contender<'_>, rays: &[Ray], closest: bool) -> usize {
+        let _ftz = matches!(contender, Contender::Embree(_)).then(FlushToZero::set);
+        match (contender, closest) {
+            (Contender::Bvhc(t), true) => rays.iter().filter(|r| t.closest_hit(r).is_some()).count(),
+            (Contender::Bvhc(t), false) => rays.iter().filter(|r| t.any_hit(r)).count(),
+            (Contender::Embree(e), true) => rays.iter().filter(|r| e.closest(r).is_some()).count(),
+            (Contender::Embree(e), false) => rays.iter().filter(|r| e.any(r)).count(),
+        }
+    }
+
+    /// Rays on which two contenders answer differently: a hit against a miss, or `t` more than 1e-4 apart.
+    fn disagreements(a: &Answers, b: &Answers) -> usize {
+        match (a, b) {
+            (Answers::Closest(a), Answers::Closest(b)) => a
+                .iter()
+                .zip(b)
+                .filter(|(x, y)| match (x, y) {
+                    (Some(x), Some(y)) => (x - y).abs() > 1e-4 * x.abs().max(1e-6),
+                    (None, None) => false,
+                    _ => true,
+                })
+                .count(),
+            (Answers::Any(a), Answers::Any(b)) => a.iter().zip(b).filter(|(x, y)| x != y).count(),
+            _ => unreachable!("answers of one query"),
+        }
+    }
+
+    fn median(mut samples: Vec<f64>) -> f64 {
+        samples.sort_by(f64::total_cmp);
+        samples[samples.len() / 2]
+    }
+
+    /// The scenes of the issue's targets, in the shared scenes folder.
+    const SCENES: [(&str, &str); 6] = [
+        ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
+        ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
+        ("toy car", "khr-toy-car/ToyCar.gltf"),
+        ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
+        ("buddha", "happy-buddha-decimated/stanford-buddha.obj"),
+        ("bunny", "stanford-bunny-ply/bun_zipper.ply"),
+    ];
+
+    /// The scene's default conversion, kept in `target/peer/` between runs (a conversion whose output is up to
+    /// date is skipped, so a run under callgrind does not convert again).
+    fn converted(name: &str, path: &std::path::Path) -> BvhFile {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/peer");
+        std::fs::create_dir_all(&dir).expect("target/peer can be made");
+        let output = dir.join(format!("{}.bvh", name.replace(' ', "-")));
+        bvhc::Conversion::new(path, &output).run().expect("the scene converts");
+        BvhFile::read(&output).expect("the conversion reads back")
+    }
+
+    pub fn run() {
+        let ray_count = std::env::var("BVHC_BENCH_RAYS").ok().and_then(|v| v.parse().ok()).unwrap_or(1_000_000);
+        let rounds: usize = std::env::var("BVHC_PEER_ROUNDS").ok().and_then(|v| v.parse().ok()).unwrap_or(5);
+        let only = std::env::var("BVHC_PEER_ONLY").ok();
+        let camera = std::env::var("BVHC_PEER_CAMERA")
+            .ok()
+            .and_then(|v| v.split_once('x').and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?))))
+            .unwrap_or((1024usize, 768usize));
+        let mut coherent_rows = Vec::new();
+        if only.is_none() {
+            println!(
+                "{} against bvhc, one thread, Mrays/s: medians of {rounds} interleaved rounds in this run; {} \
+                 incoherent rays (uniform origins in the box, uniform directions) and 1024x768 primary rays.\n",
+                embree::VERSION,
+                ray_count
+            );
+            println!(
+                "| scene | rays | query | bvhc | Embree AVX2 | Embree native | robust AVX2 | robust native | bvhc / Embree AVX2 | bvhc / native | bvhc / robust AVX2 | answers unlike Embree AVX2 |"
+            );
+            println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+        }
+        for (name, path) in harness::scenes(&SCENES, Some("BVHC_PEER_SCENES")) {
+            let file = converted(name, &path);
+            let view = file.view();
+            let triangles = bvhc::import::import(&path, &Default::default()).unwrap().soup.triangle_vertices();
+            let root = view.nodes()[0];
+            let contenders: Vec<(&str, Contender<'_>)> = match only.as_deref() {
+                Some("bvhc") => vec![("bvhc", Contender::Bvhc(view.tracer()))],
+                Some("embree") => {
+                    vec![("embree", Contender::Embree(Embree::with_isa(&triangles, false, Some("avx2"))))]
+                }
+                Some("embree-robust") => {
+                    vec![("embree robust", Contender::Embree(Embree::with_isa(&triangles, true, Some("avx2"))))]
+                }
+                Some(other) => panic!("BVHC_PEER_ONLY={other}: bvhc, embree or embree-robust"),
+                None => vec![
+                    ("bvhc", Contender::Bvhc(view.tracer())),
+                    ("Embree AVX2", Contender::Embree(Embree::with_isa(&triangles, false, Some("avx2")))),
+                    ("Embree native", Contender::Embree(Embree::with_isa(&triangles, false, None))),
+                    ("robust AVX2", Contender::Embree(Embree::with_isa(&triangles, true, Some("avx2")))),
+                    ("robust native", Contender::Embree(Embree::with_isa(&triangles, true, None))),
+                ],
+            };
+            let sets = [
+                ("incoherent", rays::uniform_rays(&root, ray_count, UNIFORM_SEED)),
+                ("primary", rays::camera_rays(&root, camera.0, camera.1)),
+            ];
+            for (set, rays) in &sets {
+                for closest in [true, false] {
+                    let query = if closest { "closest" } else { "any" };
+                    if let Some(_contender) = &only {
+                        let wanted_set = std::env::var("BVHC_PEER_SET").unwrap_or_else(|_| "incoherent".into());
+                        let wanted_query = std::env::var("BVHC_PEER_QUERY").unwrap_or_else(|_| "closest".into());
+                        if *set == wanted_set && query == wanted_query {
+                            let hits = measured_pass(&contenders[0].1, rays, closest);
+                            println!("{name} {set} {query} {}: {} rays, {hits} hits", contenders[0].0, rays.len());
+                            if std::env::var_os("BVHC_PEER_ROUNDS").is_some() {
+                                let speeds: Vec<f64> = (0..rounds)
+                                    .map(|_| {
+                                        let start = Instant::now();
+                                        std::hint::black_box(measured_pass(&contenders[0].1, rays, closest));
+                                        rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6
+                                    })
+                                    .collect();
+                                println!("  {:.2} Mrays/s (median of {rounds})", median(speeds));
+                            }
+                            if let Contender::Bvhc(tracer) = &contenders[0].1 {
+                                let mut stats = bvhc::loader::TraversalStats::default();
+                                for ray in rays {
+                                    if closest {
+                                        tracer.closest_hit_counted(ray, &mut stats);
+                                    } else {
+                                        tracer.any_hit_counted(ray, &mut stats);
+                                    }
+                                }
+                                let per_ray = |n: u64| n as f64 / rays.len() as f64;
+                                println!(
+                                    "  wide node visits {:.2} and packet tests {:.2} a ray",
+                                    per_ray(stats.node_visits),
+                                    per_ray(stats.triangle_tests)
+                                );
+                            }
+                        }
+                        continue;
+                    }
+                    let reference = contenders[0].1.answers(rays, closest);
+                    let unlike = disagreements(&reference, &contenders[1].1.answers(rays, closest));
+                    let mut samples = vec![Vec::new(); contenders.len()];
+                    for _ in 0..rounds {
+                        for (c, (_, contender)) in contenders.iter().enumerate() {
+                            let start = Instant::now();
+                            std::hint::black_box(measured_pass(contender, rays, closest));
+                            samples[c].push(rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
+                        }
+                    }
+                    let speeds: Vec<f64> = samples.into_iter().map(median).collect();
+                    println!(
+                        "| {name} | {set} | {query} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {unlike} |",
+                        speeds[0],
+                        speeds[1],
+                        speeds[2],
+                        speeds[3],
+                        speeds[4],
+                        speeds[0] / speeds[1],
+                        speeds[0] / speeds[2],
+                        speeds[0] / speeds[3],
+                    );
+                }
+            }
+            if only.is_none() {
+                coherent_rows.push(coherent_row(name, &view, &triangles, &sets[1].1, rounds));
+            }
+        }
+        if only.is_none() {
+            println!(
+                "\nCoherent primary rays (1024x768, rows in order), closest hit, Mrays/s, medians of {rounds} interleaved rounds:\n"
+            );
+            println!(
+                "| scene | bvhc single rays | bvhc 8-ray packets | Embree AVX2 rtcIntersect8 | Embree AVX2 rtcIntersect16 | Embree native rtcIntersect16 | packets / best Embree |"
+            );
+            println!("|---|---|---|---|---|---|---|");
+            for row in coherent_rows {
+                println!("{row}");
+            }
+        }
+    }
+
+    /// The coherent table's row of one scene; asserts that every contender finds the same hits (`t` within 1e-4,
+    /// or a miss) on all but a few rays.
+    fn coherent_row(
+        name: &str,
+        view: &bvhc::loader::BvhView<'_>,
+        triangles: &[[[f32; 3]; 3]],
+        rays: &[Ray],
+        rounds: usize,
+    ) -> String {
+        let tracer = view.tracer();
+        let avx2 = Embree::with_isa(triangles, false, Some("avx2"));
+        let native = Embree::with_isa(triangles, false, None);
+        let mut hits = vec![None; rays.len()];
+        let mut ts = vec![None; rays.len()];
+        type Pass<'p> = Box<dyn Fn(&mut [Option<f32>]) + 'p>;
+        let passes: [(bool, Pass<'_>); 5] = [
+            (
+                false,
+                Box::new(|out: &mut [Option<f32>]| {
+                    for (slot, ray) in out.iter_mut().zip(rays) {
+                        *slot = tracer.closest_hit(ray).map(|h| h.t);
+                    }
+                }),
+            ),
+            (
+                false,
+                Box::new(|out: &mut [Option<f32>]| {
+                    let mut found = vec![None; rays.len()];
+                    tracer.closest_hits_coherent(rays, &mut found);
+                    for (slot, hit) in out.iter_mut().zip(found) {
+                        *slot = hit.map(|h| h.t);
+                    }
+                }),
+            ),
+            (
+                true,
+                Box::new(|out: &mut [Option<f32>]| {
+                    rays.chunks(8).zip(out.chunks_mut(8)).for_each(|(r, o)| avx2.closest8_into(r, o))
+                }),
+            ),
+            (
+                true,
+                Box::new(|out: &mut [Option<f32>]| {
+                    rays.chunks(16).zip(out.chunks_mut(16)).for_each(|(r, o)| avx2.closest16_into(r, o))
+                }),
+            ),
+            (
+                true,
+                Box::new(|out: &mut [Option<f32>]| {
+                    rays.chunks(16).zip(out.chunks_mut(16)).for_each(|(r, o)| native.closest16_into(r, o))
+                }),
+            ),
+        ];
+        let mut samples = vec![Vec::new(); passes.len()];
+        let mut unlike = 0;
+        for round in 0..rounds {
+            for (p, (is_embree, pass)) in passes.iter().enumerate() {
+                let out = if p == 0 { &mut hits } else { &mut ts };
+                let start = Instant::now();
+                {
+                    let _ftz = is_embree.then(FlushToZero::set);
+                    pass(out);
+                }
+                samples[p].push(rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
+                if round == 0 && p > 0 {
+                    unlike = unlike.max(disagreements(&Answers::Closest(hits.clone()), &Answers::Closest(ts.clone())));
+                }
+            }
+        }
+        assert!(unlike * 1000 <= rays.len(), "{name}: {unlike} coherent answers unlike single rays");
+        let speeds: Vec<f64> = samples.into_iter().map(median).collect();
+        let best_embree = speeds[2..].iter().copied().fold(0.0, f64::max);
+        format!(
+            "| {name} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            speeds[0],
+            speeds[1],
+            speeds[2],
+            speeds[3],
+            speeds[4],
+            speeds[1] / best_embree
+        )
+    }
+}

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Instructions a ray, bvhc against Embree (AVX2 kernels on both sides), counted by callgrind inside the peer
+# benchmark's measured pass only: `scripts/peer-instructions.sh [scenes] [rays]`, e.g. `kitchen,engine 100000`.
+# Needs valgrind and the benchmark built with an Embree feature (scripts/embree4.sh, then
+# `cargo bench --bench peer --features embree4 --no-run`); the scenes' conversions are cached in target/peer.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scenes="${1:-kitchen,engine}"
+rays="${2:-100000}"
+feature="${BVHC_PEER_FEATURE:-embree4}"
+binary=$(cargo bench --bench peer --features "$feature" --no-run --message-format=json 2>/dev/null \
+  | python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and "peer" in m["executable"]][-1])')
+out=$(mktemp -d)
+echo "| scene | rays | query | contender | instructions a ray |"
+echo "|---|---|---|---|---|"
+for scene in ${scenes//,/ }; do
+  # Convert once natively (callgrind would take minutes for it).
+  BVHC_PEER_SCENES="$scene" BVHC_PEER_ONLY=bvhc BVHC_BENCH_RAYS=1 "$binary" --bench >/dev/null
+  for set in incoherent primary; do
+    for query in closest any; do
+      for contender in bvhc embree; do
+        file="$out/$scene-$set-$query-$contender.out"
+        BVHC_PEER_SCENES="$scene" BVHC_PEER_ONLY="$contender" BVHC_PEER_SET="$set" BVHC_PEER_QUERY="$query" \
+          BVHC_BENCH_RAYS="$rays" BVHC_PEER_CAMERA=400x250 \
+          valgrind --tool=callgrind --toggle-collect='*measured_pass*' --callgrind-out-file="$file" \
+          "$binary" --bench >/dev/null 2>&1
+        total=$(grep -m1 '^totals:' "$file" | awk '{print $2}')
+        count=$([ "$set" = primary ] && echo 100000 || echo "$rays")
+        echo "| $scene | $set | $query | $contender | $((total / count)) |"
+      done
+    done
+  done
+done
