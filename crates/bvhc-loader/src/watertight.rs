@@ -46,12 +46,12 @@ pub(crate) fn has_zero_edge<L: Lanes>([u, v, w]: [L; 3], zero: L) -> L::Mask {
     u.eq(zero).or(v.eq(zero)).or(w.eq(zero))
 }
 
-/// The lanes where the edge functions have mixed signs: the ray passes outside the triangle.
+/// The lanes where the edge functions have mixed signs: the ray passes outside the triangle. Some edge function
+/// is below 0 exactly when their minimum is, and some above 0 exactly when their maximum is (zeros of either sign
+/// are neither); a lane with a NaN edge function may come out either way, and is dropped by its NaN determinant.
 #[inline(always)]
 pub(crate) fn outside<L: Lanes>([u, v, w]: [L; 3], zero: L) -> L::Mask {
-    let negative = u.lt(zero).or(v.lt(zero)).or(w.lt(zero));
-    let positive = u.gt(zero).or(v.gt(zero)).or(w.gt(zero));
-    negative.and(positive)
+    u.min_or(v).min_or(w).lt(zero).and(u.max_or(v).max_or(w).gt(zero))
 }
 
 /// `det = (U + V) + W`.

@@ -59,13 +59,15 @@ pub(crate) struct Walk {
 }
 
 impl Walk {
-    /// The walk of `ray` from the wide root, or `None` when the ray misses the root's box (or there is no tree).
+    /// The walk of `ray` from the wide root, or `None` when there is no tree. The binary root's box is not
+    /// tested first: the root's slot boxes lie inside it (V32), so a ray that misses it misses them all in the
+    /// first step, and one that enters it saves a scalar box test.
     #[inline(always)]
     pub(crate) fn start(sections: &Sections<'_>, ray: &Ray) -> Option<Walk> {
-        let prepared = PreparedRay::new(ray);
-        if sections.nodes.is_empty() || prepared.enter_box(&sections.root, ray.t_max * CULL_PADDING).is_none() {
+        if sections.nodes.is_empty() {
             return None;
         }
+        let prepared = PreparedRay::new(ray);
         Some(Walk {
             ray: prepared,
             t_max: ray.t_max,
@@ -227,42 +229,31 @@ fn leaf_hit<const ANY_HIT: bool, I: Isa>(
     best
 }
 
-/// Asks the cache for the wide node or the first packets `child` references (a hint: no effect on results; a
-/// reference out of range fetches nothing).
+/// Asks the cache for the wide node or the first packet `child` references: a hint with no effect on results,
+/// so the address is formed without a bounds check (a prefetch never faults, whatever the address).
 #[inline(always)]
 fn prefetch(sections: &Sections<'_>, child: u32) {
     if child & LEAF_BIT == 0 {
-        if let Some(node) = sections.nodes.get(child as usize..child as usize + 1) {
-            prefetch_lines::<4>(node);
-        }
+        prefetch_lines::<4>(sections.nodes.as_ptr().wrapping_add(child as usize).cast());
     } else {
-        // A packet spans 3 cache lines (160 bytes from a multiple of 32); the first two packets of a leaf.
-        let (first, count) = WideNode8::leaf_packets(child);
-        if let Some(packets) = sections.packets.get(first as usize..first as usize + 1) {
-            prefetch_lines::<3>(packets);
-        }
-        if let Some(packets) = sections.packets.get(first as usize + 1..first as usize + 2).filter(|_| count > 1) {
-            prefetch_lines::<3>(packets);
-        }
+        // A packet spans 3 cache lines (160 bytes from a multiple of 32).
+        let (first, _) = WideNode8::leaf_packets(child);
+        prefetch_lines::<3>(sections.packets.as_ptr().wrapping_add(first as usize).cast());
     }
 }
 
-/// Prefetches the cache lines of the first `LINES * 64` bytes of `value` (at most its size) into all cache
-/// levels (x86-64; elsewhere nothing).
+/// Prefetches `LINES` cache lines from `start` into all cache levels (x86-64; elsewhere nothing).
 #[inline(always)]
 #[allow(unsafe_code)] // the prefetch hint, see the SAFETY note
-fn prefetch_lines<const LINES: usize>(value: &[impl Sized]) {
+fn prefetch_lines<const LINES: usize>(start: *const i8) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let start = value.as_ptr().cast::<i8>();
-        let last = size_of_val(value).saturating_sub(1);
         for line in 0..LINES {
-            // SAFETY: a prefetch is a hint that never faults nor changes memory; the offset is clamped to the
-            // last byte of `value`, so the address lies inside it.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add((line * 64).min(last))) };
+            // SAFETY: a prefetch is a hint that never faults nor changes memory, whatever the address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(line * 64)) };
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
+    let _ = start;
 }
