@@ -72,11 +72,15 @@ unsafe fn closest_hits(
         // outputs do not overlap the input (they are distinct C arrays of other types).
         let (hits, found) =
             unsafe { (std::slice::from_raw_parts_mut(hits, count), std::slice::from_raw_parts_mut(found, count)) };
-        let mut results = vec![None; count];
-        trace(&file.tracer(), &rays, &mut results);
-        for ((result, hit), flag) in results.iter().zip(hits).zip(found) {
-            *hit = result.as_ref().map(BvhcHit::from).unwrap_or_default();
-            *flag = u8::from(result.is_some());
+        let mut results = vec![None; count.min(CHUNK_RAYS)];
+        let chunks = rays.chunks(CHUNK_RAYS).zip(hits.chunks_mut(CHUNK_RAYS)).zip(found.chunks_mut(CHUNK_RAYS));
+        for ((rays, hits), found) in chunks {
+            let results = &mut results[..rays.len()];
+            trace(file.tracer(), rays, results);
+            for ((result, hit), flag) in results.iter().zip(hits).zip(found) {
+                *hit = result.as_ref().map(BvhcHit::from).unwrap_or_default();
+                *flag = u8::from(result.is_some());
+            }
         }
         Ok(BVHC_OK)
     })
@@ -137,25 +141,28 @@ unsafe fn any_hits(
         };
         // SAFETY: not null (checked by `batch_input`), and by the contract it points to `count` elements.
         let occluded = unsafe { std::slice::from_raw_parts_mut(occluded, count) };
-        let mut flags = vec![false; count];
-        trace(&file.tracer(), &rays, &mut flags);
-        for (flag, out) in flags.iter().zip(occluded) {
-            *out = u8::from(*flag);
+        let mut flags = vec![false; count.min(CHUNK_RAYS)];
+        for (rays, occluded) in rays.chunks(CHUNK_RAYS).zip(occluded.chunks_mut(CHUNK_RAYS)) {
+            let flags = &mut flags[..rays.len()];
+            trace(file.tracer(), rays, flags);
+            for (flag, out) in flags.iter().zip(occluded) {
+                *out = u8::from(*flag);
+            }
         }
         Ok(BVHC_OK)
     })
 }
 
 /// The file of a batch call and its rays.
-type BatchInput<'f> = (&'f BvhcFile, Vec<Ray>);
+type BatchInput<'f> = (&'f BvhcFile, &'f [BvhcRay]);
 
-/// What every batch call checks and reads first: the file, and its `count` rays as Rust rays; `None` for an
-/// empty batch (nothing to check or write). Argument errors name the call and, when a pointer is null, the
-/// `arrays` that must not be (`outputs_null`: whether one of the call's output arrays is).
+/// What every batch call checks first: the file, and its `count` rays; `None` for an empty batch (nothing to
+/// check or write). Argument errors name the call and, when a pointer is null, the `arrays` that must not be
+/// (`outputs_null`: whether one of the call's output arrays is).
 ///
 /// # Safety
 ///
-/// `file` is null or a live file; `rays` is null or points to `count` rays.
+/// `file` is null or a live file; `rays` is null or points to `count` rays that stay unchanged during the call.
 unsafe fn batch_input<'f>(
     name: &str,
     file: *const BvhcFile,
@@ -173,6 +180,11 @@ unsafe fn batch_input<'f>(
         return Err(argument(&format!("{name}: {arrays} must not be null")));
     }
     // SAFETY: not null, and by the contract it points to `count` rays.
-    let rays = unsafe { std::slice::from_raw_parts(rays, count) };
-    Ok(Some((file, rays.iter().map(|&r| Ray::from(r)).collect())))
+    Ok(Some((file, unsafe { std::slice::from_raw_parts(rays, count) })))
 }
+
+/// Rays a batch traces at a time: the results' buffer before their conversion to C records stays in the caches
+/// and its memory bounded, whatever the batch's size (a batch is traced as its chunks one after the other, with
+/// the same results, since every ray's hit is its own). A multiple of 8, so coherent calls keep their groups.
+const CHUNK_RAYS: usize = 4096;
+const _: () = assert!(CHUNK_RAYS % 8 == 0);

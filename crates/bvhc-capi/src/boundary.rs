@@ -5,7 +5,7 @@ use std::cell::RefCell;
 use std::ffi::{CString, c_char, c_int};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
-use bvhc_loader::{BvhFile, Tracer};
+use bvhc_loader::{BvhView, TracedFile, Tracer};
 
 /// Status codes (`bvhc_status` in the header).
 pub const BVHC_OK: c_int = 0;
@@ -22,16 +22,21 @@ pub const BVHC_ERROR_PANIC: c_int = 5;
 /// The file lacks an optional section the call needs (the source vertices of format 1.2).
 pub const BVHC_ERROR_NOT_IN_FILE: c_int = 6;
 
-/// An open file (`bvhc_file`, opaque to C).
+/// An open file (`bvhc_file`, opaque to C), with its tracer made once at open, so a call traces at once.
 pub struct BvhcFile {
-    /// The file's bytes, structurally checked.
-    pub(crate) file: BvhFile,
+    /// The file's bytes, structurally checked, and the fastest tracer over them.
+    pub(crate) traced: TracedFile,
 }
 
 impl BvhcFile {
-    /// The file's fastest tracer (cheap to make: slices and a cached CPU check).
-    pub(crate) fn tracer(&self) -> Tracer<'_> {
-        self.file.view().tracer()
+    /// The file's fastest tracer (borrowed: copying it costs more than a call's other work).
+    pub(crate) fn tracer(&self) -> &Tracer<'_> {
+        self.traced.tracer()
+    }
+
+    /// A view of the file.
+    pub(crate) fn view(&self) -> BvhView<'_> {
+        self.traced.view()
     }
 }
 

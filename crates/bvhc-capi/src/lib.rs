@@ -8,7 +8,7 @@
 
 use std::ffi::{CStr, c_char, c_int};
 
-use bvhc_loader::{BvhFile, Ray};
+use bvhc_loader::{BvhFile, TracedFile};
 
 mod batch;
 mod boundary;
@@ -24,7 +24,7 @@ pub use records::{BvhcHit, BvhcRay, BvhcSourceCorners};
 
 fn opened(result: Result<BvhFile, bvhc_loader::Error>, out: *mut *mut BvhcFile) -> Result<c_int, (c_int, String)> {
     let file = result.map_err(|e| (status_of(&e), e.to_string()))?;
-    let boxed = Box::into_raw(Box::new(BvhcFile { file }));
+    let boxed = Box::into_raw(Box::new(BvhcFile { traced: TracedFile::new(file) }));
     // SAFETY: the callers checked that `out` is not null; the C contract is that it points to writable
     // storage for one pointer.
     unsafe { *out = boxed };
@@ -79,7 +79,7 @@ pub unsafe extern "C" fn bvhc_verify(file: *const BvhcFile) -> c_int {
     guarded(|| {
         // SAFETY: by the contract, `file` is null or a live `BvhcFile`.
         let file = unsafe { file.as_ref() }.ok_or_else(|| argument("bvhc_verify: file is null"))?;
-        file.file.view().verify().map_err(|v| (BVHC_ERROR_INVALID, format!("invalid .bvh file: {v}")))?;
+        file.view().verify().map_err(|v| (BVHC_ERROR_INVALID, format!("invalid .bvh file: {v}")))?;
         Ok(BVHC_OK)
     })
 }
@@ -112,7 +112,7 @@ pub unsafe extern "C" fn bvhc_closest_hit(file: *const BvhcFile, ray: *const Bvh
         let (Some(file), Some(ray), Some(out)) = (file, ray, out) else {
             return Err(argument("bvhc_closest_hit: file, ray and hit must not be null"));
         };
-        match file.tracer().closest_hit(&Ray::from(*ray)) {
+        match file.tracer().closest_hit(ray) {
             Some(found) => {
                 *out = BvhcHit::from(&found);
                 Ok(1)
@@ -135,7 +135,7 @@ pub unsafe extern "C" fn bvhc_any_hit(file: *const BvhcFile, ray: *const BvhcRay
         let (Some(file), Some(ray)) = (unsafe { file.as_ref() }, unsafe { ray.as_ref() }) else {
             return Err(argument("bvhc_any_hit: file and ray must not be null"));
         };
-        Ok(c_int::from(file.tracer().any_hit(&Ray::from(*ray))))
+        Ok(c_int::from(file.tracer().any_hit(ray)))
     });
     if status > 1 { -1 } else { status }
 }
@@ -165,7 +165,7 @@ pub unsafe extern "C" fn bvhc_spawn_ray(
             return Err(argument("bvhc_spawn_ray: file, hit and out must not be null"));
         };
         let ray = file.tracer().surface(&hit.to_hit()).spawn(direction);
-        *out = BvhcRay { origin: ray.origin, direction: ray.direction, t_min: ray.t_min, t_max: ray.t_max };
+        *out = ray;
         Ok(BVHC_OK)
     })
 }
@@ -180,7 +180,7 @@ pub unsafe extern "C" fn bvhc_spawn_ray(
 pub unsafe extern "C" fn bvhc_source_id(file: *const BvhcFile, triangle_index: u32) -> u32 {
     // SAFETY: by the contract `file` is null or live.
     let Some(file) = (unsafe { file.as_ref() }) else { return u32::MAX };
-    let view = file.file.view();
+    let view = file.view();
     view.triangle_ids().and_then(|ids| ids.get(triangle_index as usize).copied()).unwrap_or(u32::MAX)
 }
 
@@ -204,7 +204,7 @@ pub unsafe extern "C" fn bvhc_hit_source_corners(
         let (Some(file), Some(hit), Some(out)) = (file, hit, out) else {
             return Err(argument("bvhc_hit_source_corners: file, hit and out must not be null"));
         };
-        let view = file.file.view();
+        let view = file.view();
         let Some(corners) = view.source_corners(&hit.to_hit()) else {
             let why = if view.source_vertices().is_none() {
                 "the file has no source_vertices section (format 1.2; convert without --no-source-vertices)"
@@ -235,5 +235,5 @@ pub unsafe extern "C" fn bvhc_hit_source_corners(
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn bvhc_triangle_count(file: *const BvhcFile) -> usize {
     // SAFETY: by the contract `file` is null or live.
-    unsafe { file.as_ref() }.map_or(0, |file| file.file.view().triangles().len())
+    unsafe { file.as_ref() }.map_or(0, |file| file.view().triangles().len())
 }

@@ -3,19 +3,9 @@
 
 use bvhc_loader::{Hit, Ray};
 
-/// `bvhc_ray`: the Rust `Ray`, field for field.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct BvhcRay {
-    /// Start point.
-    pub origin: [f32; 3],
-    /// Direction, not necessarily normalized.
-    pub direction: [f32; 3],
-    /// Smallest distance that counts.
-    pub t_min: f32,
-    /// Largest distance that counts (`INFINITY` for an unbounded ray).
-    pub t_max: f32,
-}
+/// `bvhc_ray`: the Rust `Ray` itself (`#[repr(C)]`: origin, direction, `t_min`, `t_max`), so arrays of rays
+/// from C are traced in place, without a copy.
+pub type BvhcRay = Ray;
 
 /// `bvhc_hit`: the Rust `Hit`, with `0xFFFFFFFF` for "no source id" and a byte for the front-face flag.
 #[repr(C)]
@@ -39,12 +29,6 @@ pub struct BvhcHit {
     pub front_face: u8,
     /// Zero.
     pub reserved: [u8; 3],
-}
-
-impl From<BvhcRay> for Ray {
-    fn from(ray: BvhcRay) -> Ray {
-        Ray { origin: ray.origin, direction: ray.direction, t_min: ray.t_min, t_max: ray.t_max }
-    }
 }
 
 impl From<&Hit> for BvhcHit {

@@ -50,7 +50,9 @@ pub(crate) fn slab(
 /// A ray: points `origin + t * direction` for `t` in `[t_min, t_max]`.
 ///
 /// `direction` need not be normalized; `t` is measured in its units. `t_min` should be `>= 0`: boxes are tested
-/// conservatively only for non-negative distances.
+/// conservatively only for non-negative distances. Plain data in the layout of the 32-byte ray records of
+/// `bvhc trace` and of the C API's `bvhc_ray` (`bytemuck::Pod`), so arrays of them can be viewed in place.
+#[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
     /// Start point.
@@ -62,6 +64,8 @@ pub struct Ray {
     /// Largest distance that counts as a hit.
     pub t_max: f32,
 }
+
+crate::plain_data::plain_data! { Ray { [f32; 3], [f32; 3], f32, f32 } }
 
 impl Ray {
     /// A ray over `[0, +inf]`.

@@ -69,6 +69,7 @@ mod simd;
 mod source_corners;
 mod spawn;
 mod structure;
+mod traced;
 mod traverse;
 #[cfg(feature = "write")]
 mod uncached;
@@ -116,6 +117,7 @@ pub use simd::KernelPath;
 pub use source_corners::SourceCorners;
 pub use spawn::SurfacePoint;
 pub use structure::SectionInfo;
+pub use traced::TracedFile;
 pub use traverse::{Kernel, Tracer};
 #[cfg(feature = "write")]
 pub use uncached::UncachedWriter;
@@ -134,6 +136,7 @@ const _: () = {
     shared::<MappedBvh>();
     shared::<BvhView<'static>>();
     shared::<Tracer<'static>>();
+    shared::<TracedFile>();
     shared::<WideTracer<'static>>();
     shared::<Hit>();
     shared::<SurfacePoint>();
