@@ -187,4 +187,4 @@ unsafe fn batch_input<'f>(
 /// and its memory bounded, whatever the batch's size (a batch is traced as its chunks one after the other, with
 /// the same results, since every ray's hit is its own). A multiple of 8, so coherent calls keep their groups.
 const CHUNK_RAYS: usize = 4096;
-const _: () = assert!(CHUNK_RAYS % 8 == 0);
+const _: () = assert!(CHUNK_RAYS.is_multiple_of(8));
