@@ -60,9 +60,9 @@ mod tests {
     fn the_kept_tracer_traces_as_a_fresh_one_after_the_file_moved() {
         let file = BvhFile::from_bytes(include_bytes!("../tests/data/quad-v1.1.bvh")).unwrap();
         let traced = TracedFile::new(file);
-        let moved = vec![traced];
+        let moved = Box::new(traced);
         let ray = Ray::new([0.25, 0.75, 1.0], [0.0, 0.0, -1.0]);
-        assert_eq!(moved[0].tracer().closest_hit(&ray), moved[0].view().tracer().closest_hit(&ray));
-        assert_eq!(moved[0].tracer().closest_hit(&ray).map(|h| h.t), Some(1.0));
+        assert_eq!(moved.tracer().closest_hit(&ray), moved.view().tracer().closest_hit(&ray));
+        assert_eq!(moved.tracer().closest_hit(&ray).map(|h| h.t), Some(1.0));
     }
 }
