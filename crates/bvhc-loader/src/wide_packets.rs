@@ -25,7 +25,8 @@ struct PacketLanes {
 
 /// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
 /// `t <= t_max` would end with), as (lane, hit); for `ANY_HIT`, the last lane that hits when no lane needs the
-/// scalar redo, without looking for the nearest. The same hits on every instruction set.
+/// scalar redo, without looking for the nearest or computing `u` and `v` (0). The same hits on every
+/// instruction set.
 #[inline(always)]
 pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa>(
     isa: I,
@@ -33,16 +34,20 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa>(
     ray: &PreparedRay,
     t_max: f32,
 ) -> Option<(usize, TriangleHit)> {
-    let lanes = packet_lanes(isa, packet, ray, t_max)?;
+    let lanes = packet_lanes::<ANY_HIT, I>(isa, packet, ray, t_max)?;
     let hit_in = |lane: usize| {
         let (u, v) = barycentrics([0.0, lanes.v[lane], lanes.w[lane]], lanes.det[lane], 1.0);
         TriangleHit { t: lanes.t[lane], u, v }
     };
     if lanes.zero == 0 {
-        // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t.
-        let candidates = if ANY_HIT { lanes.valid } else { lanes.nearest };
-        let last = 31usize.checked_sub(candidates.leading_zeros() as usize)?;
-        return Some((last, hit_in(last)));
+        // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t. An any-hit
+        // query only needs to know that a lane hits: its `u` and `v` are not computed (0).
+        if ANY_HIT {
+            let last = 31usize.checked_sub(lanes.valid.leading_zeros() as usize)?;
+            return Some((last, TriangleHit { t: lanes.t[last & (LANES - 1)], u: 0.0, v: 0.0 }));
+        }
+        let last = 31usize.checked_sub(lanes.nearest.leading_zeros() as usize)?;
+        return Some((last, hit_in(last & (LANES - 1))));
     }
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
@@ -65,7 +70,12 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa>(
 /// The four lanes' test; `None` as soon as the edge functions show that no lane can hit (every lane outside or
 /// unused, none with a zero edge function), before `t` is computed: most packet tests end there.
 #[inline(always)]
-fn packet_lanes<I: Isa>(isa: I, packet: &TrianglePacket4, ray: &PreparedRay, t_max: f32) -> Option<PacketLanes> {
+fn packet_lanes<const ANY_HIT: bool, I: Isa>(
+    isa: I,
+    packet: &TrianglePacket4,
+    ray: &PreparedRay,
+    t_max: f32,
+) -> Option<PacketLanes> {
     let ([kx, ky, kz], [sx, sy, sz]) = ray.shear();
     // The ray's values copied out and spread over the lanes where they are used: reading them through the
     // reference, or spreading them once for a leaf, let the compiler keep fewer of them in registers (3-9%
@@ -88,8 +98,12 @@ fn packet_lanes<I: Isa>(isa: I, packet: &TrianglePacket4, ray: &PreparedRay, t_m
     }
     let t = distance(e, &r, sz, det);
     let valid = hits(outside, det, t, zero, isa.f4_splat(t_min), isa.f4_splat(t_max));
-    let masked = I::F4::select(valid, t, isa.f4_splat(f32::INFINITY));
-    let nearest = valid.and(masked.eq(masked.min_across()));
+    let nearest = if ANY_HIT {
+        0 // an any-hit query takes any valid lane
+    } else {
+        let masked = I::F4::select(valid, t, isa.f4_splat(f32::INFINITY));
+        valid.and(masked.eq(masked.min_across())).bits()
+    };
     Some(PacketLanes {
         v: e[1].to_array(),
         w: e[2].to_array(),
@@ -97,6 +111,6 @@ fn packet_lanes<I: Isa>(isa: I, packet: &TrianglePacket4, ray: &PreparedRay, t_m
         det: det.to_array(),
         zero: on_edge.bits(),
         valid: valid.bits(),
-        nearest: nearest.bits(),
+        nearest,
     })
 }
