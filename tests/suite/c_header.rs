@@ -50,7 +50,7 @@ fn the_c_header_compiles_and_reads_the_golden_files_as_the_rust_reader_does() {
     let binary = match compile(dir.path()) {
         Ok(binary) => binary,
         Err(why) => {
-            eprintln!("SKIPPED: {why}");
+            crate::skips::skipped(crate::skips::Needs::CCompiler, format!("bvh.h compiled and read from C ({why})"));
             return;
         }
     };

@@ -78,14 +78,20 @@ fn compile(dir: &Path, library: &Path) -> Result<PathBuf, String> {
 #[test]
 fn a_c_program_traces_with_the_same_hits_as_rust() {
     let Some(library) = static_library() else {
-        eprintln!("SKIPPED: libbvhc_capi.a is not built (cargo build --release -p bvhc-capi)");
+        crate::skips::skipped(
+            crate::skips::Needs::Build,
+            "the C program against the C library (libbvhc_capi.a not built: cargo build --release -p bvhc-capi)",
+        );
         return;
     };
     let dir = tempfile::tempdir().unwrap();
     let binary = match compile(dir.path(), &library) {
         Ok(binary) => binary,
         Err(why) => {
-            eprintln!("SKIPPED: {why}");
+            crate::skips::skipped(
+                crate::skips::Needs::CCompiler,
+                format!("the C program against the C library ({why})"),
+            );
             return;
         }
     };

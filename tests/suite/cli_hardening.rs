@@ -35,7 +35,7 @@ fn to_dev_full(args: &[&dyn AsRef<std::ffi::OsStr>], stream_is_stderr: bool) -> 
 #[test]
 fn a_full_disk_on_stdout_or_stderr_is_exit_3_without_panic() {
     if !Path::new("/dev/full").exists() {
-        eprintln!("SKIPPED: no /dev/full on this system");
+        crate::skips::skipped(crate::skips::Needs::Tools, "a full disk on stdout and stderr (no /dev/full)");
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -132,7 +132,7 @@ fn outputs_that_are_inputs_or_not_regular_files_are_refused() {
             let run = bvhc(&[&same, &"-o", &fifo]); // used to hang in the up-to-date check
             assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
         } else {
-            eprintln!("SKIPPED (part): mkfifo is not available");
+            crate::skips::skipped(crate::skips::Needs::Tools, "part: a FIFO output (mkfifo is not available)");
         }
     }
 }
@@ -297,7 +297,10 @@ fn sigkill_while_the_output_is_written_leaves_nothing_behind() {
         }
     }
     if caught == 0 {
-        eprintln!("SKIPPED: the write was never seen in progress (the output folder's file system or a fast disk)");
+        crate::skips::skipped(
+            crate::skips::Needs::Machine,
+            "SIGKILL during the write (the write was never seen in progress: the file system or a fast disk)",
+        );
     } else {
         eprintln!("{caught} conversions killed while writing their output");
     }
@@ -345,6 +348,8 @@ fn the_heat_map_has_a_legend_and_interiors_are_shown_from_inside() {
             let run = bvhc(&[&"render", &bvh, &"-o", &dir.path().join("b.png"), &"--width", &"64", &"--height", &"48"]);
             assert!(stdout(&run).contains("camera from inside the scene's box"), "{}", stdout(&run));
         }
-        None => eprintln!("SKIPPED (part): the 3-storey building is not in the shared scenes"),
+        None => {
+            crate::skips::skipped(crate::skips::Needs::Scenes, "part: the render from inside the 3-storey building")
+        }
     }
 }

@@ -178,7 +178,10 @@ pub fn scenes_dir() -> Option<PathBuf> {
 pub fn scene(relative: &str) -> Option<PathBuf> {
     let path = scenes_dir().map(|d| d.join(relative)).filter(|p| p.is_file());
     if path.is_none() {
-        eprintln!("SKIPPED: scene {relative} not found (set BVHC_SCENES to the shared scenes folder)");
+        crate::skips::skipped(
+            crate::skips::Needs::Scenes,
+            format!("scene {relative} (set BVHC_SCENES to the shared scenes folder)"),
+        );
     }
     path
 }
@@ -298,7 +301,10 @@ pub fn kernel_paths() -> Vec<bvhc::loader::KernelPath> {
         .filter(|p| {
             let supported = p.is_supported();
             if !supported {
-                eprintln!("SKIPPED (part): kernel path {p:?} is not supported on this machine");
+                crate::skips::skipped(
+                    crate::skips::Needs::Machine,
+                    format!("part: kernel path {p:?} (not supported here)"),
+                );
             }
             supported
         })

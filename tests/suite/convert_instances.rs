@@ -140,7 +140,7 @@ fn real_scenes_that_place_meshes_more_than_once_convert_instanced_and_trace() {
     let dir = tempfile::tempdir().unwrap();
     for relative in scenes {
         let Some(path) = scene(relative) else {
-            eprintln!("SKIPPED: {relative} (no shared scenes)");
+            crate::skips::skipped(crate::skips::Needs::Scenes, format!("{relative} (instanced conversion)"));
             continue;
         };
         let (flat_path, instanced_path) = (dir.path().join("flat.bvh"), dir.path().join("instanced.bvh"));

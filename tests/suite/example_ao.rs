@@ -12,7 +12,10 @@ fn the_ao_example_bakes_the_teapot() {
     let exe = std::env::current_exe().unwrap();
     let example = exe.parent().and_then(|deps| deps.parent()).map(|profile| profile.join("examples/ao"));
     let Some(example) = example.filter(|path| path.is_file()) else {
-        eprintln!("SKIPPED: the ao example is not built beside the tests (cargo test builds it)");
+        crate::skips::skipped(
+            crate::skips::Needs::Build,
+            "the ao example (not built beside the tests; cargo test builds it)",
+        );
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -16,7 +16,10 @@ fn gpu_tracer<'a>(view: &BvhView<'a>) -> Option<GpuTracer<'a>> {
     match GpuTracer::new(view) {
         Ok(tracer) => Some(tracer),
         Err(GpuError::NoAdapter(why)) => {
-            eprintln!("SKIPPED: no GPU adapter ({why}); install a Vulkan driver (Debian: mesa-vulkan-drivers)");
+            let what = format!(
+                "the WGSL kernel (no GPU adapter: {why}; install a Vulkan driver, Debian: mesa-vulkan-drivers)"
+            );
+            crate::skips::skipped(crate::skips::Needs::Vulkan, what);
             None
         }
         Err(e) => panic!("{e}"),
@@ -153,7 +156,10 @@ fn the_wgsl_exact_edge_function_equals_the_f64_recomputation() {
     let options = wgpu::RequestAdapterOptions { force_fallback_adapter: false, ..Default::default() };
     let adapter = match pollster::block_on(instance.request_adapter(&options)) {
         Ok(adapter) => adapter,
-        Err(why) => return eprintln!("SKIPPED: no GPU adapter ({why}); install a Vulkan driver (mesa-vulkan-drivers)"),
+        Err(why) => {
+            let what = format!("the WGSL edge function (no GPU adapter: {why}; install mesa-vulkan-drivers)");
+            return crate::skips::skipped(crate::skips::Needs::Vulkan, what);
+        }
     };
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor::default())).unwrap();
     let source = format!(

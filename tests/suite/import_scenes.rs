@@ -66,7 +66,7 @@ fn check(expected: &Expected, report: &ImportReport) -> Vec<String> {
 #[test]
 fn every_shared_scene_imports_with_its_readme_counts() {
     let Some(dir) = scenes_dir() else {
-        eprintln!("SKIPPED: shared scenes not found (set BVHC_SCENES)");
+        crate::skips::skipped(crate::skips::Needs::Scenes, "every shared scene against its README counts");
         return;
     };
     let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();

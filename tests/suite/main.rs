@@ -44,6 +44,7 @@ mod rules_source_vertices;
 mod rules_tree;
 mod rules_wide;
 mod same_bytes;
+mod skips;
 mod sbvh;
 mod spawn;
 mod scenes;

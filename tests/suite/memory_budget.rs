@@ -111,7 +111,10 @@ fn a_scene_over_the_memory_budget_is_refused_before_it_is_held() {
 #[test]
 fn the_default_budget_follows_the_address_space_limit() {
     let Ok(prlimit) = which_prlimit() else {
-        eprintln!("SKIPPED: prlimit (util-linux) is not installed");
+        crate::skips::skipped(
+            crate::skips::Needs::Tools,
+            "the address-space budget (prlimit of util-linux is not installed)",
+        );
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -92,10 +92,18 @@ fn every_recorded_conversion_writes_the_recorded_bytes() {
         checked += 1;
     }
     if slow > 0 {
-        eprintln!("SKIPPED (part): {slow} rows that took over {QUICK_SECONDS} s when recorded (BVHC_SAME_BYTES=all)");
+        crate::skips::skipped(
+            crate::skips::Needs::Slow,
+            format!(
+                "part: {slow} same-bytes rows that took over {QUICK_SECONDS} s when recorded (BVHC_SAME_BYTES=all runs them)"
+            ),
+        );
     }
     if skipped > 0 {
-        eprintln!("SKIPPED (part): {skipped} rows whose scene is not in the shared scenes (set BVHC_SCENES)");
+        crate::skips::skipped(
+            crate::skips::Needs::Scenes,
+            format!("part: {skipped} same-bytes rows whose scene is missing"),
+        );
     }
     assert!(differing.is_empty(), "{} of {checked} conversions changed:\n{}", differing.len(), differing.join("\n"));
 }

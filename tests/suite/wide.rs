@@ -213,7 +213,10 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
             let bvh = bvhc::pack::pack_wide(&wide, &packed, &mut Some, false).unwrap();
             for path in [KernelPath::Portable, KernelPath::Avx2] {
                 if !path.is_supported() {
-                    eprintln!("SKIPPED (part): {path:?} is not supported on this machine");
+                    crate::skips::skipped(
+                        crate::skips::Needs::Machine,
+                        format!("part: kernel path {path:?} (not supported on this machine)"),
+                    );
                     continue;
                 }
                 let tracer = WideTracer::new(&bvh, Some(&ids), path);
