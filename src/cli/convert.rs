@@ -67,6 +67,11 @@ pub fn convert(args: &ConvertArgs) -> Exit {
         Err(error) => return fail(Exit::Internal, error),
     };
     let output = args.output.as_deref().unwrap_or(std::path::Path::new(""));
+    if !args.quiet && !args.json {
+        for note in outcome.report.iter().flat_map(|r| &r.notes) {
+            eprintln!("note: {note}");
+        }
+    }
     let mut out = String::new();
     if args.json {
         let json = serde_json::json!({

@@ -17,7 +17,7 @@ use super::report::{ConvertError, ConvertReport, Event, GpuSummary, Stage, Timin
 use super::write::{stream, verify_and_commit};
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES, GPU_LAYOUT_BYTES_PER_TRIANGLE};
 use crate::import::{Instancing, SceneFormat, TriangleSoup, import_for_peak};
-use crate::options::{ConvertOptions, OptionsError};
+use crate::options::ConvertOptions;
 
 /// Converts `input` into the `.bvh` file `output` with the default options.
 pub fn convert(input: &Path, output: &Path) -> Result<ConvertReport, ConvertError> {
@@ -33,7 +33,7 @@ pub fn convert_with(
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
 ) -> Result<ConvertReport, ConvertError> {
     options.validate()?;
-    refuse_inert_instancing(input, options)?;
+    let notes = instancing_notes(input, options);
     let mut timings = Timings::default();
     bvhc_loader::check_replaceable(output)?;
     refuse_output_among(output, std::slice::from_ref(&input.to_path_buf()))?;
@@ -143,17 +143,22 @@ pub fn convert_with(
         choice,
         sampling,
         two_level: None,
+        notes,
     })
 }
 
-/// `--instancing always` or `never` on an OBJ or PLY input, which place each model once, would do nothing.
-fn refuse_inert_instancing(input: &Path, options: &ConvertOptions) -> Result<(), ConvertError> {
+/// `--instancing always` or `never` on an OBJ or PLY input: such a file places each model once, so it satisfies
+/// either setting by its nature (nothing is instanced). Accepted, so a build script can pass one set of options
+/// to a list of mixed assets, with a note that says so.
+fn instancing_notes(input: &Path, options: &ConvertOptions) -> Vec<String> {
     let mode = options.import.instancing;
     let name = input.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let format = SceneFormat::from_file_name(&name).map(|(format, _)| format);
     if mode == Instancing::Auto || !matches!(format, Some(SceneFormat::Obj | SceneFormat::Ply)) {
-        return Ok(());
+        return Vec::new();
     }
-    let setting = format!("--instancing {}", mode.name());
-    Err(OptionsError::inert(&setting, "an OBJ or PLY input", "such files place each model once; drop it").into())
+    vec![format!(
+        "--instancing {}: {name} is an OBJ or PLY file, which places each model once, so nothing is instanced",
+        mode.name()
+    )]
 }

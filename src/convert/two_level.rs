@@ -168,6 +168,7 @@ pub(super) fn convert_two_level(
         choice: None,
         sampling: None,
         two_level: Some(summary),
+        notes: Vec::new(),
     })
 }
 

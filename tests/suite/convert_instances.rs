@@ -114,19 +114,28 @@ fn auto_flattens_a_mesh_whose_placements_add_few_triangles() {
 }
 
 #[test]
-fn instancing_options_that_would_do_nothing_are_refused() {
+fn an_instancing_setting_an_obj_satisfies_by_its_nature_is_accepted_with_a_note() {
+    // A build script passes one set of options to a list of mixed assets: an OBJ places each model once, so it
+    // satisfies `always` and `never` alike; the conversion says so, and writes the file `auto` would.
     let dir = tempfile::tempdir().unwrap();
+    let plain = dir.path().join("plain.bvh");
+    bvhc::Conversion::new(crate::convert::teapot(), &plain).run().unwrap();
     for mode in [Instancing::Always, Instancing::Never] {
-        let error = bvhc::Conversion::new(crate::convert::teapot(), dir.path().join("t.bvh"))
-            .instancing(mode)
-            .run()
-            .unwrap_err()
-            .to_string();
+        let output = dir.path().join(format!("{}.bvh", mode.name()));
+        let outcome = bvhc::Conversion::new(crate::convert::teapot(), &output).instancing(mode).run().unwrap();
+        let notes = outcome.report.unwrap().notes;
+        assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(
-            error.contains(&format!("--instancing {} does nothing with an OBJ or PLY input", mode.name())),
-            "{error}"
+            notes[0].contains(&format!("--instancing {}", mode.name())) && notes[0].contains("nothing is instanced")
         );
+        let view_of = |path: &Path| BvhFile::read(path).unwrap();
+        assert_eq!(view_of(&output).view().triangles(), view_of(&plain).view().triangles(), "{}", mode.name());
     }
+    // The command line prints the note on stderr and succeeds.
+    let run =
+        crate::cli::bvhc(&[&crate::convert::teapot(), &"-o", &dir.path().join("cli.bvh"), &"--instancing", &"never"]);
+    assert!(run.status.success(), "{}", crate::cli::stderr(&run));
+    assert!(crate::cli::stderr(&run).contains("note: --instancing never"), "{}", crate::cli::stderr(&run));
 }
 
 #[test]
