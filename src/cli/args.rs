@@ -66,7 +66,8 @@ pub struct TraceArgs {
     /// The rays: 32-byte records (origin xyz, direction xyz, t_min, t_max; little-endian f32).
     #[arg(long, value_name = "RAYS.bin")]
     pub rays: PathBuf,
-    /// Where to write the hits: 24-byte records, or with --any-hit one byte per ray.
+    /// Where to write the hits: 24-byte records, or with --any-hit one byte per ray. A file is written atomically;
+    /// a device or FIFO (`/dev/null` to time the tracing alone) is written in place.
     #[arg(short, long, value_name = "HITS.bin")]
     pub output: Option<PathBuf>,
     /// Only ask whether each ray hits anything (occlusion).
@@ -291,7 +292,7 @@ fn parse_split_budget(text: &str) -> Result<f64, String> {
 pub struct RenderArgs {
     /// The .bvh file.
     pub file: PathBuf,
-    /// The PNG file to write.
+    /// The PNG file to write (atomically; a device or FIFO in place).
     #[arg(short, long, value_name = "IMAGE.png")]
     pub output: PathBuf,
     /// Image width in pixels.

@@ -6,6 +6,7 @@
 //! writing stderr itself are ignored (there is nowhere left to report them), the exit code still tells.
 
 use std::io::{ErrorKind, Write};
+use std::path::Path;
 
 use super::Exit;
 
@@ -32,4 +33,30 @@ pub fn print(text: &str, exit: Exit) -> Exit {
 pub fn error_line(exit: Exit, message: std::fmt::Arguments<'_>) -> Exit {
     let _ = writeln!(std::io::stderr().lock(), "bvhc: error: {message}");
     exit
+}
+
+/// Writes an output file of `trace` or `render`: a character device or FIFO that exists already (`-o /dev/null`,
+/// a pipe made by `mkfifo`) is written directly, since it holds no previous file to keep and a reader of a stream
+/// expects the bytes there; any other path is written atomically ([`bvhc::loader::write_atomic`]), which refuses
+/// a directory. The error names the path.
+pub fn write_output(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    if is_stream(path) {
+        let written = std::fs::OpenOptions::new().write(true).open(path).and_then(|mut file| file.write_all(bytes));
+        return written.map_err(|error| format!("{}: {error}", path.display()));
+    }
+    bvhc::loader::write_atomic(path, bytes).map_err(|error| error.to_string())
+}
+
+/// Whether `path` is a character device or a FIFO (following links, as `/dev/stdout` is one).
+fn is_stream(path: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        std::fs::metadata(path).is_ok_and(|m| m.file_type().is_char_device() || m.file_type().is_fifo())
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        false
+    }
 }

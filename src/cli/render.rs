@@ -93,7 +93,7 @@ pub fn render(args: &RenderArgs) -> Exit {
     if let Err(error) = written {
         return fail(Exit::Internal, format!("PNG encoding failed: {error}"));
     }
-    if let Err(error) = bvhc::loader::write_atomic(&args.output, &png_bytes) {
+    if let Err(error) = super::output::write_output(&args.output, &png_bytes) {
         return fail(Exit::Io, error);
     }
     let mean = steps.iter().map(|&s| u64::from(s)).sum::<u64>() as f64 / steps.len() as f64;

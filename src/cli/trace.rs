@@ -76,7 +76,7 @@ pub fn trace(args: &TraceArgs) -> Exit {
         Err((exit, message)) => return fail(exit, format!("{}: {message}", args.file.display())),
     };
     if let Some(output) = &args.output
-        && let Err(error) = bvhc::loader::write_atomic(output, &records)
+        && let Err(error) = super::output::write_output(output, &records)
     {
         return fail(Exit::Io, error);
     }

@@ -169,3 +169,42 @@ fn the_shortest_valid_direction_still_hits() {
         assert_eq!(short_hit.t, unit_hit.t / shortest, "t in units of the direction");
     }
 }
+
+#[test]
+fn trace_writes_to_a_device_or_fifo_directly() {
+    // `-o /dev/null` (tracing for the timing alone) and a FIFO (hits streamed to a reader) are written in place;
+    // a directory stays refused.
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = teapot_bvh(dir.path());
+    let ray_file = dir.path().join("rays.bin");
+    std::fs::write(&ray_file, ray_bytes(&random_rays(17, 300, 4.0))).unwrap();
+    let hits = dir.path().join("hits.bin");
+    assert!(bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &hits]).status.success());
+    let expected = std::fs::read(&hits).unwrap();
+    if Path::new("/dev/null").exists() {
+        let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &"/dev/null"]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        assert!(stdout(&run).contains("300 rays"), "{}", stdout(&run));
+        assert!(!std::fs::metadata("/dev/null").unwrap().is_file());
+    } else {
+        crate::skips::skipped(crate::skips::Needs::Tools, "trace -o /dev/null (no /dev/null)");
+    }
+    #[cfg(unix)]
+    {
+        let fifo = dir.path().join("hits.fifo");
+        if std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+            let reader = {
+                let fifo = fifo.clone();
+                std::thread::spawn(move || std::fs::read(fifo).unwrap())
+            };
+            let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &fifo]);
+            assert!(run.status.success(), "{}", stderr(&run));
+            assert_eq!(reader.join().unwrap(), expected);
+        } else {
+            crate::skips::skipped(crate::skips::Needs::Tools, "trace -o FIFO (mkfifo is not available)");
+        }
+    }
+    let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &dir.path()]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert!(stderr(&run).contains("not a regular file"), "{}", stderr(&run));
+}
