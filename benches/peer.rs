@@ -19,7 +19,10 @@
 //! `embree-robust`) with `BVHC_PEER_QUERY=closest|any` and `BVHC_PEER_SET=incoherent|primary` traces that one
 //! pass once inside `measured_pass`, for `valgrind --tool=callgrind --toggle-collect='*measured_pass*'`
 //! (Embree's AVX2 kernels; docs/kernel-peer.md has the commands); with `BVHC_PEER_ROUNDS` set as well, it
-//! also times that pass that many times (a quick A/B of one contender).
+//! also times that pass that many times (a quick A/B of one contender). bvhc runs without the ray check
+//! (`Tracer::trusting_rays`), as Embree does; `BVHC_PEER_ONLY=bvhc-checked` with it, and `BVHC_PEER_ONLY=ray-check` times the checking tracer
+//! against the trusting one, single rays and batches, rounds interleaved: the check's cost; `BVHC_PEER_BATCH=1`
+//! makes the one-contender pass use the batch calls (streams; packets for `BVHC_PEER_SET=primary`).
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -88,10 +91,34 @@ mod peer {
     fn measured_pass(contender: &Contender<'_>, rays: &[Ray], closest: bool) -> usize {
         let _ftz = matches!(contender, Contender::Embree(_)).then(FlushToZero::set);
         match (contender, closest) {
+            (Contender::Bvhc(t), _) if std::env::var_os("BVHC_PEER_BATCH").is_some() => {
+                let coherent = std::env::var("BVHC_PEER_SET").is_ok_and(|set| set == "primary");
+                batch_pass(t, rays, closest, coherent)
+            }
             (Contender::Bvhc(t), true) => rays.iter().filter(|r| t.closest_hit(r).is_some()).count(),
             (Contender::Bvhc(t), false) => rays.iter().filter(|r| t.any_hit(r)).count(),
             (Contender::Embree(e), true) => rays.iter().filter(|r| e.closest(r).is_some()).count(),
             (Contender::Embree(e), false) => rays.iter().filter(|r| e.any(r)).count(),
+        }
+    }
+
+    /// One timed pass of the batch calls: streams, or 8-ray packets when `coherent`; the hits found.
+    #[inline(never)]
+    fn batch_pass(tracer: &bvhc::loader::Tracer<'_>, rays: &[Ray], closest: bool, coherent: bool) -> usize {
+        if closest {
+            let mut hits = vec![None; rays.len()];
+            match coherent {
+                true => tracer.closest_hits_coherent(rays, &mut hits),
+                false => tracer.closest_hits(rays, &mut hits),
+            }
+            hits.iter().filter(|h| h.is_some()).count()
+        } else {
+            let mut occluded = vec![false; rays.len()];
+            match coherent {
+                true => tracer.any_hits_coherent(rays, &mut occluded),
+                false => tracer.any_hits(rays, &mut occluded),
+            }
+            occluded.iter().filter(|&&o| o).count()
         }
     }
 
@@ -164,16 +191,25 @@ mod peer {
             let triangles = bvhc::import::import(&path, &Default::default()).unwrap().soup.triangle_vertices();
             let root = view.nodes()[0];
             let contenders: Vec<(&str, Contender<'_>)> = match only.as_deref() {
-                Some("bvhc") => vec![("bvhc", Contender::Bvhc(view.tracer()))],
+                Some("bvhc") => vec![("bvhc", Contender::Bvhc(view.tracer().trusting_rays()))],
+                Some("bvhc-checked") => vec![("bvhc checked", Contender::Bvhc(view.tracer()))],
+                // The ray check's cost: the checking tracer against the trusting one, rounds interleaved.
+                Some("ray-check") => vec![
+                    ("bvhc", Contender::Bvhc(view.tracer())),
+                    ("bvhc trusting", Contender::Bvhc(view.tracer().trusting_rays())),
+                ],
                 Some("embree") => {
                     vec![("embree", Contender::Embree(Embree::with_isa(&triangles, false, Some("avx2"))))]
                 }
                 Some("embree-robust") => {
                     vec![("embree robust", Contender::Embree(Embree::with_isa(&triangles, true, Some("avx2"))))]
                 }
-                Some(other) => panic!("BVHC_PEER_ONLY={other}: bvhc, embree or embree-robust"),
+                Some(other) => {
+                    panic!("BVHC_PEER_ONLY={other}: bvhc, bvhc-checked, ray-check, embree or embree-robust")
+                }
+                // bvhc's kernel without the ray check, as Embree runs without one (`ray-check` measures it).
                 None => vec![
-                    ("bvhc", Contender::Bvhc(view.tracer())),
+                    ("bvhc", Contender::Bvhc(view.tracer().trusting_rays())),
                     ("Embree AVX2", Contender::Embree(Embree::with_isa(&triangles, false, Some("avx2")))),
                     ("Embree native", Contender::Embree(Embree::with_isa(&triangles, false, None))),
                     ("robust AVX2", Contender::Embree(Embree::with_isa(&triangles, true, Some("avx2")))),
@@ -187,6 +223,30 @@ mod peer {
             for (set, rays) in &sets {
                 for closest in [true, false] {
                     let query = if closest { "closest" } else { "any" };
+                    if only.as_deref() == Some("ray-check") {
+                        // Single-ray calls, then the batch calls (streams for incoherent rays, packets for primary
+                        // ones), each checked and trusting, rounds interleaved.
+                        let coherent = *set == "primary";
+                        let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+                        for _ in 0..rounds {
+                            for (c, (_, contender)) in contenders.iter().enumerate() {
+                                let Contender::Bvhc(tracer) = contender else { unreachable!("bvhc only") };
+                                let start = Instant::now();
+                                std::hint::black_box(measured_pass(contender, rays, closest));
+                                samples[c].push(rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
+                                let start = Instant::now();
+                                std::hint::black_box(batch_pass(tracer, rays, closest, coherent));
+                                samples[2 + c].push(rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
+                            }
+                        }
+                        let [single, single_trusting, batch, batch_trusting] = samples.map(median);
+                        println!(
+                            "| {name} | {set} | {query} | {single:.2} | {single_trusting:.2} | {:.4} | {batch:.2} | {batch_trusting:.2} | {:.4} |",
+                            single / single_trusting,
+                            batch / batch_trusting
+                        );
+                        continue;
+                    }
                     if let Some(_contender) = &only {
                         let wanted_set = std::env::var("BVHC_PEER_SET").unwrap_or_else(|_| "incoherent".into());
                         let wanted_query = std::env::var("BVHC_PEER_QUERY").unwrap_or_else(|_| "closest".into());

@@ -58,7 +58,7 @@ fn trace(tracer: &Tracer<'_>, camera: &[Ray]) -> (u64, u64, u64) {
             let mut counts = (0u64, 0u64, 0u64);
             for ray in rays {
                 let Some(hit) = tracer.closest_hit(ray) else { continue };
-                let surface = tracer.surface(&hit);
+                let surface = tracer.surface(&hit).unwrap();
                 if surface.normal == [0.0; 3] {
                     continue;
                 }

@@ -80,7 +80,7 @@ fn normalize(v: [f32; 3]) -> [f32; 3] {
 
 /// The fraction of `samples` cosine-weighted rays from `hit` that nothing blocks within `radius`.
 fn ambient(tracer: &Tracer<'_>, hit: &Hit, samples: usize, radius: f32, rng: &mut rand_pcg::Pcg64Mcg) -> f32 {
-    let surface = tracer.surface(hit);
+    let surface = tracer.surface(hit).expect("the hit is this tracer's");
     let rays: Vec<Ray> = (0..samples)
         .map(|_| {
             let direction = surface.cosine_direction([rng.random(), rng.random()]);

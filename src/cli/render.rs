@@ -47,7 +47,9 @@ pub fn render(args: &RenderArgs) -> Exit {
     let view = file.view();
     let (width, height) = (args.width.clamp(1, 16384) as usize, args.height.clamp(1, 16384) as usize);
     let (min, max) = view.scene_box().map_or((Vec3::ZERO, Vec3::ONE), |(min, max)| (min.into(), max.into()));
-    let tracer = view.tracer();
+    // Camera rays are finite by construction (the camera is checked, the directions normalized); an extreme
+    // camera whose rays overflow gets unspecified pixels rather than a panic.
+    let tracer = view.tracer().trusting_rays();
     let (camera, inside) = match args.camera {
         Some(camera) => (camera, false),
         None => view::default_camera(&tracer, view.triangles(), min, max),

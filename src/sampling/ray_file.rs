@@ -4,10 +4,6 @@ use bvhc_loader::Ray;
 
 /// Bytes of one ray record.
 pub const RAY_RECORD_BYTE_LEN: usize = 32;
-/// The smallest magnitude of a ray's largest direction component (`format-spec/rays-and-hits.md`): `2^-64`,
-/// which keeps the hit test's `1 / d_kz` at most `2^64`.
-const MIN_DIRECTION_COMPONENT: f32 = 1.0 / (1u128 << 64) as f32;
-
 /// Parses ray records; the error names the first bad ray and the rule it breaks.
 pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
     if !bytes.len().is_multiple_of(RAY_RECORD_BYTE_LEN) {
@@ -20,22 +16,8 @@ pub fn parse_rays(bytes: &[u8]) -> Result<Vec<Ray>, String> {
             f32::from_le_bytes([record[4 * k], record[4 * k + 1], record[4 * k + 2], record[4 * k + 3]])
         });
         let ray = Ray { origin: [f[0], f[1], f[2]], direction: [f[3], f[4], f[5]], t_min: f[6], t_max: f[7] };
-        let finite = f[..7].iter().all(|v| v.is_finite()) && !ray.t_max.is_nan();
-        if !finite {
-            return Err(format!("ray {i}: origin, direction and t_min must be finite, t_max not NaN"));
-        }
-        if ray.direction == [0.0; 3] {
-            return Err(format!("ray {i}: the direction is zero"));
-        }
-        let longest = ray.direction.iter().fold(0.0f32, |m, c| m.max(c.abs()));
-        if longest < MIN_DIRECTION_COMPONENT {
-            return Err(format!(
-                "ray {i}: the direction's largest component {longest:e} is below 2^-64 in magnitude (the hit \
-                 test's shear would overflow); scale the direction up"
-            ));
-        }
-        if !(0.0 <= ray.t_min && ray.t_min <= ray.t_max) {
-            return Err(format!("ray {i}: needs 0 <= t_min <= t_max (t_min {}, t_max {})", ray.t_min, ray.t_max));
+        if let Err(error) = ray.check() {
+            return Err(format!("ray {i}: {error}"));
         }
         rays.push(ray);
     }

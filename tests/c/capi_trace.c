@@ -1,6 +1,6 @@
 /* Opens a .bvh through the C API, verifies it, traces the rays of a ray file (bvhc trace's format) one at a
  * time and in a batch, and writes one line per ray: "hit t u v nx ny nz triangle source front any s0 s1 s2 mesh
- * w0" (s: the source vertices, w0 the weight of s0) or "miss any", floats as bit patterns in hex; first the
+ * w0 instance node" (s: the source vertices, w0 the weight of s0, node the glTF node that placed it) or "miss any", floats as bit patterns in hex; first the
  * struct sizes. tests/suite/capi.rs compares with Rust. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -61,10 +61,11 @@ int main(int argc, char **argv) {
         }
         bvhc_source_corners corners;
         if (bvhc_hit_source_corners(file, &one, &corners) != BVHC_OK) return 15;
-        printf("hit %08x %08x %08x %08x %08x %08x %u %u %u %d %u %u %u %u %08x %u\n", bits(one.t), bits(one.u),
+        printf("hit %08x %08x %08x %08x %08x %08x %u %u %u %d %u %u %u %u %08x %u %u\n", bits(one.t), bits(one.u),
                bits(one.v), bits(one.normal[0]), bits(one.normal[1]), bits(one.normal[2]), one.triangle_index,
                one.source_triangle_id, one.front_face, any, corners.vertices[0], corners.vertices[1],
-               corners.vertices[2], corners.mesh_index, bits(corners.weights[0]), one.instance_index);
+               corners.vertices[2], corners.mesh_index, bits(corners.weights[0]), one.instance_index,
+               corners.node_index);
         if (bvhc_source_id(file, one.triangle_index) != one.source_triangle_id) return 12;
         /* A secondary ray away from the surface never meets the triangle it leaves. */
         float away[3] = {one.normal[0], one.normal[1], one.normal[2]};

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use bvhc::loader::{BvhFile, Ray};
-use bvhc_capi::{BvhcHit, BvhcRay, BvhcSourceCorners};
+use bvhc_capi::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};
 
 use crate::cli::{bvhc, teapot};
 use crate::common::random_rays;
@@ -29,12 +29,20 @@ fn sources() -> Vec<String> {
 #[test]
 fn the_header_declares_every_exported_function_and_nothing_else() {
     let sources = sources();
-    let exported: Vec<&str> = sources
+    // Functions marked `#[unsafe(no_mangle)]`, and the names given to the batch calls' declaring macros (the
+    // first `bvhc_` name of each invocation after its doc comment).
+    let mut exported: Vec<&str> = sources
         .iter()
         .flat_map(|source| source.split("#[unsafe(no_mangle)]").skip(1))
         .filter_map(|rest| rest.split("fn ").nth(1)?.split('(').next())
+        .filter(|name| !name.starts_with('$'))
         .collect();
-    assert!(exported.len() >= 12, "{exported:?}");
+    let invocations = sources.iter().flat_map(|source| source.split("_entry!(\n").skip(1));
+    exported.extend(invocations.filter_map(|rest| {
+        let line = rest.lines().map(str::trim).find(|line| !line.starts_with("///"))?;
+        line.strip_suffix(',').filter(|name| name.starts_with("bvhc_"))
+    }));
+    assert!(exported.len() >= 30, "{exported:?}");
     // Every `bvhc_name(` outside comments is a declaration.
     let code = HEADER.lines().filter(|l| !l.trim_start().starts_with('*') && !l.trim_start().starts_with("/*"));
     let mut declared: Vec<&str> = code
@@ -45,12 +53,13 @@ fn the_header_declares_every_exported_function_and_nothing_else() {
         })
         .collect();
     declared.sort_unstable();
-    let mut exported = exported;
     exported.sort_unstable();
     assert_eq!(declared, exported, "the header declares exactly the exported functions");
     assert_eq!(size_of::<BvhcRay>(), 32);
     assert_eq!(size_of::<BvhcHit>(), 40);
     assert_eq!(size_of::<BvhcSourceCorners>(), 44);
+    assert_eq!(size_of::<BvhcInstance>(), 112);
+    assert_eq!(size_of::<BvhcMesh>(), 8);
 }
 
 /// The static library beside the test binary (target/<profile>/libbvhc_capi.a), if built.
@@ -60,41 +69,44 @@ fn static_library() -> Option<PathBuf> {
     Some(profile.join("libbvhc_capi.a")).filter(|p| p.is_file())
 }
 
-fn compile(dir: &Path, library: &Path) -> Result<PathBuf, String> {
+/// Builds `tests/c/<program>.c` against `library` into `dir`.
+fn compile(dir: &Path, library: &Path, program: &str) -> Result<PathBuf, String> {
     let compiler = std::env::var("CC").unwrap_or_else(|_| "cc".to_string());
-    let binary = dir.join("capi_trace");
+    let binary = dir.join(program);
     let output = Command::new(&compiler)
         .args(["-std=c11", "-Wall", "-Wextra", "-pedantic", "-Werror"])
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/c/capi_trace.c"))
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("tests/c/{program}.c")))
         .arg(library)
         .args(["-lpthread", "-ldl", "-lm", "-o"])
         .arg(&binary)
         .output()
         .map_err(|e| format!("no C compiler ({compiler}: {e})"))?;
-    assert!(output.status.success(), "capi_trace.c does not build:\n{}", String::from_utf8_lossy(&output.stderr));
+    assert!(output.status.success(), "{program}.c does not build:\n{}", String::from_utf8_lossy(&output.stderr));
     Ok(binary)
+}
+
+/// The C program `program` built against the static library, or `None` after reporting the skip.
+fn c_program(dir: &Path, program: &str) -> Option<PathBuf> {
+    let Some(library) = static_library() else {
+        crate::skips::skipped(
+            crate::skips::Needs::Build,
+            format!("{program}.c against the C library (libbvhc_capi.a not built: cargo build --release -p bvhc-capi)"),
+        );
+        return None;
+    };
+    match compile(dir, &library, program) {
+        Ok(binary) => Some(binary),
+        Err(why) => {
+            crate::skips::skipped(crate::skips::Needs::CCompiler, format!("{program}.c against the C library ({why})"));
+            None
+        }
+    }
 }
 
 #[test]
 fn a_c_program_traces_with_the_same_hits_as_rust() {
-    let Some(library) = static_library() else {
-        crate::skips::skipped(
-            crate::skips::Needs::Build,
-            "the C program against the C library (libbvhc_capi.a not built: cargo build --release -p bvhc-capi)",
-        );
-        return;
-    };
     let dir = tempfile::tempdir().unwrap();
-    let binary = match compile(dir.path(), &library) {
-        Ok(binary) => binary,
-        Err(why) => {
-            crate::skips::skipped(
-                crate::skips::Needs::CCompiler,
-                format!("the C program against the C library ({why})"),
-            );
-            return;
-        }
-    };
+    let Some(binary) = c_program(dir.path(), "capi_trace") else { return };
     let bvh = dir.path().join("teapot.bvh");
     assert!(bvhc(&[&teapot(), &"-o", &bvh, &"-q"]).status.success());
     let mut rays = random_rays(61, 3000, 3.0);
@@ -139,7 +151,7 @@ fn same_hits_in_c_and_rust(binary: &Path, bvh: &Path, rays: &[Ray], dir: &Path) 
                 let corners = view.source_corners(&hit).expect("the file has source vertices");
                 let [s0, s1, s2] = corners.vertices;
                 format!(
-                    "hit {:08x} {:08x} {:08x} {nx:08x} {ny:08x} {nz:08x} {} {} {} {any} {s0} {s1} {s2} {} {:08x} {}",
+                    "hit {:08x} {:08x} {:08x} {nx:08x} {ny:08x} {nz:08x} {} {} {} {any} {s0} {s1} {s2} {} {:08x} {} {}",
                     hit.t.to_bits(),
                     hit.u.to_bits(),
                     hit.v.to_bits(),
@@ -148,11 +160,65 @@ fn same_hits_in_c_and_rust(binary: &Path, bvh: &Path, rays: &[Ray], dir: &Path) 
                     u8::from(hit.front_face),
                     corners.range.mesh_index,
                     corners.weights[0].to_bits(),
-                    hit.instance_index.unwrap_or(u32::MAX)
+                    hit.instance_index.unwrap_or(u32::MAX),
+                    corners.node_index()
                 )
             }
         };
         assert_eq!(line, expected, "{ray:?}");
     }
     hits
+}
+
+#[test]
+fn a_c_program_reads_what_the_file_holds_and_its_errors_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(binary) = c_program(dir.path(), "capi_scene") else { return };
+    let one_level = dir.path().join("teapot.bvh");
+    assert!(bvhc(&[&teapot(), &"-o", &one_level, &"-q"]).status.success());
+    let (scene, sources) =
+        crate::instances::two_level(&crate::instances::test_meshes(), &crate::instances::test_placements(), true);
+    let two_level = dir.path().join("instances.bvh");
+    std::fs::write(&two_level, crate::instances::write_two_level(&scene, &sources).unwrap().as_bytes()).unwrap();
+    for bvh in [&one_level, &two_level] {
+        let metadata = dir.path().join("metadata.json");
+        let run = Command::new(&binary).arg(bvh).arg(&metadata).output().unwrap();
+        let stdout = String::from_utf8(run.stdout).unwrap();
+        assert!(run.status.success(), "{}: {}", bvh.display(), String::from_utf8_lossy(&run.stderr));
+        assert_eq!(stdout.lines().last(), Some("checks ok"));
+        assert_eq!(stdout, expected_scene_lines(bvh) + "checks ok\n", "{}", bvh.display());
+        let file = BvhFile::read(bvh).unwrap();
+        assert_eq!(std::fs::read(&metadata).unwrap(), file.view().metadata_bytes().unwrap_or_default());
+    }
+}
+
+/// What `capi_scene.c` prints for `bvh`, from the Rust API.
+fn expected_scene_lines(bvh: &Path) -> String {
+    use std::fmt::Write;
+    let file = BvhFile::read(bvh).unwrap();
+    let view = file.view();
+    let hex =
+        |values: &mut dyn Iterator<Item = f32>| values.map(|v| format!(" {:08x}", v.to_bits())).collect::<String>();
+    let mut out = String::new();
+    let (min, max) = view.scene_box().unwrap();
+    writeln!(out, "bounds{}", hex(&mut min.into_iter().chain(max))).unwrap();
+    let (meshes, instances) = view.two_level().map_or((&[][..], &[][..]), |s| (s.meshes, s.instances));
+    writeln!(out, "meshes {}", meshes.len()).unwrap();
+    for (i, mesh) in meshes.iter().enumerate() {
+        writeln!(out, "mesh {i} {} {}", mesh.first_triangle, mesh.triangle_count).unwrap();
+    }
+    writeln!(out, "instances {}", instances.len()).unwrap();
+    for (i, instance) in instances.iter().enumerate() {
+        let maps = instance.object_to_world.iter().chain(&instance.world_to_object).flatten().copied();
+        let (mesh, node, gpu) = (instance.mesh_index, instance.node_index, instance.gpu_instance_index);
+        writeln!(out, "instance {i}{} {mesh} {node} {gpu}", hex(&mut maps.into_iter())).unwrap();
+    }
+    for (i, triangle) in view.triangles().iter().enumerate() {
+        let source = match view.source_vertices() {
+            Some(all) => all[i].indices.map(|s| s.to_string()).join(" "),
+            None => "-".to_string(),
+        };
+        writeln!(out, "triangle {i}{} {source}", hex(&mut triangle.vertices.into_iter().flatten())).unwrap();
+    }
+    out
 }

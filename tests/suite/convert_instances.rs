@@ -28,15 +28,14 @@ fn convert(input: &Path, output: &Path, instancing: Instancing) -> bvhc::convert
 /// Where a hit lies in the scene, comparable between a flattened and a two-level file of one glTF scene: the
 /// placing node, and the triangle's index within its glTF primitive.
 fn placed_source(file: &BvhFile, hit: &bvhc::loader::Hit) -> (u32, u32, u32) {
-    let view = file.view();
-    let id = hit.source_triangle_id.unwrap();
-    let range = view.source_range_of(id).unwrap();
-    // The flattened part of a two-level file is placed by an instance without a node; its ranges name theirs.
-    let node = match hit.instance_index.map(|i| view.two_level().unwrap().instances[i as usize].node_index) {
-        Some(node) if node != bvhc::loader::format::NO_INDEX => node,
-        _ => range.node_index,
-    };
-    (node, range.primitive_index, id - range.first_source_triangle)
+    // A mesh placed by instances is stored once, so its source ranges name no node: `node_index` takes the hit
+    // instance's, which must be the node the flattened file's range names.
+    let corners = file.view().source_corners(hit).expect("the file has source vertices");
+    (
+        corners.node_index(),
+        corners.range.primitive_index,
+        corners.source_triangle_id - corners.range.first_source_triangle,
+    )
 }
 
 #[test]

@@ -361,7 +361,7 @@ fn spawned_rays_never_meet_their_own_instanced_triangle() {
     let (mut spawned, mut self_hits) = (0, 0);
     for ray in &rays {
         let Some(hit) = tracer.closest_hit(ray) else { continue };
-        let surface = tracer.surface(&hit);
+        let surface = tracer.surface(&hit).unwrap();
         assert!(surface.instance.is_some());
         for _ in 0..4 {
             use rand::RngExt;

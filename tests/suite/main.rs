@@ -34,6 +34,7 @@ mod mutation;
 mod optimize;
 mod options;
 mod optimize_property;
+mod ray_contract;
 mod ray_tuning;
 mod roundtrip;
 mod rules;

@@ -33,7 +33,7 @@ fn exercise(bytes: &[u8]) {
                 if let Some(corners) = view.source_corners(&hit) {
                     let _ = corners.interpolate(&[[0.0f32; 2]; 4]);
                 }
-                let _ = tracer.surface(&hit).spawn([0.0, 0.0, 1.0]);
+                let _ = tracer.surface(&hit).map(|surface| surface.spawn([0.0, 0.0, 1.0]));
             }
             let _ = tracer.any_hit(ray);
         }

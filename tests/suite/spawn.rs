@@ -27,7 +27,7 @@ fn count_self_hits(tracer: &Tracer<'_>, camera_rays: &[Ray], per_hit: usize, see
     let mut counts = SelfHits::default();
     for ray in camera_rays {
         let Some(hit) = tracer.closest_hit(ray) else { continue };
-        let surface = tracer.surface(&hit);
+        let surface = tracer.surface(&hit).unwrap();
         if surface.normal == [0.0; 3] {
             continue;
         }
@@ -153,7 +153,7 @@ fn a_shadow_ray_across_a_thin_gap_finds_the_occluder() {
                 let down = Ray::new(at(0.3, 0.6, -1.0), at(0.3, 0.6, 0.0).map(|_| 0.0));
                 let down = Ray { direction: [0.0, 0.0, 1.0], ..down };
                 let hit = tracer.closest_hit(&down).expect("the lower square is hit from below");
-                let surface = tracer.surface(&hit);
+                let surface = tracer.surface(&hit).unwrap();
                 let light = at(0.5, 0.5, 2.0);
                 assert!(tracer.any_hit(&surface.spawn_to(light)), "x{scale} +{offset} gap {gap}: the upper square");
                 let up = tracer.closest_hit(&surface.spawn([0.0, 0.0, 1.0])).expect("the upper square is above");
@@ -286,7 +286,7 @@ fn ambient_occlusion_with_spawned_rays_matches_an_f64_reference() {
     let (mut ours, mut reference, mut naive, mut samples) = (0usize, 0usize, 0usize, 0usize);
     for ray in camera_rays(&triangles, 240, 77) {
         let Some(hit) = tracer.closest_hit(&ray) else { continue };
-        let surface = tracer.surface(&hit);
+        let surface = tracer.surface(&hit).unwrap();
         if surface.normal == [0.0; 3] {
             continue;
         }

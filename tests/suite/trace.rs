@@ -136,11 +136,11 @@ fn bad_ray_files_are_refused_naming_the_ray() {
     let good = Ray { origin: [0.0; 3], direction: [0.0, 0.0, 1.0], t_min: 0.0, t_max: 1.0 };
     let cases = [
         (ray_bytes(&[good])[..31].to_vec(), "not a whole number"),
-        (ray_bytes(&[good, Ray { direction: [f32::NAN, 0.0, 0.0], ..good }]), "ray 1: origin, direction"),
+        (ray_bytes(&[good, Ray { direction: [f32::NAN, 0.0, 0.0], ..good }]), "ray 1: the direction is not finite"),
         (ray_bytes(&[Ray { direction: [0.0; 3], ..good }]), "ray 0: the direction is zero"),
         (ray_bytes(&[good, Ray { direction: [0.0, 0.0, 1e-45], ..good }]), "ray 1: the direction's largest component"),
         (ray_bytes(&[Ray { direction: [1e-20, -1e-20, 0.0], ..good }]), "is below 2^-64"),
-        (ray_bytes(&[good, good, Ray { t_min: 2.0, ..good }]), "ray 2: needs 0 <= t_min <= t_max"),
+        (ray_bytes(&[good, good, Ray { t_min: 2.0, ..good }]), "ray 2: t_max is NaN or below t_min"),
     ];
     for (bytes, message) in cases {
         let rays = dir.path().join("bad.bin");

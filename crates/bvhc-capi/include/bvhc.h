@@ -1,18 +1,32 @@
 /*
- * bvhc.h: the C API of bvhc-loader (crates/bvhc-capi). Link libbvhc_capi (static: also -lpthread -ldl -lm).
+ * bvhc.h: the C API of bvhc-loader (crates/bvhc-capi). Installed as libbvhc with a pkg-config file
+ * (`pkg-config --cflags --libs bvhc`) and a CMake package (`find_package(bvhc)`, target `bvhc::bvhc`); see
+ * scripts/install-c-library.sh. Linking the static library also needs -lpthread -ldl -lm.
  *
  * Open a .bvh file (from a path or from memory), verify it, and trace rays: the hit records are the Rust API's,
- * field for field (t, u, v, normal, triangle index, source id, front face). Conventions:
- * - functions returning bvhc_status give BVHC_OK (0) or an error code, with a message in
- *   bvhc_last_error_message() (per thread, valid until the next call on that thread);
- * - bvhc_closest_hit and bvhc_any_hit return 1 (hit), 0 (miss) or -1 (an argument error);
- * - null pointers are argument errors, never crashes; no exception or panic crosses the boundary;
+ * field for field (t, u, v, normal, triangle index, source id, instance, front face). Conventions:
+ * - functions returning bvhc_status give BVHC_OK (0) or an error code (bvhc_status_name names it), with a
+ *   message in bvhc_last_error_message(): per thread, valid and unchanged until the next call that FAILS on
+ *   that thread (successful calls leave it); bvhc_error_message() copies it;
+ * - bvhc_closest_hit and bvhc_any_hit return 1 (hit), 0 (miss) or -1 (an error, with its message);
+ * - rays are checked against the ray contract (finite origin and direction, the direction's largest component
+ *   at least 2^-64 in magnitude, 0 <= t_min <= t_max, t_max not NaN): a ray that breaks it is refused with
+ *   BVHC_ERROR_RAY naming the ray and the rule. A batch is checked in chunks of 1024 rays, each just before it
+ *   is traced (the rays are then still in the caches), so results of the chunks before the named ray have been
+ *   written. The _unchecked calls skip the check (about 30 instructions a ray) for callers that check once
+ *   themselves (bvhc_check_rays); a ray that breaks the contract then gets an unspecified answer, never a crash;
+ * - null pointers, indices out of range and hits that are not the file's are BVHC_ERROR_ARGUMENT, never
+ *   crashes; no exception or panic crosses the boundary;
+ * - batch calls read the caller's rays in place and write each result straight into the caller's arrays;
  * - a bvhc_file is immutable: any number of threads may trace through one at once; only bvhc_close must not
  *   race with them.
- * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices; bvhc_hit_source_corners
- * names them in the source scene's own primitive (format-spec/bvh-1.md 5.9), to interpolate its normals, texture
- * coordinates or colours. bvhc_spawn_ray gives a secondary ray with t_min = 0 that does not meet
- * the triangle it leaves, at any scale, with no epsilon to choose.
+ * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices (bvhc_triangle_vertices);
+ * bvhc_hit_source_corners names them in the source scene's own primitive (format-spec/bvh-1.md 5.9), to
+ * interpolate its normals, texture coordinates or colours. bvhc_spawn_ray gives a secondary ray with t_min = 0
+ * that does not meet the triangle it leaves, at any scale, with no epsilon to choose.
+ * Two-level files (format 1.3) place meshes by instances: a hit names its instance, whose transforms, mesh
+ * and glTF node bvhc_get_instance gives; the hit's normal is in world space, the record's vertices in the mesh's
+ * object space.
  */
 #ifndef BVHC_H
 #define BVHC_H
@@ -27,14 +41,16 @@ extern "C" {
 typedef int bvhc_status;
 #define BVHC_OK 0
 #define BVHC_ERROR_IO 1
-#define BVHC_ERROR_INVALID 2
-#define BVHC_ERROR_ARGUMENT 3
+#define BVHC_ERROR_INVALID 2       /* the bytes break a validity rule of the format */
+#define BVHC_ERROR_ARGUMENT 3      /* a null pointer, an index out of range, a hit that is not the file's */
 #define BVHC_ERROR_MEMORY 4
-#define BVHC_ERROR_PANIC 5
-#define BVHC_ERROR_NOT_IN_FILE 6 /* the file lacks an optional section the call needs */
+#define BVHC_ERROR_PANIC 5         /* a bug inside the library, caught at the boundary */
+#define BVHC_ERROR_NOT_IN_FILE 6   /* the file lacks an optional section the call needs */
+#define BVHC_ERROR_RAY 7           /* a ray breaks the ray contract */
 
-/* No source id (a file without a triangle_ids section). */
+/* No source id (a file without a triangle_ids section), no index (where one does not apply). */
 #define BVHC_NO_SOURCE_ID 0xFFFFFFFFu
+#define BVHC_NO_INDEX 0xFFFFFFFFu
 
 /* No instance (a hit in a one-level file). */
 #define BVHC_NO_INSTANCE 0xFFFFFFFFu
@@ -61,24 +77,53 @@ typedef struct bvhc_hit {
 } bvhc_hit;
 
 /* Where a hit lies in the source scene: attribute(hit) = sum of weights[i] * attribute[vertices[i]] over the
- * vertex arrays of the glTF primitive (node, mesh, primitive, instance), OBJ file or PLY file it came from. */
+ * vertex arrays of the glTF primitive (mesh_index, primitive_index), OBJ file or PLY file it came from. */
 typedef struct bvhc_source_corners {
     uint32_t vertices[3]; /* source vertex of the record's v0, v1, v2 */
     float weights[3];     /* 1 - u - v, u, v */
     uint32_t source_triangle_id;
-    uint32_t node_index;      /* 0xFFFFFFFF where it does not apply */
+    uint32_t node_index;      /* glTF node that placed it (the instance's, through an instance); or BVHC_NO_INDEX */
     uint32_t mesh_index;      /* glTF mesh or OBJ model */
-    uint32_t primitive_index; /* glTF primitive within the mesh */
-    uint32_t instance_index;  /* EXT_mesh_gpu_instancing instance */
+    uint32_t primitive_index; /* glTF primitive within the mesh: its material is the hit's */
+    uint32_t instance_index;  /* EXT_mesh_gpu_instancing instance, or BVHC_NO_INDEX */
 } bvhc_source_corners;
 
+/* A placement of a mesh in a two-level file. Maps are three rows of four floats:
+ * p'[i] = m[i][0] p[0] + m[i][1] p[1] + m[i][2] p[2] + m[i][3]; directions use the first three columns. */
+typedef struct bvhc_instance {
+    float object_to_world[3][4];
+    float world_to_object[3][4]; /* the inverse, as the kernel uses it */
+    uint32_t mesh_index;         /* below bvhc_mesh_count */
+    uint32_t node_index;         /* glTF node, or BVHC_NO_INDEX */
+    uint32_t gpu_instance_index; /* EXT_mesh_gpu_instancing instance, or BVHC_NO_INDEX */
+    uint32_t reserved;
+} bvhc_instance;
+
+/* A mesh of a two-level file: the triangle records it owns, in its object space. */
+typedef struct bvhc_mesh {
+    uint32_t first_triangle;
+    uint32_t triangle_count;
+} bvhc_mesh;
+
+/* Errors. */
+const char *bvhc_status_name(bvhc_status status); /* "BVHC_ERROR_RAY"; a static string */
+const char *bvhc_last_error_message(void);
+size_t bvhc_error_message(char *buffer, size_t capacity); /* snprintf-style copy; returns the full length */
+
+/* Files. */
 bvhc_status bvhc_open(const char *path, bvhc_file **out);
-bvhc_status bvhc_open_memory(const void *bytes, size_t len, bvhc_file **out);
+bvhc_status bvhc_open_memory(const void *bytes, size_t len, bvhc_file **out); /* copies the bytes */
 bvhc_status bvhc_verify(const bvhc_file *file);
 void bvhc_close(bvhc_file *file);
 
+/* Tracing one ray. */
 int bvhc_closest_hit(const bvhc_file *file, const bvhc_ray *ray, bvhc_hit *hit);
 int bvhc_any_hit(const bvhc_file *file, const bvhc_ray *ray);
+int bvhc_closest_hit_unchecked(const bvhc_file *file, const bvhc_ray *ray, bvhc_hit *hit);
+int bvhc_any_hit_unchecked(const bvhc_file *file, const bvhc_ray *ray);
+bvhc_status bvhc_check_rays(const bvhc_ray *rays, size_t count, size_t *first_invalid);
+
+/* Tracing arrays of rays: found[i] / occluded[i] is 1 or 0; hits[i] is zeroed on a miss. */
 bvhc_status bvhc_closest_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
                               uint8_t *found);
 bvhc_status bvhc_any_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
@@ -87,12 +132,29 @@ bvhc_status bvhc_any_hits(const bvhc_file *file, const bvhc_ray *rays, size_t co
 bvhc_status bvhc_closest_hits_coherent(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
                                        uint8_t *found);
 bvhc_status bvhc_any_hits_coherent(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
-bvhc_status bvhc_spawn_ray(const bvhc_file *file, const bvhc_hit *hit, const float direction[3], bvhc_ray *out);
+bvhc_status bvhc_closest_hits_unchecked(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
+                                        uint8_t *found);
+bvhc_status bvhc_any_hits_unchecked(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
+bvhc_status bvhc_closest_hits_coherent_unchecked(const bvhc_file *file, const bvhc_ray *rays, size_t count,
+                                                 bvhc_hit *hits, uint8_t *found);
+bvhc_status bvhc_any_hits_coherent_unchecked(const bvhc_file *file, const bvhc_ray *rays, size_t count,
+                                             uint8_t *occluded);
 
-uint32_t bvhc_source_id(const bvhc_file *file, uint32_t triangle_index);
+/* From a hit. */
+bvhc_status bvhc_spawn_ray(const bvhc_file *file, const bvhc_hit *hit, const float direction[3], bvhc_ray *out);
 bvhc_status bvhc_hit_source_corners(const bvhc_file *file, const bvhc_hit *hit, bvhc_source_corners *out);
+
+/* What the file holds. */
 size_t bvhc_triangle_count(const bvhc_file *file);
-const char *bvhc_last_error_message(void);
+bvhc_status bvhc_triangle_vertices(const bvhc_file *file, uint32_t triangle_index, float vertices[9]);
+bvhc_status bvhc_triangle_source_vertices(const bvhc_file *file, uint32_t triangle_index, uint32_t vertices[3]);
+uint32_t bvhc_source_id(const bvhc_file *file, uint32_t triangle_index);
+bvhc_status bvhc_scene_bounds(const bvhc_file *file, float min[3], float max[3]);
+size_t bvhc_mesh_count(const bvhc_file *file);         /* 0 for a one-level file */
+bvhc_status bvhc_get_mesh(const bvhc_file *file, uint32_t mesh_index, bvhc_mesh *out);
+size_t bvhc_instance_count(const bvhc_file *file);     /* 0 for a one-level file */
+bvhc_status bvhc_get_instance(const bvhc_file *file, uint32_t instance_index, bvhc_instance *out);
+size_t bvhc_metadata_json(const bvhc_file *file, char *buffer, size_t capacity); /* snprintf-style; 0: none */
 
 #ifdef __cplusplus
 }

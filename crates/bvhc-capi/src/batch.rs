@@ -1,59 +1,159 @@
 //! The batch entry points of the C API: closest and any hits for arrays of rays, one ray at a time (streams
-//! interleaved over large files) or in coherent groups of 8, with the same contract as the rest of the API.
+//! interleaved over large files) or in coherent groups of 8, checked against the ray contract or (`_unchecked`)
+//! not. The caller's arrays are used in place: rays are read where they are (`bvhc_ray` is the Rust `Ray`) and
+//! each result is written straight into its slot, with no buffer between. A checked call checks its rays chunk
+//! by chunk (`bvhc_loader::CHECKED_CHUNK`), each just before tracing it, so the rays come from the caches the
+//! second time; on `BVHC_ERROR_RAY` the results of the chunks before the named ray have been written.
 
 use std::ffi::c_int;
 
-use bvhc_loader::{Hit, Ray, Tracer};
+use bvhc_loader::{BatchRayError, CHECKED_CHUNK, Tracer};
 
-use crate::boundary::{BVHC_OK, BvhcFile, argument, guarded};
+use crate::boundary::{BVHC_ERROR_RAY, BVHC_OK, BvhcFile, argument, file_ref, guarded};
 use crate::records::{BvhcHit, BvhcRay};
 
-/// Traces `count` rays for their closest hits: `hits[i]` is ray `i`'s hit where `found[i]` is 1 (0: a miss,
-/// `hits[i]` zeroed). Rays are interleaved over large files, as `Tracer::closest_hits` does.
-///
-/// # Safety
-///
-/// `file` is null or a live file; `rays`, `hits` and `found` are null or point to `count` elements each.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn bvhc_closest_hits(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    hits: *mut BvhcHit,
-    found: *mut u8,
-) -> c_int {
-    // SAFETY: the caller's contract is this function's.
-    unsafe { closest_hits("bvhc_closest_hits", |t, r, h| t.closest_hits(r, h), file, rays, count, hits, found) }
+/// How a batch call traces: whether it checks its rays first, and whether its rays are coherent.
+#[derive(Clone, Copy)]
+struct Mode {
+    /// The call's name, for messages.
+    call: &'static str,
+    /// Check every ray against the contract before tracing any.
+    check: bool,
+    /// Trace each 8 consecutive rays together.
+    coherent: bool,
 }
 
-/// [`bvhc_closest_hits`] for coherent rays (camera rays of neighbouring pixels): each 8 consecutive rays are
-/// traced together (`Tracer::closest_hits_coherent`: the same `t` for each ray; on a tie at it, possibly
-/// another triangle).
-///
-/// # Safety
-///
-/// As [`bvhc_closest_hits`].
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn bvhc_closest_hits_coherent(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    hits: *mut BvhcHit,
-    found: *mut u8,
-) -> c_int {
-    let name = "bvhc_closest_hits_coherent";
-    // SAFETY: the caller's contract is this function's.
-    unsafe { closest_hits(name, |t, r, h| t.closest_hits_coherent(r, h), file, rays, count, hits, found) }
+/// Declares a batch closest-hit entry point of `mode`.
+macro_rules! closest_hits_entry {
+    ($(#[$doc:meta])* $name:ident, $check:expr, $coherent:expr) => {
+        $(#[$doc])*
+        #[unsafe(no_mangle)]
+        pub unsafe extern "C" fn $name(
+            file: *const BvhcFile,
+            rays: *const BvhcRay,
+            count: usize,
+            hits: *mut BvhcHit,
+            found: *mut u8,
+        ) -> c_int {
+            let mode = Mode { call: stringify!($name), check: $check, coherent: $coherent };
+            // SAFETY: the caller's contract is this function's.
+            unsafe { closest_hits(mode, file, rays, count, hits, found) }
+        }
+    };
 }
 
-/// The batch closest-hit calls, tracing with `trace`.
+/// Declares a batch any-hit entry point of `mode`.
+macro_rules! any_hits_entry {
+    ($(#[$doc:meta])* $name:ident, $check:expr, $coherent:expr) => {
+        $(#[$doc])*
+        #[unsafe(no_mangle)]
+        pub unsafe extern "C" fn $name(
+            file: *const BvhcFile,
+            rays: *const BvhcRay,
+            count: usize,
+            occluded: *mut u8,
+        ) -> c_int {
+            let mode = Mode { call: stringify!($name), check: $check, coherent: $coherent };
+            // SAFETY: the caller's contract is this function's.
+            unsafe { any_hits(mode, file, rays, count, occluded) }
+        }
+    };
+}
+
+closest_hits_entry!(
+    /// Traces `count` rays for their closest hits: `hits[i]` is ray `i`'s hit where `found[i]` is 1 (0: a miss,
+    /// `hits[i]` zeroed). Rays are interleaved over large files, as `Tracer::closest_hits` does. Every ray is
+    /// checked (see the module doc): `BVHC_ERROR_RAY` names the first that breaks the contract.
+    ///
+    /// # Safety
+    ///
+    /// `file` is null or a live file; `rays`, `hits` and `found` are null or point to `count` elements each.
+    bvhc_closest_hits,
+    true,
+    false
+);
+closest_hits_entry!(
+    /// [`bvhc_closest_hits`] without the ray check (see `bvhc_check_rays`).
+    ///
+    /// # Safety
+    ///
+    /// As [`bvhc_closest_hits`].
+    bvhc_closest_hits_unchecked,
+    false,
+    false
+);
+closest_hits_entry!(
+    /// [`bvhc_closest_hits`] for coherent rays (camera rays of neighbouring pixels): each 8 consecutive rays are
+    /// traced together (`Tracer::closest_hits_coherent`: the same `t` for each ray; on a tie at it, possibly
+    /// another triangle).
+    ///
+    /// # Safety
+    ///
+    /// As [`bvhc_closest_hits`].
+    bvhc_closest_hits_coherent,
+    true,
+    true
+);
+closest_hits_entry!(
+    /// [`bvhc_closest_hits_coherent`] without the ray check.
+    ///
+    /// # Safety
+    ///
+    /// As [`bvhc_closest_hits`].
+    bvhc_closest_hits_coherent_unchecked,
+    false,
+    true
+);
+any_hits_entry!(
+    /// Traces `count` rays for occlusion: `occluded[i]` is 1 when ray `i` hits anything. Rays are checked as
+    /// [`bvhc_closest_hits`] checks them.
+    ///
+    /// # Safety
+    ///
+    /// `file` is null or a live file; `rays` and `occluded` are null or point to `count` elements each.
+    bvhc_any_hits,
+    true,
+    false
+);
+any_hits_entry!(
+    /// [`bvhc_any_hits`] without the ray check.
+    ///
+    /// # Safety
+    ///
+    /// As [`bvhc_any_hits`].
+    bvhc_any_hits_unchecked,
+    false,
+    false
+);
+any_hits_entry!(
+    /// [`bvhc_any_hits`] for coherent rays: each 8 consecutive rays traced together
+    /// (`Tracer::any_hits_coherent`, the same answers).
+    ///
+    /// # Safety
+    ///
+    /// As [`bvhc_any_hits`].
+    bvhc_any_hits_coherent,
+    true,
+    true
+);
+any_hits_entry!(
+    /// [`bvhc_any_hits_coherent`] without the ray check.
+    ///
+    /// # Safety
+    ///
+    /// As [`bvhc_any_hits`].
+    bvhc_any_hits_coherent_unchecked,
+    false,
+    true
+);
+
+/// The batch closest-hit calls.
 ///
 /// # Safety
 ///
 /// As [`bvhc_closest_hits`].
 unsafe fn closest_hits(
-    name: &str,
-    trace: fn(&Tracer<'_>, &[Ray], &mut [Option<Hit>]),
+    mode: Mode,
     file: *const BvhcFile,
     rays: *const BvhcRay,
     count: usize,
@@ -63,8 +163,8 @@ unsafe fn closest_hits(
     guarded(|| {
         let outputs_null = hits.is_null() || found.is_null();
         // SAFETY: the caller's contract is this function's.
-        let Some((file, rays)) =
-            (unsafe { batch_input(name, file, rays, count, outputs_null, "rays, hits and found") })?
+        let Some((tracer, rays)) =
+            (unsafe { batch_input(mode, file, rays, count, outputs_null, "rays, hits and found") })?
         else {
             return Ok(BVHC_OK);
         };
@@ -72,119 +172,95 @@ unsafe fn closest_hits(
         // outputs do not overlap the input (they are distinct C arrays of other types).
         let (hits, found) =
             unsafe { (std::slice::from_raw_parts_mut(hits, count), std::slice::from_raw_parts_mut(found, count)) };
-        let mut results = vec![None; count.min(CHUNK_RAYS)];
-        let chunks = rays.chunks(CHUNK_RAYS).zip(hits.chunks_mut(CHUNK_RAYS)).zip(found.chunks_mut(CHUNK_RAYS));
-        for ((rays, hits), found) in chunks {
-            let results = &mut results[..rays.len()];
-            trace(file.tracer(), rays, results);
-            for ((result, hit), flag) in results.iter().zip(hits).zip(found) {
-                *hit = result.as_ref().map(BvhcHit::from).unwrap_or_default();
-                *flag = u8::from(result.is_some());
+        in_chunks(mode, rays, |first, chunk| {
+            let each = |i: usize, result: Option<bvhc_loader::Hit>| {
+                if let (Some(hit), Some(flag)) = (hits.get_mut(first + i), found.get_mut(first + i)) {
+                    *hit = result.as_ref().map(BvhcHit::from).unwrap_or_default();
+                    *flag = u8::from(result.is_some());
+                }
+            };
+            // The file's tracer trusts its rays (they were checked above): these calls cannot fail.
+            match mode.coherent {
+                true => tracer.closest_hits_coherent_with(chunk, each),
+                false => tracer.closest_hits_with(chunk, each),
             }
-        }
-        Ok(BVHC_OK)
+        })
     })
 }
 
-/// Traces `count` rays for occlusion: `occluded[i]` is 1 when ray `i` hits anything.
-///
-/// # Safety
-///
-/// `file` is null or a live file; `rays` and `occluded` are null or point to `count` elements each.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn bvhc_any_hits(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    occluded: *mut u8,
-) -> c_int {
-    // SAFETY: the caller's contract is this function's.
-    unsafe { any_hits("bvhc_any_hits", |t, r, o| t.any_hits(r, o), file, rays, count, occluded) }
-}
-
-/// [`bvhc_any_hits`] for coherent rays: each 8 consecutive rays traced together (`Tracer::any_hits_coherent`,
-/// the same answers).
+/// The batch any-hit calls.
 ///
 /// # Safety
 ///
 /// As [`bvhc_any_hits`].
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn bvhc_any_hits_coherent(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    occluded: *mut u8,
-) -> c_int {
-    // SAFETY: the caller's contract is this function's.
-    unsafe { any_hits("bvhc_any_hits_coherent", |t, r, o| t.any_hits_coherent(r, o), file, rays, count, occluded) }
-}
-
-/// The batch any-hit calls, tracing with `trace`.
-///
-/// # Safety
-///
-/// As [`bvhc_any_hits`].
-unsafe fn any_hits(
-    name: &str,
-    trace: fn(&Tracer<'_>, &[Ray], &mut [bool]),
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    occluded: *mut u8,
-) -> c_int {
+unsafe fn any_hits(mode: Mode, file: *const BvhcFile, rays: *const BvhcRay, count: usize, occluded: *mut u8) -> c_int {
     guarded(|| {
         // SAFETY: the caller's contract is this function's.
-        let Some((file, rays)) =
-            (unsafe { batch_input(name, file, rays, count, occluded.is_null(), "rays and occluded") })?
+        let Some((tracer, rays)) =
+            (unsafe { batch_input(mode, file, rays, count, occluded.is_null(), "rays and occluded") })?
         else {
             return Ok(BVHC_OK);
         };
         // SAFETY: not null (checked by `batch_input`), and by the contract it points to `count` elements.
         let occluded = unsafe { std::slice::from_raw_parts_mut(occluded, count) };
-        let mut flags = vec![false; count.min(CHUNK_RAYS)];
-        for (rays, occluded) in rays.chunks(CHUNK_RAYS).zip(occluded.chunks_mut(CHUNK_RAYS)) {
-            let flags = &mut flags[..rays.len()];
-            trace(file.tracer(), rays, flags);
-            for (flag, out) in flags.iter().zip(occluded) {
-                *out = u8::from(*flag);
+        in_chunks(mode, rays, |first, chunk| {
+            let each = |i: usize, hit: bool| {
+                if let Some(flag) = occluded.get_mut(first + i) {
+                    *flag = u8::from(hit);
+                }
+            };
+            match mode.coherent {
+                true => tracer.any_hits_coherent_with(chunk, each),
+                false => tracer.any_hits_with(chunk, each),
             }
-        }
-        Ok(BVHC_OK)
+        })
     })
 }
 
-/// The file of a batch call and its rays.
-type BatchInput<'f> = (&'f BvhcFile, &'f [BvhcRay]);
+/// The tracer of a batch call's file and its rays.
+type BatchInput<'f> = (&'f Tracer<'f>, &'f [BvhcRay]);
 
-/// What every batch call checks first: the file, and its `count` rays; `None` for an empty batch (nothing to
-/// check or write). Argument errors name the call and, when a pointer is null, the `arrays` that must not be
-/// (`outputs_null`: whether one of the call's output arrays is).
+/// What every batch call checks first: the file and its `count` rays; `None` for an empty batch (nothing to
+/// check or write). Argument errors name the call and, when
+/// a pointer is null, the `arrays` that must not be (`outputs_null`: whether one of the call's output arrays is).
 ///
 /// # Safety
 ///
 /// `file` is null or a live file; `rays` is null or points to `count` rays that stay unchanged during the call.
 unsafe fn batch_input<'f>(
-    name: &str,
+    mode: Mode,
     file: *const BvhcFile,
     rays: *const BvhcRay,
     count: usize,
     outputs_null: bool,
     arrays: &str,
 ) -> Result<Option<BatchInput<'f>>, (c_int, String)> {
-    // SAFETY: by the contract `file` is null or live.
-    let file = unsafe { file.as_ref() }.ok_or_else(|| argument(&format!("{name}: file is null")))?;
+    // SAFETY: the caller's contract is `file_ref`'s.
+    let file = unsafe { file_ref(mode.call, file) }?;
     if count == 0 {
         return Ok(None);
     }
     if rays.is_null() || outputs_null {
-        return Err(argument(&format!("{name}: {arrays} must not be null")));
+        return Err(argument(&format!("{}: {arrays} must not be null", mode.call)));
     }
     // SAFETY: not null, and by the contract it points to `count` rays.
-    Ok(Some((file, unsafe { std::slice::from_raw_parts(rays, count) })))
+    Ok(Some((file.tracer(), unsafe { std::slice::from_raw_parts(rays, count) })))
 }
 
-/// Rays a batch traces at a time: the results' buffer before their conversion to C records stays in the caches
-/// and its memory bounded, whatever the batch's size (a batch is traced as its chunks one after the other, with
-/// the same results, since every ray's hit is its own). A multiple of 8, so coherent calls keep their groups.
-const CHUNK_RAYS: usize = 4096;
-const _: () = assert!(CHUNK_RAYS.is_multiple_of(8));
+/// Traces `rays` chunk by chunk with `trace(first, chunk)`, each chunk checked first when `mode` checks:
+/// `BVHC_ERROR_RAY` naming the first ray that breaks the contract.
+fn in_chunks(
+    mode: Mode,
+    rays: &[BvhcRay],
+    mut trace: impl FnMut(usize, &[BvhcRay]) -> Result<(), BatchRayError>,
+) -> Result<c_int, (c_int, String)> {
+    let refused = |error: BatchRayError| (BVHC_ERROR_RAY, format!("{}: {error}", mode.call));
+    for (c, chunk) in rays.chunks(CHECKED_CHUNK).enumerate() {
+        let first = c * CHECKED_CHUNK;
+        if mode.check {
+            bvhc_loader::check_rays(chunk).map_err(|e| refused(BatchRayError { index: first + e.index, ..e }))?;
+        }
+        trace(first, chunk).map_err(refused)?;
+    }
+    Ok(BVHC_OK)
+}

@@ -1,8 +1,8 @@
-//! What every entry point of the C API shares: the status codes, the open file, the per-thread last error,
-//! and the guard that turns errors and panics into status codes at the boundary.
+//! What every entry point of the C API shares: the status codes and their names, the open file, the per-thread
+//! last error, and the guard that turns errors and panics into status codes at the boundary.
 
 use std::cell::RefCell;
-use std::ffi::{CString, c_char, c_int};
+use std::ffi::{CStr, CString, c_char, c_int};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use bvhc_loader::{BvhView, TracedFile, Tracer};
@@ -13,16 +13,31 @@ pub const BVHC_OK: c_int = 0;
 pub const BVHC_ERROR_IO: c_int = 1;
 /// The bytes break a validity rule of the format.
 pub const BVHC_ERROR_INVALID: c_int = 2;
-/// A null pointer, a bad length, or a path that is not UTF-8.
+/// A null pointer, a bad length or index, a path that is not UTF-8, or a hit that is not the file's.
 pub const BVHC_ERROR_ARGUMENT: c_int = 3;
 /// The system refused memory.
 pub const BVHC_ERROR_MEMORY: c_int = 4;
 /// A bug inside the library was caught at the boundary.
 pub const BVHC_ERROR_PANIC: c_int = 5;
-/// The file lacks an optional section the call needs (the source vertices of format 1.2).
+/// The file lacks an optional section the call needs (the source vertices of format 1.2, the metadata).
 pub const BVHC_ERROR_NOT_IN_FILE: c_int = 6;
+/// A ray breaks the ray contract (the message names the ray and the rule).
+pub const BVHC_ERROR_RAY: c_int = 7;
 
-/// An open file (`bvhc_file`, opaque to C), with its tracer made once at open, so a call traces at once.
+/// Each status code's name, as the header spells it.
+const STATUS_NAMES: [&CStr; 8] = [
+    c"BVHC_OK",
+    c"BVHC_ERROR_IO",
+    c"BVHC_ERROR_INVALID",
+    c"BVHC_ERROR_ARGUMENT",
+    c"BVHC_ERROR_MEMORY",
+    c"BVHC_ERROR_PANIC",
+    c"BVHC_ERROR_NOT_IN_FILE",
+    c"BVHC_ERROR_RAY",
+];
+
+/// An open file (`bvhc_file`, opaque to C), with its tracer made once at open, so a call traces at once. The
+/// tracer trusts its rays: the entry points check them first, to report a status rather than panic.
 pub struct BvhcFile {
     /// The file's bytes, structurally checked, and the fastest tracer over them.
     pub(crate) traced: TracedFile,
@@ -49,7 +64,8 @@ fn set_error(message: &str) {
     LAST_ERROR.with(|last| *last.borrow_mut() = message);
 }
 
-/// Runs `body`, turning a panic into `BVHC_ERROR_PANIC` with its message.
+/// Runs `body`, turning an error into its status (with its message as the thread's last error) and a panic
+/// into `BVHC_ERROR_PANIC`.
 pub(crate) fn guarded(body: impl FnOnce() -> Result<c_int, (c_int, String)>) -> c_int {
     match catch_unwind(AssertUnwindSafe(body)) {
         Ok(Ok(status)) => status,
@@ -76,8 +92,94 @@ pub(crate) fn argument(message: &str) -> (c_int, String) {
     (BVHC_ERROR_ARGUMENT, message.to_string())
 }
 
-/// The message of the last error on this thread (empty when none), valid until the next call on this thread.
+/// The file behind `file`, or an argument error naming `call`.
+///
+/// # Safety
+///
+/// `file` is null or a pointer `bvhc_open` returned and `bvhc_close` has not freed.
+pub(crate) unsafe fn file_ref<'f>(call: &str, file: *const BvhcFile) -> Result<&'f BvhcFile, (c_int, String)> {
+    // SAFETY: by the contract `file` is null or live; `as_ref` checks null.
+    unsafe { file.as_ref() }.ok_or_else(|| argument(&format!("{call}: file is null")))
+}
+
+/// The message of the last failed call on this thread (empty when none), NUL-terminated. The pointer stays
+/// valid, and the text the same, until the next call that fails on this thread (calls that succeed leave it);
+/// [`bvhc_error_message`] copies it.
 #[unsafe(no_mangle)]
 pub extern "C" fn bvhc_last_error_message() -> *const c_char {
     LAST_ERROR.with(|last| last.borrow().as_ptr())
+}
+
+/// Copies the message of the last failed call on this thread into `buffer` (`capacity` bytes, NUL-terminated,
+/// cut short when it does not fit, as `snprintf` does) and returns its full length without the NUL, so a
+/// return value `>= capacity` says it was cut. `buffer` may be null when `capacity` is 0 (to ask the length).
+///
+/// # Safety
+///
+/// `buffer` is null or points to `capacity` writable bytes.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_error_message(buffer: *mut c_char, capacity: usize) -> usize {
+    LAST_ERROR.with(|last| {
+        let last = last.borrow();
+        // SAFETY: the caller's contract is this function's.
+        unsafe { copy_text(last.as_bytes(), buffer, capacity) }
+    })
+}
+
+/// Writes `text` into `buffer` as `snprintf` would (at most `capacity - 1` bytes and a NUL; nothing when
+/// `buffer` is null or `capacity` 0) and returns `text`'s length.
+///
+/// # Safety
+///
+/// `buffer` is null or points to `capacity` writable bytes.
+pub(crate) unsafe fn copy_text(text: &[u8], buffer: *mut c_char, capacity: usize) -> usize {
+    if !buffer.is_null() && capacity > 0 {
+        let kept = text.len().min(capacity - 1);
+        // SAFETY: `buffer` points to `capacity > kept` writable bytes, which cannot overlap `text` (the library's
+        // own memory).
+        unsafe {
+            std::ptr::copy_nonoverlapping(text.as_ptr(), buffer.cast::<u8>(), kept);
+            *buffer.add(kept) = 0;
+        }
+    }
+    text.len()
+}
+
+/// The name of a status code as the header spells it (`"BVHC_ERROR_RAY"`), or `"unknown bvhc_status"`; a
+/// static string.
+#[unsafe(no_mangle)]
+pub extern "C" fn bvhc_status_name(status: c_int) -> *const c_char {
+    let name = usize::try_from(status).ok().and_then(|s| STATUS_NAMES.get(s)).copied();
+    name.unwrap_or(c"unknown bvhc_status").as_ptr()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_status_is_named_and_unknown_ones_say_so() {
+        // SAFETY: `bvhc_status_name` returns a static NUL-terminated string.
+        let name = |s| unsafe { CStr::from_ptr(bvhc_status_name(s)) }.to_str().unwrap();
+        for (status, expected) in [(BVHC_OK, "BVHC_OK"), (BVHC_ERROR_NOT_IN_FILE, "BVHC_ERROR_NOT_IN_FILE")] {
+            assert_eq!(name(status), expected);
+        }
+        assert_eq!(name(BVHC_ERROR_RAY), "BVHC_ERROR_RAY");
+        assert_eq!(name(-1), "unknown bvhc_status");
+        assert_eq!(name(8), "unknown bvhc_status");
+    }
+
+    #[test]
+    fn a_copied_message_is_cut_as_snprintf_cuts() {
+        let mut buffer = [0x55 as c_char; 6];
+        // SAFETY: `buffer` has 6 writable bytes.
+        assert_eq!(unsafe { copy_text(b"hello world", buffer.as_mut_ptr(), 6) }, 11);
+        // SAFETY: `copy_text` wrote a NUL within the buffer.
+        assert_eq!(unsafe { CStr::from_ptr(buffer.as_ptr()) }.to_str().unwrap(), "hello");
+        // SAFETY: a null buffer with capacity 0 is allowed.
+        assert_eq!(unsafe { copy_text(b"hello world", std::ptr::null_mut(), 0) }, 11);
+        // SAFETY: `buffer` has at least 1 writable byte.
+        assert_eq!(unsafe { copy_text(b"", buffer.as_mut_ptr(), 1) }, 0);
+        assert_eq!(buffer[0], 0);
+    }
 }

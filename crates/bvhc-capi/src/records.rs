@@ -1,7 +1,7 @@
-//! The plain structs of the C API (`bvhc_ray`, `bvhc_hit`, `bvhc_source_corners` in the header), with the
-//! same fields as the Rust records they mirror, and their conversions.
+//! The plain structs of the C API (`bvhc_ray`, `bvhc_hit`, `bvhc_source_corners`, `bvhc_instance`,
+//! `bvhc_mesh` in the header), with the same fields as the Rust records they mirror, and their conversions.
 
-use bvhc_loader::{Hit, Ray};
+use bvhc_loader::{Hit, InstanceRecord, Ray, SourceCorners};
 
 /// `bvhc_ray`: the Rust `Ray` itself (`#[repr(C)]`: origin, direction, `t_min`, `t_max`), so arrays of rays
 /// from C are traced in place, without a copy.
@@ -74,12 +74,43 @@ pub struct BvhcSourceCorners {
     pub weights: [f32; 3],
     /// The triangle's source id.
     pub source_triangle_id: u32,
-    /// The source range's glTF node, or `0xFFFFFFFF`.
+    /// The glTF node that placed the triangle (for a mesh placed by instances, the hit instance's node), or
+    /// `0xFFFFFFFF`.
     pub node_index: u32,
     /// The source range's glTF mesh or OBJ model, or `0xFFFFFFFF`.
     pub mesh_index: u32,
     /// The source range's glTF primitive, or `0xFFFFFFFF`.
     pub primitive_index: u32,
-    /// The source range's `EXT_mesh_gpu_instancing` instance, or `0xFFFFFFFF`.
+    /// The `EXT_mesh_gpu_instancing` instance that placed the triangle (found as `node_index` is), or
+    /// `0xFFFFFFFF`.
     pub instance_index: u32,
+}
+
+impl From<&SourceCorners<'_>> for BvhcSourceCorners {
+    fn from(corners: &SourceCorners<'_>) -> BvhcSourceCorners {
+        BvhcSourceCorners {
+            vertices: corners.vertices,
+            weights: corners.weights,
+            source_triangle_id: corners.source_triangle_id,
+            node_index: corners.node_index(),
+            mesh_index: corners.range.mesh_index,
+            primitive_index: corners.range.primitive_index,
+            instance_index: corners.gpu_instance_index(),
+        }
+    }
+}
+
+/// `bvhc_instance`: the file's instance record itself (`format-spec/bvh-1.md` 5.11): the object-to-world and
+/// world-to-object maps as three rows of four floats (`p'_i = m[i][0] p_0 + m[i][1] p_1 + m[i][2] p_2 +
+/// m[i][3]`), the mesh it places, and the glTF node and `EXT_mesh_gpu_instancing` instance it came from.
+pub type BvhcInstance = InstanceRecord;
+
+/// `bvhc_mesh`: a mesh of a two-level file, as the range of triangle records it owns (in its object space).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BvhcMesh {
+    /// The mesh's first triangle record.
+    pub first_triangle: u32,
+    /// Its triangle records.
+    pub triangle_count: u32,
 }

@@ -162,3 +162,68 @@ impl TraversalCounter for TraversalStats {
 pub(crate) fn same_length(call: &str, rays: usize, results: usize) {
     assert!(rays == results, "Tracer::{call}: {rays} rays but {results} result slots; pass slices of the same length");
 }
+
+/// Why a [`Hit`] cannot be one of a file's (what [`crate::Tracer::surface`] and the C API refuse): its record or
+/// instance is not in the file, or its instance does not place the record's mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ForeignHit {
+    /// `triangle_index` is not below the file's record count.
+    Triangle {
+        /// The hit's record index.
+        index: u32,
+        /// The file's records.
+        count: usize,
+    },
+    /// A one-level file's hit names an instance, or a two-level file's hit names none.
+    Levels {
+        /// Whether the file is two-level.
+        two_level: bool,
+    },
+    /// `instance_index` is not below the file's instance count.
+    Instance {
+        /// The hit's instance.
+        index: u32,
+        /// The file's instances.
+        count: usize,
+    },
+    /// The record is not in the mesh that the hit's instance places.
+    NotInMesh {
+        /// The hit's record index.
+        triangle: u32,
+        /// The hit's instance.
+        instance: u32,
+    },
+}
+
+impl std::fmt::Display for ForeignHit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            ForeignHit::Triangle { index, count } => {
+                write!(f, "the hit's triangle index {index} is not below the file's {count} records")
+            }
+            ForeignHit::Levels { two_level: true } => {
+                f.write_str("the file is two-level but the hit names no instance")
+            }
+            ForeignHit::Levels { two_level: false } => {
+                f.write_str("the file is one-level but the hit names an instance")
+            }
+            ForeignHit::Instance { index, count } => {
+                write!(f, "the hit's instance index {index} is not below the file's {count} instances")
+            }
+            ForeignHit::NotInMesh { triangle, instance } => {
+                write!(f, "record {triangle} is not in the mesh that instance {instance} places")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ForeignHit {}
+
+/// The `each` callback of the batch calls that fill slices: ray `i`'s result into `slots[i]`.
+pub(crate) fn slot_writer<T>(slots: &mut [T]) -> impl FnMut(usize, T) + '_ {
+    move |i, result| {
+        if let Some(slot) = slots.get_mut(i) {
+            *slot = result;
+        }
+    }
+}

@@ -17,9 +17,9 @@
 //! assert_eq!(hit.t, 1.0);
 //! assert!(hit.front_face); // the quad's counter-clockwise side faces +z
 //! // A secondary ray from the hit, with t_min = 0 and no epsilon: it never meets the quad it leaves.
-//! let surface = tracer.surface(&hit);
+//! let surface = tracer.surface(&hit)?;
 //! assert!(!tracer.any_hit(&surface.spawn([0.0, 0.0, 1.0])));
-//! # Ok::<(), bvhc_loader::Error>(())
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
 //! Ways in: [`BvhView::open`] on aligned bytes you own; [`BvhFile::read`] / [`BvhFile::from_bytes`] into an
@@ -43,6 +43,11 @@
 //! tracing takes `&self`, allocates nothing and never blocks, so one tracer is shared by every thread (for
 //! example inside a rayon loop). The batch calls (`closest_hits`, `any_hits` and their coherent forms) panic
 //! when the result slice is not as long as the ray slice, naming the call.
+//!
+//! Rays: a [`Tracer`] checks every ray against the ray contract ([`Ray::check`]: finite origin and direction,
+//! the direction not below `2^-64`, `0 <= t_min <= t_max`) and panics naming the rule and the ray, since such a
+//! ray has no specified answer; [`Tracer::trusting_rays`] skips the check for callers that validate rays
+//! themselves ([`check_rays`] for a batch).
 
 #[cfg(feature = "write")]
 mod atomic;
@@ -65,11 +70,13 @@ mod instances;
 mod intersect;
 mod json;
 mod plain_data;
+mod ray_check;
 mod simd;
 mod source_corners;
 mod spawn;
 mod structure;
 mod traced;
+mod tracer_batch;
 mod traverse;
 #[cfg(feature = "write")]
 mod uncached;
@@ -108,16 +115,18 @@ pub use format::{
 pub use gpu_layout::{GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer};
 #[cfg(feature = "wgpu")]
 pub use gpu_wgpu::{GPU_BATCH_RAYS, GpuError, GpuTrace, GpuTracer};
-pub use hit::{Hit, TraversalCounter, TraversalStats, geometric_normal};
+pub use hit::{ForeignHit, Hit, TraversalCounter, TraversalStats, geometric_normal};
 pub use identity::TriangleIdentities;
 pub use instance_transform::{instance_world_box, transformed_box};
 pub use instances::TwoLevelSections;
 pub use intersect::{PreparedRay, Ray, TriangleHit};
+pub use ray_check::{BatchRayError, MIN_DIRECTION_COMPONENT, RayError, check_rays};
 pub use simd::KernelPath;
 pub use source_corners::SourceCorners;
 pub use spawn::SurfacePoint;
 pub use structure::SectionInfo;
 pub use traced::TracedFile;
+pub use tracer_batch::CHECKED_CHUNK;
 pub use traverse::{Kernel, Tracer};
 #[cfg(feature = "write")]
 pub use uncached::UncachedWriter;

@@ -19,7 +19,7 @@
 //! # Ok::<(), bvhc_loader::Error>(())
 //! ```
 
-use crate::format::SourceRange;
+use crate::format::{InstanceRecord, NO_INDEX, SourceRange};
 use crate::hit::Hit;
 use crate::view::BvhView;
 
@@ -35,9 +35,30 @@ pub struct SourceCorners<'a> {
     pub vertices: [u32; 3],
     /// The hit's weight of each: `[1 - u - v, u, v]`; they sum to 1 (within rounding).
     pub weights: [f32; 3],
+    /// In a two-level file, the instance the hit names: a mesh placed many times is stored once, so its
+    /// source range names no glTF node (nor `EXT_mesh_gpu_instancing` instance); the placement does.
+    pub placement: Option<&'a InstanceRecord>,
 }
 
 impl SourceCorners<'_> {
+    /// The glTF node that placed the hit triangle: the source range's, or for a mesh placed by instances the
+    /// hit instance's; [`NO_INDEX`] for OBJ and PLY sources.
+    pub fn node_index(&self) -> u32 {
+        match (self.range.node_index, self.placement) {
+            (NO_INDEX, Some(instance)) => instance.node_index,
+            (node, _) => node,
+        }
+    }
+
+    /// The `EXT_mesh_gpu_instancing` instance that placed the hit triangle, found as [`SourceCorners::node_index`]
+    /// is; [`NO_INDEX`] when the node places its mesh once.
+    pub fn gpu_instance_index(&self) -> u32 {
+        match (self.range.instance_index, self.placement) {
+            (NO_INDEX, Some(instance)) => instance.gpu_instance_index,
+            (index, _) => index,
+        }
+    }
+
     /// `attribute` (one value per vertex of the primitive, indexed as the source indexes it) at the hit:
     /// `weights[0] attribute[vertices[0]] + weights[1] attribute[vertices[1]] + weights[2] attribute[vertices[2]]`,
     /// summed in f64 and rounded once to f32. `None` when an index is not below `attribute.len()` (an array of
@@ -55,13 +76,19 @@ impl SourceCorners<'_> {
 impl<'a> BvhView<'a> {
     /// The source primitive, source vertices and weights of `hit`'s corners, when the file has the
     /// `source_vertices` section (1.2, which bvhc writes by default for files with ids) and the hit's record
-    /// is in it. The weights already account for mirrored placements: the section lists the source vertices in
+    /// is in it (and, in a two-level file, the hit's instance). The weights already account for mirrored placements: the section lists the source vertices in
     /// the record's corner order, whatever the source order was. O(log ranges).
     pub fn source_corners(&self, hit: &Hit) -> Option<SourceCorners<'a>> {
         let record = hit.triangle_index as usize;
         let vertices = self.source_vertices()?.get(record)?.indices;
         let source_triangle_id = *self.triangle_ids()?.get(record)?;
         let range = self.source_range_of(source_triangle_id)?;
-        Some(SourceCorners { range, source_triangle_id, vertices, weights: [1.0 - hit.u - hit.v, hit.u, hit.v] })
+        let placement = match (hit.instance_index, self.two_level()) {
+            (Some(index), Some(sections)) => Some(sections.placement(index)?.0),
+            (None, None) => None,
+            _ => return None,
+        };
+        let weights = [1.0 - hit.u - hit.v, hit.u, hit.v];
+        Some(SourceCorners { range, source_triangle_id, vertices, weights, placement })
     }
 }

@@ -29,6 +29,12 @@ impl TracedFile {
         TracedFile { tracer, file }
     }
 
+    /// This file with its tracer trusting rays ([`Tracer::trusting_rays`]): for bindings that check rays
+    /// themselves to report an error rather than panic.
+    pub fn trusting_rays(self) -> TracedFile {
+        TracedFile { tracer: self.tracer.trusting_rays(), file: self.file }
+    }
+
     /// The tracer, made when this was.
     pub fn tracer(&self) -> &Tracer<'_> {
         &self.tracer

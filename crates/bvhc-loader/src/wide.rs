@@ -9,7 +9,7 @@
 
 use crate::error::Violation;
 use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
-use crate::hit::{Hit, TraversalCounter};
+use crate::hit::{Hit, TraversalCounter, slot_writer};
 use crate::intersect::{Ray, TriangleHit};
 use crate::simd::{Avx2, Isa, Kernel, KernelPath};
 use crate::verify_wide::{WideContext, verify_wide};
@@ -78,7 +78,8 @@ impl WideBvh {
     }
 }
 
-/// Closest-hit and any-hit queries over wide sections (a file's, or a [`WideBvh`]).
+/// Closest-hit and any-hit queries over wide sections (a file's, or a [`WideBvh`]): the kernel itself, which
+/// takes its rays as valid (it does not check the ray contract; a [`crate::Tracer`] does before running it).
 #[derive(Clone, Copy, Debug)]
 pub struct WideTracer<'a> {
     sections: Sections<'a>,
@@ -175,14 +176,14 @@ impl<'a> WideTracer<'a> {
     /// [`WideTracer::closest_hit`] returns, whichever way.
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         crate::hit::same_length("closest_hits", rays.len(), hits.len());
-        self.stream::<false>(rays, &mut hit_writer(hits, rays, self.sections.packets, self.triangle_ids));
+        self.closest_hits_with(rays, false, &mut slot_writer(hits));
     }
 
     /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
     /// panic naming the call), with rays interleaved as in [`WideTracer::closest_hits`].
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
         crate::hit::same_length("any_hits", rays.len(), occluded.len());
-        self.stream::<true>(rays, &mut occlusion_writer(occluded));
+        self.any_hits_with(rays, false, &mut slot_writer(occluded));
     }
 
     /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call),
@@ -192,7 +193,7 @@ impl<'a> WideTracer<'a> {
     /// go different ways.
     pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         crate::hit::same_length("closest_hits_coherent", rays.len(), hits.len());
-        self.packets::<false>(rays, &mut hit_writer(hits, rays, self.sections.packets, self.triangle_ids));
+        self.closest_hits_with(rays, true, &mut slot_writer(hits));
     }
 
     /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
@@ -200,7 +201,31 @@ impl<'a> WideTracer<'a> {
     /// as [`WideTracer::any_hit`].
     pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
         crate::hit::same_length("any_hits_coherent", rays.len(), occluded.len());
-        self.packets::<true>(rays, &mut occlusion_writer(occluded));
+        self.any_hits_with(rays, true, &mut slot_writer(occluded));
+    }
+
+    /// Each ray's closest hit to `each(i, hit)`, once per ray: as a stream ([`WideTracer::closest_hits`]) or, when
+    /// `coherent`, in packets of 8 ([`WideTracer::closest_hits_coherent`]).
+    pub(crate) fn closest_hits_with(&self, rays: &[Ray], coherent: bool, each: &mut impl FnMut(usize, Option<Hit>)) {
+        let (packets, ids) = (self.sections.packets, self.triangle_ids);
+        let mut done = |i: usize, found: Option<(u32, TriangleHit)>| {
+            if let Some(ray) = rays.get(i) {
+                each(i, found.map(|(address, hit)| Hit::in_lane(address, hit, packets, ids, &ray.direction)));
+            }
+        };
+        match coherent {
+            true => self.packets::<false>(rays, &mut done),
+            false => self.stream::<false>(rays, &mut done),
+        }
+    }
+
+    /// Whether each ray hits anything to `each(i, occluded)`, once per ray, as [`WideTracer::closest_hits_with`].
+    pub(crate) fn any_hits_with(&self, rays: &[Ray], coherent: bool, each: &mut impl FnMut(usize, bool)) {
+        let mut done = |i: usize, found: Option<(u32, TriangleHit)>| each(i, found.is_some());
+        match coherent {
+            true => self.packets::<true>(rays, &mut done),
+            false => self.stream::<true>(rays, &mut done),
+        }
     }
 
     /// Packets of consecutive rays on the tracer's path; `done(i, found)` receives ray `i`'s result.
@@ -325,30 +350,6 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
             trace_packet::<ANY_HIT, I>(isa, self.sections, chunk, &mut |l, found| {
                 (self.done)(p * PACKET_RAYS + l, found)
             });
-        }
-    }
-}
-
-/// The `done` callback of the batch entry points for closest hits: ray `i`'s hit into `hits[i]`, its triangle
-/// and normal from the lane of `packets` it was found in and its source id from `triangle_ids`.
-fn hit_writer<'h>(
-    hits: &'h mut [Option<Hit>],
-    rays: &'h [Ray],
-    packets: &'h [TrianglePacket4],
-    triangle_ids: Option<&'h [u32]>,
-) -> impl FnMut(usize, Option<(u32, TriangleHit)>) + 'h {
-    move |i, found| {
-        if let (Some(slot), Some(ray)) = (hits.get_mut(i), rays.get(i)) {
-            *slot = found.map(|(address, hit)| Hit::in_lane(address, hit, packets, triangle_ids, &ray.direction));
-        }
-    }
-}
-
-/// The `done` callback of the batch entry points for any hits: whether ray `i` hit, into `occluded[i]`.
-fn occlusion_writer(occluded: &mut [bool]) -> impl FnMut(usize, Option<(u32, TriangleHit)>) + '_ {
-    move |i, found| {
-        if let Some(slot) = occluded.get_mut(i) {
-            *slot = found.is_some();
         }
     }
 }
