@@ -2,6 +2,7 @@
 
 mod box_test;
 mod c_header;
+mod c_library;
 mod capi;
 mod cli;
 mod cli_hardening;

@@ -16,7 +16,7 @@ pub enum Needs {
     Vulkan,
     /// Something the workspace builds beside the tests (the C library, the examples).
     Build,
-    /// A system tool or device file (`mkfifo`, `prlimit`, `/dev/full`).
+    /// A system tool or device file (`mkfifo`, `prlimit`, `/dev/full`, `pkg-config`, `cmake`).
     Tools,
     /// A property of this machine (an instruction set, a file system's unnamed files, timing).
     Machine,
