@@ -1,11 +1,11 @@
 /*
  * bvh.h: C11 declarations of the on-disk types of the .bvh format, major version 1 (format-spec/bvh-1.md,
- * version 1.4). Normative together with bvh-1.md, section 15: where the two disagree, bvh-1.md is right.
+ * version 1.5). Normative together with bvh-1.md, section 15: where the two disagree, bvh-1.md is right.
  *
  * Every type is plain data with no padding: each byte belongs to a named field, reserved fields included, and the
  * static assertions below pin every size and field offset. All values are little-endian; a reader on a
  * little-endian host with a 4-byte-aligned buffer (8-byte for the header and the section table) can use the
- * arrays of a file in place, after checking rules V1-V10 (and V11-V51 to trust the contents).
+ * arrays of a file in place, after checking rules V1-V10 (and V11-V53 to trust the contents).
  *
  * Floating point: the traversal relies on IEEE 754 binary32 with infinities, NaN, signed zeros and subnormal
  * numbers (bvh-1.md section 11.1). Do not compile code that traces these arrays with -ffast-math,
@@ -29,7 +29,7 @@ extern "C" {
 #define BVH_MAGIC "\x89" "BVHC\r\n\x1a" /* 8 bytes, without the string's terminating zero */
 #define BVH_MAGIC_BYTE_LEN 8
 #define BVH_VERSION_MAJOR 1
-#define BVH_VERSION_MINOR 4 /* the highest minor version these declarations cover */
+#define BVH_VERSION_MINOR 5 /* the highest minor version these declarations cover */
 #define BVH_HEADER_BYTE_LEN 64
 #define BVH_SECTION_ENTRY_BYTE_LEN 48 /* the entry's first 48 bytes; section_entry_byte_len may be larger */
 #define BVH_SECTION_ALIGNMENT 64
@@ -50,6 +50,7 @@ extern "C" {
 #define BVH_KIND_TOP_WIDE_NODES 12u  /* since 1.3; elements are BvhWideNode8, leaf slots LEAF_BIT | instance */
 #define BVH_KIND_GPU_NODES 13u       /* since 1.4 */
 #define BVH_KIND_GPU_TRIANGLES 14u   /* since 1.4 */
+#define BVH_KIND_TRIANGLE_FLAGS 15u  /* since 1.5; elements are uint8_t, one per triangle */
 #define BVH_KIND_PRIVATE_FIRST 0x80000000u
 #define BVH_SECTION_FLAG_REQUIRED (1u << 0)
 #define BVH_SECTION_FLAG_SPLIT_REFERENCES (1u << 1) /* triangles only */
@@ -65,6 +66,7 @@ extern "C" {
 #define BVH_UNUSED_LANE_COORDINATE_BITS 0x7FC00000u /* every coordinate of an unused lane: a quiet NaN */
 #define BVH_EMPTY_SLOT_MIN_BITS 0x7F800000u         /* +inf */
 #define BVH_EMPTY_SLOT_MAX_BITS 0xFF800000u         /* -inf */
+#define BVH_TRIANGLE_NOT_OPAQUE 0x01u /* triangle_flags: the material may cut the triangle out (section 5.16) */
 
 /* A leaf reference's first packet and number of packets (1 to 8): leaf_packet_count in the spec. */
 #define BVH_LEAF_FIRST_PACKET(c) ((uint32_t)(c) & BVH_FIRST_PACKET_MASK)

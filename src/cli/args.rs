@@ -160,6 +160,11 @@ pub struct OptionArgs {
     /// always; or never (every placement flattened) [default: auto].
     #[arg(long, value_enum, help_heading = "Import")]
     pub instancing: Option<Instancing>,
+    /// Which triangles the file marks not opaque (format 1.5), so that a renderer's hit filter (alpha testing)
+    /// runs on their hits alone: those of glTF materials with alphaMode MASK or BLEND; none; or all
+    /// [default: materials].
+    #[arg(long, value_enum, help_heading = "Import")]
+    pub opacity: Option<bvhc::import::Opacity>,
     /// Initial builder (without split references or with --split-method pre-split) [default: binned-sah].
     #[arg(long, value_enum, help_heading = "Build")]
     pub builder: Option<Builder>,
@@ -248,6 +253,7 @@ impl OptionArgs {
             }),
             allow_buffers_outside_input_folder: self.allow_outside_buffers.then_some(true),
             instancing: self.instancing,
+            opacity: self.opacity,
             builder: self.builder,
             splits: given(self.no_splits),
             split_budget: self.split_budget,

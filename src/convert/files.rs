@@ -58,12 +58,13 @@ pub fn is_up_to_date(output: &Path, main_input: &Path, build: &BuildRecord) -> b
     }
     let Some(Ok(text)) = view.metadata_str() else { return false };
     let Ok(metadata) = serde_json::from_str::<Value>(text) else { return false };
-    let minor = bvhc_loader::format::written_minor(
-        !build["wide"].is_null(),
-        build["write_source_vertices"] == true,
-        metadata["two_level"].is_object(),
-        build["gpu"].is_object(),
-    );
+    let minor = bvhc_loader::format::written_minor(bvhc_loader::format::MinorFeatures {
+        wide: !build["wide"].is_null(),
+        source_vertices: build["write_source_vertices"] == true,
+        instances: metadata["two_level"].is_object(),
+        gpu: build["gpu"].is_object(),
+        triangle_flags: view.triangle_flags().is_some(),
+    });
     let version = format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR);
     if metadata["format_version"] != Value::String(version) || metadata["build"] != build {
         return false;

@@ -12,7 +12,7 @@ use serde::Serialize;
 use super::report::{Choice, WideSummary};
 use crate::builders::Builder;
 use crate::cost::SahCost;
-use crate::import::{ImportReport, Instancing, SceneSelector};
+use crate::import::{ImportReport, Instancing, Opacity, SceneSelector};
 use crate::layout::{GpuCosts, WideCosts};
 use crate::optimize::OptimizeParams;
 use crate::options::{ConvertOptions, LeafMerge, OptimizeOver, Preset, SplitOptions};
@@ -119,6 +119,9 @@ pub struct BuildRecord {
     /// Absent for the default, `auto`.
     #[serde(skip_serializing_if = "Option::is_none")]
     instancing: Option<Instancing>,
+    /// Absent for the default, `materials`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    opacity: Option<Opacity>,
     /// Absent without split references.
     #[serde(skip_serializing_if = "Option::is_none")]
     splits: Option<SplitOptions>,
@@ -156,6 +159,7 @@ impl BuildRecord {
                 scene: options.import.scene.clone(),
             },
             instancing: (options.import.instancing != Instancing::Auto).then_some(options.import.instancing),
+            opacity: (options.import.opacity != Opacity::Materials).then_some(options.import.opacity),
             max_leaf_size,
             merge_leaves,
             optimize: options.optimize.clone(),

@@ -59,7 +59,10 @@ pub fn convert_with(
         source_ids: soup_source_ids,
         sources: soup_sources,
         source_vertices: soup_source_vertices,
+        cut_out,
     } = soup;
+    // Only the source ranges are needed to mark the records of cut-out materials (after the build).
+    let ranges = TriangleSoup { sources: soup_sources, cut_out, ..TriangleSoup::default() };
     drop((positions, vertex_indices));
     let soup_source_vertices = if options.write_source_vertices { soup_source_vertices } else { Vec::new() };
     if u32::try_from(triangles.len()).is_err() {
@@ -87,8 +90,15 @@ pub fn convert_with(
     let inputs = input_entries(input, &imported.files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let summary = wide.as_ref().map(|(_, summary)| *summary);
-    let minor =
-        bvhc_loader::format::written_minor(summary.is_some(), options.write_source_vertices, false, gpu.is_some());
+    let triangle_flags = options.import.opacity.record_flags(&ranges, &source_ids);
+    let soup_sources = ranges.sources;
+    let minor = bvhc_loader::format::written_minor(bvhc_loader::format::MinorFeatures {
+        wide: summary.is_some(),
+        source_vertices: options.write_source_vertices,
+        instances: false,
+        gpu: gpu.is_some(),
+        triangle_flags: triangle_flags.is_some(),
+    });
     let metadata = Metadata {
         generator: concat!("bvhc ", env!("CARGO_PKG_VERSION")),
         format_version: format!("{}.{minor}", bvhc_loader::format::VERSION_MAJOR),
@@ -116,6 +126,9 @@ pub fn convert_with(
     }
     if let Some(layout) = &gpu {
         writer = writer.gpu(&layout.nodes, &layout.triangles);
+    }
+    if let Some(flags) = &triangle_flags {
+        writer = writer.triangle_flags(flags);
     }
     let (atomic, file_byte_len) = stream(&writer, output)?;
     let node_count = packed.nodes.len();

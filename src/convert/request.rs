@@ -117,6 +117,13 @@ impl Conversion {
         self
     }
 
+    /// Which triangles the file marks not opaque (format 1.5's `triangle_flags`, read by hit filters); default
+    /// [`Opacity::Materials`](crate::import::Opacity::Materials).
+    pub fn opacity(mut self, opacity: crate::import::Opacity) -> Self {
+        self.overrides.opacity = Some(opacity);
+        self
+    }
+
     /// Keep degenerate triangles.
     pub fn keep_degenerate(mut self, keep: bool) -> Self {
         self.overrides.keep_degenerate = Some(keep);

@@ -77,6 +77,8 @@ pub(super) fn convert_two_level(
         parts.push(mesh.triangles.clone().collect());
     }
     let mut meshes = Vec::with_capacity(parts.len());
+    // The records' flags, mesh after mesh (the order the meshes' records take in the file).
+    let mut record_source_ids = Vec::new();
     let mut largest: Option<(usize, PartFigures)> = None;
     let mut split = false;
     for (m, part) in parts.iter().enumerate() {
@@ -85,6 +87,7 @@ pub(super) fn convert_two_level(
         probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
         let packed = build_part(input, triangles, source_ids, source_vertices, options, observer, &mut timings)?;
         split |= packed.packed.triangles.len() > packed.triangle_count;
+        record_source_ids.extend_from_slice(&packed.source_ids);
         let figures = PartFigures::of(&packed);
         if largest.as_ref().is_none_or(|(_, f)| figures.triangle_count > f.triangle_count) {
             largest = Some((m, figures));
@@ -92,12 +95,20 @@ pub(super) fn convert_two_level(
         meshes.push(packed_mesh(packed, options.write_ids));
     }
     let clock = Instant::now();
+    let triangle_flags = options.import.opacity.record_flags(&soup, &record_source_ids);
+    drop(record_source_ids);
     let TriangleSoup { sources, .. } = soup;
     let scene = TwoLevelScene::assemble(meshes, &placements).map_err(ConvertError::Internal)?;
     let inputs = input_entries(input, &files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
     let wide = options.wide.map(|_| WideRecord::counts(scene.wide_nodes.len(), scene.packets.len()));
-    let minor = bvhc_loader::format::written_minor(wide.is_some(), options.write_source_vertices, true, false);
+    let minor = bvhc_loader::format::written_minor(bvhc_loader::format::MinorFeatures {
+        wide: wide.is_some(),
+        source_vertices: options.write_source_vertices,
+        instances: true,
+        gpu: false,
+        triangle_flags: triangle_flags.is_some(),
+    });
     let summary = TwoLevelSummary {
         mesh_count: scene.meshes.len(),
         instance_count: scene.instances.len(),
@@ -136,6 +147,9 @@ pub(super) fn convert_two_level(
     }
     if options.wide.is_some() {
         writer = writer.wide(&scene.wide_nodes, &scene.packets);
+    }
+    if let Some(flags) = &triangle_flags {
+        writer = writer.triangle_flags(flags);
     }
     let (atomic, file_byte_len) = stream(&writer, output)?;
     drop(writer);

@@ -12,6 +12,7 @@
 
 mod gltf;
 mod instancing;
+mod opacity;
 mod limits;
 pub mod memory;
 mod obj;
@@ -25,6 +26,7 @@ use std::path::{Path, PathBuf};
 
 pub use instancing::{AUTO_MIN_SAVED_TRIANGLES, InstancedMesh, Instancing, MeshPlacement};
 pub use limits::ImportLimits;
+pub use opacity::Opacity;
 pub use report::ImportReport;
 pub use soup::{Provenance, TriangleSoup, is_zero_area};
 
@@ -60,6 +62,9 @@ pub struct ImportOptions {
     /// `build` object, not here).
     #[serde(skip)]
     pub instancing: Instancing,
+    /// Which triangles the file marks not opaque (recorded by the conversion's `build` object, not here).
+    #[serde(skip)]
+    pub opacity: Opacity,
 }
 
 /// The file formats bvhc reads.

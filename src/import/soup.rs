@@ -33,6 +33,9 @@ pub struct TriangleSoup {
     pub source_vertices: Vec<[u32; 3]>,
     /// The source ranges, ascending and disjoint; every source id lies in one of them.
     pub sources: Vec<SourceRange>,
+    /// For each source range, whether its material may cut its triangles out (a glTF primitive whose material's
+    /// `alphaMode` is `MASK` or `BLEND`); the converter marks them in the `triangle_flags` section (format 1.5).
+    pub cut_out: Vec<bool>,
 }
 
 impl TriangleSoup {
@@ -48,9 +51,20 @@ impl TriangleSoup {
 
     /// The source range that a source id belongs to.
     pub fn source_of(&self, source_id: u32) -> Option<&SourceRange> {
+        self.sources.get(self.source_index_of(source_id)?)
+    }
+
+    /// The index in [`TriangleSoup::sources`] of the range a source id belongs to.
+    pub fn source_index_of(&self, source_id: u32) -> Option<usize> {
         let after = self.sources.partition_point(|r| r.first_source_triangle <= source_id);
-        let range = self.sources.get(after.checked_sub(1)?)?;
-        (source_id - range.first_source_triangle < range.source_triangle_count).then_some(range)
+        let index = after.checked_sub(1)?;
+        let range = self.sources.get(index)?;
+        (source_id - range.first_source_triangle < range.source_triangle_count).then_some(index)
+    }
+
+    /// Whether the triangle of `source_id` comes from a material that may cut it out.
+    pub fn is_cut_out(&self, source_id: u32) -> bool {
+        self.source_index_of(source_id).and_then(|i| self.cut_out.get(i).copied()).unwrap_or(false)
     }
 }
 
@@ -93,6 +107,8 @@ pub struct PrimitiveInstance<'a, S: Fn(u32) -> [f64; 3], P: Fn(u32) -> [f32; 3]>
     pub flip_winding: bool,
     /// Whether this is the first placement of this mesh data (counted in the "unique" figures).
     pub first_use: bool,
+    /// Whether the primitive's material may cut its triangles out (glTF `alphaMode` `MASK` or `BLEND`).
+    pub cut_out: bool,
 }
 
 /// Fills a [`TriangleSoup`] and the counts of an [`ImportReport`].
@@ -184,6 +200,7 @@ impl SoupBuilder {
             instance_index: p.instance_index,
             reserved: 0,
         });
+        self.soup.cut_out.push(primitive.cut_out);
         self.remap.clear();
         self.remap.resize(primitive.vertex_count, u32::MAX);
         let report = &mut self.report;
@@ -269,6 +286,7 @@ impl SoupBuilder {
             source_vertex_index,
             flip_winding: false,
             first_use: true,
+            cut_out: false,
         })?;
         self.report.mesh_placements += 1;
         self.report.file_mesh_triangles += triangles.len() as u64;

@@ -22,6 +22,8 @@ pub struct Overrides {
     pub allow_buffers_outside_input_folder: Option<bool>,
     /// Import: which glTF meshes placed more than once stay instanced (format 1.3).
     pub instancing: Option<Instancing>,
+    /// Import: which triangles the file marks not opaque.
+    pub opacity: Option<crate::import::Opacity>,
     /// Build: the initial builder.
     pub builder: Option<Builder>,
     /// Splits: `Some(false)` makes none whatever the preset; `Some(true)` needs a budget from the preset or
@@ -109,6 +111,7 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     options.import.allow_buffers_outside_input_folder =
         o.allow_buffers_outside_input_folder.unwrap_or(options.import.allow_buffers_outside_input_folder);
     options.import.instancing = o.instancing.unwrap_or(options.import.instancing);
+    options.import.opacity = o.opacity.unwrap_or(options.import.opacity);
     options.builder = o.builder.unwrap_or(options.builder);
     options.splits = resolve_splits(preset, o)?;
     options.reinsertion = resolve_reinsertion(preset, o)?;

@@ -87,9 +87,10 @@ fn the_installed_library_has_its_abi_name_no_gpu_code_and_builds_the_example_thr
     for file in ["libbvhc.so", "libbvhc.so.0.1", "libbvhc.so.0.1.0", "libbvhc.a", "cmake/bvhc/bvhcConfig.cmake"] {
         assert!(lib.join(file).exists(), "{} is missing", lib.join(file).display());
     }
-    assert_eq!(
-        std::fs::read(prefix.join("include/bvhc.h")).unwrap(),
-        include_bytes!("../../crates/bvhc-capi/include/bvhc.h")
+    assert!(
+        std::fs::read(prefix.join("include/bvhc.h")).unwrap() == include_bytes!("../../crates/bvhc-capi/include/bvhc.h"),
+        "{} differs from crates/bvhc-capi/include/bvhc.h: the installed library is stale, run the install script again",
+        prefix.join("include/bvhc.h").display()
     );
     // No GPU code: neither wgpu nor naga (whose panic messages and paths would name them) is linked in.
     let shared = std::fs::read(lib.join("libbvhc.so.0.1.0")).unwrap();

@@ -222,3 +222,48 @@ fn expected_scene_lines(bvh: &Path) -> String {
     }
     out
 }
+
+#[test]
+fn a_c_filter_gets_the_hits_of_rusts_filtered_tracer_and_is_asked_about_not_opaque_triangles_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(binary) = c_program(dir.path(), "capi_filter") else { return };
+    let one_level = crate::common::write_wide_file(&crate::common::random_triangles(5501, 500, 1.0), 4);
+    let (scene, sources) =
+        crate::instances::two_level(&crate::instances::test_meshes(), &crate::instances::test_placements(), true);
+    let two_level = crate::instances::write_two_level(&scene, &sources).unwrap();
+    for (name, plain, rays) in
+        [("one-level", one_level, random_rays(5502, 1500, 1.5)), ("two-level", two_level, random_rays(5503, 1500, 4.0))]
+    {
+        let flagged =
+            crate::filters::with_flags(&plain, &crate::filters::flags_by_id(plain.view().triangle_ids().unwrap()));
+        let bvh = dir.path().join(format!("{name}.bvh"));
+        std::fs::write(&bvh, flagged.as_bytes()).unwrap();
+        let ray_file = dir.path().join("rays.bin");
+        let bytes: Vec<u8> = rays
+            .iter()
+            .flat_map(|r| r.origin.into_iter().chain(r.direction).chain([r.t_min, r.t_max]).flat_map(f32::to_le_bytes))
+            .collect();
+        std::fs::write(&ray_file, bytes).unwrap();
+        let run = Command::new(&binary).arg(&bvh).arg(&ray_file).output().unwrap();
+        assert!(run.status.success(), "capi_filter exit {:?} on {name}", run.status.code());
+        let stdout = String::from_utf8(run.stdout).unwrap();
+        let tracer = flagged.view().tracer();
+        let filtered = tracer.filtered(&crate::filters::accepts, bvhc::loader::FilterScope::NotOpaque);
+        let mut expected = String::new();
+        let mut changed = 0;
+        for ray in &rays {
+            let hit = filtered.closest_hit(ray);
+            changed += usize::from(hit.map(|h| h.t) != tracer.closest_hit(ray).map(|h| h.t));
+            expected += &match hit {
+                Some(hit) => format!("hit {:08x} {}\n", hit.t.to_bits(), hit.triangle_index),
+                None => "miss\n".to_string(),
+            };
+            expected += &format!("any {}\n", u8::from(filtered.any_hit(ray)));
+        }
+        let (lines, last) = stdout.rsplit_once("asked ").unwrap();
+        assert_eq!(lines, expected, "{name}");
+        let (asked, opaque) = last.trim().split_once(" opaque ").unwrap();
+        assert!(asked.parse::<u64>().unwrap() > 100 && opaque == "0", "{name}: asked {asked}, of them opaque {opaque}");
+        assert!(changed > 20, "{name}: the filter changed {changed} rays");
+    }
+}

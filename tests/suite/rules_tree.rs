@@ -301,7 +301,8 @@ fn v28_format_version() {
 fn every_rule_has_a_test_here() {
     // Keeps this table complete when a rule is added: each rule's number appears in a test name above, or in
     // the wide sections' module (V29-V35), or the metadata consistency module (V36-V39), or the source
-    // vertices' module (V40), or the two-level sections' module (V41-V46), or the GPU sections' module (V47-V50).
+    // vertices' module (V40), or the two-level sections' module (V41-V46), or the GPU sections' module (V47-V50),
+    // or the triangle flags' module (V52-V53).
     let source = [
         include_str!("rules.rs"),
         include_str!("rules_tree.rs"),
@@ -310,6 +311,7 @@ fn every_rule_has_a_test_here() {
         include_str!("rules_source_vertices.rs"),
         include_str!("rules_instances.rs"),
         include_str!("rules_gpu.rs"),
+        include_str!("rules_flags.rs"),
     ]
     .concat();
     for rule in Rule::ALL {

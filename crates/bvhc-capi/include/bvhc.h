@@ -140,6 +140,37 @@ bvhc_status bvhc_closest_hits_coherent_unchecked(const bvhc_file *file, const bv
 bvhc_status bvhc_any_hits_coherent_unchecked(const bvhc_file *file, const bvhc_ray *rays, size_t count,
                                              uint8_t *occluded);
 
+/* Hit filters (alpha testing): filter(user_data, candidate) returns nonzero to accept a candidate hit, zero to
+ * reject it (traversal then goes on as if the triangle were not hit). With BVHC_FILTER_NOT_OPAQUE it is called
+ * only for triangles the file marks not opaque (format 1.5, glTF alphaMode MASK or BLEND; bvhc_triangle_flags),
+ * so opaque geometry costs nothing; with BVHC_FILTER_EVERY for every candidate. It may be called for candidates
+ * farther than the hit finally returned, and must answer alike for the same candidate. Batches trace ray by ray. */
+#define BVHC_FILTER_NOT_OPAQUE 0
+#define BVHC_FILTER_EVERY 1
+#define BVHC_TRIANGLE_NOT_OPAQUE 0x01
+
+typedef struct bvhc_candidate {
+    const bvhc_ray *ray;         /* as given to the call */
+    float t;
+    float u;                     /* weight of the record's v1: with bvhc_triangle_source_vertices, the texture */
+    float v;                     /* coordinates of the source primitive at the candidate */
+    uint32_t triangle_index;
+    uint32_t source_triangle_id; /* BVHC_NO_SOURCE_ID without ids */
+    uint32_t instance_index;     /* BVHC_NO_INSTANCE in a one-level file */
+} bvhc_candidate;
+
+typedef int (*bvhc_filter)(void *user_data, const bvhc_candidate *candidate);
+
+int bvhc_closest_hit_filtered(const bvhc_file *file, const bvhc_ray *ray, bvhc_hit *hit, bvhc_filter filter,
+                              void *user_data, int scope);
+int bvhc_any_hit_filtered(const bvhc_file *file, const bvhc_ray *ray, bvhc_filter filter, void *user_data,
+                          int scope);
+bvhc_status bvhc_closest_hits_filtered(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
+                                       uint8_t *found, bvhc_filter filter, void *user_data, int scope);
+bvhc_status bvhc_any_hits_filtered(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded,
+                                   bvhc_filter filter, void *user_data, int scope);
+int bvhc_triangle_flags(const bvhc_file *file, uint32_t triangle_index); /* -1: out of range */
+
 /* From a hit. */
 bvhc_status bvhc_spawn_ray(const bvhc_file *file, const bvhc_hit *hit, const float direction[3], bvhc_ray *out);
 bvhc_status bvhc_hit_source_corners(const bvhc_file *file, const bvhc_hit *hit, bvhc_source_corners *out);

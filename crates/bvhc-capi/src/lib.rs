@@ -1,7 +1,8 @@
 //! The C API of `bvhc-loader` (`include/bvhc.h`): open a `.bvh` file from a path or from memory, verify it,
 //! trace closest-hit and any-hit rays one at a time or in batches (with the same hit records as Rust), spawn
-//! secondary rays, go from a hit back to the source scene, and read what the file holds: bounds, records,
-//! the meshes and instances of a two-level file, the metadata.
+//! secondary rays, run hit filters (alpha testing) on the triangles the file marks not opaque, go from a hit
+//! back to the source scene, and read what the file holds: bounds, records, the meshes and instances of a
+//! two-level file, the metadata.
 //!
 //! Contract at the boundary: no Rust panic crosses it (every entry point runs under `catch_unwind` and reports
 //! `BVHC_ERROR_PANIC`); null pointers, indices out of range and hits that are not the file's are argument
@@ -13,6 +14,7 @@
 
 mod batch;
 mod boundary;
+mod filtered;
 mod open;
 mod records;
 mod scene;
@@ -26,6 +28,10 @@ pub use batch::{
 pub use boundary::{
     BVHC_ERROR_ARGUMENT, BVHC_ERROR_INVALID, BVHC_ERROR_IO, BVHC_ERROR_MEMORY, BVHC_ERROR_NOT_IN_FILE,
     BVHC_ERROR_PANIC, BVHC_ERROR_RAY, BVHC_OK, BvhcFile, bvhc_error_message, bvhc_last_error_message, bvhc_status_name,
+};
+pub use filtered::{
+    BVHC_FILTER_EVERY, BVHC_FILTER_NOT_OPAQUE, BvhcCandidate, BvhcFilter, bvhc_any_hit_filtered,
+    bvhc_any_hits_filtered, bvhc_closest_hit_filtered, bvhc_closest_hits_filtered, bvhc_triangle_flags,
 };
 pub use open::{bvhc_close, bvhc_open, bvhc_open_memory, bvhc_verify};
 pub use records::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 /// The validity rules of major version 1, numbered as in the spec (V1, V2, ...).
 ///
-/// V1-V10 are structural and checked by every open; V11-V51 are checked by `BvhView::verify` (the rules of a
+/// V1-V10 are structural and checked by every open; V11-V53 are checked by `BvhView::verify` (the rules of a
 /// section kind only when a file has it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[non_exhaustive]
@@ -122,11 +122,15 @@ pub enum Rule {
     GpuLeafBox,
     /// V51: a file of a minor version this reader knows has the lowest minor version its sections need.
     LowestMinor,
+    /// V52: every `triangle_flags` element sets only the bits the file's minor version defines.
+    TriangleFlagBits,
+    /// V53: the records of one triangle (its references, or the records of one id) have the same flags.
+    TriangleFlagsAgree,
 }
 
 impl Rule {
     /// Every rule, in spec order.
-    pub const ALL: [Rule; 51] = [
+    pub const ALL: [Rule; 53] = [
         Rule::Magic,
         Rule::MajorVersion,
         Rule::FileByteLen,
@@ -178,6 +182,8 @@ impl Rule {
         Rule::GpuTriangles,
         Rule::GpuLeafBox,
         Rule::LowestMinor,
+        Rule::TriangleFlagBits,
+        Rule::TriangleFlagsAgree,
     ];
 
     /// The rule's number in the spec (1 for V1).

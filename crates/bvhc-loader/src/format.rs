@@ -17,18 +17,37 @@ pub const MAGIC: [u8; 8] = *b"\x89BVHC\r\n\x1a";
 pub const VERSION_MAJOR: u16 = 1;
 /// Highest minor version this crate reads knowingly and writes. Readers accept any minor version of their
 /// major version.
-pub const VERSION_MINOR: u16 = 4;
+pub const VERSION_MINOR: u16 = 5;
 
-/// The minor version a writer stores: the lowest whose features the file uses (1.4 for the GPU sections, 1.3 for
-/// the two-level sections, 1.2 for the `source_vertices` section, 1.1 for the wide sections, otherwise 1.0, so
-/// files without them stay readable as 1.0 byte for byte).
-pub const fn written_minor(
-    has_wide_sections: bool,
-    has_source_vertices: bool,
-    has_instances: bool,
-    has_gpu_sections: bool,
-) -> u16 {
-    if has_gpu_sections {
+/// The sections of a file that decide its minor version ([`written_minor`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MinorFeatures {
+    /// The wide sections (1.1).
+    pub wide: bool,
+    /// The `source_vertices` section (1.2).
+    pub source_vertices: bool,
+    /// The two-level sections (1.3).
+    pub instances: bool,
+    /// The GPU sections (1.4).
+    pub gpu: bool,
+    /// The `triangle_flags` section (1.5).
+    pub triangle_flags: bool,
+}
+
+/// The minor version a writer stores: the lowest whose features the file uses (1.5 for the `triangle_flags`
+/// section, 1.4 for the GPU sections, 1.3 for the two-level sections, 1.2 for the `source_vertices` section, 1.1
+/// for the wide sections, otherwise 1.0, so files without them stay readable as 1.0 byte for byte).
+pub const fn written_minor(features: MinorFeatures) -> u16 {
+    let MinorFeatures {
+        wide: has_wide_sections,
+        source_vertices: has_source_vertices,
+        instances: has_instances,
+        gpu: has_gpu_sections,
+        triangle_flags,
+    } = features;
+    if triangle_flags {
+        5
+    } else if has_gpu_sections {
         4
     } else if has_instances {
         3
@@ -63,6 +82,13 @@ pub const SECTION_FLAG_SPLIT_REFERENCES: u32 = 1 << 1;
 
 /// Marks an absent field in a [`SourceRange`] (for example the node of an OBJ group).
 pub const NO_INDEX: u32 = u32::MAX;
+
+/// A `triangle_flags` element's bit (since 1.5): the triangle's material may cut it out (glTF `alphaMode`
+/// `MASK` or `BLEND`), so a tracer with a hit filter asks the filter before accepting a hit on it; a triangle
+/// without the bit (or in a file without the section) is opaque and accepted at once (`format-spec/bvh-1.md` 5.16).
+pub const TRIANGLE_NOT_OPAQUE: u8 = 1 << 0;
+/// Every bit of a `triangle_flags` element this version defines; the others are reserved and zero (rule V52).
+pub const TRIANGLE_FLAGS_DEFINED: u8 = TRIANGLE_NOT_OPAQUE;
 
 pub use crate::format_gpu::{
     GPU_MAX_DEPTH, GPU_MAX_LEAF_TRIANGLES, GPU_MAX_NODE_TRIANGLES, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, inner_meta,
@@ -109,11 +135,13 @@ pub enum SectionKind {
     GpuNodes,
     /// The GPU nodes' leaf triangles with their vertices ([`GpuTriangle`]), optional, since 1.4.
     GpuTriangles,
+    /// One byte of flags per triangle ([`TRIANGLE_NOT_OPAQUE`]), optional, since 1.5.
+    TriangleFlags,
 }
 
 impl SectionKind {
     /// Every kind defined by this version, in the order the writer stores them.
-    pub const ALL: [SectionKind; 14] = [
+    pub const ALL: [SectionKind; 15] = [
         SectionKind::Nodes,
         SectionKind::Triangles,
         SectionKind::TriangleIds,
@@ -128,6 +156,7 @@ impl SectionKind {
         SectionKind::TopWideNodes,
         SectionKind::GpuNodes,
         SectionKind::GpuTriangles,
+        SectionKind::TriangleFlags,
     ];
 
     /// The `kind` value stored in the section table.
@@ -147,6 +176,7 @@ impl SectionKind {
             SectionKind::TopWideNodes => 12,
             SectionKind::GpuNodes => 13,
             SectionKind::GpuTriangles => 14,
+            SectionKind::TriangleFlags => 15,
         }
     }
 
@@ -167,6 +197,7 @@ impl SectionKind {
             12 => Some(SectionKind::TopWideNodes),
             13 => Some(SectionKind::GpuNodes),
             14 => Some(SectionKind::GpuTriangles),
+            15 => Some(SectionKind::TriangleFlags),
             _ => None,
         }
     }
@@ -188,6 +219,7 @@ impl SectionKind {
             SectionKind::TopWideNodes => size_of::<WideNode8>() as u32,
             SectionKind::GpuNodes => size_of::<GpuNode>() as u32,
             SectionKind::GpuTriangles => size_of::<GpuTriangle>() as u32,
+            SectionKind::TriangleFlags => 1,
         }
     }
 
@@ -198,6 +230,7 @@ impl SectionKind {
             SectionKind::SourceVertices => 2,
             SectionKind::Meshes | SectionKind::Instances | SectionKind::TopNodes | SectionKind::TopWideNodes => 3,
             SectionKind::GpuNodes | SectionKind::GpuTriangles => 4,
+            SectionKind::TriangleFlags => 5,
             _ => 0,
         }
     }
@@ -240,6 +273,7 @@ impl SectionKind {
             SectionKind::TopWideNodes => "top_wide_nodes",
             SectionKind::GpuNodes => "gpu_nodes",
             SectionKind::GpuTriangles => "gpu_triangles",
+            SectionKind::TriangleFlags => "triangle_flags",
         }
     }
 }

@@ -58,10 +58,10 @@ fn visit_instance<C: TraversalCounter>(
     ray: &Ray,
     t_max: f32,
     counter: &mut C,
-    trace_mesh: &mut impl FnMut(&MeshRecord, &Ray, &mut C) -> Option<Hit>,
+    trace_mesh: &mut impl FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 ) -> Option<Hit> {
     let (instance, mesh) = sections.placement(index)?;
-    let mut hit = trace_mesh(mesh, &object_ray(instance, &Ray { t_max, ..*ray }), counter)?;
+    let mut hit = trace_mesh(index, mesh, &object_ray(instance, &Ray { t_max, ..*ray }), counter)?;
     hit.triangle_index = hit.triangle_index.wrapping_add(mesh.first_triangle);
     hit.instance_index = Some(index);
     hit.normal = world_normal(instance, hit.normal);
@@ -77,7 +77,7 @@ pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
     sections: &TwoLevelSections<'_>,
     ray: &Ray,
     counter: &mut C,
-    mut trace_mesh: impl FnMut(&MeshRecord, &Ray, &mut C) -> Option<Hit>,
+    mut trace_mesh: impl FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 ) -> Option<Hit> {
     let prepared = PreparedRay::new(ray);
     let nodes = sections.top_nodes;
@@ -166,7 +166,7 @@ pub(crate) struct WideInstanceWalk<'a, 'r, C, F, const ANY_HIT: bool> {
 impl<C, F, const ANY_HIT: bool> Kernel for WideInstanceWalk<'_, '_, C, F, ANY_HIT>
 where
     C: TraversalCounter,
-    F: FnMut(&MeshRecord, &Ray, &mut C) -> Option<Hit>,
+    F: FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 {
     type Output = Option<Hit>;
 

@@ -55,6 +55,7 @@ mod checksum;
 pub mod cost;
 mod error;
 mod file;
+pub mod filter;
 pub mod format;
 mod format_gpu;
 mod format_header;
@@ -88,6 +89,7 @@ mod verify_metadata;
 mod verify_references;
 mod verify_source_vertices;
 mod verify_tree;
+mod verify_triangle_flags;
 mod verify_wide;
 mod view;
 mod watertight;
@@ -108,6 +110,7 @@ pub use error::{Error, Rule, Violation};
 pub use file::BvhFile;
 #[cfg(feature = "mmap")]
 pub use file::MappedBvh;
+pub use filter::{Candidate, FilterScope, FilteredTracer, HitFilter};
 pub use format::{
     Affine3x4, EMPTY_SLOT, InstanceRecord, LEAF_BIT, MeshRecord, PACKET_LANES, PackedNode, PackedTriangle, SectionKind,
     SourceRange, SourceVertexIndices, TrianglePacket4, WIDE, WideNode8,

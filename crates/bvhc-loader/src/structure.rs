@@ -293,6 +293,10 @@ fn check_counts(sections: &KnownSections) -> Result<(), Violation> {
             ));
         }
     }
+    let flag_count = sections.get(SectionKind::TriangleFlags).map(|flags| flags.element_count);
+    if let Some(count) = flag_count.filter(|&count| count != triangle_count) {
+        return fail(format!("triangle_flags has {count} elements for {triangle_count} triangles"));
+    }
     if let Some(entry) = sections.get(SectionKind::GpuNodes) {
         let split =
             sections.get(SectionKind::Triangles).is_some_and(|t| t.section_flags & SECTION_FLAG_SPLIT_REFERENCES != 0);

@@ -5,6 +5,7 @@
 //! must exceed its parent's (so paths cannot cycle), and a ray visits at most `node_count` nodes; on a file that
 //! fails verification it may return wrong hits, never panic or hang.
 
+use crate::filter::{Candidates, Unfiltered};
 use crate::format::{MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle};
 use crate::hit::{CULL_PADDING, ForeignHit, Hit, TraversalCounter};
 use crate::instances::{TwoLevelSections, WideInstanceWalk, walk_instances};
@@ -30,6 +31,8 @@ pub struct Tracer<'a> {
     nodes: &'a [PackedNode],
     triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
+    /// The `triangle_flags` section, for filtered tracing ([`crate::filter`]).
+    triangle_flags: Option<&'a [u8]>,
     wide: Option<WideTracer<'a>>,
     instances: Option<TwoLevelSections<'a>>,
     /// Whether the tracing calls skip the ray check ([`Tracer::trusting_rays`]).
@@ -51,7 +54,22 @@ type Found = Option<(u32, crate::intersect::TriangleHit)>;
 impl<'a> Tracer<'a> {
     /// A tracer over a tree in the layout of the nodes section (node 0 is the root).
     pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle], triangle_ids: Option<&'a [u32]>) -> Self {
-        Tracer { nodes, triangles, triangle_ids, wide: None, instances: None, trusts_rays: false }
+        Tracer { nodes, triangles, triangle_ids, triangle_flags: None, wide: None, instances: None, trusts_rays: false }
+    }
+
+    /// This tracer with the file's `triangle_flags` section (1.5), which filtered tracing reads ([`crate::filter`]).
+    pub fn with_triangle_flags(self, flags: Option<&'a [u8]>) -> Self {
+        Tracer { triangle_flags: flags, ..self }
+    }
+
+    /// The triangle flags this tracer's filtered calls read.
+    pub(crate) fn triangle_flags(&self) -> Option<&'a [u8]> {
+        self.triangle_flags
+    }
+
+    /// The source ids of this tracer's triangles.
+    pub(crate) fn triangle_ids(&self) -> Option<&'a [u32]> {
+        self.triangle_ids
     }
 
     /// This tracer without the ray check: a ray that breaks the contract gets an unspecified answer (never a
@@ -69,9 +87,21 @@ impl<'a> Tracer<'a> {
     /// Panics with `call`'s name when `ray` breaks the contract and this tracer checks rays.
     #[inline(always)]
     #[track_caller]
-    fn check(&self, call: &str, ray: &Ray) {
+    pub(crate) fn check(&self, call: &str, ray: &Ray) {
         if !self.trusts_rays
             && let Err(error) = ray.check()
+        {
+            refused(call, &error);
+        }
+    }
+
+    /// Panics with `call`'s name when a ray of `rays` breaks the contract and this tracer checks rays (the whole
+    /// batch first).
+    #[inline(always)]
+    #[track_caller]
+    pub(crate) fn check_batch(&self, call: &str, rays: &[Ray]) {
+        if !self.trusts_rays
+            && let Err(error) = crate::ray_check::check_rays(rays)
         {
             refused(call, &error);
         }
@@ -177,12 +207,23 @@ impl<'a> Tracer<'a> {
     /// The closest hit of a ray taken as valid.
     #[inline(always)]
     pub(crate) fn closest_hit_trusted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        self.closest_hit_inner(ray, counter, &Unfiltered)
+    }
+
+    /// The closest hit of a ray taken as valid among the candidates `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn closest_hit_inner<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Option<Hit> {
         if let Some(sections) = &self.instances {
-            return self.closest_hit_through(sections, ray, counter);
+            return self.closest_hit_through(sections, ray, counter, candidates);
         }
         let (triangle_index, hit) = match &self.wide {
-            None => self.traverse::<false>(ray, counter)?,
-            Some(wide) => return wide.closest_hit_counted(ray, counter),
+            None => self.traverse::<false, C>(ray, counter, candidates)?,
+            Some(wide) => return wide.closest_hit_filtered(ray, counter, candidates),
         };
         Some(Hit::new(triangle_index, hit, self.triangles, self.triangle_ids, &ray.direction))
     }
@@ -212,26 +253,39 @@ impl<'a> Tracer<'a> {
     /// Whether a ray taken as valid hits anything.
     #[inline(always)]
     pub(crate) fn any_hit_trusted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.any_hit_inner(ray, counter, &Unfiltered)
+    }
+
+    /// Whether a ray taken as valid hits anything `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn any_hit_inner<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> bool {
         if let Some(sections) = &self.instances {
-            return self.any_hit_through(sections, ray, counter);
+            return self.any_hit_through(sections, ray, counter, candidates);
         }
         match &self.wide {
-            None => self.traverse::<true>(ray, counter).is_some(),
-            Some(wide) => wide.any_hit_counted(ray, counter),
+            None => self.traverse::<true, C>(ray, counter, candidates).is_some(),
+            Some(wide) => wide.any_hit_filtered(ray, counter, candidates),
         }
     }
 
     /// [`Tracer::closest_hit_counted`] in a two-level file: the wide top tree with the wide kernel, else the binary
     /// one. Out of line, so that the one-level kernel inlines as before.
     #[inline(never)]
-    fn closest_hit_through(
+    fn closest_hit_through<C: Candidates>(
         &self,
         sections: &TwoLevelSections<'a>,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
+        candidates: &C,
     ) -> Option<Hit> {
-        let trace_mesh = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
-            self.mesh_tracer(mesh)?.closest_hit_counted(object_ray, counter)
+        let trace_mesh = |instance: u32, mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
+            let in_mesh = candidates.in_mesh(mesh.first_triangle, instance);
+            self.mesh_tracer(mesh)?.closest_hit_inner(object_ray, counter, &in_mesh)
         };
         match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
             Some(wide) => {
@@ -244,9 +298,16 @@ impl<'a> Tracer<'a> {
 
     /// [`Tracer::any_hit_counted`] in a two-level file, as [`Tracer::closest_hit_through`].
     #[inline(never)]
-    fn any_hit_through(&self, sections: &TwoLevelSections<'a>, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
-        let occluding = |mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
-            self.mesh_tracer(mesh)?.any_hit_counted(object_ray, counter).then_some(Hit::OCCLUSION)
+    fn any_hit_through<C: Candidates>(
+        &self,
+        sections: &TwoLevelSections<'a>,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> bool {
+        let occluding = |instance: u32, mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
+            let in_mesh = candidates.in_mesh(mesh.first_triangle, instance);
+            self.mesh_tracer(mesh)?.any_hit_inner(object_ray, counter, &in_mesh).then_some(Hit::OCCLUSION)
         };
         match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
             Some(wide) => {
@@ -259,7 +320,12 @@ impl<'a> Tracer<'a> {
 
     #[inline(always)]
     #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
-    fn traverse<const ANY_HIT: bool>(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Found {
+    fn traverse<const ANY_HIT: bool, C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Found {
         let prepared = PreparedRay::new(ray);
         let nodes = self.nodes;
         let root = nodes.first()?;
@@ -284,8 +350,11 @@ impl<'a> Tracer<'a> {
                     let leaf_triangles = self.triangles.get(node.index as usize..end).unwrap_or(&[]);
                     for (offset, triangle) in leaf_triangles.iter().enumerate() {
                         counter.triangle_tested();
-                        if let Some(hit) = prepared.intersect_triangle(triangle, t_max) {
-                            found = Some((node.index.wrapping_add(offset as u32), hit));
+                        let record = node.index.wrapping_add(offset as u32);
+                        if let Some(hit) = prepared.intersect_triangle(triangle, t_max)
+                            && (!C::ACTIVE || candidates.accept(record, &hit))
+                        {
+                            found = Some((record, hit));
                             if ANY_HIT {
                                 return found;
                             }

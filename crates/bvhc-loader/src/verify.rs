@@ -1,16 +1,19 @@
-//! The full verifier: rules V11-V51 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
+//! The full verifier: rules V11-V53 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
 //! V14-V20 (the binary tree) are in `verify_tree`, V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
 //! (the wide sections of 1.1) in `verify_wide`, V36-V39 (the metadata against the file) in
 //! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`, V41-V46 (the two-level
 //! sections of 1.3, and the one-level rules per mesh) in `verify_instances`, V47-V50 (the GPU sections of 1.4) in
-//! `verify_gpu`; V51 (the version a file's sections need) here.
+//! `verify_gpu`, V52-V53 (the triangle flags of 1.5) in `verify_triangle_flags`; V51 (the version a file's
+//! sections need) here.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
 
 use crate::checksum::{header_checksum, section_checksum};
 use crate::error::{Rule, Violation, violation};
-use crate::format::{FileHeader, HEADER_BYTE_LEN, SECTION_ENTRY_BYTE_LEN, is_known_minor, written_minor};
+use crate::format::{
+    FileHeader, HEADER_BYTE_LEN, MinorFeatures, SECTION_ENTRY_BYTE_LEN, is_known_minor, written_minor,
+};
 use crate::verify_tree::verify_tree;
 use crate::view::{BvhView, section_bytes};
 
@@ -19,7 +22,7 @@ use crate::view::{BvhView, section_bytes};
 pub const PARALLEL_VERIFY_BYTES: usize = 64 << 20;
 
 impl BvhView<'_> {
-    /// Checks every validity rule (V11-V51; V1-V10 held when the view was opened).
+    /// Checks every validity rule (V11-V53; V1-V10 held when the view was opened).
     ///
     /// Returns the first broken rule found, naming the section, node, triangle or id where it broke. A file of
     /// [`PARALLEL_VERIFY_BYTES`] or more has its wide sections (V29-V35, the last rules checked) checked on a
@@ -79,8 +82,8 @@ impl BvhView<'_> {
         }
     }
 
-    /// Rules V11-V28, V40, V41-V46 and V47-V50: everything but the wide sections, the metadata's consistency and
-    /// the version.
+    /// Rules V11-V28, V40, V41-V46, V47-V50 and V52-V53: everything but the wide sections, the metadata's
+    /// consistency and the version.
     fn verify_all_but_wide(&self) -> Result<(), Violation> {
         verify_checksums(self)?;
         verify_reserved_and_padding(self)?;
@@ -105,14 +108,18 @@ impl BvhView<'_> {
             let split = self.has_split_references();
             crate::verify_source_vertices::verify_source_vertices(self.triangles(), ids, table, vertices, split)?;
         }
-        match self.gpu_sections() {
-            Some(gpu) => {
-                let context = crate::verify_gpu::GpuContext {
-                    triangles: self.triangles(),
-                    triangle_ids: self.triangle_ids(),
-                    split_references: self.has_split_references(),
-                };
-                crate::verify_gpu::verify_gpu(&gpu, &context)
+        if let Some(gpu) = self.gpu_sections() {
+            let context = crate::verify_gpu::GpuContext {
+                triangles: self.triangles(),
+                triangle_ids: self.triangle_ids(),
+                split_references: self.has_split_references(),
+            };
+            crate::verify_gpu::verify_gpu(&gpu, &context)?;
+        }
+        match self.triangle_flags() {
+            Some(flags) => {
+                let known = is_known_minor(self.header().version_minor);
+                crate::verify_triangle_flags::verify_triangle_flags(flags, self.triangle_ids(), known)
             }
             None => Ok(()),
         }
@@ -205,12 +212,13 @@ fn verify_reserved_and_padding(view: &BvhView<'_>) -> Result<(), Violation> {
 /// reader cannot see, so it is not judged.
 fn verify_lowest_minor(view: &BvhView<'_>) -> Result<(), Violation> {
     let minor = view.header().version_minor;
-    let needed = written_minor(
-        view.wide_sections().is_some(),
-        view.source_vertices().is_some(),
-        view.two_level().is_some(),
-        view.gpu_sections().is_some(),
-    );
+    let needed = written_minor(MinorFeatures {
+        wide: view.wide_sections().is_some(),
+        source_vertices: view.source_vertices().is_some(),
+        instances: view.two_level().is_some(),
+        gpu: view.gpu_sections().is_some(),
+        triangle_flags: view.triangle_flags().is_some(),
+    });
     if is_known_minor(minor) && minor != needed {
         return Err(violation(
             Rule::LowestMinor,

@@ -258,8 +258,8 @@ fn verify_costs(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     Ok(())
 }
 
-/// V38: `build.wide`, `build.gpu`, `build.write_ids` and `build.write_source_vertices` agree with the sections;
-/// binary, wide and GPU leaves hold at most their `max_leaf_size` distinct triangles.
+/// V38: `build.wide`, `build.gpu`, `build.write_ids`, `build.write_source_vertices` and `build.opacity` agree
+/// with the sections; binary, wide and GPU leaves hold at most their `max_leaf_size` distinct triangles.
 fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
     let Some(build) = object(metadata, "build") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataBuild, format!("metadata build: {detail}")));
@@ -289,6 +289,7 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
         let has = if view.source_vertices().is_some() { "has" } else { "has no" };
         return fail(format!("write_source_vertices is {write}, but the file {has} source_vertices section"));
     }
+    verify_opacity(build, view.triangle_flags()).map_err(|detail| violation(Rule::MetadataBuild, detail))?;
     match (build.get("gpu"), view.gpu_sections()) {
         (Some(Value::Null), Some(_)) => return fail("gpu is null, but the file has GPU sections".into()),
         (Some(Value::Object(_)), None) => return fail("gpu is an object, but the file has no GPU sections".into()),
@@ -448,4 +449,21 @@ fn verify_choice(metadata: &Map) -> Result<(), Violation> {
         return fail(format!("the kept candidate's cost {kept_cost} is not the file's {file_cost}"));
     }
     Ok(())
+}
+
+/// V38's `build.opacity` clause (since 1.5): `opaque` means the file has no `triangle_flags` section, `filtered`
+/// that every triangle is marked not opaque.
+fn verify_opacity(build: &Map, flags: Option<&[u8]>) -> Result<(), String> {
+    let not_opaque = |f: &u8| f & crate::format::TRIANGLE_NOT_OPAQUE != 0;
+    match (build.get("opacity").and_then(Value::as_str), flags) {
+        (Some("opaque"), Some(_)) => Err("metadata build: opacity is opaque, but the file has triangle_flags".into()),
+        (Some("filtered"), None) => {
+            Err("metadata build: opacity is filtered, but the file has no triangle_flags section".into())
+        }
+        (Some("filtered"), Some(flags)) => match flags.iter().position(|f| !not_opaque(f)) {
+            Some(i) => Err(format!("metadata build: opacity is filtered, but triangle {i} is not marked not opaque")),
+            None => Ok(()),
+        },
+        _ => Ok(()),
+    }
 }

@@ -29,6 +29,7 @@ pub struct BvhView<'a> {
     triangle_ids: Option<&'a [u32]>,
     source_table: Option<&'a [SourceRange]>,
     source_vertices: Option<&'a [SourceVertexIndices]>,
+    triangle_flags: Option<&'a [u8]>,
     metadata: Option<&'a [u8]>,
     wide: Option<WideSections<'a>>,
     gpu: Option<GpuSections<'a>>,
@@ -72,6 +73,7 @@ impl<'a> BvhView<'a> {
             triangle_ids: sections.get(SectionKind::TriangleIds).map(|e| cast_section(bytes, &e)).transpose()?,
             source_table: sections.get(SectionKind::SourceTable).map(|e| cast_section(bytes, &e)).transpose()?,
             source_vertices: sections.get(SectionKind::SourceVertices).map(|e| cast_section(bytes, &e)).transpose()?,
+            triangle_flags: sections.get(SectionKind::TriangleFlags).map(|e| section_bytes(bytes, &e)),
             metadata: sections.get(SectionKind::Metadata).map(|e| section_bytes(bytes, &e)),
             wide: match (sections.get(SectionKind::WideNodes), sections.get(SectionKind::TrianglePackets)) {
                 (Some(nodes), Some(packets)) => {
@@ -144,6 +146,20 @@ impl<'a> BvhView<'a> {
     /// The source table, when present.
     pub fn source_table(&self) -> Option<&'a [SourceRange]> {
         self.source_table
+    }
+
+    /// The `triangle_flags` section (1.5), when present: element `i` holds the flags of triangle `i`
+    /// ([`crate::format::TRIANGLE_NOT_OPAQUE`]). Without it every triangle is opaque.
+    pub fn triangle_flags(&self) -> Option<&'a [u8]> {
+        self.triangle_flags
+    }
+
+    /// Whether triangle record `index` is marked not opaque (its material may cut it out: a filtered tracer
+    /// asks its filter about hits on it); `false` without a `triangle_flags` section or for an index out of range.
+    pub fn is_not_opaque(&self, index: u32) -> bool {
+        self.triangle_flags
+            .and_then(|flags| flags.get(index as usize))
+            .is_some_and(|&f| f & crate::format::TRIANGLE_NOT_OPAQUE != 0)
     }
 
     /// The `source_vertices` section (1.2), when present: element `i` holds the source vertex indices of
@@ -219,7 +235,8 @@ impl<'a> BvhView<'a> {
 
     /// The binary kernel over the nodes and triangles sections: the reference traversal.
     pub fn binary_tracer(&self) -> Tracer<'a> {
-        let tracer = Tracer::new(self.nodes, self.triangles, self.triangle_ids);
+        let tracer =
+            Tracer::new(self.nodes, self.triangles, self.triangle_ids).with_triangle_flags(self.triangle_flags);
         match self.two_level {
             Some(sections) => tracer.with_instances(sections),
             None => tracer,
@@ -263,6 +280,7 @@ impl<'a> BvhView<'a> {
             triangle_ids: None,
             source_table: None,
             source_vertices: None,
+            triangle_flags: None,
             metadata: None,
             wide: None,
             gpu: None,
@@ -301,6 +319,9 @@ impl<'a> BvhView<'a> {
                     Some(SectionKind::Metadata) => view.metadata = Some(std::slice::from_raw_parts(base, len)),
                     Some(SectionKind::SourceVertices) => {
                         view.source_vertices = Some(std::slice::from_raw_parts(base.cast(), len))
+                    }
+                    Some(SectionKind::TriangleFlags) => {
+                        view.triangle_flags = Some(std::slice::from_raw_parts(base, len))
                     }
                     Some(SectionKind::WideNodes) => wide_nodes = Some(std::slice::from_raw_parts(base.cast(), len)),
                     Some(SectionKind::TrianglePackets) => packets = Some(std::slice::from_raw_parts(base.cast(), len)),

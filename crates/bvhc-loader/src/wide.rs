@@ -8,6 +8,7 @@
 //! inlines into it, or on the portable path, which gives the same hits bit for bit.
 
 use crate::error::Violation;
+use crate::filter::{Candidates, Unfiltered};
 use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
 use crate::hit::{Hit, TraversalCounter, slot_writer};
 use crate::intersect::{Ray, TriangleHit};
@@ -156,7 +157,18 @@ impl<'a> WideTracer<'a> {
     /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (packets of
     /// four count as one test each) into `counter`.
     pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        let (address, hit) = self.dispatch::<false>(ray, counter)?;
+        self.closest_hit_filtered(ray, counter, &Unfiltered)
+    }
+
+    /// [`WideTracer::closest_hit_counted`] among the candidates `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn closest_hit_filtered<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Option<Hit> {
+        let (address, hit) = self.dispatch::<false, C>(ray, counter, candidates)?;
         Some(Hit::in_lane(address, hit, self.sections.packets, self.triangle_ids, &ray.direction))
     }
 
@@ -167,7 +179,18 @@ impl<'a> WideTracer<'a> {
 
     /// [`WideTracer::any_hit`], counting as [`WideTracer::closest_hit_counted`] does.
     pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
-        self.dispatch::<true>(ray, counter).is_some()
+        self.any_hit_filtered(ray, counter, &Unfiltered)
+    }
+
+    /// [`WideTracer::any_hit_counted`] among the candidates `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn any_hit_filtered<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> bool {
+        self.dispatch::<true, C>(ray, counter, candidates).is_some()
     }
 
     /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call).
@@ -235,12 +258,13 @@ impl<'a> WideTracer<'a> {
 
     /// One ray's walk to its end on the tracer's path.
     #[inline(always)]
-    fn dispatch<const ANY_HIT: bool>(
+    fn dispatch<const ANY_HIT: bool, C: Candidates>(
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
+        candidates: &C,
     ) -> Option<(u32, TriangleHit)> {
-        crate::simd::run(self.avx2, SingleRay::<_, ANY_HIT> { sections: &self.sections, ray, counter })
+        crate::simd::run(self.avx2, SingleRay::<_, _, ANY_HIT> { sections: &self.sections, ray, counter, candidates })
     }
 
     /// Whether streams interleave rays: by default when the wide sections exceed 32 MiB, where it measured
@@ -259,7 +283,7 @@ impl<'a> WideTracer<'a> {
     fn stream<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
         if !self.interleaves_streams() {
             for (i, ray) in rays.iter().enumerate() {
-                done(i, self.dispatch::<ANY_HIT>(ray, &mut ()));
+                done(i, self.dispatch::<ANY_HIT, _>(ray, &mut (), &Unfiltered));
             }
             return;
         }
@@ -267,21 +291,22 @@ impl<'a> WideTracer<'a> {
     }
 }
 
-/// One ray's walk, to its end.
-struct SingleRay<'s, 'r, C, const ANY_HIT: bool> {
+/// One ray's walk, to its end, among the candidates `candidates` accepts.
+struct SingleRay<'s, 'r, C, A, const ANY_HIT: bool> {
     sections: &'s Sections<'s>,
     ray: &'r Ray,
     counter: &'r mut C,
+    candidates: &'r A,
 }
 
-impl<C: TraversalCounter, const ANY_HIT: bool> Kernel for SingleRay<'_, '_, C, ANY_HIT> {
+impl<C: TraversalCounter, A: Candidates, const ANY_HIT: bool> Kernel for SingleRay<'_, '_, C, A, ANY_HIT> {
     type Output = Option<(u32, TriangleHit)>;
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) -> Self::Output {
         let mut walk = Walk::start(self.sections, self.ray)?;
         let mut stack = new_stack();
-        while walk.step::<ANY_HIT, I>(isa, self.sections, &mut stack, self.counter) {}
+        while walk.step::<ANY_HIT, I, A>(isa, self.sections, &mut stack, self.counter, self.candidates) {}
         walk.found()
     }
 }
@@ -320,7 +345,7 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
                     }
                 }
                 if let Some((i, walk)) = slot
-                    && !walk.step::<ANY_HIT, I>(isa, sections, stack, &mut ())
+                    && !walk.step::<ANY_HIT, I, _>(isa, sections, stack, &mut (), &Unfiltered)
                 {
                     done(*i, walk.found());
                     *slot = None;

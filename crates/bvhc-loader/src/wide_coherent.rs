@@ -16,6 +16,7 @@
 
 use std::mem::MaybeUninit;
 
+use crate::filter::Unfiltered;
 use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
 use crate::hit::{CULL_PADDING, lane_address};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
@@ -316,7 +317,8 @@ fn leaf_ray_by_ray<const ANY_HIT: bool, I: Isa>(
     for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
         let Some(ray) = &prepared[l] else { continue };
         for (p, packet) in packets.iter().enumerate() {
-            if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I>(isa, packet, ray, found.t_max[l]) {
+            if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered)
+            {
                 found.t_max[l] = hit.t;
                 found.hit[l] = Some((lane_address(first + p, lane), hit));
                 hit_rays |= 1 << l;

@@ -4,6 +4,7 @@
 //! bit; a lane where an edge function is exactly 0 is redone by the scalar test (its f64 recomputation), and
 //! unused lanes (NaN vertices) never hit.
 
+use crate::filter::Candidates;
 use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::intersect::{PreparedRay, TriangleHit};
 use crate::simd::{Isa, LaneMask, Lanes};
@@ -26,19 +27,25 @@ struct PacketLanes {
 /// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
 /// `t <= t_max` would end with), as (lane, hit); for `ANY_HIT`, the last lane that hits when no lane needs the
 /// scalar redo, without looking for the nearest or computing `u` and `v` (0). The same hits on every
-/// instruction set.
+/// instruction set. With active `candidates` (a hit filter), the lanes go one by one as in the scalar redo,
+/// each hit asked whether it is accepted (with its `u` and `v`), and the closest accepted one returned (for
+/// `ANY_HIT`, the first).
 #[inline(always)]
-pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa>(
+pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
     isa: I,
     packet: &TrianglePacket4,
     ray: &PreparedRay,
     t_max: f32,
+    candidates: &C,
 ) -> Option<(usize, TriangleHit)> {
     let lanes = packet_lanes::<ANY_HIT, I>(isa, packet, ray, t_max)?;
     let hit_in = |lane: usize| {
         let (u, v) = barycentrics([0.0, lanes.v[lane], lanes.w[lane]], lanes.det[lane], 1.0);
         TriangleHit { t: lanes.t[lane], u, v }
     };
+    if C::ACTIVE {
+        return accepted_in_packet::<ANY_HIT, C>(packet, ray, t_max, &lanes, &hit_in, candidates);
+    }
     if lanes.zero == 0 {
         // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t. An any-hit
         // query only needs to know that a lane hits: its `u` and `v` are not computed (0).
@@ -60,6 +67,41 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa>(
             None
         };
         if let Some(hit) = hit {
+            limit = hit.t;
+            best = Some((lane, hit));
+        }
+    }
+    best
+}
+
+/// The closest lane hit within `t_max` that `candidates` accepts (the first, for `ANY_HIT`), the lanes taken one
+/// by one (a lane with a zero edge function redone by the scalar test), each hit offered to `candidates` with
+/// its record index; ties as [`closest_in_packet`] (the last accepted lane at the smallest `t`).
+#[inline(never)]
+fn accepted_in_packet<const ANY_HIT: bool, C: Candidates>(
+    packet: &TrianglePacket4,
+    ray: &PreparedRay,
+    t_max: f32,
+    lanes: &PacketLanes,
+    hit_in: &impl Fn(usize) -> TriangleHit,
+    candidates: &C,
+) -> Option<(usize, TriangleHit)> {
+    let mut best: Option<(usize, TriangleHit)> = None;
+    let mut limit = t_max;
+    for lane in 0..LANES {
+        let hit = if lanes.zero & (1 << lane) != 0 {
+            ray.intersect_triangle(&packet.triangle(lane), limit)
+        } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
+            Some(hit_in(lane))
+        } else {
+            None
+        };
+        if let Some(hit) = hit
+            && candidates.accept(packet.triangle_index[lane], &hit)
+        {
+            if ANY_HIT {
+                return Some((lane, hit));
+            }
             limit = hit.t;
             best = Some((lane, hit));
         }

@@ -20,6 +20,7 @@
 
 use std::mem::MaybeUninit;
 
+use crate::filter::Candidates;
 use crate::format::{LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
 use crate::hit::{CULL_PADDING, TraversalCounter, lane_address};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
@@ -86,18 +87,20 @@ impl Walk {
     /// Processes the current wide node or leaf and moves to the next; `false` when the walk has ended.
     /// `stack` must be the one this walk has used since it started.
     #[inline(always)]
-    pub(crate) fn step<const ANY_HIT: bool, I: Isa>(
+    pub(crate) fn step<const ANY_HIT: bool, I: Isa, C: Candidates>(
         &mut self,
         isa: I,
         sections: &Sections<'_>,
         stack: &mut Stack,
         counter: &mut impl TraversalCounter,
+        candidates: &C,
     ) -> bool {
         let current = self.current;
         if current & LEAF_BIT != 0 {
             let (first, count) = WideNode8::leaf_packets(current);
+            let leaf = (first as usize, count as usize);
             if let Some(hit) =
-                leaf_hit::<ANY_HIT, I>(isa, sections, &self.ray, first as usize, count as usize, self.t_max, counter)
+                leaf_hit::<ANY_HIT, I, C>(isa, sections, &self.ray, leaf, self.t_max, counter, candidates)
             {
                 self.found = Some(hit);
                 if ANY_HIT {
@@ -201,24 +204,24 @@ impl Walk {
     }
 }
 
-/// The closest hit in packets `first .. first + count`, within `t_max`, as (lane address, hit); for `ANY_HIT`,
-/// the first packet's hit.
+/// The closest hit in packets `first .. first + count` (`leaf`), within `t_max`, among the candidates
+/// `candidates` accepts, as (lane address, hit); for `ANY_HIT`, the first packet's hit.
 #[inline(always)]
-fn leaf_hit<const ANY_HIT: bool, I: Isa>(
+fn leaf_hit<const ANY_HIT: bool, I: Isa, C: Candidates>(
     isa: I,
     sections: &Sections<'_>,
     ray: &PreparedRay,
-    first: usize,
-    count: usize,
+    (first, count): (usize, usize),
     t_max: f32,
     counter: &mut impl TraversalCounter,
+    candidates: &C,
 ) -> Option<(u32, TriangleHit)> {
     let packets = sections.packets.get(first..first.saturating_add(count))?;
     let mut best = None;
     let mut limit = t_max;
     for (p, packet) in packets.iter().enumerate() {
         counter.triangle_tested();
-        if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I>(isa, packet, ray, limit) {
+        if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I, C>(isa, packet, ray, limit, candidates) {
             limit = hit.t;
             best = Some((lane_address(first + p, lane), hit));
             if ANY_HIT {

@@ -11,9 +11,9 @@ use crate::checksum::{header_checksum, section_checksum};
 use crate::error::Error;
 use crate::file::{AlignedBuffer, BvhFile};
 use crate::format::{
-    FileHeader, GpuNode, GpuTriangle, HEADER_BYTE_LEN, MAGIC, PackedNode, PackedTriangle, SECTION_ENTRY_BYTE_LEN,
-    SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind, SourceRange, SourceVertexIndices,
-    TrianglePacket4, VERSION_MAJOR, WideNode8, align_up, written_minor,
+    FileHeader, GpuNode, GpuTriangle, HEADER_BYTE_LEN, MAGIC, MinorFeatures, PackedNode, PackedTriangle,
+    SECTION_ENTRY_BYTE_LEN, SECTION_FLAG_REQUIRED, SECTION_FLAG_SPLIT_REFERENCES, SectionEntry, SectionKind,
+    SourceRange, SourceVertexIndices, TrianglePacket4, VERSION_MAJOR, WideNode8, align_up, written_minor,
 };
 use crate::instances::TwoLevelSections;
 
@@ -25,6 +25,7 @@ pub struct BvhWriter<'a> {
     triangle_ids: Option<&'a [u32]>,
     source_table: Option<&'a [SourceRange]>,
     source_vertices: Option<&'a [SourceVertexIndices]>,
+    triangle_flags: Option<&'a [u8]>,
     metadata: Option<&'a str>,
     split_references: bool,
     wide: Option<(&'a [WideNode8], &'a [TrianglePacket4])>,
@@ -57,6 +58,7 @@ impl<'a> BvhWriter<'a> {
             triangle_ids: None,
             source_table: None,
             source_vertices: None,
+            triangle_flags: None,
             metadata: None,
             split_references: false,
             wide: None,
@@ -83,6 +85,13 @@ impl<'a> BvhWriter<'a> {
     /// written as version 1.2.
     pub fn source_vertices(mut self, indices: &'a [SourceVertexIndices]) -> Self {
         self.source_vertices = Some(indices);
+        self
+    }
+
+    /// Adds the triangle_flags section (format 1.5): per triangle, in the order of [`BvhWriter::new`]'s
+    /// triangles, its flags ([`crate::format::TRIANGLE_NOT_OPAQUE`]). The file is then written as version 1.5.
+    pub fn triangle_flags(mut self, flags: &'a [u8]) -> Self {
+        self.triangle_flags = Some(flags);
         self
     }
 
@@ -122,10 +131,15 @@ impl<'a> BvhWriter<'a> {
         self
     }
 
-    /// The minor version the file will have: 3 when two-level, else 2 with source vertices, else 1 with wide
-    /// sections, else 0.
+    /// The minor version the file will have: the lowest its sections need ([`written_minor`]).
     pub fn version_minor(&self) -> u16 {
-        written_minor(self.wide.is_some(), self.source_vertices.is_some(), self.two_level.is_some(), self.gpu.is_some())
+        written_minor(MinorFeatures {
+            wide: self.wide.is_some(),
+            source_vertices: self.source_vertices.is_some(),
+            instances: self.two_level.is_some(),
+            gpu: self.gpu.is_some(),
+            triangle_flags: self.triangle_flags.is_some(),
+        })
     }
 
     /// Appends a section of a kind that this version does not define. `required` sets its REQUIRED flag, which
@@ -188,6 +202,9 @@ impl<'a> BvhWriter<'a> {
         if let Some((nodes, triangles)) = self.gpu {
             known(SectionKind::GpuNodes, bytemuck::cast_slice(nodes), nodes.len(), 0);
             known(SectionKind::GpuTriangles, bytemuck::cast_slice(triangles), triangles.len(), 0);
+        }
+        if let Some(flags) = self.triangle_flags {
+            known(SectionKind::TriangleFlags, flags, flags.len(), 0);
         }
         for extra in &self.extra_sections {
             if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {

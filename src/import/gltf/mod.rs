@@ -262,6 +262,7 @@ impl Walker<'_, '_> {
                     source_vertex_index: None,
                     flip_winding,
                     first_use: self.placed.insert((mesh_index, p)),
+                    cut_out: primitive::cuts_out(self.root, json_primitive).map_err(|e| Located::new(&at, e))?,
                 })
                 .map_err(|(kind, e)| Located::of_kind(kind, &at, e))?;
         }

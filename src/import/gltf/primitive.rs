@@ -108,3 +108,19 @@ pub(super) fn mesh_triangles(root: &gltf::json::Root, mesh: &gltf::json::Mesh) -
         })
         .fold(0, u64::saturating_add)
 }
+
+/// Whether `primitive`'s material may cut its triangles out: its `alphaMode` is `MASK` or `BLEND` (glTF 2.0
+/// 3.9.4); a primitive without a material uses the default material, which is opaque. A material index out of
+/// range, or an `alphaMode` that is not one of the three, breaks the glTF schema.
+pub(super) fn cuts_out(root: &gltf::json::Root, primitive: &gltf::json::mesh::Primitive) -> Result<bool, String> {
+    use gltf::json::material::AlphaMode;
+    let Some(index) = primitive.material else { return Ok(false) };
+    let material = root.materials.get(index.value()).ok_or_else(|| {
+        format!("material {} does not exist (the file has {} materials)", index.value(), root.materials.len())
+    })?;
+    match material.alpha_mode {
+        Checked::Valid(AlphaMode::Opaque) => Ok(false),
+        Checked::Valid(AlphaMode::Mask | AlphaMode::Blend) => Ok(true),
+        Checked::Invalid => Err(format!("material {}: alphaMode is not OPAQUE, MASK or BLEND", index.value())),
+    }
+}
