@@ -141,6 +141,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
             "unique_triangle_count": unique_triangles,
             "split_references": view.has_split_references(),
             "source_vertices": view.source_vertices().is_some(),
+            "not_opaque_count": not_opaque_count(&view),
             "node_count": view.nodes().len(),
             "wide_node_count": view.wide_sections().map(|w| w.nodes.len()),
             "packet_count": view.wide_sections().map(|w| w.packets.len()),
@@ -219,6 +220,14 @@ pub fn info(path: &Path, json: bool) -> Exit {
         (false, _) => "no source ids",
     };
     outln!(out, "provenance: {shading}");
+    match not_opaque_count(&view) {
+        Some(count) => outln!(
+            out,
+            "opacity: {count} of {} triangle records not opaque (a filtered tracer asks its filter about these alone)",
+            view.triangles().len()
+        ),
+        None => outln!(out, "opacity: every triangle opaque (no triangle_flags section)"),
+    }
     match view.wide_sections() {
         Some(wide) => outln!(
             out,
@@ -330,4 +339,10 @@ fn unique_triangle_count(view: &bvhc::loader::BvhView<'_>, metadata: &serde_json
 /// Bytes of the two GPU sections.
 fn gpu_byte_len(gpu: &bvhc::loader::GpuSections<'_>) -> usize {
     size_of_val(gpu.nodes) + size_of_val(gpu.triangles)
+}
+
+/// The records the `triangle_flags` section marks not opaque, or `None` without the section (all opaque).
+fn not_opaque_count(view: &BvhView<'_>) -> Option<usize> {
+    let flags = view.triangle_flags()?;
+    Some(flags.iter().filter(|&&f| f & bvhc::loader::format::TRIANGLE_NOT_OPAQUE != 0).count())
 }

@@ -88,7 +88,8 @@ fn the_installed_library_has_its_abi_name_no_gpu_code_and_builds_the_example_thr
         assert!(lib.join(file).exists(), "{} is missing", lib.join(file).display());
     }
     assert!(
-        std::fs::read(prefix.join("include/bvhc.h")).unwrap() == include_bytes!("../../crates/bvhc-capi/include/bvhc.h"),
+        std::fs::read(prefix.join("include/bvhc.h")).unwrap()
+            == include_bytes!("../../crates/bvhc-capi/include/bvhc.h"),
         "{} differs from crates/bvhc-capi/include/bvhc.h: the installed library is stale, run the install script again",
         prefix.join("include/bvhc.h").display()
     );

@@ -153,6 +153,8 @@ fn info_text_and_json() {
     );
     assert_eq!(info["format_version"], "1.0");
     assert_eq!(info["source_vertices"], false);
+    assert_eq!(info["not_opaque_count"], serde_json::Value::Null);
+    assert!(stdout(&text).contains("opacity: every triangle opaque (no triangle_flags section)"), "{}", stdout(&text));
     assert!(stdout(&text).contains("provenance: source ids, no source vertices"), "{}", stdout(&text));
     // The 1.2 golden file: hits can interpolate the source's attributes.
     let golden_1_2 = golden().with_file_name("quad-v1.2.bvh");

@@ -10,6 +10,7 @@ mod clusters;
 mod common;
 mod compat;
 mod corrupt;
+mod example_alpha;
 mod example_ao;
 mod filters;
 mod convert;

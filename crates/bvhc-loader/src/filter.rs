@@ -10,8 +10,8 @@
 //! [`FilterScope::Every`] calls the filter for every candidate (filters that are not about materials: skipping
 //! a light's own triangles, per-ray visibility masks).
 //!
-//! **Tracing without a filter costs what it did.** The kernels are generic over [`Candidates`]; the unfiltered
-//! calls pass [`Unfiltered`], whose test compiles away, so they run the same instructions as before filters
+//! **Tracing without a filter costs what it did.** The kernels are generic over `Candidates`; the unfiltered
+//! calls pass `Unfiltered`, whose test compiles away, so they run the same instructions as before filters
 //! existed (measured with callgrind, `docs/kernel-peer.md`).
 //!
 //! What a filter sees ([`Candidate`]): the ray as given, the candidate's `t`, `u` and `v`, the triangle record,
@@ -38,154 +38,17 @@
 //! # Ok::<(), bvhc_loader::Error>(())
 //! ```
 
-use crate::format::TRIANGLE_NOT_OPAQUE;
+pub use crate::candidates::{Candidate, FilterScope, HitFilter};
+
+use crate::candidates::Filtering;
 use crate::hit::Hit;
-use crate::intersect::{Ray, TriangleHit};
+use crate::intersect::Ray;
 use crate::traverse::Tracer;
-
-/// A hit the kernel found, before it is accepted.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Candidate<'r> {
-    /// The ray as given to the tracer (in world space, also in a two-level file).
-    pub ray: &'r Ray,
-    /// Distance along the ray.
-    pub t: f32,
-    /// Barycentric weight of the record's `v1` (as [`Hit::u`]).
-    pub u: f32,
-    /// Barycentric weight of the record's `v2`.
-    pub v: f32,
-    /// The triangle record (in the file's triangles section).
-    pub triangle_index: u32,
-    /// Its source id, when the file has ids: with [`crate::BvhView::source_range_of`] the glTF mesh and
-    /// primitive (and so the material), and with [`crate::BvhView::source_corners`] the texture coordinates.
-    pub source_triangle_id: Option<u32>,
-    /// In a two-level file, the instance whose mesh holds the triangle.
-    pub instance_index: Option<u32>,
-}
-
-impl Candidate<'_> {
-    /// The candidate as the hit record a tracer would return for it (for [`crate::BvhView::source_corners`]),
-    /// without its normal and front-face flag, which a filter rarely needs (zero and `false`).
-    pub fn as_hit(&self) -> Hit {
-        Hit {
-            t: self.t,
-            triangle_index: self.triangle_index,
-            source_triangle_id: self.source_triangle_id,
-            u: self.u,
-            v: self.v,
-            normal: [0.0; 3],
-            front_face: false,
-            instance_index: self.instance_index,
-        }
-    }
-}
-
-/// Decides whether a candidate hit counts: `true` accepts it, `false` rejects it and traversal goes on. Any
-/// `Fn(&Candidate) -> bool` is one. Shared by every thread that traces with it (`&self`), so state it keeps
-/// must be synchronized (or made per thread, with one [`FilteredTracer`] each).
-pub trait HitFilter {
-    /// Whether `candidate` is accepted.
-    fn accept(&self, candidate: &Candidate<'_>) -> bool;
-}
-
-impl<F: Fn(&Candidate<'_>) -> bool> HitFilter for F {
-    fn accept(&self, candidate: &Candidate<'_>) -> bool {
-        self(candidate)
-    }
-}
-
-/// Which candidates a filter sees.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FilterScope {
-    /// Only hits on triangles the file marks not opaque ([`crate::format::TRIANGLE_NOT_OPAQUE`]); every other
-    /// hit is accepted without a call. A file without the `triangle_flags` section is all opaque.
-    NotOpaque,
-    /// Every candidate hit.
-    Every,
-}
-
-/// What the kernels ask of each candidate hit: the unfiltered calls pass [`Unfiltered`] (`ACTIVE` false, so the
-/// test compiles away), the filtered ones a [`Filtering`].
-pub(crate) trait Candidates: Copy {
-    /// Whether the kernel asks at all.
-    const ACTIVE: bool;
-    /// Whether the hit on record `record` (an index into the tracer's own triangles: a mesh's, in a two-level
-    /// file) is accepted.
-    fn accept(&self, record: u32, hit: &TriangleHit) -> bool;
-    /// These candidates in the mesh whose records start at `first_record`, placed by `instance`.
-    fn in_mesh(&self, first_record: u32, instance: u32) -> Self;
-}
-
-/// Every candidate accepted, with no test: tracing as without filters.
-#[derive(Clone, Copy)]
-pub(crate) struct Unfiltered;
-
-impl Candidates for Unfiltered {
-    const ACTIVE: bool = false;
-
-    #[inline(always)]
-    fn accept(&self, _: u32, _: &TriangleHit) -> bool {
-        true
-    }
-
-    #[inline(always)]
-    fn in_mesh(&self, _: u32, _: u32) -> Self {
-        Unfiltered
-    }
-}
-
-/// A filter applied to the candidates of one ray (in a two-level file: of one instance's mesh).
-pub(crate) struct Filtering<'f, F: ?Sized> {
-    pub filter: &'f F,
-    pub scope: FilterScope,
-    /// The ray as the caller gave it.
-    pub ray: &'f Ray,
-    /// The file's triangle flags and ids (whole sections).
-    pub flags: Option<&'f [u8]>,
-    pub ids: Option<&'f [u32]>,
-    /// Added to a kernel's record index to make it the file's (a mesh's first triangle).
-    pub first_record: u32,
-    pub instance: Option<u32>,
-}
-
-impl<F: HitFilter + ?Sized> Candidates for Filtering<'_, F> {
-    const ACTIVE: bool = true;
-
-    fn in_mesh(&self, first_record: u32, instance: u32) -> Self {
-        Filtering { first_record, instance: Some(instance), ..*self }
-    }
-
-    #[inline]
-    fn accept(&self, record: u32, hit: &TriangleHit) -> bool {
-        let record = record.wrapping_add(self.first_record);
-        if self.scope == FilterScope::NotOpaque
-            && self.flags.and_then(|f| f.get(record as usize)).is_none_or(|&f| f & TRIANGLE_NOT_OPAQUE == 0)
-        {
-            return true;
-        }
-        self.filter.accept(&Candidate {
-            ray: self.ray,
-            t: hit.t,
-            u: hit.u,
-            v: hit.v,
-            triangle_index: record,
-            source_triangle_id: self.ids.and_then(|ids| ids.get(record as usize).copied()),
-            instance_index: self.instance,
-        })
-    }
-}
-
-impl<F: ?Sized> Clone for Filtering<'_, F> {
-    fn clone(&self) -> Self {
-        *self
-    }
-}
-
-impl<F: ?Sized> Copy for Filtering<'_, F> {}
 
 /// A tracer that runs a [`HitFilter`] on candidate hits ([`Tracer::filtered`]): the same calls as [`Tracer`],
 /// checking rays as it does. Batch calls trace one ray after the other with the single-ray kernel (no stream
-/// interleaving, no coherent packets).
+/// interleaving, no coherent packets). With [`FilterScope::NotOpaque`] on a file without the `triangle_flags`
+/// section (all opaque: the filter would never be asked) every call is the plain tracer's.
 pub struct FilteredTracer<'a, 'f, F: ?Sized> {
     tracer: Tracer<'a>,
     filter: &'f F,
@@ -201,6 +64,11 @@ impl<'a> Tracer<'a> {
 }
 
 impl<F: HitFilter + ?Sized> FilteredTracer<'_, '_, F> {
+    /// Whether the filter would never be asked: only not-opaque triangles are, and the file has none marked.
+    fn all_opaque(&self) -> bool {
+        self.scope == FilterScope::NotOpaque && self.tracer.triangle_flags().is_none()
+    }
+
     fn filtering<'r>(&'r self, ray: &'r Ray) -> Filtering<'r, F> {
         Filtering {
             filter: self.filter,
@@ -220,6 +88,9 @@ impl<F: HitFilter + ?Sized> FilteredTracer<'_, '_, F> {
     /// As [`Tracer::closest_hit`].
     #[track_caller]
     pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        if self.all_opaque() {
+            return self.tracer.closest_hit(ray);
+        }
         self.tracer.check("closest_hit", ray);
         self.tracer.closest_hit_inner(ray, &mut (), &self.filtering(ray))
     }
@@ -231,6 +102,9 @@ impl<F: HitFilter + ?Sized> FilteredTracer<'_, '_, F> {
     /// As [`Tracer::closest_hit`].
     #[track_caller]
     pub fn any_hit(&self, ray: &Ray) -> bool {
+        if self.all_opaque() {
+            return self.tracer.any_hit(ray);
+        }
         self.tracer.check("any_hit", ray);
         self.tracer.any_hit_inner(ray, &mut (), &self.filtering(ray))
     }
@@ -243,6 +117,9 @@ impl<F: HitFilter + ?Sized> FilteredTracer<'_, '_, F> {
     /// any ray is traced.
     #[track_caller]
     pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        if self.all_opaque() {
+            return self.tracer.closest_hits(rays, hits);
+        }
         crate::hit::same_length("closest_hits", rays.len(), hits.len());
         self.tracer.check_batch("closest_hits", rays);
         for (ray, hit) in rays.iter().zip(hits) {
@@ -257,6 +134,9 @@ impl<F: HitFilter + ?Sized> FilteredTracer<'_, '_, F> {
     /// As [`FilteredTracer::closest_hits`].
     #[track_caller]
     pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
+        if self.all_opaque() {
+            return self.tracer.any_hits(rays, occluded);
+        }
         crate::hit::same_length("any_hits", rays.len(), occluded.len());
         self.tracer.check_batch("any_hits", rays);
         for (ray, hit) in rays.iter().zip(occluded) {

@@ -51,6 +51,7 @@
 
 #[cfg(feature = "write")]
 mod atomic;
+mod candidates;
 mod checksum;
 pub mod cost;
 mod error;

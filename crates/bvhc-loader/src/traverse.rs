@@ -5,7 +5,7 @@
 //! must exceed its parent's (so paths cannot cycle), and a ray visits at most `node_count` nodes; on a file that
 //! fails verification it may return wrong hits, never panic or hang.
 
-use crate::filter::{Candidates, Unfiltered};
+use crate::candidates::{Candidates, Unfiltered};
 use crate::format::{MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle};
 use crate::hit::{CULL_PADDING, ForeignHit, Hit, TraversalCounter};
 use crate::instances::{TwoLevelSections, WideInstanceWalk, walk_instances};

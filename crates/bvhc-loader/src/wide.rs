@@ -7,8 +7,8 @@
 //! AVX2 (box tests in AVX2, triangle packets in SSE2) inside one `target_feature` function, so everything
 //! inlines into it, or on the portable path, which gives the same hits bit for bit.
 
+use crate::candidates::{Candidates, Unfiltered};
 use crate::error::Violation;
-use crate::filter::{Candidates, Unfiltered};
 use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
 use crate::hit::{Hit, TraversalCounter, slot_writer};
 use crate::intersect::{Ray, TriangleHit};

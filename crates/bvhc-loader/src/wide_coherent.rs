@@ -16,7 +16,7 @@
 
 use std::mem::MaybeUninit;
 
-use crate::filter::Unfiltered;
+use crate::candidates::Unfiltered;
 use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
 use crate::hit::{CULL_PADDING, lane_address};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};

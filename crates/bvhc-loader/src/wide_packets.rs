@@ -4,7 +4,7 @@
 //! bit; a lane where an edge function is exactly 0 is redone by the scalar test (its f64 recomputation), and
 //! unused lanes (NaN vertices) never hit.
 
-use crate::filter::Candidates;
+use crate::candidates::Candidates;
 use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::intersect::{PreparedRay, TriangleHit};
 use crate::simd::{Isa, LaneMask, Lanes};
@@ -43,7 +43,9 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
         let (u, v) = barycentrics([0.0, lanes.v[lane], lanes.w[lane]], lanes.det[lane], 1.0);
         TriangleHit { t: lanes.t[lane], u, v }
     };
-    if C::ACTIVE {
+    // A filter is consulted only when a lane that may hit is one it asks about (in practice: a lane of a
+    // not-opaque triangle); otherwise every hit is accepted and the plain choice below is the filtered one.
+    if C::ACTIVE && asks_in_packet(packet, lanes.valid | lanes.zero, candidates) {
         return accepted_in_packet::<ANY_HIT, C>(packet, ray, t_max, &lanes, &hit_in, candidates);
     }
     if lanes.zero == 0 {
@@ -72,6 +74,19 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
         }
     }
     best
+}
+
+/// Whether `candidates` asks about any of the lanes in `mask`.
+#[inline]
+fn asks_in_packet<C: Candidates>(packet: &TrianglePacket4, mask: u32, candidates: &C) -> bool {
+    let mut lanes = mask & ((1 << LANES) - 1);
+    while lanes != 0 {
+        if candidates.asks(packet.triangle_index[lanes.trailing_zeros() as usize]) {
+            return true;
+        }
+        lanes &= lanes - 1;
+    }
+    false
 }
 
 /// The closest lane hit within `t_max` that `candidates` accepts (the first, for `ANY_HIT`), the lanes taken one

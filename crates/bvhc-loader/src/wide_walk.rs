@@ -20,7 +20,7 @@
 
 use std::mem::MaybeUninit;
 
-use crate::filter::Candidates;
+use crate::candidates::Candidates;
 use crate::format::{LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
 use crate::hit::{CULL_PADDING, TraversalCounter, lane_address};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
