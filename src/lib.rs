@@ -5,7 +5,7 @@
 //! (initial trees, split references), [`optimize`] (reinsertion), [`layout`] (leaf merging, the wide collapse),
 //! [`pack`] (the file's arrays), [`instancing`] (two-level scenes: the top tree, the sections), [`convert`] (the pipeline, metadata, the build-script API), with [`options`]
 //! (presets and overrides, resolved in one place). Shared below them: [`geometry`] (boxes, clipping), [`cost`]
-//! (the one SAH definition), [`build_tree`] (the flat binary tree); [`epo`] measures trees for the evaluation.
+//! (the one SAH definition), [`build_tree`] (the flat binary tree); [`epo`] measures trees for the evaluation, [`inspect`] reports a file as `bvhc info` does.
 #![forbid(unsafe_code)]
 
 // Shared below every stage.
@@ -24,8 +24,9 @@ pub mod instancing;
 // Options and the pipeline over the stages.
 pub mod options;
 pub mod convert;
-// Tree quality for the evaluation.
+// Tree quality for the evaluation; what `bvhc info` reports of a file.
 pub mod epo;
+pub mod inspect;
 
 pub use convert::{Conversion, ConversionOutcome};
 pub use options::Preset;
