@@ -38,6 +38,7 @@ mod mutation;
 mod optimize;
 mod options;
 mod optimize_property;
+mod python_package;
 mod ray_contract;
 mod ray_tuning;
 mod roundtrip;

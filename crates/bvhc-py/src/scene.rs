@@ -1,0 +1,407 @@
+//! An opened `.bvh` file over a numpy `uint8` array of its bytes (a read-only memory map, or the file read into
+//! memory), and the tracing calls. Each call opens a view over the array (the structural checks, O(sections))
+//! and traces on all cores with the GIL released; the array is borrowed read-only meanwhile.
+
+use bvhc::loader::{BatchRayError, BvhView, Hit, Ray, Tracer};
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+use crate::errors::{InvalidFileError, InvalidInputError, loader};
+use crate::rays::{Bound1, RayArrays, Vectors};
+
+/// Rays traced a task.
+const CHUNK: usize = 1024;
+
+/// Misses and absent values in hit arrays (`format-spec/rays-and-hits.md`).
+const NONE: u32 = u32::MAX;
+
+/// A placeholder in ray buffers (overwritten before use).
+const EMPTY_RAY: Ray = Ray { origin: [0.0; 3], direction: [1.0, 0.0, 0.0], t_min: 0.0, t_max: 0.0 };
+
+/// A `.bvh` file opened over a numpy array of its bytes.
+#[pyclass(frozen, module = "bvhc._native")]
+pub struct Scene {
+    bytes: Py<PyArray1<u8>>,
+    path: String,
+}
+
+/// Runs `f` on the file's view, the array borrowed read-only.
+fn with_view<R>(
+    py: Python<'_>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+    f: impl FnOnce(&BvhView<'_>) -> PyResult<R>,
+) -> PyResult<R> {
+    let array: PyReadonlyArray1<'_, u8> = bytes.bind(py).readonly();
+    let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
+    let view = BvhView::open(slice).map_err(|e| loader(&e, format!("{path}: {e}")))?;
+    f(&view)
+}
+
+/// A pool of `threads` threads, or `None` for rayon's global pool (all cores).
+fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    threads
+        .map(|n| {
+            if n == 0 {
+                return Err(InvalidInputError::new_err("threads: expected at least 1"));
+            }
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| crate::errors::InternalError::new_err(format!("cannot start {n} threads: {e}")))
+        })
+        .transpose()
+}
+
+fn on_pool<R: Send>(pool: &Option<rayon::ThreadPool>, f: impl FnOnce() -> R + Send) -> R {
+    match pool {
+        Some(pool) => pool.install(f),
+        None => f(),
+    }
+}
+
+/// Closest hits as columns.
+struct HitColumns {
+    t: Vec<f32>,
+    triangle: Vec<u32>,
+    source_id: Vec<u32>,
+    u: Vec<f32>,
+    v: Vec<f32>,
+    normal: Vec<f32>,
+    front_face: Vec<bool>,
+    instance: Vec<u32>,
+}
+
+impl HitColumns {
+    /// The closest hits of `rays`, each chunk of rays read, checked and traced by one task; the first ray that
+    /// breaks the contract is the error (the hits are then dropped).
+    fn traced(tracer: &Tracer<'_>, rays: RayArrays<'_>) -> Result<HitColumns, BatchRayError> {
+        let n = rays.len();
+        // Zeroed (calloc'd) columns, every entry written below by the thread that traces its ray: no serial
+        // pass over the output.
+        let mut c = HitColumns {
+            t: vec![0.0; n],
+            triangle: vec![0; n],
+            source_id: vec![0; n],
+            u: vec![0.0; n],
+            v: vec![0.0; n],
+            normal: vec![0.0; 3 * n],
+            front_face: vec![false; n],
+            instance: vec![0; n],
+        };
+        let tracer = tracer.trusting_rays();
+        let first_bad = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .zip(c.t.par_chunks_mut(CHUNK))
+            .zip(c.triangle.par_chunks_mut(CHUNK))
+            .zip(c.source_id.par_chunks_mut(CHUNK))
+            .zip(c.u.par_chunks_mut(CHUNK))
+            .zip(c.v.par_chunks_mut(CHUNK))
+            .zip(c.normal.par_chunks_mut(3 * CHUNK))
+            .zip(c.front_face.par_chunks_mut(CHUNK))
+            .zip(c.instance.par_chunks_mut(CHUNK))
+            .filter_map(|((((((((chunk, t), triangle), source_id), u), v), normal), front_face), instance)| {
+                let mut buffer = [EMPTY_RAY; CHUNK];
+                let chunk_rays = &mut buffer[..t.len()];
+                if let Err(e) = rays.chunk(chunk * CHUNK, chunk_rays) {
+                    return Some(e);
+                }
+                let mut hits = [None; CHUNK];
+                let hits = &mut hits[..t.len()];
+                tracer.closest_hits(chunk_rays, hits);
+                for (i, hit) in hits.iter().enumerate() {
+                    let Some(hit) = hit else {
+                        (t[i], triangle[i], source_id[i], instance[i]) = (f32::INFINITY, NONE, NONE, NONE);
+                        continue;
+                    };
+                    t[i] = hit.t;
+                    triangle[i] = hit.triangle_index;
+                    source_id[i] = hit.source_triangle_id.unwrap_or(NONE);
+                    u[i] = hit.u;
+                    v[i] = hit.v;
+                    normal[3 * i..3 * i + 3].copy_from_slice(&hit.normal);
+                    front_face[i] = hit.front_face;
+                    instance[i] = hit.instance_index.unwrap_or(NONE);
+                }
+                None
+            })
+            .min_by_key(|e| e.index);
+        match first_bad {
+            Some(e) => Err(e),
+            None => Ok(c),
+        }
+    }
+
+    fn into_dict<'py>(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.t.len();
+        let d = PyDict::new(py);
+        d.set_item("t", self.t.into_pyarray(py))?;
+        d.set_item("triangle", self.triangle.into_pyarray(py))?;
+        d.set_item("source_id", self.source_id.into_pyarray(py))?;
+        d.set_item("u", self.u.into_pyarray(py))?;
+        d.set_item("v", self.v.into_pyarray(py))?;
+        let normal = Array2::from_shape_vec((n, 3), self.normal)
+            .map_err(|e| crate::errors::InternalError::new_err(e.to_string()))?;
+        d.set_item("normal", normal.into_pyarray(py))?;
+        d.set_item("front_face", self.front_face.into_pyarray(py))?;
+        d.set_item("instance", self.instance.into_pyarray(py))?;
+        Ok(d)
+    }
+}
+
+#[pymethods]
+impl Scene {
+    /// Opens the file whose bytes `data` holds (`path` names it in errors); `verify` checks every rule.
+    #[new]
+    #[pyo3(signature = (data, path, verify=true))]
+    fn new(py: Python<'_>, data: Bound<'_, PyArray1<u8>>, path: String, verify: bool) -> PyResult<Scene> {
+        let bytes = data.unbind();
+        with_view(py, &bytes, &path, |view| {
+            if verify {
+                let view = *view;
+                py.detach(|| view.verify())
+                    .map_err(|v| InvalidFileError::new_err(format!("{path}: invalid .bvh file: {v}")))?;
+            }
+            Ok(())
+        })?;
+        Ok(Scene { bytes, path })
+    }
+
+    /// The file's path as given.
+    #[getter]
+    fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// The file's bytes (the array this scene was opened over).
+    #[getter]
+    fn data<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u8>> {
+        self.bytes.bind(py).clone()
+    }
+
+    /// The scene's bounding box `((min x, y, z), (max x, y, z))`, or `None` for an empty scene.
+    #[getter]
+    fn bounds(&self, py: Python<'_>) -> PyResult<Option<([f32; 3], [f32; 3])>> {
+        with_view(py, &self.bytes, &self.path, |view| Ok(view.scene_box()))
+    }
+
+    /// The `bvhc info --json` report, as JSON.
+    fn info_json(&self, py: Python<'_>) -> PyResult<String> {
+        with_view(py, &self.bytes, &self.path, |view| {
+            Ok(bvhc::inspect::inspect(view).to_json(std::path::Path::new(&self.path), view).to_string())
+        })
+    }
+
+    /// Every validity rule; raises `InvalidFileError` naming the first broken one.
+    fn verify(&self, py: Python<'_>) -> PyResult<()> {
+        with_view(py, &self.bytes, &self.path, |view| {
+            let view = *view;
+            py.detach(|| view.verify())
+                .map_err(|v| InvalidFileError::new_err(format!("{}: invalid .bvh file: {v}", self.path)))
+        })
+    }
+
+    /// Closest hits of the rays, as a dict of arrays (see the package's docs).
+    #[pyo3(signature = (origins, directions, t_min, t_max, threads=None))]
+    fn closest_hits<'py>(
+        &self,
+        py: Python<'py>,
+        origins: Bound<'py, PyAny>,
+        directions: Bound<'py, PyAny>,
+        t_min: Bound<'py, PyAny>,
+        t_max: Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let origins = Vectors::extract("origins", &origins)?;
+        let directions = Vectors::extract("directions", &directions)?;
+        let t_min = Bound1::extract("t_min", &t_min, origins.len())?;
+        let t_max = Bound1::extract("t_max", &t_max, origins.len())?;
+        let rays = RayArrays::new(&origins, &directions, &t_min, &t_max)?;
+        let pool = pool(threads)?;
+        let columns = with_view(py, &self.bytes, &self.path, |view| {
+            let tracer = view.tracer();
+            Ok(py.detach(|| on_pool(&pool, || HitColumns::traced(&tracer, rays))))
+        })?;
+        columns.map_err(|e| rays.error(&e))?.into_dict(py)
+    }
+
+    /// Whether each ray hits anything within its interval, as a bool array.
+    #[pyo3(signature = (origins, directions, t_min, t_max, threads=None))]
+    fn any_hits<'py>(
+        &self,
+        py: Python<'py>,
+        origins: Bound<'py, PyAny>,
+        directions: Bound<'py, PyAny>,
+        t_min: Bound<'py, PyAny>,
+        t_max: Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let origins = Vectors::extract("origins", &origins)?;
+        let directions = Vectors::extract("directions", &directions)?;
+        let t_min = Bound1::extract("t_min", &t_min, origins.len())?;
+        let t_max = Bound1::extract("t_max", &t_max, origins.len())?;
+        let rays = RayArrays::new(&origins, &directions, &t_min, &t_max)?;
+        let pool = pool(threads)?;
+        let (occluded, first_bad) = with_view(py, &self.bytes, &self.path, |view| {
+            let tracer = view.tracer().trusting_rays();
+            Ok(py.detach(|| {
+                on_pool(&pool, || {
+                    let mut occluded = vec![false; rays.len()];
+                    let first_bad = occluded
+                        .par_chunks_mut(CHUNK)
+                        .enumerate()
+                        .filter_map(|(chunk, occluded)| {
+                            let mut buffer = [EMPTY_RAY; CHUNK];
+                            let chunk_rays = &mut buffer[..occluded.len()];
+                            if let Err(e) = rays.chunk(chunk * CHUNK, chunk_rays) {
+                                return Some(e);
+                            }
+                            tracer.any_hits(chunk_rays, occluded);
+                            None
+                        })
+                        .min_by_key(|e| e.index);
+                    (occluded, first_bad)
+                })
+            }))
+        })?;
+        if let Some(e) = first_bad {
+            return Err(rays.error(&e));
+        }
+        Ok(occluded.into_pyarray(py))
+    }
+
+    /// Seconds the loader's batch call takes for these rays as a Rust program makes it: the output array of hit
+    /// records allocated, then `Tracer::closest_hits` in chunks of 1024 on the pool (the rays gathered and
+    /// checked beforehand, not timed). What the benchmark compares `closest_hits`, the whole Python call, with.
+    #[pyo3(signature = (origins, directions, threads=None))]
+    fn rust_batch_seconds<'py>(
+        &self,
+        py: Python<'py>,
+        origins: Bound<'py, PyAny>,
+        directions: Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<f64> {
+        let origins = Vectors::extract("origins", &origins)?;
+        let directions = Vectors::extract("directions", &directions)?;
+        let (lo, hi) = (Bound1::Scalar(0.0), Bound1::Scalar(f32::INFINITY));
+        let rays = RayArrays::new(&origins, &directions, &lo, &hi)?.gather(py)?;
+        let pool = pool(threads)?;
+        with_view(py, &self.bytes, &self.path, |view| {
+            let tracer = view.tracer().trusting_rays();
+            Ok(py.detach(|| {
+                on_pool(&pool, || {
+                    let start = std::time::Instant::now();
+                    let mut found: Vec<Option<Hit>> = vec![None; rays.len()];
+                    rays.par_chunks(CHUNK)
+                        .zip(found.par_chunks_mut(CHUNK))
+                        .for_each(|(rays, found)| tracer.closest_hits(rays, found));
+                    std::hint::black_box(&found);
+                    start.elapsed().as_secs_f64()
+                })
+            }))
+        })
+    }
+
+    /// Secondary rays leaving the hits (the columns `closest_hits` returns) in `directions`, without an epsilon:
+    /// `(origins, directions, t_min, t_max)` arrays. Every hit must be one (no miss) of this file.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (t, triangle, u, v, normal, front_face, instance, source_id, directions))]
+    fn spawn<'py>(
+        &self,
+        py: Python<'py>,
+        t: PyReadonlyArray1<'py, f32>,
+        triangle: PyReadonlyArray1<'py, u32>,
+        u: PyReadonlyArray1<'py, f32>,
+        v: PyReadonlyArray1<'py, f32>,
+        normal: Bound<'py, PyAny>,
+        front_face: PyReadonlyArray1<'py, bool>,
+        instance: PyReadonlyArray1<'py, u32>,
+        source_id: PyReadonlyArray1<'py, u32>,
+        directions: Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, pyo3::types::PyTuple>> {
+        let normal = Vectors::extract("normal", &normal)?;
+        let directions = Vectors::extract("directions", &directions)?;
+        let n = directions.len();
+        let (t, triangle, u, v) = (t.as_array(), triangle.as_array(), u.as_array(), v.as_array());
+        let (front_face, instance, source_id) = (front_face.as_array(), instance.as_array(), source_id.as_array());
+        for (name, len) in [
+            ("t", t.len()),
+            ("triangle", triangle.len()),
+            ("u", u.len()),
+            ("v", v.len()),
+            ("normal", normal.len()),
+            ("front_face", front_face.len()),
+            ("instance", instance.len()),
+            ("source_id", source_id.len()),
+        ] {
+            if len != n {
+                return Err(InvalidInputError::new_err(format!("spawn: {len} values of {name} for {n} directions")));
+            }
+        }
+        let zero = Bound1::Scalar(0.0);
+        let rows = RayArrays::new(&normal, &directions, &zero, &zero)?
+            .gather(py)
+            .map_err(|e| InvalidInputError::new_err(format!("spawn: normals and directions: {}", e.value(py))))?;
+        let rays = with_view(py, &self.bytes, &self.path, |view| {
+            let tracer = view.tracer();
+            rows.iter()
+                .enumerate()
+                .map(|(i, row)| {
+                    if triangle[i] == NONE {
+                        return Err(InvalidInputError::new_err(format!(
+                            "spawn: hit {i} is a miss (triangle 0xFFFFFFFF); select the hits first"
+                        )));
+                    }
+                    let hit = Hit {
+                        t: t[i],
+                        triangle_index: triangle[i],
+                        source_triangle_id: (source_id[i] != NONE).then_some(source_id[i]),
+                        u: u[i],
+                        v: v[i],
+                        normal: row.origin,
+                        front_face: front_face[i],
+                        instance_index: (instance[i] != NONE).then_some(instance[i]),
+                    };
+                    let surface =
+                        tracer.surface(&hit).map_err(|e| InvalidInputError::new_err(format!("spawn: hit {i}: {e}")))?;
+                    Ok(surface.spawn(row.direction))
+                })
+                .collect::<PyResult<Vec<Ray>>>()
+        })?;
+        let origins: Vec<f32> = rays.iter().flat_map(|r| r.origin).collect();
+        let directions: Vec<f32> = rays.iter().flat_map(|r| r.direction).collect();
+        let t_min: Vec<f32> = rays.iter().map(|r| r.t_min).collect();
+        let t_max: Vec<f32> = rays.iter().map(|r| r.t_max).collect();
+        let shape = |v: Vec<f32>| {
+            Array2::from_shape_vec((n, 3), v).map_err(|e| crate::errors::InternalError::new_err(e.to_string()))
+        };
+        pyo3::types::PyTuple::new(
+            py,
+            [
+                shape(origins)?.into_pyarray(py).into_any(),
+                shape(directions)?.into_pyarray(py).into_any(),
+                t_min.into_pyarray(py).into_any(),
+                t_max.into_pyarray(py).into_any(),
+            ],
+        )
+    }
+}
+
+/// Reads and verifies the file at `path`: every rule; raises naming the file and the first broken rule.
+#[pyfunction]
+pub fn verify(py: Python<'_>, path: std::path::PathBuf) -> PyResult<String> {
+    let name = path.display().to_string();
+    let file = py.detach(|| bvhc::loader::BvhFile::read(&path)).map_err(|e| loader(&e, format!("{name}: {e}")))?;
+    let view = file.view();
+    py.detach(|| view.verify()).map_err(|v| InvalidFileError::new_err(format!("{name}: invalid .bvh file: {v}")))?;
+    let (major, minor) = view.version();
+    Ok(format!(
+        "{name}: valid .bvh {major}.{minor} ({} nodes, {} triangles, every rule V1-V{} holds)",
+        view.nodes().len(),
+        view.triangles().len(),
+        bvhc::loader::Rule::ALL.len()
+    ))
+}

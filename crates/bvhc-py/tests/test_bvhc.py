@@ -1,0 +1,350 @@
+"""The Python package against the command line: hits equal `bvhc trace`'s records, one- and two-level; arrays
+build the same file as converting their PLY; every error path raises its exception; no leak over repeated opens.
+
+Run by tests/suite/python_package.rs (which sets BVHC_BIN to the built `bvhc` and installs nothing: .ci/run
+builds the wheel and installs it into a virtual environment, as a user would); scenes from BVHC_SCENES or
+../shared/scenes, skipped without them.
+"""
+
+import gc
+import json
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+
+import bvhc
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+TEAPOT = ROOT / "fixtures" / "scenes" / "teapot.obj"
+BIN = os.environ.get("BVHC_BIN", str(ROOT / "target" / "release" / "bvhc"))
+SCENES = pathlib.Path(os.environ.get("BVHC_SCENES", ROOT.parent / "shared" / "scenes"))
+
+
+def cli(*args):
+    run = subprocess.run([BIN, *map(str, args)], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    return run.stdout
+
+
+def scene(relative):
+    path = SCENES / relative
+    if not path.is_file():
+        pytest.skip(f"scene {relative} not found (set BVHC_SCENES)")
+    return path
+
+
+def random_rays(bounds, n, seed):
+    rng = np.random.default_rng(seed)
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in bounds)
+    size = (hi - lo).max()
+    origins = rng.uniform(lo - 0.1 * size, hi + 0.1 * size, (n, 3)).astype(np.float32)
+    directions = rng.normal(size=(n, 3)).astype(np.float32)
+    # Some aimed at vertices of the box's middle, so that a good share hits.
+    targets = rng.uniform(lo, hi, (n // 2, 3)).astype(np.float32)
+    directions[: n // 2] = targets - origins[: n // 2]
+    directions[np.abs(directions).max(axis=1) < 1e-6] = (0, 0, 1)
+    return origins, directions
+
+
+def trace_with_cli(bvh, origins, directions, t_min, t_max, tmp_path, any_hit=False):
+    rays = np.zeros(len(origins), dtype=[("o", "<f4", 3), ("d", "<f4", 3), ("lo", "<f4"), ("hi", "<f4")])
+    rays["o"], rays["d"], rays["lo"], rays["hi"] = origins, directions, t_min, t_max
+    ray_file, hit_file = tmp_path / "rays.bin", tmp_path / "hits.bin"
+    rays.tofile(ray_file)
+    cli("trace", bvh, "--rays", ray_file, "-o", hit_file, *(["--any-hit"] if any_hit else []))
+    if any_hit:
+        return np.fromfile(hit_file, dtype=np.uint8).astype(bool)
+    return np.fromfile(
+        hit_file,
+        dtype=[("t", "<f4"), ("triangle", "<u4"), ("source_id", "<u4"), ("u", "<f4"), ("v", "<f4"), ("instance", "<u4")],
+    )
+
+
+def assert_same_hits(hits, records):
+    for field in ["t", "triangle", "source_id", "u", "v", "instance"]:
+        mine, theirs = hits[field], records[field]
+        if mine.dtype == np.float32:  # bit for bit (inf for misses included)
+            mine, theirs = mine.view(np.uint32), theirs.view(np.uint32)
+        differ = np.flatnonzero(mine != theirs)
+        assert differ.size == 0, f"{field}: {differ.size} rays differ, first {differ[:5]}"
+
+
+CASES = [
+    ("teapot", None, []),
+    ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf", []),
+    ("engine-two-level", "khr-2cylinder-engine/2CylinderEngine.gltf", ["--instancing", "always"]),
+    ("truck-two-level", "khr-cesium-milk-truck/CesiumMilkTruck.gltf", ["--instancing", "always"]),
+]
+
+
+@pytest.mark.parametrize("name,relative,flags", CASES, ids=[c[0] for c in CASES])
+def test_hits_equal_bvhc_trace_record_for_record(name, relative, flags, tmp_path):
+    source = TEAPOT if relative is None else scene(relative)
+    bvh = tmp_path / f"{name}.bvh"
+    cli(source, "-o", bvh, "-q", *flags)
+    opened = bvhc.open(bvh)
+    assert (opened.instances is not None) == ("two-level" in name)
+    origins, directions = random_rays(opened.bounds, 20_000, seed=7)
+    t_max = np.where(np.arange(len(origins)) % 3 == 0, np.float32(np.inf), np.float32(2.0))
+    hits = opened.closest_hits(origins, directions, 0.0, t_max)
+    records = trace_with_cli(bvh, origins, directions, 0.0, t_max, tmp_path)
+    assert_same_hits(hits, records)
+    assert 0.05 < (hits["triangle"] != bvhc.MISS).mean() < 1.0
+    occluded = opened.any_hits(origins, directions, 0.0, t_max)
+    assert np.array_equal(occluded, trace_with_cli(bvh, origins, directions, 0.0, t_max, tmp_path, any_hit=True))
+    assert np.array_equal(occluded, hits["triangle"] != bvhc.MISS)
+    # float64, strided (every other row of a larger array), one thread: the same hits.
+    wide = np.zeros((2 * len(origins), 3))
+    wide[::2] = origins
+    same = opened.closest_hits(wide[::2], directions.astype(np.float64), np.zeros(len(origins)), t_max, threads=1)
+    assert_same_hits(same, records)
+    # Normals and front faces as the records' vertices say.
+    hit = np.flatnonzero(hits["triangle"] != bvhc.MISS)
+    if opened.instances is None:
+        tri = opened.triangles[hits["triangle"][hit]].astype(np.float64)
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        assert np.allclose(hits["normal"][hit], normal, rtol=1e-4, atol=1e-6 * np.abs(normal).max())
+        facing = np.einsum("ij,ij->i", directions[hit].astype(np.float64), normal) < 0
+        assert np.array_equal(hits["front_face"][hit], facing)
+
+
+def test_arrays_build_the_file_converting_their_ply_gives(tmp_path):
+    rng = np.random.default_rng(3)
+    vertices = rng.uniform(-1, 1, (300, 3)).astype(np.float32)
+    faces = rng.integers(0, 300, (500, 3))
+    built = bvhc.build(vertices, faces, tmp_path / "built.bvh")
+    assert built["report"]["triangle_count"] > 0
+    # The same PLY the package writes, converted by the command line, gives the same bytes (the metadata names
+    # mesh.ply and its hash in both).
+    folder = tmp_path / "ply"
+    folder.mkdir()
+    (folder / "mesh.ply").write_bytes(bvhc._ply_bytes(vertices, faces.astype(np.uint32)))
+    cli(folder / "mesh.ply", "-o", tmp_path / "cli.bvh", "-q")
+    assert (tmp_path / "built.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
+    # Building the same arrays again is up to date; float64 vertices build a file of the same triangles.
+    assert bvhc.build(vertices, faces, tmp_path / "built.bvh")["up_to_date"]
+    bvhc.build(vertices.astype(np.float64), faces, tmp_path / "f64.bvh")
+    a, b = bvhc.open(tmp_path / "built.bvh"), bvhc.open(tmp_path / "f64.bvh")
+    assert np.array_equal(a.triangles, b.triangles)
+    # Against an OBJ of the same triangles: the same tree and triangles (OBJ and PLY name their source
+    # primitives differently, so the source table and metadata differ).
+    obj = tmp_path / "mesh.obj"
+    with open(obj, "w") as out:
+        out.writelines(f"v {x!r} {y!r} {z!r}\n" for x, y, z in vertices.tolist())
+        out.writelines(f"f {i + 1} {j + 1} {k + 1}\n" for i, j, k in faces.tolist())
+    cli(obj, "-o", tmp_path / "obj.bvh", "-q")
+    c = bvhc.open(tmp_path / "obj.bvh")
+    for section in ["nodes", "triangles", "triangle_ids", "wide_nodes", "triangle_packets", "source_vertices"]:
+        assert np.array_equal(a.section(section), c.section(section)), section
+
+
+def test_build_checks_its_arrays(tmp_path):
+    vertices = np.zeros((3, 3), dtype=np.float32)
+    with pytest.raises(bvhc.InvalidInputError, match="vertices"):
+        bvhc.build(vertices[:, :2], [[0, 1, 2]], tmp_path / "x.bvh")
+    with pytest.raises(bvhc.InvalidInputError, match="face 1"):
+        bvhc.build(vertices, [[0, 1, 2], [0, 1, 3]], tmp_path / "x.bvh")
+    with pytest.raises(bvhc.InvalidInputError, match="faces"):
+        bvhc.build(vertices, np.zeros((1, 3), dtype=np.float32), tmp_path / "x.bvh")
+    bad = np.array([[0, 0, 0], [1, 0, 0], [np.nan, 1, 0]], dtype=np.float32)
+    with pytest.raises(bvhc.InvalidInputError, match="mesh.ply"):
+        bvhc.build(bad, [[0, 1, 2]], tmp_path / "x.bvh")
+    assert not (tmp_path / "x.bvh").exists()
+
+
+def test_options_are_the_command_lines(tmp_path):
+    resolved = bvhc.options("max-quality", splits=False)
+    printed = json.loads(cli("options", "--preset", "max-quality", "--no-splits"))
+    assert resolved == printed
+    assert bvhc.options(split_method="pre_split") == json.loads(cli("options", "--split-method", "pre-split"))
+    # The same bytes as the command line with the same flags.
+    bvhc.convert(TEAPOT, tmp_path / "py.bvh", "fast", max_leaf_size=4, opacity="filtered", source_vertices=False)
+    cli(TEAPOT, "-o", tmp_path / "cli.bvh", "--preset", "fast", "--max-leaf-size", "4", "--opacity", "filtered",
+        "--no-source-vertices", "-q")
+    assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
+    for threads in [1, 2]:
+        bvhc.convert(TEAPOT, tmp_path / f"t{threads}.bvh", threads=threads)
+    assert (tmp_path / "t1.bvh").read_bytes() == (tmp_path / "t2.bvh").read_bytes()
+
+
+@pytest.mark.parametrize(
+    "options,message",
+    [
+        ({"bogus": 1}, "bogus: not an option"),
+        ({"max_leaf_size": 4, "merge_leaves": False}, "does nothing with"),
+        ({"split_method": "octree"}, "split_method='octree': expected one of sbvh, pre-split"),
+        ({"split_budget": 9.0}, "split_budget=9.0"),
+        ({"time_budget": -1}, "time_budget=-1"),
+        ({"max_leaf_size": "four"}, "max_leaf_size='four'"),
+        ({"splits": "no"}, "splits='no': expected True or False"),
+        ({"max_memory": "lots"}, "max_memory"),
+    ],
+)
+def test_refused_options_raise_options_error(options, message, tmp_path):
+    with pytest.raises(bvhc.OptionsError, match=message):
+        bvhc.convert(TEAPOT, tmp_path / "x.bvh", **options)
+    assert not (tmp_path / "x.bvh").exists()
+    with pytest.raises(bvhc.OptionsError):
+        bvhc.convert(TEAPOT, tmp_path / "x.bvh", preset="slow")
+
+
+def test_conversion_errors_raise_their_exception(tmp_path):
+    with pytest.raises(bvhc.IoError, match="missing.obj"):
+        bvhc.convert(tmp_path / "missing.obj", tmp_path / "x.bvh")
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    with pytest.raises(bvhc.InvalidInputError, match="bad.obj"):
+        bvhc.convert(bad, tmp_path / "x.bvh")
+    with pytest.raises(bvhc.InvalidInputError, match="max-memory|memory"):
+        bvhc.convert(TEAPOT, tmp_path / "x.bvh", max_memory="1K")
+    with pytest.raises(bvhc.IoError):
+        bvhc.convert(TEAPOT, TEAPOT)  # the output is the input
+    with pytest.raises(bvhc.IoError):
+        bvhc.convert(TEAPOT, tmp_path / "no-such-folder" / "x.bvh")
+    assert issubclass(bvhc.OptionsError, bvhc.InvalidInputError) and issubclass(bvhc.IoError, bvhc.Error)
+
+
+def test_progress_is_reported_and_a_raising_callback_cancels(tmp_path):
+    events = []
+    report = bvhc.convert(TEAPOT, tmp_path / "a.bvh", progress=lambda *e: events.append(e))
+    stages = [e[0] for e in events if e[0] != "batch"]
+    assert stages == ["import", "build", "optimize", "write"], stages
+    assert any(e[0] == "batch" and e[1] >= 1 and e[2] > 0 for e in events)
+    assert report["report"]["triangle_count"] == 6320
+
+    class Stop(Exception):
+        pass
+
+    def stop(stage, *rest):
+        if stage == "batch":
+            raise Stop()
+
+    with pytest.raises(Stop):
+        bvhc.convert(TEAPOT, tmp_path / "b.bvh", progress=stop)
+    iterated = list(bvhc.convert_iter(TEAPOT, tmp_path / "c.bvh"))
+    assert [e[0] for e in iterated if e[0] != "batch"] == ["import", "build", "optimize", "write"]
+    with pytest.raises(bvhc.OptionsError):
+        list(bvhc.convert_iter(TEAPOT, tmp_path / "d.bvh", bogus=True))
+
+
+def test_open_gives_views_info_and_errors(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    for mmap in [True, False]:
+        opened = bvhc.open(bvh, mmap=mmap)
+        info = opened.info()
+        printed = json.loads(cli("info", bvh, "--json"))
+        assert info == printed
+        assert opened.triangles.shape == (info["triangle_count"], 3, 3)
+        assert len(opened.nodes) == info["node_count"] and opened.triangle_flags is None
+        with pytest.raises(ValueError):
+            opened.triangles[0, 0, 0] = 1.0  # read-only views of the file
+        root = opened.nodes[0]
+        assert opened.bounds == (tuple(root["min"].tolist()), tuple(root["max"].tolist()))
+    assert "every rule" in bvhc.verify(bvh)
+    with pytest.raises(bvhc.IoError):
+        bvhc.open(tmp_path / "missing.bvh")
+    data = bytearray(bvh.read_bytes())
+    data[0] ^= 0xFF
+    (tmp_path / "magic.bvh").write_bytes(bytes(data))
+    with pytest.raises(bvhc.InvalidFileError, match="magic.bvh"):
+        bvhc.open(tmp_path / "magic.bvh")
+    data = bytearray(bvh.read_bytes())
+    info = bvhc.open(bvh).info()
+    nodes = next(s for s in info["sections"] if s["name"] == "nodes")
+    data[nodes["byte_offset"] + 24 : nodes["byte_offset"] + 28] = (10**9).to_bytes(4, "little")  # a child index
+    (tmp_path / "child.bvh").write_bytes(bytes(data))
+    with pytest.raises(bvhc.InvalidFileError, match="child.bvh"):
+        bvhc.open(tmp_path / "child.bvh")
+    with pytest.raises(bvhc.InvalidFileError):
+        bvhc.verify(tmp_path / "child.bvh")
+    (tmp_path / "empty.bvh").write_bytes(b"")
+    with pytest.raises(bvhc.InvalidFileError):
+        bvhc.open(tmp_path / "empty.bvh")
+
+
+def test_bad_rays_raise_naming_the_ray(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    opened = bvhc.open(bvh)
+    origins = np.zeros((5, 3), dtype=np.float32)
+    directions = np.ones((5, 3), dtype=np.float32)
+    bad = origins.copy()
+    bad[3, 1] = np.nan
+    with pytest.raises(bvhc.InvalidInputError, match="ray 3: the origin is not finite"):
+        opened.closest_hits(bad, directions)
+    with pytest.raises(bvhc.InvalidInputError, match="ray 3"):
+        opened.any_hits(bad, directions)
+    zero = directions.copy()
+    zero[1] = 0
+    with pytest.raises(bvhc.InvalidInputError, match="ray 1: the direction"):
+        opened.closest_hits(origins, zero)
+    with pytest.raises(bvhc.InvalidInputError, match="ray 0: .*t_max"):
+        opened.closest_hits(origins, directions, 2.0, 1.0)
+    with pytest.raises(bvhc.InvalidInputError, match="ray 4"):
+        opened.closest_hits(origins, directions, np.array([0, 0, 0, 0, -1.0]))
+    with pytest.raises(bvhc.InvalidInputError, match="ray 2"):
+        opened.closest_hits(origins, directions, 0.0, np.array([1, 1, np.nan, 1, 1], dtype=np.float32))
+    with pytest.raises(bvhc.InvalidInputError, match=r"shape \[5, 2\]"):
+        opened.closest_hits(origins[:, :2], directions)
+    with pytest.raises(bvhc.InvalidInputError, match="5 origins but 4 directions"):
+        opened.closest_hits(origins, directions[:4])
+    with pytest.raises(bvhc.InvalidInputError, match="t_max: 3 values for 5 rays"):
+        opened.closest_hits(origins, directions, 0.0, np.ones(3))
+    with pytest.raises(bvhc.InvalidInputError, match="dtype float32 or float64"):
+        opened.closest_hits(origins.astype(np.int32), directions)
+    with pytest.raises(bvhc.InvalidInputError, match="threads"):
+        opened.closest_hits(origins, directions, threads=0)
+    assert opened.closest_hits(origins[:0], directions[:0])["t"].shape == (0,)
+
+
+def test_spawned_rays_leave_their_triangle(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    opened = bvhc.open(bvh)
+    origins, directions = random_rays(opened.bounds, 20_000, seed=11)
+    hits = opened.closest_hits(origins, directions)
+    hit = hits["triangle"] != bvhc.MISS
+    kept = {k: v[hit] for k, v in hits.items()}
+    # Away from the surface, on the side the ray came from.
+    side = np.where(kept["front_face"], 1.0, -1.0)[:, None] * kept["normal"]
+    o, d, lo, hi = opened.spawn(kept, side)
+    again = opened.closest_hits(o, d, lo, hi)
+    assert not np.any(again["source_id"] == kept["source_id"]), "a spawned ray met the triangle it left"
+    with pytest.raises(bvhc.InvalidInputError, match="miss"):
+        opened.spawn({k: v[~hit][:3] for k, v in hits.items()}, directions[~hit][:3])
+    foreign = dict(kept)
+    foreign["triangle"] = np.full(len(o), 10**8, dtype=np.uint32)
+    with pytest.raises(bvhc.InvalidInputError, match="hit 0"):
+        opened.spawn(foreign, side)
+
+
+def test_repeated_opens_do_not_leak(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    origins, directions = random_rays(bvhc.open(bvh).bounds, 1000, seed=5)
+
+    def resident_kib():
+        with open("/proc/self/status") as status:
+            return next(int(line.split()[1]) for line in status if line.startswith("VmRSS"))
+
+    def fds():
+        return len(os.listdir("/proc/self/fd"))
+
+    def cycle(count):
+        for _ in range(count):
+            opened = bvhc.open(bvh)
+            opened.closest_hits(origins, directions)
+            opened.info()
+            del opened
+        gc.collect()
+
+    cycle(200)
+    before, before_fds = resident_kib(), fds()
+    cycle(2000)
+    assert fds() <= before_fds
+    growth = resident_kib() - before
+    assert growth < 20_000, f"resident memory grew by {growth} KiB over 2000 opens"
