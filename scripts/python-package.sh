@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 venv="${1:-target/python/venv}"
 wheels="target/python/wheels"
 python3 -m venv "$venv"
-"$venv/bin/python" -m pip install -q "maturin>=1.5,<2" numpy pytest
+"$venv/bin/python" -m pip install -q "maturin>=1.5,<2" numpy pytest trimesh
 rm -rf "$wheels"
 CARGO_TARGET_DIR="$PWD/target/python/cargo" "$venv/bin/maturin" build --release -q \
   --manifest-path crates/bvhc-py/Cargo.toml --interpreter "$venv/bin/python" -o "$wheels"

@@ -11,6 +11,7 @@ import json
 import os
 import pathlib
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -141,6 +142,46 @@ def test_arrays_build_the_file_converting_their_ply_gives(tmp_path):
         assert np.array_equal(a.section(section), c.section(section)), section
 
 
+def test_a_trimesh_builds_through_its_arrays(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    report = bvhc.build(mesh.vertices, mesh.faces, tmp_path / "sphere.bvh")
+    assert report["report"]["triangle_count"] == len(mesh.faces)
+    opened = bvhc.open(tmp_path / "sphere.bvh")
+    # Rays from outside towards the center hit the unit sphere at t = 1 (within its flat facets).
+    origins = np.array([[0, 0, 2.0], [2.0, 0, 0], [0, -2.0, 0]])
+    hits = opened.closest_hits(origins, -origins)
+    assert np.all((hits["t"] > 0.49) & (hits["t"] <= 0.5 + 1e-6)), hits["t"]
+
+
+def test_memory_the_system_refuses_raises_out_of_memory(tmp_path):
+    # A child whose address space is capped just above what it holds: the conversion's probe for its working
+    # set (about 270 bytes a triangle) is refused.
+    code = """
+import resource, sys
+import numpy as np
+import bvhc
+v = np.random.default_rng(1).uniform(-1, 1, (600_000, 3)).astype(np.float32)
+f = np.arange(600_000).reshape(-1, 3)
+with open("/proc/self/status") as status:
+    size = next(int(line.split()[1]) for line in status if line.startswith("VmSize")) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (size + 160 * 2**20, resource.RLIM_INFINITY))
+try:
+    bvhc.build(v, f, sys.argv[1], max_memory="unlimited", threads=1)
+except bvhc.OutOfMemoryError as error:
+    print("OutOfMemoryError:", error)
+    sys.exit(0)
+except BaseException as error:
+    print(type(error).__name__, error)
+    sys.exit(1)
+sys.exit(2)
+"""
+    run = subprocess.run([sys.executable, "-c", code, str(tmp_path / "big.bvh")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "bvhc.build's arrays (as mesh.ply): out of memory" in run.stdout
+    assert not (tmp_path / "big.bvh").exists()
+
+
 def test_build_checks_its_arrays(tmp_path):
     vertices = np.zeros((3, 3), dtype=np.float32)
     with pytest.raises(bvhc.InvalidInputError, match="vertices"):
@@ -150,7 +191,7 @@ def test_build_checks_its_arrays(tmp_path):
     with pytest.raises(bvhc.InvalidInputError, match="faces"):
         bvhc.build(vertices, np.zeros((1, 3), dtype=np.float32), tmp_path / "x.bvh")
     bad = np.array([[0, 0, 0], [1, 0, 0], [np.nan, 1, 0]], dtype=np.float32)
-    with pytest.raises(bvhc.InvalidInputError, match="mesh.ply"):
+    with pytest.raises(bvhc.InvalidInputError, match=r"^bvhc.build's arrays \(as mesh.ply\): "):
         bvhc.build(bad, [[0, 1, 2]], tmp_path / "x.bvh")
     assert not (tmp_path / "x.bvh").exists()
 

@@ -179,7 +179,11 @@ def build(
         mesh = os.path.join(folder, "mesh.ply")
         with builtins.open(mesh, "wb") as out:
             out.write(_ply_bytes(v, f.astype(np.uint32)))
-        return convert(mesh, dst, preset, force=force, threads=threads, progress=progress, **options)
+        try:
+            return convert(mesh, dst, preset, force=force, threads=threads, progress=progress, **options)
+        except Error as error:
+            # Name the arrays rather than the temporary file.
+            raise type(error)(str(error).replace(mesh, "bvhc.build's arrays (as mesh.ply)")) from None
 
 
 
