@@ -8,7 +8,7 @@ One thread and all threads where the peer has the choice (trimesh's embreex quer
 overhead of the Python call: `closest_hits` (arrays in, arrays out) against the loader's batch call alone on the
 same rays and threads, timed inside the extension (`Scene.rust_batch_seconds`). Medians of 3 runs.
 
-    python crates/bvhc-py/bench/peers.py [--rays N] [--scenes kitchen,dragon]
+    python crates/bvhc-py/bench/peers.py [--rays N] [--scenes kitchen,dragon | --all]
 needs `pip install trimesh embreex open3d` (a peer that does not import is left out) and the shared scenes.
 """
 
@@ -75,7 +75,14 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--rays", type=int, default=1_000_000)
     parser.add_argument("--scenes", default=",".join(LIST))
+    parser.add_argument("--all", action="store_true", help="every scene file of the shared folder")
     args = parser.parse_args()
+    if args.all:
+        suffixes = (".gltf", ".glb", ".obj", ".ply", ".obj.gz", ".ply.gz")
+        found = sorted(p for p in SCENES.rglob("*") if p.is_file() and p.name.endswith(suffixes))
+        LIST.clear()
+        LIST.update({str(p.relative_to(SCENES)): str(p.relative_to(SCENES)) for p in found})
+        args.scenes = ",".join(LIST)
     try:
         import trimesh  # noqa: F401
         from trimesh.ray.ray_pyembree import RayMeshIntersector
@@ -99,8 +106,16 @@ def main():
             if not source.is_file():
                 print(f"note: {source} not found, {name} left out", file=sys.stderr)
                 continue
-            bvh = pathlib.Path(folder) / f"{name}.bvh"
-            bvhc.convert(source, bvh)
+            bvh = pathlib.Path(folder) / "scene.bvh"
+            try:
+                bvhc.convert(source, bvh, force=True)
+                vertices, faces = mesh_arrays(source, folder)
+            except Exception as error:  # a scene one side cannot read (Draco, an empty scene) is left out
+                print(f"note: {name} left out: {type(error).__name__}: {error}", file=sys.stderr)
+                continue
+            if len(faces) == 0 or bvhc.open(bvh).bounds is None:
+                print(f"note: {name} left out: no triangles", file=sys.stderr)
+                continue
             scene = bvhc.open(bvh)
             origins, directions = rays(scene.bounds, args.rays)
             del scene
@@ -110,7 +125,6 @@ def main():
                 bvhc_times[threads] = median_seconds(
                     lambda: bvhc.open(bvh).closest_hits(origins, directions, threads=threads)
                 )
-            vertices, faces = mesh_arrays(source, folder)
             row.append(f"{len(faces):,}")
             row += [f"{bvhc_times[1]:.3f}", f"{bvhc_times[None]:.3f}"]
             if RayMeshIntersector is not None:
