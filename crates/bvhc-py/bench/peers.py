@@ -6,7 +6,8 @@ hits. "open to last hit" is, for bvhc, `bvhc.open` (memory map and full verifica
 the peers, building their scene from the mesh's arrays (the mesh loaded beforehand, not timed) plus the query.
 One thread and all threads where the peer has the choice (trimesh's embreex query is single-threaded). The
 overhead of the Python call: `closest_hits` (arrays in, arrays out) against the loader's batch call alone on the
-same rays and threads, timed inside the extension (`Scene.rust_batch_seconds`). Medians of 3 runs.
+same rays and threads, timed inside the extension (`Scene.rust_batch_seconds`): the median of 7 alternating
+rounds' ratios. Other times are medians of 3 runs.
 
     python crates/bvhc-py/bench/peers.py [--rays N] [--scenes kitchen,dragon | --all]
 needs `pip install trimesh embreex open3d` (a peer that does not import is left out) and the shared scenes.
@@ -14,10 +15,12 @@ needs `pip install trimesh embreex open3d` (a peer that does not import is left 
 
 import argparse
 import gzip
+import json
 import os
 import pathlib
 import shutil
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -71,7 +74,28 @@ def rays(bounds, n, seed=2026):
     return origins, directions.astype(np.float32)
 
 
+def bvhc_measures(bvh, count):
+    """bvhc's columns for the file at `bvh`, measured in a fresh interpreter that imports numpy and bvhc alone
+    (the peers' idle thread pools would otherwise spin beside it)."""
+    scene = bvhc.open(bvh)
+    origins, directions = rays(scene.bounds, count)
+    measures = {}
+    for threads, key in [(1, "one"), (None, "all")]:
+        measures[key] = median_seconds(lambda: bvhc.open(bvh).closest_hits(origins, directions, threads=threads))
+        # Alternating rounds, the ratio taken within each round (this machine's speed drifts).
+        pythons, rusts = [], []
+        for _ in range(7):
+            pythons.append(median_seconds(lambda: scene.closest_hits(origins, directions, threads=threads), 1))
+            rusts.append(scene._native.rust_batch_seconds(origins, directions, threads))
+        ratio = statistics.median(p / r for p, r in zip(pythons, rusts))
+        measures[f"overhead_{key}"] = f"{statistics.median(pythons):.3f} / {statistics.median(rusts):.3f}: {ratio:.3f}"
+    return measures
+
+
 def main():
+    if sys.argv[1:2] == ["--measure-bvhc"]:
+        print(json.dumps(bvhc_measures(sys.argv[2], int(sys.argv[3]))))
+        return
     parser = argparse.ArgumentParser()
     parser.add_argument("--rays", type=int, default=1_000_000)
     parser.add_argument("--scenes", default=",".join(LIST))
@@ -116,21 +140,23 @@ def main():
             if len(faces) == 0 or bvhc.open(bvh).bounds is None:
                 print(f"note: {name} left out: no triangles", file=sys.stderr)
                 continue
+            time.sleep(1.0)  # the previous scene's peer threads stop spinning
+            measured = subprocess.run(
+                [sys.executable, __file__, "--measure-bvhc", str(bvh), str(args.rays)],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            bvhc_times = json.loads(measured.stdout)
             scene = bvhc.open(bvh)
             origins, directions = rays(scene.bounds, args.rays)
             del scene
-            row = [name]
-            bvhc_times = {}
-            for threads in [1, None]:
-                bvhc_times[threads] = median_seconds(
-                    lambda: bvhc.open(bvh).closest_hits(origins, directions, threads=threads)
-                )
-            row.append(f"{len(faces):,}")
-            row += [f"{bvhc_times[1]:.3f}", f"{bvhc_times[None]:.3f}"]
+            row = [name, f"{len(faces):,}", f"{bvhc_times['one']:.3f}", f"{bvhc_times['all']:.3f}"]
+            overhead = [bvhc_times["overhead_one"], bvhc_times["overhead_all"]]
             if RayMeshIntersector is not None:
                 mesh = trimesh.Trimesh(vertices, faces, process=False)
                 peer = median_seconds(lambda: RayMeshIntersector(mesh).intersects_first(origins, directions))
-                row.append(f"{peer:.3f} ({peer / bvhc_times[1]:.1f}x, {peer / bvhc_times[None]:.1f}x)")
+                row.append(f"{peer:.3f} ({peer / bvhc_times['one']:.1f}x, {peer / bvhc_times['all']:.1f}x)")
             else:
                 row.append("-")
             if o3d is not None:
@@ -145,18 +171,11 @@ def main():
                         s.cast_rays(o3d.core.Tensor(packed), nthreads=threads)
 
                     peer = median_seconds(open3d_run)
-                    mine = bvhc_times[1 if threads == 1 else None]
+                    mine = bvhc_times['one' if threads == 1 else 'all']
                     row.append(f"{peer:.3f} ({peer / mine:.1f}x)")
             else:
                 row += ["-", "-"]
-            scene = bvhc.open(bvh)
-            for threads in [1, None]:
-                python = median_seconds(lambda: scene.closest_hits(origins, directions, threads=threads))
-                rust = statistics.median(
-                    scene._native.rust_batch_seconds(origins, directions, threads) for _ in range(3)
-                )
-                row.append(f"{python:.3f} / {rust:.3f} = {python / rust:.3f}")
-            print("| " + " | ".join(row) + " |", flush=True)
+            print("| " + " | ".join(row + overhead) + " |", flush=True)
 
 
 if __name__ == "__main__":
