@@ -140,6 +140,35 @@ impl BoundView<'_> {
     }
 }
 
+/// The four ray arguments of a tracing call (`origins`, `directions`, `t_min`, `t_max`), borrowed read-only.
+pub struct RayArguments<'py> {
+    origins: Vectors<'py>,
+    directions: Vectors<'py>,
+    t_min: Bound1<'py>,
+    t_max: Bound1<'py>,
+}
+
+impl<'py> RayArguments<'py> {
+    /// The arguments as arrays and bounds, named in errors as the Python parameters.
+    pub fn extract(
+        origins: &pyo3::Bound<'py, PyAny>,
+        directions: &pyo3::Bound<'py, PyAny>,
+        t_min: &pyo3::Bound<'py, PyAny>,
+        t_max: &pyo3::Bound<'py, PyAny>,
+    ) -> PyResult<RayArguments<'py>> {
+        let origins = Vectors::extract("origins", origins)?;
+        let directions = Vectors::extract("directions", directions)?;
+        let t_min = Bound1::extract("t_min", t_min, origins.len())?;
+        let t_max = Bound1::extract("t_max", t_max, origins.len())?;
+        Ok(RayArguments { origins, directions, t_min, t_max })
+    }
+
+    /// The rays they describe.
+    pub fn rays(&self) -> PyResult<RayArrays<'_>> {
+        RayArrays::new(&self.origins, &self.directions, &self.t_min, &self.t_max)
+    }
+}
+
 /// The rays the arrays describe, read where they are traced, a chunk at a time (no copy of the whole set).
 #[derive(Clone, Copy)]
 pub struct RayArrays<'a> {

@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 
 use crate::errors::{InvalidFileError, InvalidInputError, loader};
-use crate::rays::{Bound1, RayArrays, Vectors};
+use crate::rays::{Bound1, RayArguments, RayArrays, Vectors};
 
 /// Rays traced a task.
 const CHUNK: usize = 1024;
@@ -215,11 +215,8 @@ impl Scene {
         t_max: Bound<'py, PyAny>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let origins = Vectors::extract("origins", &origins)?;
-        let directions = Vectors::extract("directions", &directions)?;
-        let t_min = Bound1::extract("t_min", &t_min, origins.len())?;
-        let t_max = Bound1::extract("t_max", &t_max, origins.len())?;
-        let rays = RayArrays::new(&origins, &directions, &t_min, &t_max)?;
+        let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
+        let rays = arguments.rays()?;
         let pool = pool(threads)?;
         let columns = with_view(py, &self.bytes, &self.path, |view| {
             let tracer = view.tracer();
@@ -239,11 +236,8 @@ impl Scene {
         t_max: Bound<'py, PyAny>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let origins = Vectors::extract("origins", &origins)?;
-        let directions = Vectors::extract("directions", &directions)?;
-        let t_min = Bound1::extract("t_min", &t_min, origins.len())?;
-        let t_max = Bound1::extract("t_max", &t_max, origins.len())?;
-        let rays = RayArrays::new(&origins, &directions, &t_min, &t_max)?;
+        let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
+        let rays = arguments.rays()?;
         let pool = pool(threads)?;
         let (occluded, first_bad) = with_view(py, &self.bytes, &self.path, |view| {
             let tracer = view.tracer().trusting_rays();
