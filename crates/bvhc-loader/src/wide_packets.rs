@@ -61,33 +61,19 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
     for lane in 0..LANES {
-        let hit = lane_hit(packet, ray, limit, &lanes, &hit_in, lane);
+        let hit = if lanes.zero & (1 << lane) != 0 {
+            ray.intersect_triangle(&packet.triangle(lane), limit)
+        } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
+            Some(hit_in(lane))
+        } else {
+            None
+        };
         if let Some(hit) = hit {
             limit = hit.t;
             best = Some((lane, hit));
         }
     }
     best
-}
-
-/// Lane `lane`'s hit within `limit`: redone by the scalar test where an edge function was zero, else the
-/// packet test's own.
-#[inline(always)]
-fn lane_hit(
-    packet: &TrianglePacket4,
-    ray: &PreparedRay,
-    limit: f32,
-    lanes: &PacketLanes,
-    hit_in: &impl Fn(usize) -> TriangleHit,
-    lane: usize,
-) -> Option<TriangleHit> {
-    if lanes.zero & (1 << lane) != 0 {
-        ray.intersect_triangle(&packet.triangle(lane), limit)
-    } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
-        Some(hit_in(lane))
-    } else {
-        None
-    }
 }
 
 /// Whether `candidates` asks about any of the lanes in `mask`.
@@ -118,7 +104,13 @@ fn accepted_in_packet<const ANY_HIT: bool, C: Candidates>(
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
     for lane in 0..LANES {
-        let hit = lane_hit(packet, ray, limit, lanes, hit_in, lane);
+        let hit = if lanes.zero & (1 << lane) != 0 {
+            ray.intersect_triangle(&packet.triangle(lane), limit)
+        } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
+            Some(hit_in(lane))
+        } else {
+            None
+        };
         if let Some(hit) = hit
             && candidates.accept(packet.triangle_index[lane], &hit)
         {
