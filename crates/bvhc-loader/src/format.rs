@@ -459,7 +459,8 @@ impl TrianglePacket4 {
     /// The triangle in `lane`.
     pub fn triangle(&self, lane: usize) -> PackedTriangle {
         let v = &self.vertices;
-        PackedTriangle { vertices: [0, 1, 2].map(|vertex| [0, 1, 2].map(|axis| v[vertex][axis][lane])) }
+        let corner = |vertex: usize| [v[vertex][0][lane], v[vertex][1][lane], v[vertex][2][lane]];
+        PackedTriangle { vertices: [corner(0), corner(1), corner(2)] }
     }
 
     /// Number of used lanes (lanes before the first unused one).

@@ -9,7 +9,8 @@
 //   0  gpu_nodes      storage, read        the `gpu_nodes` section's bytes (80 bytes a node, as array<vec4<u32>>)
 //   1  gpu_triangles  storage, read        the `gpu_triangles` section's bytes (40 bytes a triangle, array<vec2<u32>>)
 //   2  rays           storage, read        `Ray`s (32 bytes each); t_max must be finite (use 3.4e38 for "none")
-//   3  hits           storage, read_write  one `HitRecord` (16 bytes) per ray; `triangle` = 0xffffffff: no hit
+//   3  hits           storage, read_write  one `HitRecord` (16 bytes) per ray; `triangle` = 0xffffffff: no hit,
+//                                          and with t = -1: trace this ray on the CPU (an ill-conditioned hit)
 //   4  params         uniform              `Params`: how many rays
 // A hit names the record of the `triangles` section (its source id is `triangle_ids[triangle]`); `t`, `u`, `v` are
 // those of the CPU kernels (hit point `(1 - u - v) v0 + u v1 + v v2`). Any hit writes the first hit it finds.
@@ -50,6 +51,11 @@ const CULL_PADDING: f32 = 1.000003814697265625;
 const MIN_NORMAL: f32 = 1.1754943508222875e-38;
 const F32_MAX: f32 = 3.4028234663852886e38;
 const STACK_SIZE: u32 = 64u;
+// 11.1 step 5: a hit is ill-conditioned when |det| < extent / 64, or extent < 2^-100.
+const ILL_CONDITIONED: f32 = 0.015625;
+const TINY_EXTENT: f32 = 7.888609052210118e-31;
+// Widens an ill-conditioned candidate's depth range over the rounding of its depths (2^-20).
+const DEPTH_SLACK: f32 = 9.5367431640625e-07;
 const INNER_MASK: u32 = 0xff000000u;
 
 // A ray with what both tests need, computed once (as the CPU's PreparedRay).
@@ -274,7 +280,8 @@ fn edge_function(a: f32, b: f32, c: f32, d: f32) -> f32 {
     return p - q;
 }
 
-// The watertight test of GPU triangle `g` in f32: (t, u, v) and whether it hits within [t_min, t_max]. Every
+// The watertight test of GPU triangle `g` in f32: (t, u, v) and w = 1 if it hits within [t_min, t_max]; w = 2 for
+// an ill-conditioned hit (see below). Every
 // edge function has its exact sign (edge_function), as with the CPU kernels' f64 recomputation, so a ray through
 // a shared edge hits at least one of its triangles and a ray just outside a silhouette misses.
 fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
@@ -312,6 +319,19 @@ fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
     if (det == 0.0) {
         return miss;
     }
+    // An ill-conditioned hit (11.1 step 5: a needle, a sliver, a ray nearly in the plane) gets its exact t, u, v
+    // on the CPU, which WGSL's f32 cannot compute: it is not taken here; w = 2 and x, y the lowest and highest t it
+    // can have (the vertices' depths along the ray, widened over their rounding), for trace's decision.
+    let rho = max(max(max(abs(ax), abs(ay)), max(abs(bx), abs(by))), max(abs(cx), abs(cy)));
+    let extent = rho * (rho + (max(max(az, bz), cz) - min(min(az, bz), cz)));
+    if (abs(det) < extent * ILL_CONDITIONED || extent < TINY_EXTENT) {
+        let z0 = ray.shear.z * az;
+        let z1 = ray.shear.z * bz;
+        let z2 = ray.shear.z * cz;
+        let low = min(min(z0, z1), z2);
+        let high = max(max(z0, z1), z2);
+        return vec4<f32>(low - abs(low) * DEPTH_SLACK, high + abs(high) * DEPTH_SLACK, 0.0, 2.0);
+    }
     let t = (e_u * (ray.shear.z * az) + e_v * (ray.shear.z * bz) + e_w * (ray.shear.z * cz)) / det;
     if (!(t >= ray.t_min && t <= t_max)) {
         return miss;
@@ -331,6 +351,9 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
     let ray = prepare(ray_in);
     let inv = octant_inverse(ray_in.direction);
     var best_t = ray_in.t_max;
+    // The lowest t an ill-conditioned candidate could have (within [t_min, ...]); above t_max: none met.
+    var ill_low = F32_MAX;
+    var ill = false;
     var stack: array<vec2<u32>, STACK_SIZE>;
     var stack_len = 0u;
     var visits = 0u;
@@ -366,7 +389,12 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
             triangle_group.y &= ~(1u << bit);
             let g = triangle_group.x + bit;
             let hit = intersect_triangle(g, ray, best_t);
-            if (hit.w != 0.0) {
+            if (hit.w == 2.0) {
+                if (hit.y >= ray_in.t_min) {
+                    ill = true;
+                    ill_low = min(ill_low, hit.x);
+                }
+            } else if (hit.w != 0.0) {
                 best_t = hit.x;
                 record = HitRecord(hit.x, hit.y, hit.z, gpu_triangles[g * 5u + 4u].y);
                 if (any_hit) {
@@ -381,6 +409,11 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
             stack_len -= 1u;
             node_group = stack[stack_len];
         }
+    }
+    // An ill-conditioned candidate that could be the closest hit (or, for any hit, the only one): the host
+    // traces the ray on the CPU (GPU_REFINE).
+    if (ill && ill_low <= best_t) {
+        return HitRecord(-1.0, 0.0, 0.0, NO_HIT);
     }
     return record;
 }

@@ -25,6 +25,7 @@
 //! such an edge (`format-spec/bvh-1.md` 11.4).
 
 use crate::format::{GPU_MAX_DEPTH, GPU_WIDE, GpuNode, GpuTriangle, PackedTriangle};
+use crate::gpu_shader::GpuHitRecord;
 use crate::hit::{CULL_PADDING, Hit, TraversalCounter};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
 use crate::view::GpuSections;
@@ -69,6 +70,19 @@ impl<'a> GpuLayoutTracer<'a> {
         let (g, hit) = self.walk::<false>(ray, counter)?;
         let index = self.gpu_triangles.get(g as usize)?.triangle_index;
         Some(Hit::new(index, hit, self.triangles, self.triangle_ids, &ray.direction))
+    }
+
+    /// The record the WGSL kernel writes for `ray` (the closest hit, or for `any_hit` the first hit found), with
+    /// ill-conditioned hits given their exact values: what [`crate::GpuTracer`] puts in place of a record the
+    /// kernel left to the CPU ([`crate::gpu_shader::GpuHitRecord::needs_cpu`]).
+    pub fn record(&self, ray: &Ray, any_hit: bool) -> GpuHitRecord {
+        let found = if any_hit { self.walk::<true>(ray, &mut ()) } else { self.walk::<false>(ray, &mut ()) };
+        found
+            .and_then(|(g, hit)| {
+                let triangle = self.gpu_triangles.get(g as usize)?.triangle_index;
+                Some(GpuHitRecord { t: hit.t, u: hit.u, v: hit.v, triangle })
+            })
+            .unwrap_or(GpuHitRecord::MISS)
     }
 
     /// Whether anything is hit within `[t_min, t_max]`.

@@ -30,6 +30,12 @@ pub const GPU_WORKGROUP_SIZE: u32 = 64;
 /// [`GpuHitRecord::triangle`] of a miss.
 pub const GPU_NO_HIT: u32 = u32::MAX;
 
+/// [`GpuHitRecord::t`] of a record whose [`GpuHitRecord::triangle`] is [`GPU_NO_HIT`] when the kernel met an
+/// ill-conditioned hit that could decide the ray (`format-spec/bvh-1.md` 11.1 step 5, 11.4): its exact `t`,
+/// `u`, `v` need arithmetic WGSL lacks, so the ray is to be traced on the CPU ([`crate::GpuLayoutTracer::record`]
+/// gives the record the kernel would have written; [`crate::GpuTracer`] does this itself). A miss has `t = 0`.
+pub const GPU_REFINE_T: f32 = -1.0;
+
 /// A ray as the kernel reads it (binding 2), 32 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,8 +72,17 @@ pub struct GpuHitRecord {
 }
 
 impl GpuHitRecord {
+    /// A miss.
+    pub const MISS: GpuHitRecord = GpuHitRecord { t: 0.0, u: 0.0, v: 0.0, triangle: GPU_NO_HIT };
+
+    /// Whether the kernel left this ray to the CPU (see [`GPU_REFINE_T`]).
+    pub fn needs_cpu(&self) -> bool {
+        self.triangle == GPU_NO_HIT && self.t == GPU_REFINE_T
+    }
+
     /// The [`Hit`] this record reports for `ray` over the file's `triangles` and `triangle_ids`: the CPU
-    /// kernels' hit record (source id, geometric normal, side), or `None` for a miss or an index out of range.
+    /// kernels' hit record (source id, geometric normal, side), or `None` for a miss, a record left to the CPU
+    /// ([`GpuHitRecord::needs_cpu`]) or an index out of range.
     pub fn to_hit(&self, ray: &Ray, triangles: &[PackedTriangle], triangle_ids: Option<&[u32]>) -> Option<Hit> {
         if self.triangle == GPU_NO_HIT || self.triangle as usize >= triangles.len() {
             return None;

@@ -9,6 +9,7 @@ use std::time::Instant;
 use wgpu::util::DeviceExt;
 
 use crate::format::PackedTriangle;
+use crate::gpu_layout::GpuLayoutTracer;
 use crate::gpu_shader::{GPU_TRAVERSAL_WGSL, GPU_WORKGROUP_SIZE, GpuHitRecord, GpuParams, GpuRay};
 use crate::hit::Hit;
 use crate::intersect::Ray;
@@ -60,13 +61,18 @@ pub struct GpuTracer<'a> {
     sections: Option<(wgpu::Buffer, wgpu::Buffer)>,
     triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
+    /// The kernel's CPU model, which traces the rays the kernel leaves to the CPU.
+    model: GpuLayoutTracer<'a>,
 }
 
 /// Records of one batch call and its times.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GpuTrace {
-    /// One per ray.
+    /// One per ray: the kernel's, or for a ray it left to the CPU (an ill-conditioned hit,
+    /// [`GpuHitRecord::needs_cpu`]) the CPU model's ([`GpuLayoutTracer::record`]).
     pub records: Vec<GpuHitRecord>,
+    /// How many rays the kernel left to the CPU.
+    pub cpu_rays: usize,
     /// Seconds spent uploading the rays, dispatching, running and reading back (not the section upload).
     pub seconds: f64,
     /// Seconds the kernel ran, from timestamp queries, where the device has them.
@@ -210,7 +216,8 @@ impl<'a> GpuTracer<'a> {
                 return Err(GpuError::Device(error.to_string()));
             }
         }
-        Ok(GpuTracer { device, queue, adapter: None, layout, closest, any, sections, triangles, triangle_ids })
+        let model = GpuLayoutTracer::new(gpu, triangles, triangle_ids);
+        Ok(GpuTracer { device, queue, adapter: None, layout, closest, any, sections, triangles, triangle_ids, model })
     }
 
     /// The adapter [`GpuTracer::new`] chose (`None` on a caller's device).
@@ -230,7 +237,8 @@ impl<'a> GpuTracer<'a> {
         Ok(trace.records.iter().map(|r| r.triangle != crate::gpu_shader::GPU_NO_HIT).collect())
     }
 
-    /// The kernel's records for `rays` (closest hit, or for `any_hit` the first hit found), and the time spent.
+    /// The kernel's records for `rays` (closest hit, or for `any_hit` the first hit found), and the time spent
+    /// (including the CPU's tracing of the rays the kernel left to it).
     pub fn trace(&self, rays: &[Ray], any_hit: bool) -> Result<GpuTrace, GpuError> {
         let start = Instant::now();
         let mut records = Vec::with_capacity(rays.len());
@@ -242,15 +250,17 @@ impl<'a> GpuTracer<'a> {
                     records.extend(batch_records);
                     kernel_seconds = kernel_seconds.zip(seconds).map(|(a, b)| a + b);
                 }
-                None => records.extend(batch.iter().map(|_| GpuHitRecord {
-                    t: 0.0,
-                    u: 0.0,
-                    v: 0.0,
-                    triangle: crate::gpu_shader::GPU_NO_HIT,
-                })),
+                None => records.extend(batch.iter().map(|_| GpuHitRecord::MISS)),
             }
         }
-        Ok(GpuTrace { records, seconds: start.elapsed().as_secs_f64(), kernel_seconds })
+        let mut cpu_rays = 0;
+        for (record, ray) in records.iter_mut().zip(rays) {
+            if record.needs_cpu() {
+                *record = self.model.record(ray, any_hit);
+                cpu_rays += 1;
+            }
+        }
+        Ok(GpuTrace { records, cpu_rays, seconds: start.elapsed().as_secs_f64(), kernel_seconds })
     }
 
     /// One batch: upload, dispatch, copy, read back; the records and the kernel's seconds from timestamps.

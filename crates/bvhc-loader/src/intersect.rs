@@ -10,18 +10,20 @@
 //! * Triangle: S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013
 //!   ([`crate::watertight`], written once for every lane width; here its one-lane form). The 2D edge functions
 //!   U, V, W are recomputed in f64 when any is exactly 0, so a ray through a shared edge or vertex hits at
-//!   least one of the triangles that share it.
+//!   least one of the triangles that share it. An ill-conditioned hit (a needle, a sliver, a ray nearly in the
+//!   plane: `format-spec/bvh-1.md` 11.1 step 5) takes the exact `t`, `u`, `v` ([`crate::exact_hit`]).
 //!
 //! Direction components of +0 and -0 give infinite reciprocals. The slab distances are then `+-inf`, or NaN
 //! when the origin lies exactly on a slab plane (`0 * inf`); the slab bounds are accumulated with comparisons
 //! that ignore a NaN operand, which treats the origin on the plane as inside the closed slab, as the exact test
 //! would.
 
+use crate::exact_hit::exact_hit;
 use crate::format::{PackedNode, PackedTriangle, WIDE};
 use crate::simd::SlabRay;
 use crate::watertight::{
-    RelativeTriangle, barycentrics, determinant, distance, edge_functions, edge_functions_f64, has_zero_edge, outside,
-    sheared, zero_edges_exact,
+    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions,
+    edge_functions_f64, has_zero_edge, ill_conditioned, outside, sheared, zero_edges_exact,
 };
 
 /// Machine epsilon for f32 rounding, 2^-24.
@@ -89,6 +91,8 @@ pub struct TriangleHit {
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedRay {
     pub(crate) origin: [f32; 3],
+    /// The ray's direction, for the exact values of ill-conditioned hits.
+    direction: [f32; 3],
     pub(crate) inverse_direction: [f32; 3],
     /// `inverse_direction * EXIT_PADDING`: exit distances through it are Ize's padded ones.
     pub(crate) exit_inverse: [f32; 3],
@@ -128,6 +132,7 @@ impl PreparedRay {
         let row = |axis: usize, max: bool| axis * WIDE + if max { 3 * WIDE } else { 0 };
         PreparedRay {
             origin: ray.origin,
+            direction: d,
             inverse_direction,
             exit_inverse: inverse_direction.map(|i| i * EXIT_PADDING),
             negative: d.map(f32::is_sign_negative),
@@ -176,6 +181,14 @@ impl PreparedRay {
         (t_near <= t_far).then_some(t_near)
     }
 
+    /// The exact `t`, `u`, `v` of a hit on `triangle` that the watertight test found ill-conditioned
+    /// ([`exact_hit`]), as the hit within `[t_min, t_max]` or `Some(None)` when that `t` is outside; `None` when
+    /// there are none (the weights sum to zero), so that the test's own values stand.
+    pub(crate) fn exact_hit(&self, triangle: &PackedTriangle, t_max: f32) -> Option<Option<TriangleHit>> {
+        let hit = exact_hit(&self.origin, &self.direction, self.kz, &triangle.vertices)?;
+        Some((hit.t >= self.t_min && hit.t <= t_max).then_some(hit))
+    }
+
     /// The triangle's vertices relative to the origin, in the ray's permuted axes.
     #[inline(always)]
     pub(crate) fn relative(&self, triangle: &PackedTriangle) -> RelativeTriangle<f32> {
@@ -220,6 +233,11 @@ impl PreparedRay {
         let det = determinant(e);
         if det == 0.0 {
             return None;
+        }
+        if ill_conditioned(p, &r, det, ILL_CONDITIONED, TINY_EXTENT)
+            && let Some(hit) = self.exact_hit(triangle, t_max)
+        {
+            return hit;
         }
         let t = distance(e, &r, self.sz, det);
         if !(t >= self.t_min && t <= t_max) {

@@ -55,6 +55,8 @@ mod candidates;
 mod checksum;
 pub mod cost;
 mod error;
+mod exact_hit;
+mod exact_int;
 mod file;
 pub mod filter;
 pub mod format;

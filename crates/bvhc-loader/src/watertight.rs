@@ -3,7 +3,8 @@
 //! scalar test of `PreparedRay::intersect_triangle`), four triangles and one ray (a triangle packet),
 //! or one triangle and eight rays (a coherent ray packet). Every caller runs these steps in this order, so every
 //! lane width gives the scalar test's `t`, `u`, `v` bit for bit; lanes whose edge function is exactly 0 are
-//! redone by the scalar test, whose f64 recomputation decides them.
+//! redone by the scalar test, whose f64 recomputation decides them, and so are lanes whose hit is
+//! ill-conditioned ([`ill_conditioned`]), whose `t`, `u`, `v` are then exact ([`crate::exact_hit`]).
 //!
 //! Symbols: the ray is sheared so that it runs along +z of a ray space whose z axis (`kz`) is the direction's
 //! largest component; `sx, sy, sz` the shear; `U, V, W` the 2D edge functions, which are the barycentric
@@ -44,6 +45,36 @@ pub(crate) fn edge_functions<L: Lanes>([[ax, ay], [bx, by], [cx, cy]]: [[L; 2]; 
 #[inline(always)]
 pub(crate) fn has_zero_edge<L: Lanes>([u, v, w]: [L; 3], zero: L) -> L::Mask {
     u.eq(zero).or(v.eq(zero)).or(w.eq(zero))
+}
+
+/// A hit is **ill-conditioned** when `|det| < ILL_CONDITIONED * rho (rho + Z)`: its determinant is small against
+/// the size of the sheared triangle (`rho`, the largest sheared coordinate's magnitude) and its depth spread along
+/// the ray (`Z`): a needle or a sliver, or a ray nearly in the triangle's plane, whose f32 `t` could be far from
+/// the exact one. `format-spec/bvh-1.md` 11.1 (step 5) derives the bound on `t` this gives the other hits.
+pub(crate) const ILL_CONDITIONED: f32 = 1.0 / 64.0;
+
+/// Below this `rho (rho + Z)` the edge functions' products come near the subnormal range, where f32 loses
+/// relative precision: such hits are ill-conditioned too. `2^-100` (biased exponent 27, zero fraction).
+pub(crate) const TINY_EXTENT: f32 = f32::from_bits(27 << 23);
+
+/// The lanes whose hit, if they hit, is ill-conditioned (see [`ILL_CONDITIONED`]), from the sheared vertices
+/// `p`, the relative ones `r` (for the depths) and the determinant. `rho` is the largest of the six sheared
+/// coordinates' magnitudes (taken in this order with [`Lanes::max_or`]) and `Z = max(a_z, b_z, c_z) - min(a_z,
+/// b_z, c_z)`. Lanes that miss may come out either way; callers mask them.
+#[inline(always)]
+pub(crate) fn ill_conditioned<L: Lanes>(
+    p: [[L; 2]; 3],
+    r: &RelativeTriangle<L>,
+    det: L,
+    fraction: L,
+    tiny: L,
+) -> L::Mask {
+    let [[ax, ay], [bx, by], [cx, cy]] = p;
+    let rho = ax.abs().max_or(ay.abs()).max_or(bx.abs()).max_or(by.abs()).max_or(cx.abs()).max_or(cy.abs());
+    let (az, bz, cz) = (r.a[2], r.b[2], r.c[2]);
+    let spread = az.max_or(bz).max_or(cz).sub(az.min_or(bz).min_or(cz));
+    let extent = rho.mul(rho.add(spread));
+    det.abs().lt(extent.mul(fraction)).or(extent.lt(tiny))
 }
 
 /// The lanes where the edge functions have mixed signs: the ray passes outside the triangle. Some edge function

@@ -22,7 +22,8 @@ use crate::hit::{CULL_PADDING, lane_address};
 use crate::intersect::{PreparedRay, Ray, TriangleHit};
 use crate::simd::{Isa, LaneMask, Lanes};
 use crate::watertight::{
-    RelativeTriangle, barycentrics, determinant, distance, edge_functions, has_zero_edge, hits, outside, sheared,
+    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
+    hits, ill_conditioned, outside, sheared,
 };
 use crate::wide_packets::closest_in_packet;
 use crate::wide_walk::{STACK_LEN, Sections};
@@ -223,8 +224,9 @@ fn slot_test<I: Isa>(
 
 /// The triangles of `packets`, one after the other, against the `active` rays in lanes, when every ray has the
 /// shear axes `axes`: per (ray, triangle) the scalar watertight test's operations in its order, a lane with an
-/// edge function exactly 0 redone by the scalar test, and hits accepted in triangle order at `t <= t_max` of
-/// the ray, so each ray ends with what the single-ray packet test gives. Returns the rays that were hit.
+/// edge function exactly 0 or an ill-conditioned hit redone by the scalar test, and hits accepted in triangle
+/// order at `t <= t_max` of the ray, so each ray ends with what the single-ray packet test gives. Returns the rays
+/// that were hit.
 #[inline(always)]
 fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
     isa: I,
@@ -246,12 +248,20 @@ fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
                 b: relative_vertex(isa, &packet.vertices[1], tri, [kx, ky, kz], &origin),
                 c: relative_vertex(isa, &packet.vertices[2], tri, [kx, ky, kz], &origin),
             };
-            let e = edge_functions(sheared(&r, sx, sy));
+            let projected = sheared(&r, sx, sy);
+            let e = edge_functions(projected);
             let det = determinant(e);
             let t = distance(e, &r, sz, det);
-            let valid = hits(outside(e, zero), det, t, zero, t_min, isa.f8(&found.t_max));
-            let zero_rays = has_zero_edge(e, zero).bits() as u8 & active;
-            let valid_rays = valid.bits() as u8 & active & !zero_rays;
+            let outside = outside(e, zero);
+            let valid = hits(outside, det, t, zero, t_min, isa.f8(&found.t_max));
+            let inside = det.is_number().and_not(outside);
+            let mut redo_rays = has_zero_edge(e, zero).bits() as u8 & active;
+            if inside.bits() as u8 & active != 0 {
+                // Ill-conditioned hits get their exact values from the scalar test.
+                let ill = ill_conditioned(projected, &r, det, isa.f8_splat(ILL_CONDITIONED), isa.f8_splat(TINY_EXTENT));
+                redo_rays |= ill.and(inside).bits() as u8 & active;
+            }
+            let valid_rays = valid.bits() as u8 & active & !redo_rays;
             if valid_rays != 0 {
                 let (u, v) = barycentrics(e, det, one);
                 let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
@@ -264,7 +274,7 @@ fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
                 }
                 hit_rays |= valid_rays;
             }
-            let mut rays = zero_rays;
+            let mut rays = redo_rays;
             while rays != 0 {
                 let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
                 rays &= rays - 1;

@@ -1,25 +1,27 @@
 //! Leaf triangles of the wide BVH in packets of four, structure of arrays (`vertices[vertex][axis][lane]`), and
 //! the watertight test ([`crate::watertight`]) on all four lanes at once, in the instruction set's four lanes
 //! (SSE2 on the AVX2 path, portable arrays otherwise). Each lane gives the scalar test's `t`, `u`, `v` bit for
-//! bit; a lane where an edge function is exactly 0 is redone by the scalar test (its f64 recomputation), and
-//! unused lanes (NaN vertices) never hit.
+//! bit; a lane where an edge function is exactly 0 is redone by the scalar test (its f64 recomputation), and so
+//! is a lane whose hit is ill-conditioned (its exact `t`, `u`, `v`); unused lanes (NaN vertices) never hit.
 
 use crate::candidates::Candidates;
 use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::intersect::{PreparedRay, TriangleHit};
 use crate::simd::{Isa, LaneMask, Lanes};
 use crate::watertight::{
-    RelativeTriangle, barycentrics, determinant, distance, edge_functions, has_zero_edge, hits, outside, sheared,
+    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
+    hits, ill_conditioned, outside, sheared,
 };
 
-/// Per lane: the edge functions, `t`, the determinant, and bit masks of lanes with a zero edge function, of
-/// lanes that hit within `[t_min, t_max]`, and of the hit lanes at the smallest `t` among them.
+/// Per lane: the edge functions, `t`, the determinant, and bit masks of lanes the scalar test redoes (an edge
+/// function exactly 0, or an ill-conditioned hit, which takes its exact values), of lanes that hit within
+/// `[t_min, t_max]`, and of the hit lanes at the smallest `t` among them.
 struct PacketLanes {
     v: [f32; LANES],
     w: [f32; LANES],
     t: [f32; LANES],
     det: [f32; LANES],
-    zero: u32,
+    redo: u32,
     valid: u32,
     nearest: u32,
 }
@@ -45,10 +47,10 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
     };
     // A filter is consulted only when a lane that may hit is one it asks about (in practice: a lane of a
     // not-opaque triangle); otherwise every hit is accepted and the plain choice below is the filtered one.
-    if C::ACTIVE && asks_in_packet(packet, lanes.valid | lanes.zero, candidates) {
+    if C::ACTIVE && asks_in_packet(packet, lanes.valid | lanes.redo, candidates) {
         return accepted_in_packet::<ANY_HIT, C>(packet, ray, t_max, &lanes, &hit_in, candidates);
     }
-    if lanes.zero == 0 {
+    if lanes.redo == 0 {
         // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t. An any-hit
         // query only needs to know that a lane hits: its `u` and `v` are not computed (0).
         if ANY_HIT {
@@ -61,7 +63,7 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
     for lane in 0..LANES {
-        let hit = if lanes.zero & (1 << lane) != 0 {
+        let hit = if lanes.redo & (1 << lane) != 0 {
             ray.intersect_triangle(&packet.triangle(lane), limit)
         } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
             Some(hit_in(lane))
@@ -104,7 +106,7 @@ fn accepted_in_packet<const ANY_HIT: bool, C: Candidates>(
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
     for lane in 0..LANES {
-        let hit = if lanes.zero & (1 << lane) != 0 {
+        let hit = if lanes.redo & (1 << lane) != 0 {
             ray.intersect_triangle(&packet.triangle(lane), limit)
         } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
             Some(hit_in(lane))
@@ -146,13 +148,17 @@ fn packet_lanes<const ANY_HIT: bool, I: Isa>(
         c: [load(2, kx), load(2, ky), load(2, kz)],
     };
     let zero = isa.f4_splat(0.0);
-    let e = edge_functions(sheared(&r, sx, sy));
+    let p = sheared(&r, sx, sy);
+    let e = edge_functions(p);
     let on_edge = has_zero_edge(e, zero);
     let outside = outside(e, zero);
     let det = determinant(e);
-    if det.is_number().and_not(outside).or(on_edge).bits() == 0 {
+    let inside = det.is_number().and_not(outside);
+    if inside.or(on_edge).bits() == 0 {
         return None;
     }
+    let ill = ill_conditioned(p, &r, det, isa.f4_splat(ILL_CONDITIONED), isa.f4_splat(TINY_EXTENT));
+    let redo = on_edge.or(ill.and(inside));
     let t = distance(e, &r, sz, det);
     let valid = hits(outside, det, t, zero, isa.f4_splat(t_min), isa.f4_splat(t_max));
     let nearest = if ANY_HIT {
@@ -166,7 +172,7 @@ fn packet_lanes<const ANY_HIT: bool, I: Isa>(
         w: e[2].to_array(),
         t: t.to_array(),
         det: det.to_array(),
-        zero: on_edge.bits(),
+        redo: redo.bits(),
         valid: valid.bits(),
         nearest,
     })

@@ -18,6 +18,8 @@ pub(crate) trait Lanes: Copy {
     fn mul(self, other: Self) -> Self;
     /// `self / other`.
     fn div(self, other: Self) -> Self;
+    /// `|self|`: the sign bit cleared.
+    fn abs(self) -> Self;
     /// `self > other ? self : other` per lane (`other` where either is NaN), as `maxps` computes it.
     fn max_or(self, other: Self) -> Self;
     /// `self < other ? self : other` per lane (`other` where either is NaN), as `minps` computes it.
@@ -96,6 +98,10 @@ impl Lanes for f32 {
     #[inline(always)]
     fn div(self, other: f32) -> f32 {
         self / other
+    }
+    #[inline(always)]
+    fn abs(self) -> f32 {
+        f32::abs(self)
     }
     #[inline(always)]
     fn max_or(self, other: f32) -> f32 {
@@ -204,6 +210,10 @@ impl<const N: usize> Lanes for PortableLanes<N> {
     #[inline(always)]
     fn div(self, other: Self) -> Self {
         self.map2(other, |a, b| a / b)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        PortableLanes(self.0.map(f32::abs))
     }
     #[inline(always)]
     fn max_or(self, other: Self) -> Self {

@@ -176,6 +176,11 @@ impl Lanes for F32x4 {
         unsafe { F32x4(_mm_div_ps(self.0, other.0)) }
     }
     #[inline(always)]
+    fn abs(self) -> Self {
+        // SAFETY: SSE2 is part of the x86-64 baseline.
+        unsafe { F32x4(_mm_andnot_ps(_mm_set1_ps(-0.0), self.0)) }
+    }
+    #[inline(always)]
     fn max_or(self, other: Self) -> Self {
         // SAFETY: SSE2 is part of the x86-64 baseline.
         unsafe { F32x4(_mm_max_ps(self.0, other.0)) }
@@ -297,6 +302,11 @@ impl Lanes for F32x8 {
     fn div(self, other: Self) -> Self {
         // SAFETY: an eight-lane value proves AVX2 (see above).
         F32x8(unsafe { _mm256_div_ps(self.0, other.0) })
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        // SAFETY: an eight-lane value proves AVX2 (see above).
+        F32x8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
     }
     #[inline(always)]
     fn max_or(self, other: Self) -> Self {
