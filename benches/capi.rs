@@ -4,6 +4,12 @@
 //! `BVHC_CAPI_ROUNDS` (7) interleaved rounds and the ratio C / Rust. The C functions are called through their C
 //! ABI from Rust, which is what a C caller pays (the boundary's null checks, panic guard and record copies).
 //!
+//! Then, from C itself (`benches/c/lookups.c`, built with the system's `cc` against the static library, which
+//! `cargo build --release -p bvhc-capi` makes): the exported getters against the header's `static inline`
+//! readers over `bvhc_sections`, a material-and-texture filter finding its data through `bvhc_hit_source_corners`
+//! against reading the candidate's fields, and filtered batches on one thread and on every core, on the alpha
+//! scenes (glass vase, alpha blend test).
+//!
 //! `cargo bench --bench capi`; `BVHC_CAPI_SCENES=kitchen` picks scenes (the teapot fixture without the shared
 //! scenes), `BVHC_BENCH_RAYS` the ray count (1,000,000).
 #![allow(unsafe_code)] // calling the C API's extern "C" functions, each call's contract stated beside it
@@ -125,5 +131,55 @@ fn main() {
         }
         // SAFETY: the handle came from `bvhc_open` and is closed once.
         unsafe { bvhc_capi::bvhc_close(handle) };
+    }
+    from_c(dir.path(), ray_count);
+}
+
+/// The C program's look-ups and filters (see the module doc), on the alpha scenes, or the teapot fixture.
+fn from_c(dir: &std::path::Path, ray_count: usize) {
+    let library = std::env::current_exe().ok().and_then(|e| Some(e.parent()?.parent()?.join("libbvhc_capi.a")));
+    let Some(library) = library.filter(|l| l.is_file()) else {
+        println!("\n(C look-ups skipped: build the static library with `cargo build --release -p bvhc-capi`)");
+        return;
+    };
+    let binary = dir.join("lookups");
+    let compiler = std::env::var("CC").unwrap_or_else(|_| "cc".to_string());
+    let built = std::process::Command::new(&compiler)
+        .args(["-O2", "-std=c11"])
+        .arg(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/c/lookups.c"))
+        .arg(&library)
+        .args(["-lpthread", "-ldl", "-lm", "-o"])
+        .arg(&binary)
+        .status();
+    if !built.is_ok_and(|s| s.success()) {
+        println!("\n(C look-ups skipped: {compiler} could not build benches/c/lookups.c)");
+        return;
+    }
+    let mut scenes = harness::scenes(
+        &[
+            ("glass vase", "khr-glass-vase-flowers/GlassVaseFlowers.gltf"),
+            ("alpha blend test", "khr-alpha-blend-mode-test/AlphaBlendModeTest.gltf"),
+        ],
+        Some("BVHC_CAPI_SCENES"),
+    );
+    if scenes.is_empty() {
+        scenes.push(("teapot", std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj")));
+    }
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    println!("\nFrom C (benches/c/lookups.c, cc -O2, medians of 5; {threads} cores):\n");
+    for (name, path) in scenes {
+        let output = dir.join("lookups.bvh");
+        bvhc::Conversion::new(&path, &output).force(true).run().unwrap();
+        let file = BvhFile::read(&output).unwrap();
+        let rays = rays::uniform_rays(&file.view().nodes()[0], ray_count.min(200_000), 4_405);
+        let ray_file = dir.join("lookups.rays");
+        let bytes: Vec<u8> = rays
+            .iter()
+            .flat_map(|r| r.origin.into_iter().chain(r.direction).chain([r.t_min, r.t_max]).flat_map(f32::to_le_bytes))
+            .collect();
+        std::fs::write(&ray_file, bytes).unwrap();
+        let run = std::process::Command::new(&binary).arg(&output).arg(&ray_file).output().unwrap();
+        assert!(run.status.success(), "{name}: lookups exit {:?}", run.status.code());
+        println!("| {name} | |\n|---|---|\n{}", String::from_utf8_lossy(&run.stdout));
     }
 }

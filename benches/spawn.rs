@@ -68,7 +68,8 @@ fn trace(tracer: &Tracer<'_>, camera: &[Ray]) -> (u64, u64, u64) {
                 for _ in 0..8 {
                     let direction = surface.cosine_direction([rng.random(), rng.random()]);
                     counts.0 += 1;
-                    counts.1 += u64::from(own(tracer.closest_hit(&surface.spawn(direction))));
+                    counts.1 +=
+                        u64::from(own(tracer.closest_hit(&surface.spawn(direction).expect("a unit direction"))));
                     let naive = Ray { origin: surface.position, direction, t_min: 0.0, t_max: f32::INFINITY };
                     counts.2 += u64::from(own(tracer.closest_hit(&naive)));
                 }

@@ -145,7 +145,7 @@ fn ambient(scene: &dyn Scene, hit: &Hit, samples: usize, radius: f32, rng: &mut 
     let rays: Vec<Ray> = (0..samples)
         .map(|_| {
             let direction = surface.cosine_direction([rng.random(), rng.random()]);
-            Ray { t_max: radius, ..surface.spawn(direction) }
+            Ray { t_max: radius, ..surface.spawn(direction).expect("a unit direction") }
         })
         .collect();
     let mut occluded = vec![false; rays.len()];

@@ -53,6 +53,14 @@ static int check_errors(const bvhc_file *file) {
     char small[8];
     CHECK(bvhc_error_message(small, sizeof small) == length && strlen(small) == sizeof small - 1);
     CHECK(bvhc_error_message(NULL, 0) == length);
+    /* ... and across later failures, until this thread asks again: so a C argument list that calls
+       bvhc_last_error_message() before the failing call reads the previous message, never freed memory. */
+    CHECK(bvhc_open("/nonexistent/y.bvh", &none) == BVHC_ERROR_IO);
+    CHECK(bvhc_open("/nonexistent/z.bvh", &none) == BVHC_ERROR_IO);
+    CHECK(strcmp(message, copy) == 0);
+    CHECK(contains(bvhc_last_error_message(), "/nonexistent/z.bvh"));
+    /* A directory is named as one. */
+    CHECK(bvhc_open("/", &none) == BVHC_ERROR_IO && contains(bvhc_last_error_message(), "is a directory"));
 
     /* The ray contract: each rule refused, naming it; unchecked calls answer without a crash. */
     bvhc_ray bad[6];
@@ -113,6 +121,45 @@ static int check_errors(const bvhc_file *file) {
     foreign.instance_index = bvhc_instance_count(file) ? (uint32_t)bvhc_instance_count(file) : 0;
     CHECK(bvhc_spawn_ray(file, &foreign, up, &spawned) == BVHC_ERROR_ARGUMENT);
     CHECK(bvhc_hit_source_corners(file, &foreign, &corners) == BVHC_ERROR_ARGUMENT);
+
+    /* A real hit with its barycentrics off the triangle or NaN, and directions with no side to leave by. */
+    /* Aimed at the centroid of the first record (placed by the first instance in a two-level file). */
+    float corner[9], centroid[3];
+    CHECK(bvhc_triangle_vertices(file, 0, corner) == BVHC_OK);
+    for (int a = 0; a < 3; a++) centroid[a] = (corner[a] + corner[3 + a] + corner[6 + a]) / 3.0f;
+    if (bvhc_instance_count(file) > 0) {
+        bvhc_instance placing;
+        bvhc_mesh first;
+        for (uint32_t i = 0; i < bvhc_instance_count(file); i++) {
+            CHECK(bvhc_get_instance(file, i, &placing) == BVHC_OK);
+            CHECK(bvhc_get_mesh(file, placing.mesh_index, &first) == BVHC_OK);
+            if (first.first_triangle == 0) break;
+        }
+        float object[3] = {centroid[0], centroid[1], centroid[2]};
+        for (int r = 0; r < 3; r++)
+            centroid[r] = placing.object_to_world[r][0] * object[0] + placing.object_to_world[r][1] * object[1] +
+                          placing.object_to_world[r][2] * object[2] + placing.object_to_world[r][3];
+    }
+    bvhc_ray aimed = {{centroid[0] + 0.3f, centroid[1] + 0.2f, centroid[2] + 10.0f}, {-0.3f, -0.2f, -10.0f}, 0.0f,
+                      INFINITY};
+    int found_hit = bvhc_closest_hit(file, &aimed, &hit) == 1;
+    CHECK(found_hit);
+    {
+        CHECK(bvhc_spawn_ray(file, &hit, up, &spawned) == BVHC_OK);
+        bvhc_hit off = hit;
+        off.u = 3.0f;
+        off.v = -2.5f;
+        CHECK(bvhc_spawn_ray(file, &off, up, &spawned) == BVHC_ERROR_ARGUMENT);
+        CHECK(contains(bvhc_last_error_message(), "not on its triangle"));
+        off.u = NAN;
+        off.v = 0.25f;
+        CHECK(bvhc_spawn_ray(file, &off, up, &spawned) == BVHC_ERROR_ARGUMENT);
+        float nan_direction[3] = {NAN, 0.0f, 1.0f}, zero_direction[3] = {0.0f, -0.0f, 0.0f};
+        CHECK(bvhc_spawn_ray(file, &hit, nan_direction, &spawned) == BVHC_ERROR_RAY);
+        CHECK(contains(bvhc_last_error_message(), "not finite"));
+        CHECK(bvhc_spawn_ray(file, &hit, zero_direction, &spawned) == BVHC_ERROR_RAY);
+        CHECK(contains(bvhc_last_error_message(), "zero"));
+    }
 
     /* Indices out of range and null pointers. */
     float vertices[9];

@@ -366,7 +366,7 @@ fn spawned_rays_never_meet_their_own_instanced_triangle() {
         for _ in 0..4 {
             use rand::RngExt;
             let direction = surface.cosine_direction([rng.random(), rng.random()]);
-            let again = tracer.closest_hit(&surface.spawn(direction));
+            let again = tracer.closest_hit(&surface.spawn(direction).unwrap());
             spawned += 1;
             if again.is_some_and(|a| (a.instance_index, a.triangle_index) == (hit.instance_index, hit.triangle_index)) {
                 self_hits += 1;

@@ -182,3 +182,68 @@ fn surface_refuses_hits_that_are_not_the_files() {
         None => panic!("the test scene has more than one mesh"),
     }
 }
+
+/// Spawning refuses what names no point of the triangle or no side to leave by: `u`, `v` NaN or off the
+/// triangle (one- and two-level files), and directions or targets the ray contract refuses, naming the rule.
+#[test]
+fn spawning_refuses_points_off_the_triangle_and_directions_without_a_side() {
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = dir.path().join("teapot.bvh");
+    assert!(crate::cli::bvhc(&[&crate::cli::teapot(), &"-o", &bvh, &"-q", &"--preset", &"fast"]).status.success());
+    let file = BvhFile::read(&bvh).unwrap();
+    let tracer = file.view().tracer();
+    let hit = tracer.closest_hit(&Ray::new([0.0, 1.5, 10.0], [0.0, 0.0, -1.0])).expect("the teapot");
+    let (scene, sources) =
+        crate::instances::two_level(&crate::instances::test_meshes(), &crate::instances::test_placements(), true);
+    let two_level = crate::instances::write_two_level(&scene, &sources).unwrap();
+    let placed_tracer = two_level.view().tracer();
+    let placed = random_rays(8, 400, 4.0).iter().find_map(|r| placed_tracer.closest_hit(r)).expect("some ray hits");
+    for (tracer, hit) in [(&tracer, hit), (&placed_tracer, placed)] {
+        for (u, v) in
+            [(3.0, -2.5), (f32::NAN, 0.25), (0.25, f32::NAN), (-1e-30, 0.5), (0.75, 0.5), (f32::INFINITY, 0.0)]
+        {
+            let off = Hit { u, v, ..hit };
+            let refused = tracer.surface(&off).expect_err("off the triangle");
+            assert!(matches!(refused, ForeignHit::OffTriangle { .. }), "{u}, {v}: {refused:?}");
+            assert!(refused.to_string().contains("not on its triangle"), "{refused}");
+        }
+        // The corners and edges of the triangle are on it, -0 and the rounding of u + v included.
+        for (u, v) in [(0.0, 0.0), (-0.0, 1.0), (1.0, 0.0), (0.5, 0.5), (0.6, 0.4 + 2.0 * f32::EPSILON)] {
+            assert!(tracer.surface(&Hit { u, v, ..hit }).is_ok(), "{u}, {v}");
+        }
+        let surface = tracer.surface(&hit).unwrap();
+        for (direction, rule) in [
+            ([f32::NAN, 0.0, 1.0], "not finite"),
+            ([0.0, f32::INFINITY, 0.0], "not finite"),
+            ([0.0, -0.0, 0.0], "zero"),
+            ([1e-30, 0.0, 0.0], "2^-64"),
+        ] {
+            let refused = surface.spawn(direction).expect_err("no side to leave by");
+            assert!(refused.to_string().contains(rule), "{direction:?}: {refused}");
+            assert!(surface.offset_origin(direction).is_err());
+        }
+        assert!(surface.spawn_to([f32::NAN, 0.0, 0.0]).is_err());
+        assert!(surface.spawn_to(surface.position).is_err(), "a target at the surface point has no direction");
+        assert!(surface.spawn([0.0, 1.0, 0.0]).is_ok() && surface.spawn_to([0.0, 100.0, 0.0]).is_ok());
+    }
+}
+
+/// Opening a directory says so (a memory map would report "No such device"); a FIFO is refused without
+/// blocking on it.
+#[test]
+#[allow(unsafe_code)] // `MappedBvh::open` is the loader's one unsafe door (a mapped file must not change)
+fn opening_a_directory_or_a_fifo_says_what_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let read = BvhFile::read(dir.path()).expect_err("a directory");
+    assert!(read.to_string().contains("is a directory"), "{read}");
+    // SAFETY: nothing writes the path while it is (not) mapped.
+    let mapped = unsafe { bvhc::loader::MappedBvh::open(dir.path()) }.expect_err("a directory");
+    assert!(mapped.to_string().contains("is a directory"), "{mapped}");
+    let fifo = dir.path().join("fifo.bvh");
+    if std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+        let read = BvhFile::read(&fifo).expect_err("a FIFO");
+        assert!(read.to_string().contains("not a regular file"), "{read}");
+    } else {
+        crate::skips::skipped(crate::skips::Needs::Tools, "part: a FIFO refused (mkfifo)".to_string());
+    }
+}

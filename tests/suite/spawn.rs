@@ -35,7 +35,7 @@ fn count_self_hits(tracer: &Tracer<'_>, camera_rays: &[Ray], per_hit: usize, see
             let direction = surface.cosine_direction([rng.random(), rng.random()]);
             counts.spawned += 1;
             let own = |found: Option<Hit>| found.is_some_and(|h| h.triangle_index == hit.triangle_index);
-            let spawned = surface.spawn(direction);
+            let spawned = surface.spawn(direction).expect("a unit direction");
             let again = tracer.closest_hit(&spawned);
             if own(again) && std::env::var_os("BVHC_DEBUG_SPAWN").is_some() {
                 let n = surface.normal;
@@ -155,8 +155,12 @@ fn a_shadow_ray_across_a_thin_gap_finds_the_occluder() {
                 let hit = tracer.closest_hit(&down).expect("the lower square is hit from below");
                 let surface = tracer.surface(&hit).unwrap();
                 let light = at(0.5, 0.5, 2.0);
-                assert!(tracer.any_hit(&surface.spawn_to(light)), "x{scale} +{offset} gap {gap}: the upper square");
-                let up = tracer.closest_hit(&surface.spawn([0.0, 0.0, 1.0])).expect("the upper square is above");
+                assert!(
+                    tracer.any_hit(&surface.spawn_to(light).unwrap()),
+                    "x{scale} +{offset} gap {gap}: the upper square"
+                );
+                let up =
+                    tracer.closest_hit(&surface.spawn([0.0, 0.0, 1.0]).unwrap()).expect("the upper square is above");
                 // At most the gap, and the origin moved off the lower square by less than half of it.
                 let expected = (gap * scale) as f32;
                 assert!(up.t > 0.5 * expected && up.t <= 1.01 * expected, "x{scale} +{offset} gap {gap}: t {}", up.t);
@@ -300,7 +304,7 @@ fn ambient_occlusion_with_spawned_rays_matches_an_f64_reference() {
         for _ in 0..16 {
             let direction = surface.cosine_direction([rng.random(), rng.random()]);
             samples += 1;
-            ours += usize::from(!tracer.any_hit(&Ray { t_max: radius, ..surface.spawn(direction) }));
+            ours += usize::from(!tracer.any_hit(&Ray { t_max: radius, ..surface.spawn(direction).unwrap() }));
             let naive_ray = Ray { origin: surface.position, direction, t_min: 0.0, t_max: radius };
             naive += usize::from(!tracer.any_hit(&naive_ray));
             let d = direction.map(f64::from);
@@ -343,7 +347,7 @@ fn cosine_directions_are_unit_in_the_facing_hemisphere_with_the_cosine_density()
             front_face,
             instance_index: None,
         };
-        let surface = bvhc::loader::SurfacePoint::new(&hit, &record);
+        let surface = bvhc::loader::SurfacePoint::new(&hit, &record).expect("u, v on the triangle");
         let facing = surface.facing_normal();
         assert_eq!(facing[2].signum(), if front_face { 1.0 } else { -1.0 });
         let n = 200_000;

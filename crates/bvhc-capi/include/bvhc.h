@@ -6,8 +6,13 @@
  * Open a .bvh file (from a path or from memory), verify it, and trace rays: the hit records are the Rust API's,
  * field for field (t, u, v, normal, triangle index, source id, instance, front face). Conventions:
  * - functions returning bvhc_status give BVHC_OK (0) or an error code (bvhc_status_name names it), with a
- *   message in bvhc_last_error_message(): per thread, valid and unchanged until the next call that FAILS on
- *   that thread (successful calls leave it); bvhc_error_message() copies it;
+ *   message in bvhc_last_error_message(): per thread; the pointer it returns stays valid, its text unchanged,
+ *   until the same thread calls bvhc_last_error_message() again after another call has failed (successful
+ *   calls change nothing); bvhc_error_message() copies the newest message. Take the status first, then ask:
+ *       bvhc_status status = bvhc_open(path, &file);
+ *       if (status != BVHC_OK) fprintf(stderr, "%s: %s\n", bvhc_status_name(status), bvhc_last_error_message());
+ *   (printf("%d %s", bvhc_open(...), bvhc_last_error_message()) may ask before opening: C leaves the order of
+ *   arguments unspecified; the text is then the previous failure's, never freed memory);
  * - bvhc_closest_hit and bvhc_any_hit return 1 (hit), 0 (miss) or -1 (an error, with its message);
  * - rays are checked against the ray contract (finite origin and direction, the direction's largest component
  *   at least 2^-64 in magnitude, 0 <= t_min <= t_max, t_max not NaN): a ray that breaks it is refused with
@@ -23,7 +28,10 @@
  * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices (bvhc_triangle_vertices);
  * bvhc_hit_source_corners names them in the source scene's own primitive (format-spec/bvh-1.md 5.9), to
  * interpolate its normals, texture coordinates or colours. bvhc_spawn_ray gives a secondary ray with t_min = 0
- * that does not meet the triangle it leaves, at any scale, with no epsilon to choose.
+ * that does not meet the triangle it leaves, at any scale, with no epsilon to choose; it refuses a hit that is
+ * not the file's (a record or instance out of range, u or v NaN or off the triangle: u >= 0, v >= 0,
+ * u + v <= 1 + 2^-20) with BVHC_ERROR_ARGUMENT and a direction the ray contract refuses (NaN, infinite, zero)
+ * with BVHC_ERROR_RAY.
  * Two-level files (format 1.3) place meshes by instances: a hit names its instance, whose transforms, mesh
  * and glTF node bvhc_get_instance gives; the hit's normal is in world space, the record's vertices in the mesh's
  * object space.
@@ -144,7 +152,10 @@ bvhc_status bvhc_any_hits_coherent_unchecked(const bvhc_file *file, const bvhc_r
  * reject it (traversal then goes on as if the triangle were not hit). With BVHC_FILTER_NOT_OPAQUE it is called
  * only for triangles the file marks not opaque (format 1.5, glTF alphaMode MASK or BLEND; bvhc_triangle_flags),
  * so opaque geometry costs nothing; with BVHC_FILTER_EVERY for every candidate. It may be called for candidates
- * farther than the hit finally returned, and must answer alike for the same candidate. Batches trace ray by ray. */
+ * farther than the hit finally returned, and must answer alike for the same candidate. The candidate carries its
+ * source primitive (glTF mesh and primitive: the material) and source vertices (with u, v: texture coordinates),
+ * so an alpha test needs no call back into the library. Batches trace ray by ray on the calling thread, or with
+ * the _threads forms on as many threads as allowed. */
 #define BVHC_FILTER_NOT_OPAQUE 0
 #define BVHC_FILTER_EVERY 1
 #define BVHC_TRIANGLE_NOT_OPAQUE 0x01
@@ -152,11 +163,16 @@ bvhc_status bvhc_any_hits_coherent_unchecked(const bvhc_file *file, const bvhc_r
 typedef struct bvhc_candidate {
     const bvhc_ray *ray;         /* as given to the call */
     float t;
-    float u;                     /* weight of the record's v1: with bvhc_triangle_source_vertices, the texture */
+    float u;                     /* weight of the record's v1: with source_vertices below, the texture */
     float v;                     /* coordinates of the source primitive at the candidate */
     uint32_t triangle_index;
     uint32_t source_triangle_id; /* BVHC_NO_SOURCE_ID without ids */
     uint32_t instance_index;     /* BVHC_NO_INSTANCE in a one-level file */
+    uint32_t mesh_index;         /* glTF mesh (OBJ model) of its source primitive; BVHC_NO_INDEX without ids */
+    uint32_t primitive_index;    /* glTF primitive within that mesh: its material is the candidate's */
+    uint32_t node_index;         /* glTF node that placed it (the instance's, through an instance), or BVHC_NO_INDEX */
+    uint32_t source_vertices[3]; /* the record's v0, v1, v2 in that primitive (weights 1-u-v, u, v), or
+                                    BVHC_NO_INDEX without the source_vertices section (format 1.2) */
 } bvhc_candidate;
 
 typedef int (*bvhc_filter)(void *user_data, const bvhc_candidate *candidate);
@@ -169,6 +185,14 @@ bvhc_status bvhc_closest_hits_filtered(const bvhc_file *file, const bvhc_ray *ra
                                        uint8_t *found, bvhc_filter filter, void *user_data, int scope);
 bvhc_status bvhc_any_hits_filtered(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded,
                                    bvhc_filter filter, void *user_data, int scope);
+/* The same on up to `threads` threads (0: every core), chunks of at least 1024 rays: the filter is then called
+ * from several threads at once, and must be safe to be (no unsynchronized writes to shared state). */
+bvhc_status bvhc_closest_hits_filtered_threads(const bvhc_file *file, const bvhc_ray *rays, size_t count,
+                                               bvhc_hit *hits, uint8_t *found, bvhc_filter filter, void *user_data,
+                                               int scope, size_t threads);
+bvhc_status bvhc_any_hits_filtered_threads(const bvhc_file *file, const bvhc_ray *rays, size_t count,
+                                           uint8_t *occluded, bvhc_filter filter, void *user_data, int scope,
+                                           size_t threads);
 int bvhc_triangle_flags(const bvhc_file *file, uint32_t triangle_index); /* -1: out of range */
 
 /* From a hit. */
@@ -186,6 +210,59 @@ bvhc_status bvhc_get_mesh(const bvhc_file *file, uint32_t mesh_index, bvhc_mesh 
 size_t bvhc_instance_count(const bvhc_file *file);     /* 0 for a one-level file */
 bvhc_status bvhc_get_instance(const bvhc_file *file, uint32_t instance_index, bvhc_instance *out);
 size_t bvhc_metadata_json(const bvhc_file *file, char *buffer, size_t capacity); /* snprintf-style; 0: none */
+
+/* Where source ids come from: the source table's ranges (format-spec/bvh-1.md 5.4). */
+typedef struct bvhc_source_range {
+    uint32_t first_source_triangle;
+    uint32_t source_triangle_count;
+    uint32_t file_index;      /* the input in the metadata's "inputs" */
+    uint32_t node_index;      /* glTF node, or BVHC_NO_INDEX (a mesh placed by instances: see the instance) */
+    uint32_t mesh_index;      /* glTF mesh or OBJ model, or BVHC_NO_INDEX */
+    uint32_t primitive_index; /* glTF primitive within the mesh (so its material), or BVHC_NO_INDEX */
+    uint32_t instance_index;  /* EXT_mesh_gpu_instancing instance, or BVHC_NO_INDEX */
+    uint32_t reserved;
+} bvhc_source_range;
+/* The range holding a source id: BVHC_ERROR_NOT_IN_FILE without a source table, BVHC_ERROR_ARGUMENT if none. */
+bvhc_status bvhc_source_range_of(const bvhc_file *file, uint32_t source_triangle_id, bvhc_source_range *out);
+
+/* The file's arrays, for look-ups per candidate or per pixel without a call into the library: fill once with
+ * bvhc_get_sections (the pointers stay valid until bvhc_close; NULL where the file has no such section), then
+ * read through the static inline functions below, which check their index. */
+typedef struct bvhc_sections {
+    size_t triangle_count;
+    const float (*triangles)[9];          /* each record's v0, v1, v2 */
+    const uint32_t *triangle_ids;         /* source ids, or NULL */
+    const uint32_t (*source_vertices)[3]; /* source vertices of v0, v1, v2 (format 1.2), or NULL */
+    const uint8_t *triangle_flags;        /* bit 0 BVHC_TRIANGLE_NOT_OPAQUE (format 1.5), or NULL: all opaque */
+    size_t source_range_count;
+    const bvhc_source_range *source_ranges; /* ascending by first_source_triangle, or NULL */
+} bvhc_sections;
+bvhc_status bvhc_get_sections(const bvhc_file *file, bvhc_sections *out);
+
+/* Source id of a record, or BVHC_NO_SOURCE_ID (no ids, or out of range). */
+static inline uint32_t bvhc_sections_source_id(const bvhc_sections *s, uint32_t triangle_index) {
+    return s->triangle_ids && triangle_index < s->triangle_count ? s->triangle_ids[triangle_index] : BVHC_NO_SOURCE_ID;
+}
+/* Flags of a record (0 without the section), or -1 out of range. */
+static inline int bvhc_sections_triangle_flags(const bvhc_sections *s, uint32_t triangle_index) {
+    if (triangle_index >= s->triangle_count) return -1;
+    return s->triangle_flags ? s->triangle_flags[triangle_index] : 0;
+}
+/* Source vertices of a record's v0, v1, v2, or NULL (no section, or out of range). */
+static inline const uint32_t *bvhc_sections_source_vertices(const bvhc_sections *s, uint32_t triangle_index) {
+    return s->source_vertices && triangle_index < s->triangle_count ? s->source_vertices[triangle_index] : NULL;
+}
+/* The source range holding a source id (binary search), or NULL. */
+static inline const bvhc_source_range *bvhc_sections_source_range(const bvhc_sections *s, uint32_t source_triangle_id) {
+    size_t low = 0, high = s->source_ranges ? s->source_range_count : 0;
+    while (low < high) { /* the first range whose first_source_triangle is above the id, then one back */
+        size_t middle = low + (high - low) / 2;
+        if (s->source_ranges[middle].first_source_triangle <= source_triangle_id) low = middle + 1; else high = middle;
+    }
+    if (low == 0) return NULL;
+    const bvhc_source_range *range = &s->source_ranges[low - 1];
+    return source_triangle_id - range->first_source_triangle < range->source_triangle_count ? range : NULL;
+}
 
 #ifdef __cplusplus
 }

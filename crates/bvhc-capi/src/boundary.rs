@@ -55,13 +55,26 @@ impl BvhcFile {
     }
 }
 
+/// A thread's error messages: the last failed call's (`pending`, numbered), and the text
+/// [`bvhc_last_error_message`] last handed out (`shown`, with the number it had), which stays allocated until the
+/// thread asks again after a newer failure. So a pointer it returned outlives later failing calls: a C argument
+/// list that calls both in either order prints some message of this thread, never freed memory.
+#[derive(Default)]
+struct Messages {
+    pending: (u64, CString),
+    shown: (u64, CString),
+}
+
 thread_local! {
-    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+    static MESSAGES: RefCell<Messages> = RefCell::new(Messages::default());
 }
 
 fn set_error(message: &str) {
     let message = CString::new(message.replace('\0', " ")).unwrap_or_default();
-    LAST_ERROR.with(|last| *last.borrow_mut() = message);
+    MESSAGES.with(|m| {
+        let mut m = m.borrow_mut();
+        m.pending = (m.pending.0 + 1, message);
+    });
 }
 
 /// Runs `body`, turning an error into its status (with its message as the thread's last error) and a panic
@@ -103,11 +116,18 @@ pub(crate) unsafe fn file_ref<'f>(call: &str, file: *const BvhcFile) -> Result<&
 }
 
 /// The message of the last failed call on this thread (empty when none), NUL-terminated. The pointer stays
-/// valid, and the text the same, until the next call that fails on this thread (calls that succeed leave it);
-/// [`bvhc_error_message`] copies it.
+/// valid, and its text the same, until this thread calls `bvhc_last_error_message` again after another call has
+/// failed: later failures do not free it (calls that succeed change nothing). [`bvhc_error_message`] copies the
+/// message instead.
 #[unsafe(no_mangle)]
 pub extern "C" fn bvhc_last_error_message() -> *const c_char {
-    LAST_ERROR.with(|last| last.borrow().as_ptr())
+    MESSAGES.with(|m| {
+        let mut m = m.borrow_mut();
+        if m.shown.0 != m.pending.0 {
+            m.shown = m.pending.clone();
+        }
+        m.shown.1.as_ptr()
+    })
 }
 
 /// Copies the message of the last failed call on this thread into `buffer` (`capacity` bytes, NUL-terminated,
@@ -119,10 +139,10 @@ pub extern "C" fn bvhc_last_error_message() -> *const c_char {
 /// `buffer` is null or points to `capacity` writable bytes.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn bvhc_error_message(buffer: *mut c_char, capacity: usize) -> usize {
-    LAST_ERROR.with(|last| {
-        let last = last.borrow();
+    MESSAGES.with(|m| {
+        let m = m.borrow();
         // SAFETY: the caller's contract is this function's.
-        unsafe { copy_text(last.as_bytes(), buffer, capacity) }
+        unsafe { copy_text(m.pending.1.as_bytes(), buffer, capacity) }
     })
 }
 
@@ -167,6 +187,27 @@ mod tests {
         assert_eq!(name(BVHC_ERROR_RAY), "BVHC_ERROR_RAY");
         assert_eq!(name(-1), "unknown bvhc_status");
         assert_eq!(name(8), "unknown bvhc_status");
+    }
+
+    #[test]
+    fn a_returned_message_outlives_later_failures_until_asked_again() {
+        let text = |p: *const c_char| {
+            // SAFETY: the pointer is one `bvhc_last_error_message` returned and the test asks again only after.
+            unsafe { CStr::from_ptr(p) }.to_str().unwrap().to_string()
+        };
+        set_error("first");
+        let first = bvhc_last_error_message();
+        assert_eq!(bvhc_last_error_message(), first, "asking again without a new failure: the same text");
+        set_error("second");
+        set_error("third");
+        assert_eq!(text(first), "first", "later failures leave the returned text alone");
+        let third = bvhc_last_error_message();
+        assert_eq!(text(third), "third");
+        let mut buffer = [0 as c_char; 16];
+        set_error("fourth");
+        // SAFETY: `buffer` has 16 writable bytes.
+        assert_eq!(unsafe { bvhc_error_message(buffer.as_mut_ptr(), 16) }, 6, "the copy is the newest message");
+        assert_eq!(text(third), "third");
     }
 
     #[test]

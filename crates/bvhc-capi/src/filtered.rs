@@ -1,13 +1,16 @@
 //! Hit filters from C: a function pointer and the caller's data, called for each candidate hit (by default only
 //! on triangles the file marks not opaque, format 1.5) before it is accepted; nonzero accepts it, zero rejects
-//! it and traversal goes on (`bvhc_loader::filter`). Closest and any hit, one ray or an array of them, one- and
-//! two-level files; rays checked as the other calls check them.
+//! it and traversal goes on (`bvhc_loader::filter`). The candidate carries what a renderer's alpha test needs
+//! to find its material and texture coordinates: the source primitive (glTF mesh, primitive, node) and the
+//! record's source vertices. Closest and any hit of one ray here, one- and two-level files; rays checked as the
+//! other calls check them. Batches: `filtered_batch.rs`.
 
 use std::ffi::{c_int, c_void};
 
-use bvhc_loader::{Candidate, FilterScope, HitFilter};
+use bvhc_loader::format::NO_INDEX;
+use bvhc_loader::{BvhView, Candidate, FilterScope, HitFilter};
 
-use crate::boundary::{BVHC_ERROR_ARGUMENT, BVHC_ERROR_RAY, BVHC_OK, BvhcFile, argument, file_ref, guarded};
+use crate::boundary::{BVHC_ERROR_ARGUMENT, BvhcFile, argument, file_ref, guarded};
 use crate::records::{BvhcHit, BvhcRay};
 use crate::single::checked;
 
@@ -29,6 +32,15 @@ pub struct BvhcCandidate {
     pub source_triangle_id: u32,
     /// In a two-level file, the instance; `0xFFFFFFFF` otherwise.
     pub instance_index: u32,
+    /// The glTF mesh (OBJ model) of its source primitive, or `0xFFFFFFFF` without ids and a source table.
+    pub mesh_index: u32,
+    /// The glTF primitive within that mesh (whose material the triangle has), or `0xFFFFFFFF`.
+    pub primitive_index: u32,
+    /// The glTF node that placed it (through an instance, the instance's node), or `0xFFFFFFFF`.
+    pub node_index: u32,
+    /// The source vertices of the record's `v0`, `v1`, `v2` in that primitive (format 1.2), which `u` and `v`
+    /// weigh as in `bvhc_source_corners`; `0xFFFFFFFF` each without the `source_vertices` section.
+    pub source_vertices: [u32; 3],
 }
 
 /// `bvhc_filter`: returns nonzero to accept `candidate`, zero to reject it.
@@ -39,36 +51,61 @@ pub const BVHC_FILTER_NOT_OPAQUE: c_int = 0;
 /// Every candidate is asked about.
 pub const BVHC_FILTER_EVERY: c_int = 1;
 
-/// A C filter as a [`HitFilter`].
-struct CFilter {
+/// A C filter as a [`HitFilter`], with the file's view for the candidate's source primitive.
+pub(crate) struct CFilter<'a> {
     function: unsafe extern "C" fn(*mut c_void, *const BvhcCandidate) -> c_int,
     user_data: *mut c_void,
+    view: BvhView<'a>,
 }
 
-impl HitFilter for CFilter {
-    fn accept(&self, candidate: &Candidate<'_>) -> bool {
-        let record = BvhcCandidate {
+// SAFETY: the parallel batch calls share one `CFilter` between threads; their C contract makes the caller
+// promise that `function` may be called from several threads at once with `user_data`, and `view` is `Sync`.
+unsafe impl Sync for CFilter<'_> {}
+
+impl CFilter<'_> {
+    /// `candidate` as C sees it: the kernel's fields and the source primitive's (an O(log ranges) lookup).
+    fn record(&self, candidate: &Candidate<'_>) -> BvhcCandidate {
+        let view = &self.view;
+        let range = candidate.source_triangle_id.and_then(|id| view.source_range_of(id));
+        let placement = candidate.instance_index.and_then(|i| view.two_level().and_then(|s| s.placement(i)));
+        let node_index = match (range.map_or(NO_INDEX, |r| r.node_index), placement) {
+            (NO_INDEX, Some((instance, _))) => instance.node_index,
+            (node, _) => node,
+        };
+        let source_vertices = view.source_vertices().and_then(|all| all.get(candidate.triangle_index as usize));
+        BvhcCandidate {
             ray: candidate.ray,
             t: candidate.t,
             u: candidate.u,
             v: candidate.v,
             triangle_index: candidate.triangle_index,
-            source_triangle_id: candidate.source_triangle_id.unwrap_or(u32::MAX),
-            instance_index: candidate.instance_index.unwrap_or(u32::MAX),
-        };
+            source_triangle_id: candidate.source_triangle_id.unwrap_or(NO_INDEX),
+            instance_index: candidate.instance_index.unwrap_or(NO_INDEX),
+            mesh_index: range.map_or(NO_INDEX, |r| r.mesh_index),
+            primitive_index: range.map_or(NO_INDEX, |r| r.primitive_index),
+            node_index,
+            source_vertices: source_vertices.map_or([NO_INDEX; 3], |s| s.indices),
+        }
+    }
+}
+
+impl HitFilter for CFilter<'_> {
+    fn accept(&self, candidate: &Candidate<'_>) -> bool {
+        let record = self.record(candidate);
         // SAFETY: the caller of the filtered entry point promised a function that takes its user data and a
         // candidate; `record` lives for the call.
         unsafe { (self.function)(self.user_data, &record) != 0 }
     }
 }
 
-/// The filter and scope of a call, or an argument error naming `call`.
-fn filter_of(
+/// The filter over `file` and the scope of a call, or an argument error naming `call`.
+pub(crate) fn filter_of<'a>(
     call: &str,
+    file: &'a BvhcFile,
     filter: BvhcFilter,
     user_data: *mut c_void,
     scope: c_int,
-) -> Result<(CFilter, FilterScope), (c_int, String)> {
+) -> Result<(CFilter<'a>, FilterScope), (c_int, String)> {
     let function = filter.ok_or_else(|| argument(&format!("{call}: filter must not be null")))?;
     let scope = match scope {
         BVHC_FILTER_NOT_OPAQUE => FilterScope::NotOpaque,
@@ -78,7 +115,7 @@ fn filter_of(
             return Err((BVHC_ERROR_ARGUMENT, why));
         }
     };
-    Ok((CFilter { function, user_data }, scope))
+    Ok((CFilter { function, user_data, view: file.view() }, scope))
 }
 
 /// The closest hit of `*ray` that `filter` accepts, into `*hit`: 1, 0 on a miss (`*hit` untouched), -1 on an
@@ -99,9 +136,9 @@ pub unsafe extern "C" fn bvhc_closest_hit_filtered(
 ) -> c_int {
     let call = "bvhc_closest_hit_filtered";
     let status = guarded(|| {
-        let (filter, scope) = filter_of(call, filter, user_data, scope)?;
         // SAFETY: by the contract each pointer is null or valid for its type; `as_ref`/`as_mut` check null.
         let (file, ray, out) = unsafe { (file_ref(call, file)?, ray.as_ref(), hit.as_mut()) };
+        let (filter, scope) = filter_of(call, file, filter, user_data, scope)?;
         let (Some(ray), Some(out)) = (ray, out) else {
             return Err(argument("bvhc_closest_hit_filtered: ray and hit must not be null"));
         };
@@ -132,100 +169,14 @@ pub unsafe extern "C" fn bvhc_any_hit_filtered(
 ) -> c_int {
     let call = "bvhc_any_hit_filtered";
     let status = guarded(|| {
-        let (filter, scope) = filter_of(call, filter, user_data, scope)?;
         // SAFETY: by the contract each pointer is null or valid for its type.
         let (file, ray) = unsafe { (file_ref(call, file)?, ray.as_ref()) };
+        let (filter, scope) = filter_of(call, file, filter, user_data, scope)?;
         let ray = ray.ok_or_else(|| argument("bvhc_any_hit_filtered: ray must not be null"))?;
         checked(call, ray)?;
         Ok(c_int::from(file.tracer().filtered(&filter, scope).any_hit(ray)))
     });
     if status > 1 { -1 } else { status }
-}
-
-/// `count` rays' closest accepted hits, as `bvhc_closest_hits` (each ray checked first: `BVHC_ERROR_RAY` naming
-/// the first that breaks the contract, before any is traced), traced one after the other.
-///
-/// # Safety
-///
-/// As `bvhc_closest_hits` and `bvhc_closest_hit_filtered`.
-#[unsafe(no_mangle)]
-#[allow(clippy::too_many_arguments)] // the C signature: the batch's arrays, then the filter's three
-pub unsafe extern "C" fn bvhc_closest_hits_filtered(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    hits: *mut BvhcHit,
-    found: *mut u8,
-    filter: BvhcFilter,
-    user_data: *mut c_void,
-    scope: c_int,
-) -> c_int {
-    let call = "bvhc_closest_hits_filtered";
-    guarded(|| {
-        let (filter, scope) = filter_of(call, filter, user_data, scope)?;
-        // SAFETY: the caller's contract is `file_ref`'s.
-        let file = unsafe { file_ref(call, file) }?;
-        if count == 0 {
-            return Ok(BVHC_OK);
-        }
-        if rays.is_null() || hits.is_null() || found.is_null() {
-            return Err(argument("bvhc_closest_hits_filtered: rays, hits and found must not be null"));
-        }
-        // SAFETY: not null, and by the contract each points to `count` elements; the outputs are distinct arrays.
-        let (rays, hits, found) = unsafe {
-            (
-                std::slice::from_raw_parts(rays, count),
-                std::slice::from_raw_parts_mut(hits, count),
-                std::slice::from_raw_parts_mut(found, count),
-            )
-        };
-        bvhc_loader::check_rays(rays).map_err(|error| (BVHC_ERROR_RAY, format!("{call}: {error}")))?;
-        let filtered = file.tracer().filtered(&filter, scope);
-        for ((ray, hit), flag) in rays.iter().zip(hits).zip(found) {
-            let result = filtered.closest_hit(ray);
-            *hit = result.as_ref().map(BvhcHit::from).unwrap_or_default();
-            *flag = u8::from(result.is_some());
-        }
-        Ok(BVHC_OK)
-    })
-}
-
-/// `count` rays' any-hit answers under `filter`, as `bvhc_closest_hits_filtered`.
-///
-/// # Safety
-///
-/// As `bvhc_any_hits` and `bvhc_closest_hit_filtered`.
-#[unsafe(no_mangle)]
-pub unsafe extern "C" fn bvhc_any_hits_filtered(
-    file: *const BvhcFile,
-    rays: *const BvhcRay,
-    count: usize,
-    occluded: *mut u8,
-    filter: BvhcFilter,
-    user_data: *mut c_void,
-    scope: c_int,
-) -> c_int {
-    let call = "bvhc_any_hits_filtered";
-    guarded(|| {
-        let (filter, scope) = filter_of(call, filter, user_data, scope)?;
-        // SAFETY: the caller's contract is `file_ref`'s.
-        let file = unsafe { file_ref(call, file) }?;
-        if count == 0 {
-            return Ok(BVHC_OK);
-        }
-        if rays.is_null() || occluded.is_null() {
-            return Err(argument("bvhc_any_hits_filtered: rays and occluded must not be null"));
-        }
-        // SAFETY: not null, and by the contract each points to `count` elements.
-        let (rays, occluded) =
-            unsafe { (std::slice::from_raw_parts(rays, count), std::slice::from_raw_parts_mut(occluded, count)) };
-        bvhc_loader::check_rays(rays).map_err(|error| (BVHC_ERROR_RAY, format!("{call}: {error}")))?;
-        let filtered = file.tracer().filtered(&filter, scope);
-        for (ray, flag) in rays.iter().zip(occluded) {
-            *flag = u8::from(filtered.any_hit(ray));
-        }
-        Ok(BVHC_OK)
-    })
 }
 
 /// The flags of triangle record `triangle_index` (bit 0 `BVHC_TRIANGLE_NOT_OPAQUE`; 0 in a file without the

@@ -15,9 +15,11 @@
 mod batch;
 mod boundary;
 mod filtered;
+mod filtered_batch;
 mod open;
 mod records;
 mod scene;
+mod sections;
 mod single;
 mod source;
 
@@ -31,7 +33,11 @@ pub use boundary::{
 };
 pub use filtered::{
     BVHC_FILTER_EVERY, BVHC_FILTER_NOT_OPAQUE, BvhcCandidate, BvhcFilter, bvhc_any_hit_filtered,
-    bvhc_any_hits_filtered, bvhc_closest_hit_filtered, bvhc_closest_hits_filtered, bvhc_triangle_flags,
+    bvhc_closest_hit_filtered, bvhc_triangle_flags,
+};
+pub use filtered_batch::{
+    bvhc_any_hits_filtered, bvhc_any_hits_filtered_threads, bvhc_closest_hits_filtered,
+    bvhc_closest_hits_filtered_threads,
 };
 pub use open::{bvhc_close, bvhc_open, bvhc_open_memory, bvhc_verify};
 pub use records::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};
@@ -39,6 +45,7 @@ pub use scene::{
     bvhc_get_instance, bvhc_get_mesh, bvhc_instance_count, bvhc_mesh_count, bvhc_metadata_json, bvhc_scene_bounds,
     bvhc_source_id, bvhc_triangle_count, bvhc_triangle_vertices,
 };
+pub use sections::{BvhcSections, bvhc_get_sections, bvhc_source_range_of};
 pub use single::{
     bvhc_any_hit, bvhc_any_hit_unchecked, bvhc_check_rays, bvhc_closest_hit, bvhc_closest_hit_unchecked, bvhc_spawn_ray,
 };

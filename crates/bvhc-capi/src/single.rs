@@ -145,7 +145,8 @@ pub unsafe extern "C" fn bvhc_check_rays(rays: *const BvhcRay, count: usize, fir
 
 /// A ray leaving the surface of `*hit` along `direction` with `t_min = 0` that does not meet the triangle it
 /// leaves (`SurfacePoint::spawn`), into `*out`. `BVHC_ERROR_ARGUMENT` for a hit that cannot be this file's (a
-/// record or instance out of range, or a record outside the instance's mesh), naming why.
+/// record or instance out of range, a record outside the instance's mesh, `u`, `v` NaN or off the triangle),
+/// `BVHC_ERROR_RAY` for a direction the ray contract refuses (NaN, infinite, zero), each naming why.
 ///
 /// # Safety
 ///
@@ -170,7 +171,13 @@ pub unsafe extern "C" fn bvhc_spawn_ray(
         };
         let surface = file.tracer().surface(&hit.to_hit());
         let surface = surface.map_err(|why| (BVHC_ERROR_ARGUMENT, format!("bvhc_spawn_ray: {why}")))?;
-        *out = surface.spawn(direction);
+        let ray = surface.spawn(direction).map_err(|why| {
+            (
+                BVHC_ERROR_RAY,
+                format!("bvhc_spawn_ray: direction {direction:?}: {why}; no ray leaves the surface along it"),
+            )
+        })?;
+        *out = ray;
         Ok(BVHC_OK)
     })
 }

@@ -8,6 +8,21 @@ use std::path::Path;
 use crate::error::Error;
 use crate::view::BvhView;
 
+/// `Ok` when `path` is a regular file (after symbolic links); an error saying what it is otherwise: a directory
+/// (which the system would report as "No such device" when mapped, or "Is a directory" when read), or a FIFO,
+/// socket or device (which opening could block on, or read without end).
+fn regular_file(path: &Path) -> std::io::Result<()> {
+    let kind = std::fs::metadata(path)?.file_type();
+    if kind.is_dir() {
+        return Err(std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory, not a .bvh file"));
+    }
+    if !kind.is_file() {
+        let why = "is not a regular file (a FIFO, socket or device): read its bytes and use BvhFile::from_bytes";
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, why));
+    }
+    Ok(())
+}
+
 /// 64 bytes aligned to 64, the unit of [`AlignedBuffer`].
 #[repr(C, align(64))]
 #[derive(Clone, Copy)]
@@ -56,10 +71,12 @@ impl BvhFile {
         BvhFile::from_buffer(buffer)
     }
 
-    /// Reads the file at `path` into an aligned buffer and opens it (rules V1-V10).
+    /// Reads the file at `path` into an aligned buffer and opens it (rules V1-V10). A directory or another file
+    /// that is not a regular one (a FIFO, a device) is refused as such, before it is opened.
     pub fn read(path: impl AsRef<Path>) -> Result<BvhFile, Error> {
         let path = path.as_ref();
         let io = |source| Error::Io { path: path.to_path_buf(), source };
+        regular_file(path).map_err(io)?;
         let mut file = File::open(path).map_err(io)?;
         let byte_len = file.metadata().map_err(io)?.len();
         let byte_len = usize::try_from(byte_len)
@@ -137,6 +154,7 @@ impl MappedBvh {
     pub unsafe fn open(path: impl AsRef<Path>) -> Result<MappedBvh, Error> {
         let path = path.as_ref();
         let io = |source| Error::Io { path: path.to_path_buf(), source };
+        regular_file(path).map_err(io)?;
         let file = File::open(path).map_err(io)?;
         // SAFETY: the caller guarantees the file is not changed while mapped (this function's contract).
         let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;

@@ -164,8 +164,10 @@ pub(crate) fn same_length(call: &str, rays: usize, results: usize) {
 }
 
 /// Why a [`Hit`] cannot be one of a file's (what [`crate::Tracer::surface`] and the C API refuse): its record or
-/// instance is not in the file, or its instance does not place the record's mesh.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// instance is not in the file, its instance does not place the record's mesh, or its `u`, `v` do not lie on a
+/// triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
 pub enum ForeignHit {
     /// `triangle_index` is not below the file's record count.
     Triangle {
@@ -193,6 +195,24 @@ pub enum ForeignHit {
         /// The hit's instance.
         instance: u32,
     },
+    /// The barycentric coordinates are NaN or outside the triangle: every kernel's hit has `u >= 0`, `v >= 0`
+    /// and `u + v <= 1` (within [`BARYCENTRIC_SLACK`] for the rounding of `u + v`).
+    OffTriangle {
+        /// The hit's `u`.
+        u: f32,
+        /// The hit's `v`.
+        v: f32,
+    },
+}
+
+/// How far above 1 a hit's `u + v` (summed in f32) may lie and still name a point of its triangle: `2^-20`.
+/// A kernel's `u + v` exceeds 1 by at most a few units of `2^-24` (`format-spec/bvh-1.md` 11.1, "Accuracy").
+pub const BARYCENTRIC_SLACK: f32 = 1.0 / 1_048_576.0;
+
+/// Whether `(u, v)` names a point of the triangle: both at least 0 (either zero), `u + v <= 1 +`
+/// [`BARYCENTRIC_SLACK`], neither NaN.
+pub(crate) fn on_triangle(u: f32, v: f32) -> bool {
+    u >= 0.0 && v >= 0.0 && u + v <= 1.0 + BARYCENTRIC_SLACK
 }
 
 impl std::fmt::Display for ForeignHit {
@@ -213,6 +233,10 @@ impl std::fmt::Display for ForeignHit {
             ForeignHit::NotInMesh { triangle, instance } => {
                 write!(f, "record {triangle} is not in the mesh that instance {instance} places")
             }
+            ForeignHit::OffTriangle { u, v } => write!(
+                f,
+                "the hit's barycentric coordinates u = {u}, v = {v} are not on its triangle (u >= 0, v >= 0, u + v <= 1)"
+            ),
         }
     }
 }

@@ -18,7 +18,7 @@
 //! assert!(hit.front_face); // the quad's counter-clockwise side faces +z
 //! // A secondary ray from the hit, with t_min = 0 and no epsilon: it never meets the quad it leaves.
 //! let surface = tracer.surface(&hit)?;
-//! assert!(!tracer.any_hit(&surface.spawn([0.0, 0.0, 1.0])));
+//! assert!(!tracer.any_hit(&surface.spawn([0.0, 0.0, 1.0])?));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
@@ -121,7 +121,7 @@ pub use format::{
 pub use gpu_layout::{GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer};
 #[cfg(feature = "wgpu")]
 pub use gpu_wgpu::{GPU_BATCH_RAYS, GpuError, GpuTrace, GpuTracer};
-pub use hit::{ForeignHit, Hit, TraversalCounter, TraversalStats, geometric_normal};
+pub use hit::{BARYCENTRIC_SLACK, ForeignHit, Hit, TraversalCounter, TraversalStats, geometric_normal};
 pub use identity::TriangleIdentities;
 pub use instance_transform::{instance_world_box, transformed_box};
 pub use instances::TwoLevelSections;

@@ -25,9 +25,10 @@
 //! their own triangle: none.
 
 use crate::format::{InstanceRecord, PackedTriangle};
-use crate::hit::{Hit, geometric_normal};
+use crate::hit::{ForeignHit, Hit, geometric_normal, on_triangle};
 use crate::instance_transform::{object_ray, world_point};
 use crate::intersect::{PreparedRay, Ray};
+use crate::ray_check::RayError;
 
 /// The unit roundoff of f32, `2^-24`.
 const EPS: f32 = f32::EPSILON * 0.5;
@@ -77,7 +78,11 @@ pub struct SurfacePoint {
 
 impl SurfacePoint {
     /// The point of `hit` on `triangle`, the record `hit.triangle_index` names (`view.triangles()[i]`).
-    pub fn new(hit: &Hit, triangle: &PackedTriangle) -> SurfacePoint {
+    /// Refuses `u`, `v` that are NaN or off the triangle ([`ForeignHit::OffTriangle`]): no kernel returns them.
+    pub fn new(hit: &Hit, triangle: &PackedTriangle) -> Result<SurfacePoint, ForeignHit> {
+        if !on_triangle(hit.u, hit.v) {
+            return Err(ForeignHit::OffTriangle { u: hit.u, v: hit.v });
+        }
         let [v0, v1, v2] = &triangle.vertices;
         let (u, v) = (hit.u, hit.v);
         let e1: [f32; 3] = std::array::from_fn(|a| v1[a] - v0[a]);
@@ -92,7 +97,7 @@ impl SurfacePoint {
             .fold(0.0f32, f32::max);
         let resolution = RESOLUTION * EPS * 3f32.sqrt() * reach;
         let normal = unit(hit.normal);
-        SurfacePoint {
+        Ok(SurfacePoint {
             position,
             error,
             resolution,
@@ -100,16 +105,17 @@ impl SurfacePoint {
             front_face: hit.front_face,
             triangle: *triangle,
             instance: None,
-        }
+        })
     }
 
     /// The point of `hit` on `triangle` (a mesh's record, in object space) placed by `instance`: the object-space
     /// point mapped to world space in f64 and rounded, its error bound carried through the map (`sum_j |L_ij|
     /// error_j`, plus the final rounding, `gamma(1) |p_i|`), the resolution scaled by the map's largest stretch
     /// (the Frobenius norm of `L` bounds it), and the unit normal of `hit.normal` (world space already).
-    pub fn placed(hit: &Hit, triangle: &PackedTriangle, instance: &InstanceRecord) -> SurfacePoint {
+    /// Refuses `u`, `v` off the triangle as [`SurfacePoint::new`] does.
+    pub fn placed(hit: &Hit, triangle: &PackedTriangle, instance: &InstanceRecord) -> Result<SurfacePoint, ForeignHit> {
         let object_hit = Hit { normal: geometric_normal(triangle), ..*hit };
-        let object = SurfacePoint::new(&object_hit, triangle);
+        let object = SurfacePoint::new(&object_hit, triangle)?;
         let l = &instance.object_to_world;
         let exact = world_point(instance, object.position);
         let position = exact.map(|c| c as f32);
@@ -119,14 +125,16 @@ impl SurfacePoint {
         });
         let frobenius: f64 = l.iter().flat_map(|row| &row[..3]).map(|&c| f64::from(c) * f64::from(c)).sum::<f64>();
         let resolution = (f64::from(object.resolution) * frobenius.sqrt()) as f32 * (1.0 + 4.0 * EPS);
-        SurfacePoint { position, error, resolution, normal: unit(hit.normal), instance: Some(*instance), ..object }
+        Ok(SurfacePoint { position, error, resolution, normal: unit(hit.normal), instance: Some(*instance), ..object })
     }
 
     /// The origin for a ray leaving the surface along `direction` (to either side): [`SurfacePoint::position`]
     /// moved off the surface to `direction`'s side by the error bound and the test's resolution, so that the
     /// triangle the point lies on is behind it; the hit test then confirms it, doubling the offset until it does
-    /// (see the module doc).
-    pub fn offset_origin(&self, direction: [f32; 3]) -> [f32; 3] {
+    /// (see the module doc). Refuses a direction the ray contract refuses (NaN, infinite, zero, or below
+    /// `2^-64` in every component), which has no side to leave by.
+    pub fn offset_origin(&self, direction: [f32; 3]) -> Result<[f32; 3], RayError> {
+        Ray::new(self.position, direction).check()?;
         let n = self.normal;
         let mut d =
             n[0].abs() * self.error[0] + n[1].abs() * self.error[1] + n[2].abs() * self.error[2] + self.resolution;
@@ -143,7 +151,7 @@ impl SurfacePoint {
             d *= 2.0;
             origin = self.moved_by(d, direction);
         }
-        origin
+        Ok(origin)
     }
 
     /// [`SurfacePoint::position`] moved by `d` along the normal to `direction`'s side, each coordinate rounded
@@ -201,17 +209,26 @@ impl SurfacePoint {
         d.map(|c| c / length)
     }
 
-    /// A ray leaving the surface along `direction` (ambient occlusion, bounces), over `[0, +inf]`.
-    pub fn spawn(&self, direction: [f32; 3]) -> Ray {
-        Ray { origin: self.offset_origin(direction), direction, t_min: 0.0, t_max: f32::INFINITY }
+    /// A ray leaving the surface along `direction` (ambient occlusion, bounces), over `[0, +inf]`. Refuses a
+    /// direction the ray contract refuses (NaN, infinite, zero, or below `2^-64` in every component), naming
+    /// the rule, rather than make a ray no tracer answers.
+    pub fn spawn(&self, direction: [f32; 3]) -> Result<Ray, RayError> {
+        let ray = Ray { origin: self.offset_origin(direction)?, direction, t_min: 0.0, t_max: f32::INFINITY };
+        ray.check().map(|()| ray)
     }
 
     /// A shadow ray from the surface to `target` (a light's position): direction `target - origin`, so `t = 1`
     /// at the target, and `t_max` just below 1 so that a surface at the target itself does not occlude.
-    pub fn spawn_to(&self, target: [f32; 3]) -> Ray {
+    /// Refuses a target that is not finite or lies at the surface point (no direction), as [`SurfacePoint::spawn`]
+    /// refuses such directions.
+    pub fn spawn_to(&self, target: [f32; 3]) -> Result<Ray, RayError> {
+        if !target.iter().all(|c| c.is_finite()) {
+            return Err(RayError::DirectionNotFinite);
+        }
         let toward = std::array::from_fn(|a| target[a] - self.position[a]);
-        let origin = self.offset_origin(toward);
+        let origin = self.offset_origin(toward)?;
         let direction = std::array::from_fn(|a| target[a] - origin[a]);
-        Ray { origin, direction, t_min: 0.0, t_max: 1.0 - f32::EPSILON }
+        let ray = Ray { origin, direction, t_min: 0.0, t_max: 1.0 - f32::EPSILON };
+        ray.check().map(|()| ray)
     }
 }

@@ -161,13 +161,13 @@ impl<'a> Tracer<'a> {
     /// epsilon: `tracer.surface(&hit)?.spawn(direction)` is a ray with `t_min = 0` that does not meet the
     /// triangle it starts on ([`SurfacePoint`]). Refuses a hit that cannot be this file's ([`ForeignHit`]: a
     /// record or instance out of range, an instance in a one-level file or none in a two-level one, a record
-    /// outside the instance's mesh), rather than make a ray from nothing.
+    /// outside the instance's mesh, `u`, `v` NaN or off the triangle), rather than make a ray from nothing.
     pub fn surface(&self, hit: &Hit) -> Result<SurfacePoint, ForeignHit> {
         let triangle = self.triangles.get(hit.triangle_index as usize);
         let triangle =
             triangle.ok_or(ForeignHit::Triangle { index: hit.triangle_index, count: self.triangles.len() })?;
         match (hit.instance_index, self.instances) {
-            (None, None) => Ok(SurfacePoint::new(hit, triangle)),
+            (None, None) => SurfacePoint::new(hit, triangle),
             (Some(index), Some(sections)) => {
                 let count = sections.instances.len();
                 let (instance, mesh) = sections.placement(index).ok_or(ForeignHit::Instance { index, count })?;
@@ -175,7 +175,7 @@ impl<'a> Tracer<'a> {
                 if !(first..first + u64::from(mesh.triangle_count)).contains(&u64::from(hit.triangle_index)) {
                     return Err(ForeignHit::NotInMesh { triangle: hit.triangle_index, instance: index });
                 }
-                Ok(SurfacePoint::placed(hit, triangle, instance))
+                SurfacePoint::placed(hit, triangle, instance)
             }
             (_, sections) => Err(ForeignHit::Levels { two_level: sections.is_some() }),
         }

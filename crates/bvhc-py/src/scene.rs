@@ -361,7 +361,9 @@ impl Scene {
                     };
                     let surface =
                         tracer.surface(&hit).map_err(|e| InvalidInputError::new_err(format!("spawn: hit {i}: {e}")))?;
-                    Ok(surface.spawn(row.direction))
+                    surface.spawn(row.direction).map_err(|e| {
+                        InvalidInputError::new_err(format!("spawn: direction {i} {:?}: {e}", row.direction))
+                    })
                 })
                 .collect::<PyResult<Vec<Ray>>>()
         })?;

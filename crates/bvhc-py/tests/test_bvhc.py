@@ -361,6 +361,22 @@ def test_spawned_rays_leave_their_triangle(tmp_path):
     foreign["triangle"] = np.full(len(o), 10**8, dtype=np.uint32)
     with pytest.raises(bvhc.InvalidInputError, match="hit 0"):
         opened.spawn(foreign, side)
+    # Barycentrics off the triangle or NaN, and directions with no side to leave by, are refused.
+    for u, v in [(3.0, -2.5), (np.nan, 0.25)]:
+        off = {k: val[:1].copy() for k, val in kept.items()}
+        off["u"][:] = u
+        off["v"][:] = v
+        with pytest.raises(bvhc.InvalidInputError, match="not on its triangle"):
+            opened.spawn(off, side[:1])
+    one = {k: val[:1] for k, val in kept.items()}
+    for direction, rule in [([np.nan, 0.0, 1.0], "not finite"), ([0.0, 0.0, 0.0], "zero")]:
+        with pytest.raises(bvhc.InvalidInputError, match=rule):
+            opened.spawn(one, np.array([direction], dtype=np.float32))
+
+
+def test_opening_a_directory_says_so(tmp_path):
+    with pytest.raises(bvhc.IoError, match="(?i)is a directory"):
+        bvhc.open(tmp_path)
 
 
 def test_repeated_opens_do_not_leak(tmp_path):
