@@ -175,3 +175,53 @@ pub fn round_to_f32(n: &BigInt, d: &BigInt) -> f32 {
     };
     if negative { -magnitude } else { magnitude }
 }
+
+/// The signs of the exact weights `w0, w1, w2`: all positive or all negative when the ray crosses the
+/// triangle's interior in exact arithmetic.
+pub fn exact_signs(ray: &Ray, triangle: &[[f32; 3]; 3]) -> [i32; 3] {
+    // In f64 first: a sign is certain when the value exceeds 1e-12 of its permanent (the evaluation's error is
+    // below 8 * 2^-53 of it); big integers only for the rest.
+    let o = ray.origin.map(f64::from);
+    let d = ray.direction.map(f64::from);
+    let relative = |v: &[f32; 3]| -> [f64; 3] { std::array::from_fn(|a| f64::from(v[a]) - o[a]) };
+    let p = [relative(&triangle[0]), relative(&triangle[1]), relative(&triangle[2])];
+    let triple = |q: &[f64; 3], r: &[f64; 3]| {
+        let terms = [
+            d[0] * q[1] * r[2],
+            -d[0] * q[2] * r[1],
+            d[1] * q[2] * r[0],
+            -d[1] * q[0] * r[2],
+            d[2] * q[0] * r[1],
+            -d[2] * q[1] * r[0],
+        ];
+        (terms.iter().sum::<f64>(), terms.iter().map(|t| t.abs()).sum::<f64>())
+    };
+    let estimates = [triple(&p[2], &p[1]), triple(&p[0], &p[2]), triple(&p[1], &p[0])];
+    if estimates.iter().all(|&(value, permanent)| value.abs() > 1e-12 * permanent) {
+        return estimates.map(|(value, _)| if value > 0.0 { 1 } else { -1 });
+    }
+    exact_signs_in_integers(ray, triangle)
+}
+
+/// [`exact_signs`] in big integers.
+fn exact_signs_in_integers(ray: &Ray, triangle: &[[f32; 3]; 3]) -> [i32; 3] {
+    let o = ray.origin.map(scaled);
+    let d = ray.direction.map(scaled);
+    let relative = |v: &[f32; 3]| -> [BigInt; 3] { std::array::from_fn(|a| scaled(v[a]) - &o[a]) };
+    let p = [relative(&triangle[0]), relative(&triangle[1]), relative(&triangle[2])];
+    let triple = |q: &[BigInt; 3], r: &[BigInt; 3]| {
+        &d[0] * (&q[1] * &r[2] - &q[2] * &r[1])
+            + &d[1] * (&q[2] * &r[0] - &q[0] * &r[2])
+            + &d[2] * (&q[0] * &r[1] - &q[1] * &r[0])
+    };
+    let sign = |x: BigInt| {
+        if x.is_zero() {
+            0
+        } else if x.is_negative() {
+            -1
+        } else {
+            1
+        }
+    };
+    [sign(triple(&p[2], &p[1])), sign(triple(&p[0], &p[2])), sign(triple(&p[1], &p[0]))]
+}

@@ -10,6 +10,7 @@ mod clusters;
 mod common;
 mod compat;
 mod corrupt;
+mod crossings;
 mod exact_reference;
 mod example_alpha;
 mod example_ao;

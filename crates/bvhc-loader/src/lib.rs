@@ -53,6 +53,7 @@
 mod atomic;
 mod candidates;
 mod checksum;
+mod crossings;
 pub mod cost;
 mod error;
 mod exact_hit;
@@ -109,6 +110,7 @@ pub use atomic::{
     sweep_stale, write_atomic,
 };
 pub use checksum::{header_checksum, section_checksum};
+pub use crossings::Crossings;
 pub use error::{Error, Rule, Violation};
 pub use file::BvhFile;
 #[cfg(feature = "mmap")]

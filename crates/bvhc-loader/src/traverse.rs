@@ -72,6 +72,20 @@ impl<'a> Tracer<'a> {
         self.triangle_ids
     }
 
+    /// The two-level sections this tracer walks, if the file is two-level.
+    pub(crate) fn instance_sections(&self) -> Option<TwoLevelSections<'a>> {
+        self.instances
+    }
+
+    /// The largest side of the scene's box in world space (the top tree's root, or the tree's), 0 when empty.
+    pub(crate) fn scene_extent(&self) -> f32 {
+        let root = match &self.instances {
+            Some(sections) => sections.top_nodes.first(),
+            None => self.nodes.first(),
+        };
+        root.map_or(0.0, |r| (0..3).map(|a| r.max[a] - r.min[a]).fold(0.0, f32::max))
+    }
+
     /// This tracer without the ray check: a ray that breaks the contract gets an unspecified answer (never a
     /// panic, a hang or a memory error). For callers that check their rays themselves ([`Ray::check`],
     /// [`crate::check_rays`]) or make them valid by construction.

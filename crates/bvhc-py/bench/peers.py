@@ -9,8 +9,15 @@ overhead of the Python call: `closest_hits` (arrays in, arrays out) against the 
 same rays and threads, timed inside the extension (`Scene.rust_batch_seconds`): the median of 7 alternating
 rounds' ratios. Other times are medians of 3 runs.
 
-    python crates/bvhc-py/bench/peers.py [--rays N] [--scenes kitchen,dragon | --all]
-needs `pip install trimesh embreex open3d` (a peer that does not import is left out) and the shared scenes.
+With `--queries`, the other queries trimesh and Open3D users run, on closed meshes (the bunny, the Buddha, the
+dragon: scans, closed or nearly so; and an icosphere): every hit along each ray (bvhc `all_hits`, trimesh's
+`intersects_location(multiple_hits=True)`, Open3D's `list_intersections`) and inside tests of points (bvhc
+`contains`, trimesh's `contains`, Open3D's `compute_occupancy`), seconds from open (or the mesh's arrays) to the
+answer on all threads, and how the answers compare: hits a ray on average, and the share of rays from outside a
+closed mesh whose hits do not pair up (an odd count: a crossing counted twice or missed).
+
+    python crates/bvhc-py/bench/peers.py [--rays N] [--scenes kitchen,dragon | --all] [--queries]
+needs `pip install trimesh embreex open3d rtree` (a peer that does not import is left out) and the shared scenes.
 """
 
 import argparse
@@ -92,6 +99,102 @@ def bvhc_measures(bvh, count):
     return measures
 
 
+def queries(args):
+    """The all-hits and inside-test table (see the module doc)."""
+    import trimesh
+
+    try:
+        from trimesh.ray.ray_pyembree import RayMeshIntersector
+    except ImportError:
+        RayMeshIntersector = None
+    try:
+        import open3d as o3d
+    except ImportError:
+        o3d = None
+    count = min(args.rays, 200_000)
+    print(f"{count} rays from outside each mesh towards points of its box, {count} points in its box; all threads")
+    print()
+    print("| scene | triangles | query | bvhc s | trimesh + embreex s | Open3D s | hits a ray: bvhc / trimesh / Open3D |"
+          " rays with an odd count: bvhc / trimesh / Open3D | points that disagree with bvhc: trimesh / Open3D |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    closed = {"bunny": LIST["bunny"], "buddha": LIST["buddha"], "dragon": LIST["dragon"]}
+    with tempfile.TemporaryDirectory() as folder:
+        meshes = [("icosphere", None)] + [(k, SCENES / v) for k, v in closed.items() if (SCENES / v).is_file()]
+        for name, source in meshes:
+            if source is None:
+                sphere = trimesh.creation.icosphere(subdivisions=6)
+                vertices, faces = np.asarray(sphere.vertices), np.asarray(sphere.faces)
+            else:
+                vertices, faces = mesh_arrays(source, folder)
+            bvh = pathlib.Path(folder) / "closed.bvh"
+            bvhc.build(vertices, faces, bvh)
+            lo, hi = (np.asarray(b, dtype=np.float64) for b in bvhc.open(bvh).bounds)
+            rng = np.random.default_rng(7)
+            size = (hi - lo).max()
+            # From a sphere around the box (outside the mesh) towards points of the box.
+            away = rng.normal(size=(count, 3))
+            away /= np.linalg.norm(away, axis=1, keepdims=True)
+            origins = ((lo + hi) / 2 + away * size * 1.5).astype(np.float32)
+            directions = (rng.uniform(lo, hi, (count, 3)) - origins).astype(np.float32)
+            points = rng.uniform(lo, hi, (count, 3)).astype(np.float32)
+            mesh = trimesh.Trimesh(vertices, faces, process=False)
+
+            def counts(index_ray):
+                return np.bincount(index_ray, minlength=count)
+
+            def cell(table, key, show):
+                return show(table[key]) if key in table else "-"
+
+            # Towards points of the box, and exactly towards vertices of the mesh (through its edges and vertices).
+            targets = vertices[rng.integers(0, len(vertices), count)].astype(np.float32)
+            for label, aimed in [("all hits", directions), ("all hits, at vertices", (targets - origins).astype(np.float32))]:
+                found, times = {}, {}
+                start = time.perf_counter()
+                every = bvhc.open(bvh).all_hits(origins, aimed)
+                times["bvhc"] = time.perf_counter() - start
+                found["bvhc"] = every["found"]
+                if RayMeshIntersector is not None:
+                    start = time.perf_counter()
+                    _, index_ray, _ = RayMeshIntersector(mesh).intersects_location(origins, aimed, multiple_hits=True)
+                    times["trimesh"] = time.perf_counter() - start
+                    found["trimesh"] = counts(index_ray)
+                if o3d is not None:
+                    start = time.perf_counter()
+                    s = o3d.t.geometry.RaycastingScene()
+                    s.add_triangles(
+                        o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32))
+                    )
+                    listed = s.list_intersections(o3d.core.Tensor(np.hstack([origins, aimed]).astype(np.float32)))
+                    times["open3d"] = time.perf_counter() - start
+                    found["open3d"] = np.diff(listed["ray_splits"].numpy())
+                means = " / ".join(cell(found, k, lambda c: f"{c.mean():.3f}") for k in ("bvhc", "trimesh", "open3d"))
+                odd = " / ".join(
+                    cell(found, k, lambda c: f"{(c % 2 == 1).mean():.2%}") for k in ("bvhc", "trimesh", "open3d")
+                )
+                seconds = [cell(times, k, lambda t: f"{t:.3f}") for k in ("bvhc", "trimesh", "open3d")]
+                print(f"| {name} | {len(faces):,} | {label} | " + " | ".join(seconds) + f" | {means} | {odd} | |", flush=True)
+            inside, times = {}, {}
+            start = time.perf_counter()
+            inside["bvhc"] = bvhc.open(bvh).contains(points)
+            times["bvhc"] = time.perf_counter() - start
+            if RayMeshIntersector is not None:
+                start = time.perf_counter()
+                inside["trimesh"] = trimesh.Trimesh(vertices, faces, process=False).contains(points)
+                times["trimesh"] = time.perf_counter() - start
+            if o3d is not None:
+                start = time.perf_counter()
+                s = o3d.t.geometry.RaycastingScene()
+                s.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32)))
+                inside["open3d"] = s.compute_occupancy(o3d.core.Tensor(points)).numpy() > 0.5
+                times["open3d"] = time.perf_counter() - start
+            seconds = [cell(times, k, lambda t: f"{t:.3f}") for k in ("bvhc", "trimesh", "open3d")]
+            differ = " / ".join(
+                cell(inside, k, lambda a: f"{(a != inside['bvhc']).mean():.2%}") for k in ("trimesh", "open3d")
+            )
+            share = inside["bvhc"].mean()
+            print(f"| {name} | {len(faces):,} | inside ({share:.0%} in) | " + " | ".join(seconds) + f" | | | {differ} |")
+
+
 def main():
     if sys.argv[1:2] == ["--measure-bvhc"]:
         print(json.dumps(bvhc_measures(sys.argv[2], int(sys.argv[3]))))
@@ -100,7 +203,11 @@ def main():
     parser.add_argument("--rays", type=int, default=1_000_000)
     parser.add_argument("--scenes", default=",".join(LIST))
     parser.add_argument("--all", action="store_true", help="every scene file of the shared folder")
+    parser.add_argument("--queries", action="store_true", help="all hits and inside tests on closed meshes")
     args = parser.parse_args()
+    if args.queries:
+        queries(args)
+        return
     if args.all:
         suffixes = (".gltf", ".glb", ".obj", ".ply", ".obj.gz", ".ply.gz")
         found = sorted(p for p in SCENES.rglob("*") if p.is_file() and p.name.endswith(suffixes))

@@ -3,9 +3,12 @@
 //! package in `python/bvhc` wraps it (numpy views of a file's sections, keyword options, progress).
 
 mod errors;
+mod filters;
+mod hits;
 mod options;
 mod rays;
 mod scene;
+mod tracing;
 
 use pyo3::prelude::*;
 

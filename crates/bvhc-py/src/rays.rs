@@ -64,6 +64,12 @@ impl<'py> Vectors<'py> {
         Ok(vectors)
     }
 
+    /// Every row, as float32 (float64 rounded once).
+    pub fn rows(&self, _py: Python<'_>) -> PyResult<Vec<[f32; 3]>> {
+        let view = self.view();
+        Ok((0..self.len()).map(|i| view.row(i)).collect())
+    }
+
     /// Rows.
     pub fn len(&self) -> usize {
         match self {

@@ -1,8 +1,9 @@
 //! An opened `.bvh` file over a numpy `uint8` array of its bytes (a read-only memory map, or the file read into
-//! memory), and the tracing calls. Each call opens a view over the array (the structural checks, O(sections))
-//! and traces on all cores with the GIL released; the array is borrowed read-only meanwhile.
+//! memory), and the tracing calls (`tracing.rs` does their work). Each call opens a view over the array (the
+//! structural checks, O(sections)) and traces on all cores with the GIL released; the array is borrowed
+//! read-only meanwhile.
 
-use bvhc::loader::{BatchRayError, BvhView, Hit, Ray, Tracer};
+use bvhc::loader::{BvhView, Hit, Ray};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -10,16 +11,10 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 
 use crate::errors::{InvalidFileError, InvalidInputError, loader};
+use crate::filters::{FilterArgs, source_id_count};
+use crate::hits::{CHUNK, NONE};
 use crate::rays::{Bound1, RayArguments, RayArrays, Vectors};
-
-/// Rays traced a task.
-const CHUNK: usize = 1024;
-
-/// Misses and absent values in hit arrays (`format-spec/rays-and-hits.md`).
-const NONE: u32 = u32::MAX;
-
-/// A placeholder in ray buffers (overwritten before use).
-const EMPTY_RAY: Ray = Ray { origin: [0.0; 3], direction: [1.0, 0.0, 0.0], t_min: 0.0, t_max: 0.0 };
+use crate::tracing::{on_pool, pool};
 
 /// A `.bvh` file opened over a numpy array of its bytes.
 #[pyclass(frozen, module = "bvhc._native")]
@@ -39,117 +34,6 @@ fn with_view<R>(
     let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
     let view = BvhView::open(slice).map_err(|e| loader(&e, format!("{path}: {e}")))?;
     f(&view)
-}
-
-/// A pool of `threads` threads, or `None` for rayon's global pool (all cores).
-fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
-    threads
-        .map(|n| {
-            if n == 0 {
-                return Err(InvalidInputError::new_err("threads: expected at least 1"));
-            }
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| crate::errors::InternalError::new_err(format!("cannot start {n} threads: {e}")))
-        })
-        .transpose()
-}
-
-fn on_pool<R: Send>(pool: &Option<rayon::ThreadPool>, f: impl FnOnce() -> R + Send) -> R {
-    match pool {
-        Some(pool) => pool.install(f),
-        None => f(),
-    }
-}
-
-/// Closest hits as columns.
-struct HitColumns {
-    t: Vec<f32>,
-    triangle: Vec<u32>,
-    source_id: Vec<u32>,
-    u: Vec<f32>,
-    v: Vec<f32>,
-    normal: Vec<f32>,
-    front_face: Vec<bool>,
-    instance: Vec<u32>,
-}
-
-impl HitColumns {
-    /// The closest hits of `rays`, each chunk of rays read, checked and traced by one task; the first ray that
-    /// breaks the contract is the error (the hits are then dropped).
-    fn traced(tracer: &Tracer<'_>, rays: RayArrays<'_>) -> Result<HitColumns, BatchRayError> {
-        let n = rays.len();
-        // Zeroed (calloc'd) columns, every entry written below by the thread that traces its ray: no serial
-        // pass over the output.
-        let mut c = HitColumns {
-            t: vec![0.0; n],
-            triangle: vec![0; n],
-            source_id: vec![0; n],
-            u: vec![0.0; n],
-            v: vec![0.0; n],
-            normal: vec![0.0; 3 * n],
-            front_face: vec![false; n],
-            instance: vec![0; n],
-        };
-        let tracer = tracer.trusting_rays();
-        let first_bad = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .zip(c.t.par_chunks_mut(CHUNK))
-            .zip(c.triangle.par_chunks_mut(CHUNK))
-            .zip(c.source_id.par_chunks_mut(CHUNK))
-            .zip(c.u.par_chunks_mut(CHUNK))
-            .zip(c.v.par_chunks_mut(CHUNK))
-            .zip(c.normal.par_chunks_mut(3 * CHUNK))
-            .zip(c.front_face.par_chunks_mut(CHUNK))
-            .zip(c.instance.par_chunks_mut(CHUNK))
-            .filter_map(|((((((((chunk, t), triangle), source_id), u), v), normal), front_face), instance)| {
-                let mut buffer = [EMPTY_RAY; CHUNK];
-                let chunk_rays = &mut buffer[..t.len()];
-                if let Err(e) = rays.chunk(chunk * CHUNK, chunk_rays) {
-                    return Some(e);
-                }
-                let mut hits = [None; CHUNK];
-                let hits = &mut hits[..t.len()];
-                tracer.closest_hits(chunk_rays, hits);
-                for (i, hit) in hits.iter().enumerate() {
-                    let Some(hit) = hit else {
-                        (t[i], triangle[i], source_id[i], instance[i]) = (f32::INFINITY, NONE, NONE, NONE);
-                        continue;
-                    };
-                    t[i] = hit.t;
-                    triangle[i] = hit.triangle_index;
-                    source_id[i] = hit.source_triangle_id.unwrap_or(NONE);
-                    u[i] = hit.u;
-                    v[i] = hit.v;
-                    normal[3 * i..3 * i + 3].copy_from_slice(&hit.normal);
-                    front_face[i] = hit.front_face;
-                    instance[i] = hit.instance_index.unwrap_or(NONE);
-                }
-                None
-            })
-            .min_by_key(|e| e.index);
-        match first_bad {
-            Some(e) => Err(e),
-            None => Ok(c),
-        }
-    }
-
-    fn into_dict<'py>(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let n = self.t.len();
-        let d = PyDict::new(py);
-        d.set_item("t", self.t.into_pyarray(py))?;
-        d.set_item("triangle", self.triangle.into_pyarray(py))?;
-        d.set_item("source_id", self.source_id.into_pyarray(py))?;
-        d.set_item("u", self.u.into_pyarray(py))?;
-        d.set_item("v", self.v.into_pyarray(py))?;
-        let normal = Array2::from_shape_vec((n, 3), self.normal)
-            .map_err(|e| crate::errors::InternalError::new_err(e.to_string()))?;
-        d.set_item("normal", normal.into_pyarray(py))?;
-        d.set_item("front_face", self.front_face.into_pyarray(py))?;
-        d.set_item("instance", self.instance.into_pyarray(py))?;
-        Ok(d)
-    }
 }
 
 #[pymethods]
@@ -204,8 +88,16 @@ impl Scene {
         })
     }
 
+    /// Source ids of the file (the length of a `cutout` mask): the end of its last source range.
+    #[getter]
+    fn source_id_count(&self, py: Python<'_>) -> PyResult<usize> {
+        with_view(py, &self.bytes, &self.path, |view| Ok(source_id_count(view)))
+    }
+
     /// Closest hits of the rays, as a dict of arrays (see the package's docs).
-    #[pyo3(signature = (origins, directions, t_min, t_max, threads=None))]
+    #[allow(clippy::too_many_arguments)] // the rays, then the filter's four
+    #[pyo3(signature = (origins, directions, t_min, t_max, threads=None, cutout=None, cutout_primitives=None,
+        filter=None, filter_scope="every"))]
     fn closest_hits<'py>(
         &self,
         py: Python<'py>,
@@ -214,19 +106,25 @@ impl Scene {
         t_min: Bound<'py, PyAny>,
         t_max: Bound<'py, PyAny>,
         threads: Option<usize>,
+        cutout: Option<Bound<'py, PyAny>>,
+        cutout_primitives: Option<Bound<'py, PyAny>>,
+        filter: Option<Bound<'py, PyAny>>,
+        filter_scope: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
         let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
         let rays = arguments.rays()?;
+        let filter = FilterArgs::extract(cutout, cutout_primitives, filter, filter_scope)?;
         let pool = pool(threads)?;
         let columns = with_view(py, &self.bytes, &self.path, |view| {
-            let tracer = view.tracer();
-            Ok(py.detach(|| on_pool(&pool, || HitColumns::traced(&tracer, rays))))
+            crate::tracing::closest(py, view, rays, filter.as_ref(), &pool)
         })?;
-        columns.map_err(|e| rays.error(&e))?.into_dict(py)
+        columns.into_dict(py)
     }
 
     /// Whether each ray hits anything within its interval, as a bool array.
-    #[pyo3(signature = (origins, directions, t_min, t_max, threads=None))]
+    #[allow(clippy::too_many_arguments)] // the rays, then the filter's four
+    #[pyo3(signature = (origins, directions, t_min, t_max, threads=None, cutout=None, cutout_primitives=None,
+        filter=None, filter_scope="every"))]
     fn any_hits<'py>(
         &self,
         py: Python<'py>,
@@ -235,36 +133,60 @@ impl Scene {
         t_min: Bound<'py, PyAny>,
         t_max: Bound<'py, PyAny>,
         threads: Option<usize>,
+        cutout: Option<Bound<'py, PyAny>>,
+        cutout_primitives: Option<Bound<'py, PyAny>>,
+        filter: Option<Bound<'py, PyAny>>,
+        filter_scope: &str,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
         let rays = arguments.rays()?;
+        let filter = FilterArgs::extract(cutout, cutout_primitives, filter, filter_scope)?;
         let pool = pool(threads)?;
-        let (occluded, first_bad) = with_view(py, &self.bytes, &self.path, |view| {
-            let tracer = view.tracer().trusting_rays();
-            Ok(py.detach(|| {
-                on_pool(&pool, || {
-                    let mut occluded = vec![false; rays.len()];
-                    let first_bad = occluded
-                        .par_chunks_mut(CHUNK)
-                        .enumerate()
-                        .filter_map(|(chunk, occluded)| {
-                            let mut buffer = [EMPTY_RAY; CHUNK];
-                            let chunk_rays = &mut buffer[..occluded.len()];
-                            if let Err(e) = rays.chunk(chunk * CHUNK, chunk_rays) {
-                                return Some(e);
-                            }
-                            tracer.any_hits(chunk_rays, occluded);
-                            None
-                        })
-                        .min_by_key(|e| e.index);
-                    (occluded, first_bad)
-                })
-            }))
-        })?;
-        if let Some(e) = first_bad {
-            return Err(rays.error(&e));
-        }
+        let occluded =
+            with_view(py, &self.bytes, &self.path, |view| crate::tracing::any(py, view, rays, filter.as_ref(), &pool))?;
         Ok(occluded.into_pyarray(py))
+    }
+
+    /// Every hit of each ray (the nearest `max_hits`), as a dict of arrays a row a hit.
+    #[allow(clippy::too_many_arguments)] // the rays and the cap, then the filter's four
+    #[pyo3(signature = (origins, directions, t_min, t_max, max_hits=64, threads=None, cutout=None,
+        cutout_primitives=None, filter=None, filter_scope="every"))]
+    fn all_hits<'py>(
+        &self,
+        py: Python<'py>,
+        origins: Bound<'py, PyAny>,
+        directions: Bound<'py, PyAny>,
+        t_min: Bound<'py, PyAny>,
+        t_max: Bound<'py, PyAny>,
+        max_hits: usize,
+        threads: Option<usize>,
+        cutout: Option<Bound<'py, PyAny>>,
+        cutout_primitives: Option<Bound<'py, PyAny>>,
+        filter: Option<Bound<'py, PyAny>>,
+        filter_scope: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
+        let rays = arguments.rays()?;
+        let filter = FilterArgs::extract(cutout, cutout_primitives, filter, filter_scope)?;
+        let pool = pool(threads)?;
+        let columns = with_view(py, &self.bytes, &self.path, |view| {
+            crate::tracing::all(py, view, rays, filter.as_ref(), max_hits, &pool)
+        })?;
+        columns.into_dict(py)
+    }
+
+    /// Whether each point (an `(n, 3)` array) lies inside the scene's closed meshes, as a bool array.
+    #[pyo3(signature = (points, threads=None))]
+    fn contains<'py>(
+        &self,
+        py: Python<'py>,
+        points: Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let points = Vectors::extract("points", &points)?;
+        let pool = pool(threads)?;
+        let inside = with_view(py, &self.bytes, &self.path, |view| crate::tracing::contains(py, view, &points, &pool))?;
+        Ok(inside.into_pyarray(py))
     }
 
     /// Seconds the loader's batch call takes for these rays as a Rust program makes it: the output array of hit

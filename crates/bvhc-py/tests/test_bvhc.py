@@ -405,3 +405,148 @@ def test_repeated_opens_do_not_leak(tmp_path):
     assert fds() <= before_fds
     growth = resident_kib() - before
     assert growth < 20_000, f"resident memory grew by {growth} KiB over 2000 opens"
+
+
+def sphere_scene(tmp_path, subdivisions=3):
+    trimesh = pytest.importorskip("trimesh")
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+    bvhc.build(mesh.vertices, mesh.faces, tmp_path / "sphere.bvh")
+    return mesh, bvhc.open(tmp_path / "sphere.bvh")
+
+
+def test_all_hits_are_every_crossing_nearest_first(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    opened = bvhc.open(bvh)
+    origins, directions = random_rays(opened.bounds, 5_000, seed=21)
+    every = opened.all_hits(origins, directions)
+    closest = opened.closest_hits(origins, directions)
+    n = len(origins)
+    assert every["count"].shape == (n,) and np.array_equal(every["count"], every["found"])
+    assert np.array_equal(np.bincount(every["ray"], minlength=n), every["count"])
+    assert np.all(np.diff(every["ray"].astype(np.int64)) >= 0), "sorted by ray"
+    same_ray = every["ray"][1:] == every["ray"][:-1]
+    assert np.all(every["t"][1:][same_ray] >= every["t"][:-1][same_ray]), "nearest first"
+    # The first hit of each ray is its closest hit; a ray with no hit has no closest hit.
+    first = np.searchsorted(every["ray"], np.arange(n))
+    hit = every["count"] > 0
+    assert np.array_equal(hit, closest["triangle"] != bvhc.MISS)
+    assert np.array_equal(every["t"][first[hit]], closest["t"][hit])
+    assert every["count"].max() > 2, "rays through the teapot cross it several times"
+    # The cap keeps the nearest.
+    capped = opened.all_hits(origins, directions, max_hits=1)
+    assert np.array_equal(capped["count"], np.minimum(every["count"], 1))
+    assert np.array_equal(capped["found"], every["found"])
+    assert np.array_equal(capped["t"], every["t"][first[hit]])
+    with pytest.raises(bvhc.InvalidInputError, match="max_hits"):
+        opened.all_hits(origins, directions, max_hits=0)
+
+
+def test_rays_through_vertices_of_a_closed_mesh_cross_it_twice(tmp_path):
+    mesh, opened = sphere_scene(tmp_path)
+    # From outside, through the mesh's own vertices (a ray's first crossing there is shared by up to six
+    # triangles, its second by as many) and through the middle of the sphere: in and out, once each.
+    vertices = np.asarray(mesh.vertices, dtype=np.float32)
+    origins = np.tile(np.array([[0.31, 0.2, 3.0]], dtype=np.float32), (len(vertices), 1))
+    directions = (vertices - origins).astype(np.float32)
+    every = opened.all_hits(origins, directions)
+    across = np.einsum("ij,ij->i", directions, vertices) / np.linalg.norm(directions, axis=1) < -0.2
+    assert across.sum() > 100
+    assert np.all(every["count"][across] == 2), np.unique(every["count"][across], return_counts=True)
+    in_and_out = np.zeros(len(origins), dtype=np.int64)
+    np.add.at(in_and_out, every["ray"], np.where(every["front_face"], 1, -1))
+    assert np.all(in_and_out == 0), "every ray from outside leaves as often as it enters"
+    try:  # trimesh's ray queries need rtree or embreex, which the test environment need not have
+        _, index_ray, _ = mesh.ray.intersects_location(origins[across], directions[across], multiple_hits=True)
+    except ImportError:
+        return
+    peer = np.bincount(index_ray, minlength=int(across.sum()))
+    print(f"\nrays through vertices: bvhc 2 crossings on all {across.sum()}; trimesh's counts {np.bincount(peer)}")
+
+
+def test_contains_is_the_inside_of_closed_meshes(tmp_path):
+    mesh, opened = sphere_scene(tmp_path)
+    rng = np.random.default_rng(3)
+    points = rng.uniform(-1.3, 1.3, (20_000, 3))
+    radius = np.linalg.norm(points, axis=1)
+    clear = (radius < 0.98) | (radius > 1.001)  # the facets lie between radius 0.98 and 1
+    inside = opened.contains(points)
+    assert inside.dtype == bool and inside.shape == (len(points),)
+    assert np.array_equal(inside[clear], radius[clear] < 0.98)
+    # Turned inside out (the other winding), the same answer.
+    bvhc.build(mesh.vertices, mesh.faces[:, ::-1], tmp_path / "flipped.bvh")
+    assert np.array_equal(bvhc.open(tmp_path / "flipped.bvh").contains(points)[clear], radius[clear] < 0.98)
+    # On its vertices: on the surface, inside.
+    assert opened.contains(np.asarray(mesh.vertices)).all()
+    assert np.array_equal(opened.contains(points, threads=1), inside)
+    with pytest.raises(bvhc.InvalidInputError, match="point 1"):
+        opened.contains(np.array([[0, 0, 0], [np.nan, 0, 0]]))
+    try:  # as above
+        assert np.array_equal(mesh.contains(points[clear]), inside[clear])
+    except ImportError:
+        pass
+
+
+def test_cutouts_and_filters_leave_out_what_they_reject(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    opened = bvhc.open(bvh)
+    origins, directions = random_rays(opened.bounds, 20_000, seed=31)
+    plain = opened.closest_hits(origins, directions)
+    count = opened.source_id_count
+    assert count == len(opened.triangles) or count > 0
+    cut = np.zeros(count, dtype=bool)
+    cut[::3] = True
+    masked = opened.closest_hits(origins, directions, cutout=cut)
+    hit = masked["triangle"] != bvhc.MISS
+    assert not cut[masked["source_id"][hit]].any(), "no hit on a cut-out triangle"
+    assert np.all(masked["t"][hit] >= plain["t"][hit]), "a cut-out only removes hits"
+    changed = (plain["triangle"] != bvhc.MISS) & cut[np.where(plain["triangle"] != bvhc.MISS, plain["source_id"], 0)]
+    assert changed.sum() > 100
+    # The same cut-out as a callback: the same hits, on one thread.
+    asked = []
+
+    def keep(ray, t, u, v, triangle, source_id, instance):
+        asked.append(ray)
+        return not cut[source_id]
+
+    called = opened.closest_hits(origins, directions, filter=keep)
+    for key in ("t", "triangle", "u", "v"):
+        assert np.array_equal(called[key], masked[key]), key
+    assert len(asked) > 1000 and max(asked) < len(origins)
+    assert np.array_equal(opened.any_hits(origins, directions, cutout=cut), hit)
+    assert np.array_equal(opened.any_hits(origins, directions, filter=keep), hit)
+    every = opened.all_hits(origins, directions, cutout=cut)
+    assert not cut[every["source_id"]].any()
+    again = opened.all_hits(origins, directions, filter=keep)
+    assert np.array_equal(again["t"], every["t"]) and np.array_equal(again["ray"], every["ray"])
+    # By primitive: the source table's ranges name them; cutting every one leaves nothing.
+    ranges = opened.source_ranges
+    assert ranges is not None and len(ranges) >= 1
+    everything = [(int(r["mesh_index"]), int(r["primitive_index"])) for r in ranges]
+    assert not opened.any_hits(origins, directions, cutout_primitives=everything).any()
+    # A file's flags: the teapot has none, so with "not_opaque" the filter is never asked.
+    assert np.array_equal(opened.closest_hits(origins, directions, filter=keep, filter_scope="not_opaque")["t"], plain["t"])
+
+
+def test_filter_errors_are_named(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    opened = bvhc.open(bvh)
+    origins, directions = random_rays(opened.bounds, 1_000, seed=41)
+    with pytest.raises(bvhc.InvalidInputError, match="cutout: 3 values"):
+        opened.closest_hits(origins, directions, cutout=np.zeros(3, dtype=bool))
+    with pytest.raises(bvhc.InvalidInputError, match="dtype bool"):
+        opened.closest_hits(origins, directions, cutout=np.zeros(opened.source_id_count))
+    with pytest.raises(bvhc.InvalidInputError, match="filter_scope"):
+        opened.closest_hits(origins, directions, filter=lambda *a: True, filter_scope="some")
+    with pytest.raises(bvhc.InvalidInputError, match="callable"):
+        opened.any_hits(origins, directions, filter=3)
+
+    def fails(*candidate):
+        raise ValueError("the filter's own error")
+
+    with pytest.raises(ValueError, match="the filter's own error"):
+        opened.closest_hits(origins, directions, filter=fails)
+    with pytest.raises(ValueError, match="the filter's own error"):
+        opened.all_hits(origins, directions, filter=fails)

@@ -285,6 +285,21 @@ class Scene:
         )
         return self._typed("instances", dtype)
 
+    @property
+    def source_id_count(self) -> int:
+        """Source ids of the file: the length of a ``cutout`` mask (0 without ids)."""
+        return self._native.source_id_count
+
+    @property
+    def source_ranges(self) -> Optional[np.ndarray]:
+        """The source table (``None`` without one): where source ids come from, a row a range of ids with fields
+        ``first_source_triangle``, ``source_triangle_count``, ``file_index`` (the input), ``node_index``,
+        ``mesh_index``, ``primitive_index`` (glTF: the material's primitive) and ``instance_index``
+        (``EXT_mesh_gpu_instancing``); absent values are :data:`MISS`."""
+        fields = ["first_source_triangle", "source_triangle_count", "file_index", "node_index", "mesh_index"]
+        fields += ["primitive_index", "instance_index", "reserved"]
+        return self._typed("source_table", np.dtype([(name, "<u4") for name in fields]))
+
     def closest_hits(
         self,
         origins: Any,
@@ -293,6 +308,10 @@ class Scene:
         t_max: Any = np.inf,
         *,
         threads: Optional[int] = None,
+        cutout: Optional[np.ndarray] = None,
+        cutout_primitives: Optional[Any] = None,
+        filter: Optional[Callable[..., bool]] = None,
+        filter_scope: str = "every",
     ) -> Dict[str, np.ndarray]:
         """The closest hit of each ray: ``origins`` and ``directions`` are ``(n, 3)`` float32 or float64 arrays
         (C-ordered or strided, read in place; float64 is rounded to float32), ``t_min`` and ``t_max`` numbers or
@@ -304,8 +323,19 @@ class Scene:
         ``u``, ``v`` (float32 weights of the record's ``v1`` and ``v2``, 0 for a miss), ``normal`` ((n, 3) float32,
         unnormalized, in world space), ``front_face`` (bool) and ``instance`` (uint32, :data:`MISS` in a one-level
         file). Traced on all cores (or ``threads``) with the GIL released.
+
+        Hit filters (alpha cut-outs): ``cutout`` is a bool array of :attr:`source_id_count` values, true where a
+        triangle is cut out (as if absent); ``cutout_primitives`` a list of ``(mesh, primitive)`` pairs whose
+        triangles are cut out. Both are applied without calling Python, on every core. ``filter`` is a callable
+        ``filter(ray, t, u, v, triangle, source_id, instance) -> bool`` (``ray`` the ray's index; true keeps the
+        candidate), asked about each candidate the masks keep: the call then traces on one thread with the GIL,
+        and an exception it raises is raised here. ``filter_scope`` is ``"every"`` (every candidate is asked) or
+        ``"not_opaque"`` (only candidates on triangles the file marks not opaque, glTF ``MASK``/``BLEND``
+        materials; :attr:`triangle_flags`).
         """
-        return self._native.closest_hits(origins, directions, t_min, t_max, threads)
+        return self._native.closest_hits(
+            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope
+        )
 
     def any_hits(
         self,
@@ -315,9 +345,47 @@ class Scene:
         t_max: Any = np.inf,
         *,
         threads: Optional[int] = None,
+        cutout: Optional[np.ndarray] = None,
+        cutout_primitives: Optional[Any] = None,
+        filter: Optional[Callable[..., bool]] = None,
+        filter_scope: str = "every",
     ) -> np.ndarray:
-        """Whether each ray hits anything in ``[t_min, t_max]``: a bool array. Arguments as :meth:`closest_hits`."""
-        return self._native.any_hits(origins, directions, t_min, t_max, threads)
+        """Whether each ray hits anything in ``[t_min, t_max]`` (that the filters keep): a bool array. Arguments
+        as :meth:`closest_hits`."""
+        return self._native.any_hits(
+            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope
+        )
+
+    def all_hits(
+        self,
+        origins: Any,
+        directions: Any,
+        t_min: Any = 0.0,
+        t_max: Any = np.inf,
+        *,
+        max_hits: int = 64,
+        threads: Optional[int] = None,
+        cutout: Optional[np.ndarray] = None,
+        cutout_primitives: Optional[Any] = None,
+        filter: Optional[Callable[..., bool]] = None,
+        filter_scope: str = "every",
+    ) -> Dict[str, np.ndarray]:
+        """Every surface each ray crosses in ``[t_min, t_max]``, nearest first: a dict of arrays with a row a hit,
+        sorted by ray and then ``t``: ``ray`` (uint32, the ray's index) and the columns of :meth:`closest_hits`;
+        and two arrays with a row a ray, ``count`` (hits kept) and ``found`` (hits found; a ray with more than
+        ``max_hits`` keeps its nearest ``max_hits``). The test is watertight: a ray through an edge or vertex that
+        triangles share crosses there once (one hit, not one a triangle), and a ray touching a silhouette without
+        crossing it gets a front and a back hit or none. Filters as :meth:`closest_hits`."""
+        return self._native.all_hits(
+            origins, directions, t_min, t_max, max_hits, threads, cutout, cutout_primitives, filter, filter_scope
+        )
+
+    def contains(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
+        """Whether each point of ``points`` (``(n, 3)`` float32 or float64) lies inside the scene's closed meshes:
+        a bool array. A ray from the point counts the surfaces it crosses, front faces against back faces (so
+        either winding works); a direction that meets an edge within rounding is replaced by another. Meshes must
+        be closed (watertight) for the answer to mean anything; a point on the surface counts as inside."""
+        return self._native.contains(points, threads)
 
     def spawn(self, hits: Dict[str, np.ndarray], directions: Any) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Secondary rays leaving ``hits`` (a dict as :meth:`closest_hits` returns, misses removed) in

@@ -38,12 +38,46 @@ class Scene:
     def bounds(self) -> Optional[Tuple[Tuple[float, float, float], Tuple[float, float, float]]]: ...
     def info_json(self) -> str: ...
     def verify(self) -> None: ...
+    @property
+    def source_id_count(self) -> int: ...
     def closest_hits(
-        self, origins: Any, directions: Any, t_min: Any, t_max: Any, threads: Optional[int] = None
+        self,
+        origins: Any,
+        directions: Any,
+        t_min: Any,
+        t_max: Any,
+        threads: Optional[int] = None,
+        cutout: Optional[npt.NDArray[np.bool_]] = None,
+        cutout_primitives: Optional[Any] = None,
+        filter: Optional[Callable[..., bool]] = None,
+        filter_scope: str = "every",
     ) -> Dict[str, npt.NDArray[Any]]: ...
     def any_hits(
-        self, origins: Any, directions: Any, t_min: Any, t_max: Any, threads: Optional[int] = None
+        self,
+        origins: Any,
+        directions: Any,
+        t_min: Any,
+        t_max: Any,
+        threads: Optional[int] = None,
+        cutout: Optional[npt.NDArray[np.bool_]] = None,
+        cutout_primitives: Optional[Any] = None,
+        filter: Optional[Callable[..., bool]] = None,
+        filter_scope: str = "every",
     ) -> npt.NDArray[np.bool_]: ...
+    def all_hits(
+        self,
+        origins: Any,
+        directions: Any,
+        t_min: Any,
+        t_max: Any,
+        max_hits: int = 64,
+        threads: Optional[int] = None,
+        cutout: Optional[npt.NDArray[np.bool_]] = None,
+        cutout_primitives: Optional[Any] = None,
+        filter: Optional[Callable[..., bool]] = None,
+        filter_scope: str = "every",
+    ) -> Dict[str, npt.NDArray[Any]]: ...
+    def contains(self, points: Any, threads: Optional[int] = None) -> npt.NDArray[np.bool_]: ...
     def spawn(
         self,
         t: npt.NDArray[np.float32],
