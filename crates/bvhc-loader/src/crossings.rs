@@ -2,27 +2,31 @@
 //! ([`Crossings::contains`]), on any kernel, one- and two-level files.
 //!
 //! **All hits.** The kernel is run with a filter that records every candidate hit within `[t_min, t_max]` and
-//! rejects it, so traversal goes on to the end of the interval; the records are then sorted by `t` and reduced
-//! to one hit per surface crossing:
-//! * a triangle reported more than once (split references, or a record tested again) is one hit, the nearest;
-//! * a ray through an edge or vertex that triangles share hits each of them at that point (the watertight test
-//!   counts an edge as inside both of its triangles, so no ray slips between them), and a ray passing within
-//!   rounding of a vertex hits several of the triangles around it: hits on the same side (`front_face`), in the
-//!   same instance, one of them at an edge or vertex of its triangle (its other weights within `2^-10` of 0)
-//!   that the other's triangle has too, and at about the same `t` (within `2^-12` of it: at a grazing angle the
-//!   triangles around a vertex lie at depths that differ by their slope) are one crossing, whose hit is the one
-//!   farther inside its triangle. Hits on opposite sides there are kept: the ray touches a ridge or a
-//!   silhouette without crossing it, and the two cancel in the inside test.
+//! rejects it, so traversal goes on to the end of the interval; the records are then sorted by `t`, and a
+//! triangle reported more than once (split references, or a record tested again) is one hit, the nearest.
+//!
+//! **Edges and vertices.** The watertight test counts a point on an edge as inside both triangles that share
+//! it, so that no ray slips between them; a ray exactly through an edge or a vertex (an edge function exactly 0:
+//! a ray aimed at a vertex meets it exactly, since the vertex's offset from the origin is the direction before
+//! rounding) therefore hits every triangle around it. Here such a ray counts as if moved infinitesimally off it,
+//! to the same side for every triangle, in the spirit of Edelsbrunner and Muecke's Simulation of Simplicity
+//! (1990): in the ray's sheared 2D space (where the test's edge function `E(p, q) = p_x q_y - p_y q_x` is
+//! evaluated at the origin) the query point moves to `(e, e^2)` for an infinitesimal `e`, which changes an edge
+//! function of 0 to `e (p_y - q_y) + e^2 (q_x - p_x)`: its sign is that of `p_y - q_y`, or if that is 0 of
+//! `q_x - p_x`. Both differences are of f32 values, so their signs are exact, and two triangles sharing an edge
+//! see it with opposite orientation and get opposite signs: the moved point lies in exactly the triangles whose
+//! three signs then agree, which for triangles around an edge or a vertex of a consistently oriented mesh is one
+//! crossing where the ray crosses the surface, and none or a front and a back hit where it touches a ridge or a
+//! silhouette, however the fan around the vertex folds as seen along the ray. So a ray from outside a closed
+//! mesh always has an even number of hits, and the sum of their sides is zero.
 //!
 //! Ray casters built on a non-watertight test instead report such a crossing twice or not at all, and ones that
 //! restart the ray past each hit can skip a surface within their offset.
 //!
 //! **Inside test.** A point is inside a closed mesh when the surfaces a ray from it crosses do not cancel: the
 //! winding number along the ray, back-facing crossings minus front-facing ones (1 or -1 inside a closed,
-//! consistently oriented mesh, whichever way it is wound; 0 outside). A ray that meets some triangle within
-//! `2^-16` of its boundary could count an edge crossing ambiguously, so the test then tries the next of a few
-//! fixed directions; only when every direction grazes an edge does it take the majority. A point on the surface
-//! (a hit at `t <= 2^-20` of the scene's size over the direction's length from it) counts as inside.
+//! consistently oriented mesh, whichever way it is wound; 0 outside). A point on the surface (a hit at
+//! `t <= 2^-20` of the scene's size over the direction's length from it) counts as inside.
 
 use std::cell::RefCell;
 
@@ -31,28 +35,16 @@ use crate::format::{PackedTriangle, TRIANGLE_NOT_OPAQUE};
 use crate::hit::Hit;
 use crate::identity::TriangleIdentities;
 use crate::instance_transform::{object_ray, world_normal};
-use crate::intersect::{Ray, TriangleHit};
+use crate::intersect::{PreparedRay, Ray, TriangleHit};
 use crate::traverse::Tracer;
 use crate::view::BvhView;
+use crate::watertight::{edge_functions, edge_functions_f64, has_zero_edge, sheared};
 
 /// Within what `t`, relative to the scene's size, of a point a hit puts the point on the surface (`2^-20`).
 const ON_SURFACE: f32 = 1.0 / 1_048_576.0;
-/// How close to an edge a hit makes an inside test try another direction (`2^-16`).
-const NEAR_EDGE: f32 = 1.0 / 65_536.0;
-/// How small a weight puts a hit at an edge or vertex for merging crossings (`2^-10`: a ray passing within
-/// rounding of a vertex at a grazing angle meets the triangles around it up to this far from the vertex).
-const AT_ELEMENT: f32 = 1.0 / 1024.0;
-/// Relative depth within which hits on one edge or vertex are one crossing (`2^-12`).
-const SAME_DEPTH: f32 = 1.0 / 4096.0;
-/// Directions an inside test tries in turn: spread over the sphere, none along an axis or a diagonal.
-const DIRECTIONS: [[f32; 3]; 6] = [
-    [0.577_350_3, 0.211_324_87, 0.788_675_1],
-    [-0.301_511_35, 0.904_534_06, 0.301_511_35],
-    [0.229_415_73, -0.688_247_2, 0.688_247_2],
-    [-0.801_783_7, -0.267_261_24, -0.534_522_5],
-    [0.872_871_6, -0.436_435_8, 0.218_217_9],
-    [-0.408_248_3, 0.408_248_3, -0.816_496_6],
-];
+/// The direction of an inside test's ray: along no axis or diagonal, so that axis-aligned models do not put it
+/// through their edges more often than chance.
+const INSIDE_DIRECTION: [f32; 3] = [0.577_350_3, 0.211_324_87, 0.788_675_1];
 
 /// All hits and inside tests over a file: see the module doc. Made once per file ([`BvhView::crossings`]); cheap
 /// to copy around threads by reference (`Sync`).
@@ -139,51 +131,62 @@ impl<'a> Crossings<'a> {
         hits: &mut Vec<Hit>,
     ) {
         hits.clear();
+        let recorded = self.candidates(ray, filter, scope);
+        self.crossings_of(ray, recorded, hits);
+    }
+
+    /// Whether `point` lies inside the closed meshes of this file (see the module doc): the winding number of
+    /// the surfaces a ray from it crosses, or inside when the test hits a triangle at the point itself (before
+    /// any perturbation: a point on an edge or at a vertex is on the surface too).
+    pub fn contains(&self, point: [f32; 3]) -> bool {
+        let ray = Ray::new(point, INSIDE_DIRECTION);
+        let recorded = self.candidates(&ray, &everything, FilterScope::Every);
+        if recorded.iter().any(|r| r.hit.t <= self.surface_distance()) {
+            return true;
+        }
+        let mut hits = Vec::new();
+        self.crossings_of(&ray, recorded, &mut hits);
+        hits.iter().map(|h| if h.front_face { -1i32 } else { 1 }).sum::<i32>() != 0
+    }
+
+    /// Every candidate hit of `ray` within its interval that `filter` accepts (asked in `scope`).
+    fn candidates<F: HitFilter + ?Sized>(&self, ray: &Ray, filter: &F, scope: FilterScope) -> Vec<Recorded> {
         let collector =
             Collector { filter, scope, flags: self.tracer.triangle_flags(), found: RefCell::new(Vec::new()) };
         // Everything rejected: the any-hit walk (no ordering work) visits every candidate in the interval.
         let _ = self.tracer.filtered(&collector, FilterScope::Every).any_hit(ray);
-        let mut found: Vec<(Hit, u32)> = collector
-            .found
-            .into_inner()
+        collector.found.into_inner()
+    }
+
+    /// The crossings among `recorded` (the candidates of `ray`) into `hits`: those the moved ray still hits,
+    /// sorted by `t` (ties by instance and triangle), each triangle once.
+    fn crossings_of(&self, ray: &Ray, recorded: Vec<Recorded>, hits: &mut Vec<Hit>) {
+        let world = PreparedRay::new(ray);
+        let mut found: Vec<(Hit, u32)> = recorded
             .into_iter()
+            .filter(|r| self.on_moved_ray(ray, &world, r))
             .map(|r| (self.hit(ray, r), self.identities.get(r.record)))
             .collect();
         found.sort_by(|a, b| {
             a.0.t.total_cmp(&b.0.t).then(a.0.instance_index.cmp(&b.0.instance_index)).then(a.1.cmp(&b.1))
         });
-        // One hit per triangle (the nearest), then one per crossing.
+        // One hit per triangle (the nearest).
         let mut seen = std::collections::HashSet::new();
         found.retain(|(hit, identity)| seen.insert((*identity, hit.instance_index)));
-        for (hit, _) in found {
-            let nearby = hits.iter().rposition(|kept| !close_in_t(kept.t, hit.t)).map_or(0, |at| at + 1);
-            match (nearby..hits.len()).find(|&k| self.same_crossing(&hits[k], &hit)) {
-                // One crossing: keep the hit farther inside its triangle.
-                Some(k) if inset(&hit) > inset(&hits[k]) => hits[k] = hit,
-                Some(_) => {}
-                None => hits.push(hit),
-            }
-        }
+        hits.extend(found.into_iter().map(|(hit, _)| hit));
     }
 
-    /// Whether `point` lies inside the closed meshes of this file (see the module doc): the winding number of
-    /// the surfaces a ray from it crosses, on a direction that meets no triangle near an edge.
-    pub fn contains(&self, point: [f32; 3]) -> bool {
-        let mut hits = Vec::new();
-        let mut votes = 0i32;
-        for direction in DIRECTIONS {
-            let ray = Ray::new(point, direction);
-            self.all_hits(&ray, &mut hits);
-            if hits.first().is_some_and(|h| h.t <= self.surface_distance()) {
-                return true;
-            }
-            let winding: i32 = hits.iter().map(|h| if h.front_face { -1 } else { 1 }).sum();
-            if !hits.iter().any(|h| near_edge(h.u, h.v)) {
-                return winding != 0;
-            }
-            votes += if winding != 0 { 1 } else { -1 };
+    /// Whether a recorded candidate is still hit when the ray is moved infinitesimally off the edges and
+    /// vertices it passes exactly through (see the module doc; `world` is `ray` prepared): decided by the
+    /// test's edge functions, not by the hit's weights, which for an ill-conditioned hit are the exact ones.
+    fn on_moved_ray(&self, ray: &Ray, world: &PreparedRay, recorded: &Recorded) -> bool {
+        let Some(triangle) = self.triangles.get(recorded.record as usize) else {
+            return true;
+        };
+        match recorded.instance.and_then(|i| self.tracer.instance_sections()?.placement(i)) {
+            Some((instance, _)) => inside_when_moved(&PreparedRay::new(&object_ray(instance, ray)), triangle),
+            None => inside_when_moved(world, triangle),
         }
-        votes > 0
     }
 
     /// Within what `t` (along a unit direction) of a point a hit puts the point on the surface: `2^-20` of the
@@ -209,48 +212,38 @@ impl<'a> Crossings<'a> {
             None => Hit::new(recorded.record, recorded.hit, self.triangles, ids, &ray.direction),
         }
     }
+}
 
-    /// Whether two hits at about the same `t` are one crossing through an edge or vertex their triangles share:
-    /// the same side, the same instance, and one of them at an edge or vertex of its triangle (its other weights
-    /// within `2^-10` of 0) that the other triangle has too (the same coordinates): there the test, within
-    /// rounding, reports the neighbours of the triangle crossed as well.
-    fn same_crossing(&self, a: &Hit, b: &Hit) -> bool {
-        if a.front_face != b.front_face || a.instance_index != b.instance_index {
-            return false;
-        }
-        let (Some(ta), Some(tb)) =
-            (self.triangles.get(a.triangle_index as usize), self.triangles.get(b.triangle_index as usize))
-        else {
-            return false;
+/// Whether the ray's point lies inside `triangle` once moved to `(e, e^2)` in the ray's sheared 2D space (see the
+/// module doc): the edge functions as the watertight test computes them (exact signs), each one of exactly 0
+/// replaced by the sign of its perturbation, all of one sign.
+fn inside_when_moved(ray: &PreparedRay, triangle: &PackedTriangle) -> bool {
+    let (_, [sx, sy, _]) = ray.shear();
+    let p = sheared(&ray.relative(triangle), sx, sy);
+    let mut e = edge_functions(p);
+    if !has_zero_edge(e, 0.0) {
+        return true; // the test's own decision stands
+    }
+    e = edge_functions_f64(p);
+    let [a, b, c] = p;
+    // U = E(c, b), V = E(a, c), W = E(b, a).
+    let edges = [(c, b), (a, c), (b, a)];
+    let sign = |value: f32, ([px, py], [qx, qy]): ([f32; 2], [f32; 2])| {
+        let moved = if value != 0.0 {
+            value
+        } else if py != qy {
+            py - qy
+        } else {
+            qx - px
         };
-        on_shared_element(a, ta, tb) || on_shared_element(b, tb, ta)
-    }
-}
-
-/// Whether `hit` lies at an edge or vertex of `triangle` (its weights of the other vertices within `2^-10` of
-/// 0) whose vertices `other` has too.
-fn on_shared_element(hit: &Hit, triangle: &PackedTriangle, other: &PackedTriangle) -> bool {
-    let weights = [1.0 - hit.u - hit.v, hit.u, hit.v];
-    if !weights.iter().any(|&w| w <= AT_ELEMENT) {
-        return false;
-    }
-    let bits = |v: &[f32; 3]| v.map(f32::to_bits);
-    let shared = |i: usize| other.vertices.iter().any(|q| bits(q) == bits(&triangle.vertices[i]));
-    (0..3).filter(|&i| weights[i] > AT_ELEMENT).all(shared)
-}
-
-/// Whether `t` and `s` are within `2^-12` of the larger (a ray passing within rounding of a vertex at a grazing
-/// angle meets the triangles around it at depths that differ by their slope).
-fn close_in_t(t: f32, s: f32) -> bool {
-    (t - s).abs() <= SAME_DEPTH * t.abs().max(s.abs())
-}
-
-/// How far inside its triangle a hit lies: its smallest weight `(1 - u - v, u, v)`.
-fn inset(hit: &Hit) -> f32 {
-    hit.u.min(hit.v).min(1.0 - hit.u - hit.v)
-}
-
-/// Whether the weights put a point near an edge (for the inside test's choice of direction).
-fn near_edge(u: f32, v: f32) -> bool {
-    u.min(v).min(1.0 - u - v) <= NEAR_EDGE
+        if moved > 0.0 {
+            1
+        } else if moved < 0.0 {
+            -1
+        } else {
+            0
+        }
+    };
+    let [su, sv, sw] = [0, 1, 2].map(|i| sign(e[i], edges[i]));
+    su != 0 && su == sv && sv == sw
 }

@@ -107,10 +107,7 @@ impl HitColumns {
 
     /// The closest hits of `rays`, each chunk of rays read, checked and traced (by `trace`) by one task; the
     /// first ray that breaks the contract is the error (the hits are then dropped).
-    pub fn traced(
-        rays: RayArrays<'_>,
-        trace: &BatchTrace<'_>,
-    ) -> Result<HitColumns, BatchRayError> {
+    pub fn traced(rays: RayArrays<'_>, trace: &BatchTrace<'_>) -> Result<HitColumns, BatchRayError> {
         let n = rays.len();
         let mut c = HitColumns::zeroed(n);
         let first_bad = (0..n.div_ceil(CHUNK))

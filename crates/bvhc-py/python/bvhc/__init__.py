@@ -373,18 +373,19 @@ class Scene:
         """Every surface each ray crosses in ``[t_min, t_max]``, nearest first: a dict of arrays with a row a hit,
         sorted by ray and then ``t``: ``ray`` (uint32, the ray's index) and the columns of :meth:`closest_hits`;
         and two arrays with a row a ray, ``count`` (hits kept) and ``found`` (hits found; a ray with more than
-        ``max_hits`` keeps its nearest ``max_hits``). The test is watertight: a ray through an edge or vertex that
-        triangles share crosses there once (one hit, not one a triangle), and a ray touching a silhouette without
-        crossing it gets a front and a back hit or none. Filters as :meth:`closest_hits`."""
+        ``max_hits`` keeps its nearest ``max_hits``). The test is watertight, and a ray exactly through an edge or
+        vertex that triangles share counts as if moved infinitesimally off it: it crosses there once (one hit, not
+        one a triangle), a ray touching a silhouette gets a front and a back hit or none, and a ray from outside a
+        closed mesh has an even number of hits. Filters as :meth:`closest_hits`."""
         return self._native.all_hits(
             origins, directions, t_min, t_max, max_hits, threads, cutout, cutout_primitives, filter, filter_scope
         )
 
     def contains(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
         """Whether each point of ``points`` (``(n, 3)`` float32 or float64) lies inside the scene's closed meshes:
-        a bool array. A ray from the point counts the surfaces it crosses, front faces against back faces (so
-        either winding works); a direction that meets an edge within rounding is replaced by another. Meshes must
-        be closed (watertight) for the answer to mean anything; a point on the surface counts as inside."""
+        a bool array. A ray from the point counts the surfaces it crosses as :meth:`all_hits` does, front faces
+        against back faces (so either winding works). Meshes must be closed (watertight) for the answer to mean
+        anything; a point on the surface counts as inside."""
         return self._native.contains(points, threads)
 
     def spawn(self, hits: Dict[str, np.ndarray], directions: Any) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
