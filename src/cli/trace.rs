@@ -1,12 +1,14 @@
 //! `bvhc trace FILE.bvh --rays RAYS.bin [-o HITS.bin] [--any-hit] [--gpu] [--json]`: traces a binary ray file
 //! through the loader's `Tracer` (the same kernel a renderer links), in parallel over fixed chunks of rays (so
-//! the hits do not depend on `--threads`), or with `--gpu` through its WGSL kernel on the first wgpu adapter,
-//! and reports rays per second of the tracing alone. Record layouts:
+//! the hits do not depend on `--threads`), or with `--gpu` through its WGSL kernel on the first wgpu adapter.
+//! The kernel's batch calls write each ray's record straight into the output buffer, allocated and written
+//! once before the clock starts, so the reported seconds and rays per second are the tracing alone; the total
+//! (reading, verifying, tracing, writing) is reported beside them. Record layouts:
 //! `format-spec/rays-and-hits.md`.
 
 use std::time::Instant;
 
-use bvhc::loader::{Hit, Ray};
+use bvhc::loader::{BatchRayError, Hit, Ray};
 use rayon::prelude::*;
 
 use bvhc::sampling::{parse_rays, read_ray_file};
@@ -48,6 +50,7 @@ pub fn hit_record(hit: Option<&Hit>) -> [u8; HIT_RECORD_BYTE_LEN] {
 
 /// Runs `bvhc trace`.
 pub fn trace(args: &TraceArgs) -> Exit {
+    let started = Instant::now();
     if let Some(output) = &args.output
         && [&args.file, &args.rays].iter().any(|input| bvhc::convert::files::is_same_file(output, input))
     {
@@ -69,9 +72,9 @@ pub fn trace(args: &TraceArgs) -> Exit {
     drop(bytes);
     let traced = match args.gpu {
         true => trace_on_gpu(&view, &rays, args.any_hit),
-        false => Ok(trace_on_cpu(&view, &rays, args)),
+        false => trace_on_cpu(&view, &rays, args),
     };
-    let Traced { records, hits, seconds, device } = match traced {
+    let Traced { records, hits, seconds, device, cpu_rays } = match traced {
         Ok(traced) => traced,
         Err((exit, message)) => return fail(exit, format!("{}: {message}", args.file.display())),
     };
@@ -80,9 +83,10 @@ pub fn trace(args: &TraceArgs) -> Exit {
     {
         return fail(Exit::Io, error);
     }
+    let total_seconds = started.elapsed().as_secs_f64();
     let rays_per_second = if seconds > 0.0 { rays.len() as f64 / seconds } else { 0.0 };
     let text = if args.json {
-        let report = serde_json::json!({
+        let mut report = serde_json::json!({
             "file": args.file,
             "rays": rays.len(),
             "hits": hits,
@@ -92,11 +96,19 @@ pub fn trace(args: &TraceArgs) -> Exit {
             "threads": rayon::current_num_threads(),
             "seconds": seconds,
             "rays_per_second": rays_per_second,
+            "total_seconds": total_seconds,
         });
+        if let Some(cpu_rays) = cpu_rays {
+            report["cpu_rays"] = cpu_rays.into();
+        }
         format!("{report:#}\n")
     } else {
+        let refined = match cpu_rays {
+            Some(n) => format!(" ({n} rays' closest hits refined on the CPU)"),
+            None => String::new(),
+        };
         format!(
-            "{}: {} rays, {hits} hit ({}), {seconds:.3} s tracing, {:.2} Mrays/s on {device}\n",
+            "{}: {} rays, {hits} hit ({}), {seconds:.3} s tracing, {:.2} Mrays/s on {device}{refined}; {total_seconds:.3} s in all\n",
             args.rays.display(),
             rays.len(),
             if args.any_hit { "any hit" } else { "closest hit" },
@@ -106,39 +118,74 @@ pub fn trace(args: &TraceArgs) -> Exit {
     print(&text, Exit::Success)
 }
 
-/// What a trace produced: the output records, the hits, the seconds of tracing, and what traced them.
+/// What a trace produced: the output records, the hits, the seconds of tracing, what traced them, and on a GPU
+/// the rays it left to the CPU model.
 struct Traced {
     records: Vec<u8>,
     hits: usize,
     seconds: f64,
     device: String,
+    cpu_rays: Option<usize>,
 }
 
-/// The records of `rays` traced by the loader's default CPU kernel on the thread pool.
-fn trace_on_cpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], args: &TraceArgs) -> Traced {
+/// The records of `rays` traced by the loader's default CPU kernel on the thread pool: each chunk's batch call
+/// writes its rays' records in place, into a buffer that holds a miss's record for every ray before the clock
+/// starts (so no page is first touched, and nothing converted, while it runs).
+fn trace_on_cpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], args: &TraceArgs) -> Result<Traced, (Exit, String)> {
     // `parse_rays` checked every ray against the contract, so the tracer need not check them again.
     let tracer = view.tracer().trusting_rays();
+    let coherent = args.coherent;
+    let mut records = match args.any_hit {
+        true => vec![0u8; rays.len()],
+        false => hit_record(None).repeat(rays.len()),
+    };
+    records.iter_mut().step_by(4096).for_each(|b| *b = std::hint::black_box(*b)); // touch every page
     let start = Instant::now();
-    let (records, hits): (Vec<u8>, usize) = if args.any_hit {
-        let mut flags = vec![false; rays.len()];
-        rays.par_chunks(CHUNK).zip(flags.par_chunks_mut(CHUNK)).for_each(|(c, out)| match args.coherent {
-            true => tracer.any_hits_coherent(c, out),
-            false => tracer.any_hits(c, out),
-        });
-        let occluded: Vec<u8> = flags.into_iter().map(u8::from).collect();
-        let hits = occluded.iter().filter(|&&o| o == 1).count();
-        (occluded, hits)
+    let traced = if args.any_hit {
+        traced_in_place(rays, &mut records, 1, |chunk, each| match coherent {
+            true => tracer.any_hits_coherent_with(chunk, |i, occluded| each(i, occluded.then_some(&[1][..]))),
+            false => tracer.any_hits_with(chunk, |i, occluded| each(i, occluded.then_some(&[1][..]))),
+        })
     } else {
-        let mut found: Vec<Option<Hit>> = vec![None; rays.len()];
-        rays.par_chunks(CHUNK).zip(found.par_chunks_mut(CHUNK)).for_each(|(c, out)| match args.coherent {
-            true => tracer.closest_hits_coherent(c, out),
-            false => tracer.closest_hits(c, out),
-        });
-        let hits = found.iter().filter(|h| h.is_some()).count();
-        (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
+        traced_in_place(rays, &mut records, HIT_RECORD_BYTE_LEN, |chunk, each| {
+            let mut write =
+                |i: usize, hit: Option<Hit>| each(i, hit.map(|h| hit_record(Some(&h))).as_ref().map(|r| &r[..]));
+            match coherent {
+                true => tracer.closest_hits_coherent_with(chunk, &mut write),
+                false => tracer.closest_hits_with(chunk, &mut write),
+            }
+        })
     };
     let seconds = start.elapsed().as_secs_f64();
-    Traced { records, hits, seconds, device: format!("{} threads", rayon::current_num_threads()) }
+    // Unreachable with checked rays; reported rather than trusted.
+    let hits = traced.map_err(|why| (Exit::InvalidInput, why))?;
+    Ok(Traced { records, hits, seconds, device: format!("{} threads", rayon::current_num_threads()), cpu_rays: None })
+}
+
+/// Traces `rays` chunk by chunk on the thread pool, each chunk's records written in place into its part of
+/// `records` (`record_len` bytes a ray): `trace(chunk, each)` calls `each(i, record)` once for ray `i` of the
+/// chunk, with the record of a hit, or `None` for a miss (whose record is already there). The hits, or the
+/// first ray that breaks the contract, named by its index in the file.
+fn traced_in_place(
+    rays: &[Ray],
+    records: &mut [u8],
+    record_len: usize,
+    trace: impl Fn(&[Ray], &mut dyn FnMut(usize, Option<&[u8]>)) -> Result<(), BatchRayError> + Sync,
+) -> Result<usize, String> {
+    rays.par_chunks(CHUNK)
+        .zip(records.par_chunks_mut(CHUNK * record_len))
+        .enumerate()
+        .map(|(c, (chunk, out))| {
+            let mut hits = 0;
+            let mut each = |i: usize, record: Option<&[u8]>| {
+                if let Some(record) = record {
+                    out[i * record_len..][..record_len].copy_from_slice(record);
+                    hits += 1;
+                }
+            };
+            trace(chunk, &mut each).map(|()| hits).map_err(|e| format!("ray {}: {}", c * CHUNK + e.index, e.error))
+        })
+        .sum()
 }
 
 /// The records of `rays` traced by the loader's WGSL kernel on the first wgpu adapter; the seconds count the
@@ -158,10 +205,17 @@ fn trace_on_gpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], any_hit: bool) -
         let hits = occluded.iter().filter(|&&o| o == 1).count();
         (occluded, hits)
     } else {
-        let found: Vec<Option<Hit>> =
-            rays.iter().zip(&trace.records).map(|(ray, r)| r.to_hit(ray, triangles, ids)).collect();
-        let hits = found.iter().filter(|h| h.is_some()).count();
-        (found.iter().flat_map(|h| hit_record(h.as_ref())).collect(), hits)
+        let mut hits = 0;
+        let records = rays
+            .iter()
+            .zip(&trace.records)
+            .flat_map(|(ray, r)| {
+                let hit = r.to_hit(ray, triangles, ids);
+                hits += usize::from(hit.is_some());
+                hit_record(hit.as_ref())
+            })
+            .collect();
+        (records, hits)
     };
-    Ok(Traced { records, hits, seconds: trace.seconds, device })
+    Ok(Traced { records, hits, seconds: trace.seconds, device, cpu_rays: Some(trace.cpu_rays) })
 }

@@ -43,7 +43,9 @@ fn trace_writes_what_the_tracer_finds() {
         assert!(run.status.success(), "{}", stderr(&run));
         let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
         assert_eq!(report["rays"], rays.len());
-        assert!(report["seconds"].as_f64().is_some() && report["rays_per_second"].as_f64().is_some());
+        let (seconds, total) = (report["seconds"].as_f64().unwrap(), report["total_seconds"].as_f64().unwrap());
+        assert!(report["rays_per_second"].as_f64().is_some() && seconds <= total, "{report}");
+        assert!(report.get("cpu_rays").is_none(), "cpu_rays is the GPU's: {report}");
         let bytes = std::fs::read(&hits).unwrap();
         assert_eq!(bytes.len(), 24 * rays.len());
         let mut hit_count = 0;
@@ -207,4 +209,43 @@ fn trace_writes_to_a_device_or_fifo_directly() {
     let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &dir.path()]);
     assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
     assert!(stderr(&run).contains("not a regular file"), "{}", stderr(&run));
+}
+
+/// `bvhc trace --gpu`: the records are the GPU tracer's (rays it leaves to the CPU included), the report counts
+/// those rays (`cpu_rays`) and times the tracing apart from the whole command. SKIPPED without a GPU adapter.
+#[test]
+fn trace_on_the_gpu_writes_the_gpu_tracers_records_and_counts_its_cpu_rays() {
+    let dir = tempfile::tempdir().unwrap();
+    let bvh = dir.path().join("teapot-gpu.bvh");
+    assert!(bvhc(&[&teapot(), &"-o", &bvh, &"-q", &"--preset", &"fast", &"--gpu-layout"]).status.success());
+    let file = BvhFile::read(&bvh).unwrap();
+    let view = file.view();
+    let gpu = match bvhc::loader::GpuTracer::new(&view) {
+        Ok(gpu) => gpu,
+        Err(bvhc::loader::GpuError::NoAdapter(why)) => {
+            let what = format!("bvhc trace --gpu (no GPU adapter: {why})");
+            return crate::skips::skipped(crate::skips::Needs::Vulkan, what);
+        }
+        Err(e) => panic!("{e}"),
+    };
+    let rays = random_rays(95, 3_000, 4.0);
+    let ray_file = dir.path().join("rays.bin");
+    std::fs::write(&ray_file, ray_bytes(&rays)).unwrap();
+    let hits = dir.path().join("hits.bin");
+    let run = bvhc(&[&"trace", &bvh, &"--rays", &ray_file, &"-o", &hits, &"--gpu", &"--json"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
+    let trace = gpu.trace(&rays, false).unwrap();
+    assert_eq!(report["cpu_rays"].as_u64(), Some(trace.cpu_rays as u64), "{report}");
+    assert!(report["seconds"].as_f64().unwrap() <= report["total_seconds"].as_f64().unwrap(), "{report}");
+    let bytes = std::fs::read(&hits).unwrap();
+    let expected = gpu.closest_hits(&rays).unwrap();
+    assert_eq!(report["hits"], expected.iter().filter(|h| h.is_some()).count());
+    for (i, (record, hit)) in bytes.chunks_exact(24).zip(&expected).enumerate() {
+        let (t, triangle) = (f32::from_le_bytes(word(record, 0)), u32::from_le_bytes(word(record, 4)));
+        match hit {
+            Some(hit) => assert_eq!((t, triangle), (hit.t, hit.triangle_index), "ray {i}"),
+            None => assert_eq!((t, triangle), (f32::INFINITY, u32::MAX), "ray {i}"),
+        }
+    }
 }
