@@ -77,6 +77,7 @@ impl Inspection {
             "split_references": view.has_split_references(),
             "source_vertices": view.source_vertices().is_some(),
             "not_opaque_count": not_opaque_count(view),
+            "not_opaque_triangle_count": not_opaque_triangle_count(view),
             "node_count": view.nodes().len(),
             "wide_node_count": view.wide_sections().map(|w| w.nodes.len()),
             "packet_count": view.wide_sections().map(|w| w.packets.len()),
@@ -160,25 +161,35 @@ pub fn metadata(view: &BvhView<'_>) -> serde_json::Value {
 /// metadata's `triangles.stored_count` (rule V36 keeps it between the distinct vertex triples and the records:
 /// two source triangles may have the same vertices), and only without that the distinct vertex triples.
 pub fn unique_triangle_count(view: &BvhView<'_>, metadata: &serde_json::Value) -> usize {
+    let stored = metadata["triangles"]["stored_count"].as_u64();
+    match (view.has_split_references(), view.triangle_ids(), stored) {
+        (true, None, Some(stored)) => stored as usize,
+        _ => distinct_triangles(view, |_| true),
+    }
+}
+
+/// Distinct source triangles among the records `keep` accepts: the records themselves without
+/// `SPLIT_REFERENCES`; with it, their distinct ids, or without ids their distinct vertex triples.
+fn distinct_triangles(view: &BvhView<'_>, keep: impl Fn(usize) -> bool) -> usize {
+    let records = 0..view.triangles().len();
     if !view.has_split_references() {
-        return view.triangles().len();
+        return records.filter(|&r| keep(r)).count();
     }
     match view.triangle_ids() {
         Some(ids) => {
-            let mut ids = ids.to_vec();
-            ids.sort_unstable();
-            ids.dedup();
-            ids.len()
+            let mut kept: Vec<u32> = records.filter(|&r| keep(r)).map(|r| ids[r]).collect();
+            kept.sort_unstable();
+            kept.dedup();
+            kept.len()
         }
-        None => match metadata["triangles"]["stored_count"].as_u64() {
-            Some(stored) => stored as usize,
-            None => {
-                let mut keys: Vec<[u32; 9]> = view.triangles().iter().map(|t| t.coordinate_bits()).collect();
-                keys.sort_unstable();
-                keys.dedup();
-                keys.len()
-            }
-        },
+        None => {
+            let triangles = view.triangles();
+            let mut keys: Vec<[u32; 9]> =
+                records.filter(|&r| keep(r)).map(|r| triangles[r].coordinate_bits()).collect();
+            keys.sort_unstable();
+            keys.dedup();
+            keys.len()
+        }
     }
 }
 
@@ -191,4 +202,11 @@ pub fn gpu_byte_len(gpu: &bvhc_loader::GpuSections<'_>) -> usize {
 pub fn not_opaque_count(view: &BvhView<'_>) -> Option<usize> {
     let flags = view.triangle_flags()?;
     Some(flags.iter().filter(|&&f| f & bvhc_loader::format::TRIANGLE_NOT_OPAQUE != 0).count())
+}
+
+/// The distinct source triangles among the records the `triangle_flags` section marks not opaque (counted as
+/// [`unique_triangle_count`] counts, by vertex triples without ids), or `None` without the section.
+pub fn not_opaque_triangle_count(view: &BvhView<'_>) -> Option<usize> {
+    view.triangle_flags()?;
+    Some(distinct_triangles(view, |r| view.is_not_opaque(r as u32)))
 }

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use bvhc::inspect::{Inspection, gpu_byte_len, inspect, not_opaque_count};
+use bvhc::inspect::{Inspection, gpu_byte_len, inspect, not_opaque_count, not_opaque_triangle_count};
 use bvhc::loader::BvhFile;
 
 use super::output::{outln, print};
@@ -10,7 +10,7 @@ use super::{Exit, fail, loader_exit};
 
 /// Reads and fully verifies a file; the error exit when it cannot be read or is invalid.
 pub(super) fn read_verified(path: &Path) -> Result<BvhFile, Exit> {
-    let file = BvhFile::read(path).map_err(|e| fail(loader_exit(&e), format!("{}: {e}", path.display())))?;
+    let file = BvhFile::read(path).map_err(|e| fail(loader_exit(&e), e.for_file(path)))?;
     file.view()
         .verify()
         .map_err(|v| fail(Exit::InvalidInput, format!("{}: invalid .bvh file: {v}", path.display())))?;
@@ -109,13 +109,14 @@ pub fn info(path: &Path, json: bool) -> Exit {
         (false, _) => "no source ids",
     };
     outln!(out, "provenance: {shading}");
-    match not_opaque_count(&view) {
-        Some(count) => outln!(
+    match (not_opaque_count(&view), not_opaque_triangle_count(&view)) {
+        (Some(count), Some(triangles)) => outln!(
             out,
-            "opacity: {count} of {} triangle records not opaque (a filtered tracer asks its filter about these alone)",
+            "opacity: {count} of {} triangle records ({triangles} distinct triangles) not opaque (a filtered tracer \
+             asks its filter about these alone)",
             view.triangles().len()
         ),
-        None => outln!(out, "opacity: every triangle opaque (no triangle_flags section)"),
+        _ => outln!(out, "opacity: every triangle opaque (no triangle_flags section)"),
     }
     match view.wide_sections() {
         Some(wide) => outln!(

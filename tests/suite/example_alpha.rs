@@ -43,23 +43,33 @@ fn triangles_of_alpha_tested_materials_and_no_others_are_marked_not_opaque() {
             let flags = view.triangle_flags().expect("an alpha-tested scene has the triangle_flags section");
             let ids = view.triangle_ids().unwrap();
             let mut marked = 0;
+            let mut marked_ids = std::collections::BTreeSet::new();
             for (record, &id) in ids.iter().enumerate() {
                 let range = view.source_range_of(id).unwrap();
                 let alpha_tested = tested.iter().any(|&(m, p, _)| (m, p) == (range.mesh_index, range.primitive_index));
                 assert_eq!(view.is_not_opaque(record as u32), alpha_tested, "{scene} {name}: record {record}");
                 marked += usize::from(alpha_tested);
+                if alpha_tested {
+                    marked_ids.insert(id);
+                }
             }
             assert!(marked > 0 && marked < flags.len(), "{scene} {name}: {marked} of {} marked", flags.len());
             // `bvhc info` counts them.
             let path = dir.path().join(format!("{name}.bvh"));
             let text = crate::cli::stdout(&bvhc(&[&"info", &path]));
             assert!(
-                text.contains(&format!("opacity: {marked} of {} triangle records not opaque", flags.len())),
+                text.contains(&format!(
+                    "opacity: {marked} of {} triangle records ({} distinct triangles) not opaque",
+                    flags.len(),
+                    marked_ids.len()
+                )),
                 "{text}"
             );
             let json = crate::cli::stdout(&bvhc(&[&"info", &path, &"--json"]));
             let info: serde_json::Value = serde_json::from_str(&json).unwrap();
             assert_eq!(info["not_opaque_count"].as_u64(), Some(marked as u64), "{scene} {name}");
+            // Split triangles have several records and one id: the distinct triangles are the distinct ids.
+            assert_eq!(info["not_opaque_triangle_count"].as_u64(), Some(marked_ids.len() as u64), "{scene} {name}");
         }
         // Forced either way by --opacity.
         let opaque = convert(&gltf, &dir.path().join("opaque.bvh"), &["--opacity", "opaque"]);

@@ -109,8 +109,50 @@ fn v8_v9_v10_v38_v51_clauses_of_the_triangle_flags() {
         bytes[at..at + len].copy_from_slice(edited.as_bytes());
     });
     assert_eq!(rule, Some(Rule::MetadataBuild));
+    // V38: build.opacity is a value no writer means (a word, a number), in a file the other clauses accept.
+    for (replacement, wanted) in
+        [("\"opacity\":\"clipped\" ", Some(Rule::MetadataBuild)), ("\"opacity\":7         ", Some(Rule::MetadataBuild))]
+    {
+        let rule = edited(|bytes, _, _| {
+            let (at, len) = (data(bytes, 4), read_u64(bytes, entry(4) + 16) as usize);
+            let text = String::from_utf8(bytes[at..at + len].to_vec()).unwrap();
+            let edited = text.replace("\"opacity\":\"filtered\"", replacement);
+            assert_eq!(edited.len(), text.len());
+            bytes[at..at + len].copy_from_slice(edited.as_bytes());
+        });
+        assert_eq!(rule, wanted, "{replacement}");
+    }
+    // `materials` (what an absent key means) is a value V38 accepts, whatever the flags.
+    let rule = edited(|bytes, _, _| {
+        let (at, len) = (data(bytes, 4), read_u64(bytes, entry(4) + 16) as usize);
+        let text = String::from_utf8(bytes[at..at + len].to_vec()).unwrap();
+        // One byte longer: the optimizer's seed (which no rule checks) a digit shorter keeps the section's length.
+        let mut edited = text.replace("\"opacity\":\"filtered\"", "\"opacity\":\"materials\"");
+        let seed = edited.find("\"seed\":").unwrap() + "\"seed\":".len();
+        edited.remove(seed);
+        assert_eq!(edited.len(), text.len());
+        bytes[at..at + len].copy_from_slice(edited.as_bytes());
+    });
+    assert_eq!(rule, None);
     // V51: a file without the section labelled 1.5.
     let mut bytes = crate::rules_metadata::converted().to_vec();
     relabel_minor(&mut bytes, 2, 5);
     assert_eq!(broken_rule(&bytes), Some(Rule::LowestMinor));
+}
+
+/// A scene without triangles converted with `--opacity filtered`: the section is written with 0 elements (every
+/// element marked, vacuously), so the file is 1.5 and valid.
+#[test]
+fn an_empty_scene_with_every_triangle_filtered_has_an_empty_flags_section_and_is_valid() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("empty.obj");
+    std::fs::write(&scene, "v 0 0 0\nv 1 0 0\n").unwrap();
+    let output = dir.path().join("empty.bvh");
+    bvhc::Conversion::new(&scene, &output).opacity(Opacity::Filtered).run().unwrap();
+    let bytes = std::fs::read(&output).unwrap();
+    assert_eq!(broken_rule(&bytes), None);
+    let file = BvhFile::from_bytes(&bytes).unwrap();
+    assert_eq!(file.view().version(), (1, 5));
+    assert_eq!(file.view().triangles().len(), 0);
+    assert_eq!(file.view().triangle_flags(), Some(&[][..]));
 }

@@ -451,11 +451,18 @@ fn verify_choice(metadata: &Map) -> Result<(), Violation> {
     Ok(())
 }
 
-/// V38's `build.opacity` clause (since 1.5): `opaque` means the file has no `triangle_flags` section, `filtered`
-/// that every triangle is marked not opaque.
+/// V38's `build.opacity` clause (since 1.5): where present it is `materials`, `opaque` or `filtered`; `opaque`
+/// means the file has no `triangle_flags` section, `filtered` that it has one with every triangle marked not
+/// opaque (an empty one in a file without triangles).
 fn verify_opacity(build: &Map, flags: Option<&[u8]>) -> Result<(), String> {
     let not_opaque = |f: &u8| f & crate::format::TRIANGLE_NOT_OPAQUE != 0;
-    match (build.get("opacity").and_then(Value::as_str), flags) {
+    let opacity = build.get("opacity");
+    if let Some(value) = opacity
+        && !matches!(value.as_str(), Some("materials" | "opaque" | "filtered"))
+    {
+        return Err(format!("metadata build: opacity is {value}; expected \"materials\", \"opaque\" or \"filtered\""));
+    }
+    match (opacity.and_then(Value::as_str), flags) {
         (Some("opaque"), Some(_)) => Err("metadata build: opacity is opaque, but the file has triangle_flags".into()),
         (Some("filtered"), None) => {
             Err("metadata build: opacity is filtered, but the file has no triangle_flags section".into())
