@@ -21,7 +21,8 @@ pub enum Algorithm {
     /// Cycles of three phases, each run until it converges: parallel rounds; one full sequential pass (every
     /// eligible node once, in measure order); the sequential loop with the published constants. Repeated while
     /// a cycle lowers the cost by more than `min_relative_improvement` (at least 1e-6): the sequential loop's
-    /// forced reinsertions move the tree out of the parallel loop's local optimum.
+    /// forced reinsertions move the tree out of the parallel loop's local optimum. A cycle after the first ends
+    /// the run as soon as its parallel rounds gain no more than that.
     Alternating,
 }
 

@@ -5,7 +5,7 @@
 //! |---|---|---|---|
 //! | build | binned SAH | SBVH, budget [`SPLIT_BUDGET`], wasteful triangles | SBVH, budget [`SPLIT_BUDGET`], choose the triangles |
 //! | optimize | one sequence of parallel rounds | parallel rounds until a sequence gains < 0.1% | parallel and sequential phases until a cycle gains < 0.02% |
-//! | optimize over | clusters of up to [`CLUSTER_SIZE`] | clusters of up to [`CLUSTER_SIZE`] | choose references or clusters |
+//! | optimize over | clusters of up to [`CLUSTER_SIZE`] | clusters of up to [`CLUSTER_SIZE`] | clusters of up to [`CLUSTER_SIZE`] |
 //! | leaves | up to [`MAX_LEAF_SIZE`] triangles | the same | the same |
 //! | wide sections | 8-wide, [`WideCosts::default`] | the same | the same |
 
@@ -37,7 +37,7 @@ pub enum Preset {
     #[default]
     Balanced,
     /// Spatial splits with both triangle choices, parallel and sequential phases until a cycle gains less than
-    /// 0.02%, both optimizer leaves: the lowest cost, about twice balanced's time or more.
+    /// 0.02%: the lowest cost, in 2-5 times balanced's time.
     MaxQuality,
 }
 
@@ -80,13 +80,11 @@ impl Preset {
         }
     }
 
-    /// What reinsertion optimizes over: clusters for `fast` and `balanced` (the architectural scenes render
-    /// faster, the large conversions take half the optimization time), both for `max-quality`.
+    /// What reinsertion optimizes over: clusters for every preset (the architectural scenes render faster, the
+    /// large conversions take half the optimization time; for `max-quality` trees over references won only on
+    /// the bunny, by 0.7% of the wide cost, and took 2-5 times as long: `docs/choices.md`).
     pub fn reinsertion(self) -> OptimizeOver {
-        match self {
-            Preset::Fast | Preset::Balanced => OptimizeOver::Clusters,
-            Preset::MaxQuality => OptimizeOver::Choose,
-        }
+        OptimizeOver::Clusters
     }
 
     /// The complete options of this preset.

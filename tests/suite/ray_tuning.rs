@@ -11,7 +11,7 @@ use bvhc::convert::convert_with;
 use bvhc::layout::{WideCosts, collapse, collapse_by, merge_leaves, merge_leaves_by, merge_leaves_of_references};
 use bvhc::loader::BvhFile;
 use bvhc::optimize::OptTree;
-use bvhc::options::{Overrides, Preset, resolve};
+use bvhc::options::{OptimizeOver, Overrides, Preset, resolve};
 use bvhc::sampling::{
     MAX_RAYS_PER_TRIANGLE, MIN_SAMPLED_TRIANGLES, RaySample, RayTuning, TrainingRays, node_visits, ray_weights,
     trace_counting, training_rays,
@@ -118,7 +118,11 @@ fn assert_kept_is_cheapest(choice: &serde_json::Value) {
 fn max_quality_with_ray_tuning_judges_every_build_optimized_or_not_with_and_without_splits() {
     let input = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
     let dir = tempfile::tempdir().unwrap();
-    let overrides = Overrides { tune_rays: Some(2048), ..Overrides::default() };
+    // The preset optimizes over clusters: each of the three split choices built optimized and not.
+    let preset = Overrides { tune_rays: Some(2048), ..Overrides::default() };
+    assert_eq!(resolve(Preset::MaxQuality, &preset).unwrap().candidate_count(), 6);
+    // With `--optimize-over choose`, also over references: nine builds.
+    let overrides = Overrides { optimize_over: Some(OptimizeOver::Choose), ..preset };
     let options = resolve(Preset::MaxQuality, &overrides).unwrap();
     assert_eq!(options.candidate_count(), 9);
     let output = dir.path().join("teapot.bvh");

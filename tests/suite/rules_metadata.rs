@@ -1,12 +1,12 @@
-//! One test per metadata consistency rule (V36-V39): a max-quality conversion of the teapot (wide sections,
-//! split references, a `build`, `cost`, `triangles` and `choice` object) rewritten with one metadata value
+//! One test per metadata consistency rule (V36-V39): a max-quality conversion of the teapot optimizing over the
+//! chosen of three candidates (wide sections, split references, a `build`, `cost`, `triangles` and `choice` object) rewritten with one metadata value
 //! changed must fail exactly that rule; the unchanged file passes, and so does the file with the key removed
 //! (every key is optional).
 
 use std::sync::OnceLock;
 
 use bvhc::loader::{BvhFile, BvhWriter, Rule};
-use bvhc::options::Preset;
+use bvhc::options::{OptimizeOver, Overrides, Preset};
 use serde_json::{Value, json};
 
 /// The converted teapot's bytes, made once for every test here.
@@ -16,7 +16,9 @@ pub(crate) fn converted() -> &'static [u8] {
         let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
         let dir = tempfile::tempdir().unwrap();
         let output = dir.path().join("teapot.bvh");
-        bvhc::Conversion::new(teapot, &output).preset(Preset::MaxQuality).run().unwrap();
+        // `--optimize-over choose`: three candidates in the `choice` object (the preset's default keeps two).
+        let overrides = Overrides { optimize_over: Some(OptimizeOver::Choose), ..Overrides::default() };
+        bvhc::Conversion::new(teapot, &output).preset(Preset::MaxQuality).overrides(overrides).run().unwrap();
         std::fs::read(&output).unwrap()
     })
 }

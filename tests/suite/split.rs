@@ -386,11 +386,12 @@ fn the_cli_splits_on_request_and_info_counts_references() {
         let metadata: serde_json::Value = serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap();
         assert_eq!(metadata["build"]["splits"]["method"], method);
     }
-    // --split-triangles and --optimize-over, recorded; the max-quality preset chooses both unless told, and
-    // records the choice (four candidates).
+    // --split-triangles and --optimize-over, recorded; the max-quality preset chooses the triangles unless told,
+    // and records the choice (two candidates; four when also told to choose the optimizer's leaves).
     for (flags, triangles, candidates) in [
         (vec!["--split-triangles", "any"], Some("any"), 0),
-        (vec!["--preset", "max-quality"], Some("choose"), 4),
+        (vec!["--preset", "max-quality"], Some("choose"), 2),
+        (vec!["--preset", "max-quality", "--optimize-over", "choose"], Some("choose"), 4),
         (vec!["--preset", "max-quality", "--split-triangles", "wasteful", "--optimize-over", "references"], None, 0),
         (vec!["--optimize-over", "choose"], None, 2),
     ] {
