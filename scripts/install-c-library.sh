@@ -6,14 +6,15 @@
 # installs
 #   $PREFIX/include/bvhc.h
 #   $PREFIX/lib/libbvhc.so.0.1.0, libbvhc.so.0.1 (its SONAME) and libbvhc.so (links), libbvhc.a
-#   $PREFIX/lib/pkgconfig/bvhc.pc                  cc app.c $(pkg-config --cflags --libs bvhc)
+#   $PREFIX/lib/pkgconfig/bvhc.pc                  cc app.c $(pkg-config --cflags --libs bvhc) (with an rpath)
 #   $PREFIX/lib/cmake/bvhc/bvhcConfig.cmake        find_package(bvhc) ... target_link_libraries(app bvhc::bvhc)
 #   $PREFIX/lib/cmake/bvhc/bvhcConfigVersion.cmake (bvhc::bvhc_static for the static library)
 #
 # The library is built in its own target directory (target/c-library), with the C API crate alone selected,
 # so it has the C API's own features whatever the workspace builds: no GPU (wgpu, naga) code in it. Debug
 # information is stripped unless STRIP=0. Environment: PREFIX (default /usr/local), DESTDIR (staging root,
-# default empty), LIBDIR (default lib), CARGO (default cargo), STRIP (default 1).
+# default empty), LIBDIR (default lib), CARGO (default cargo), STRIP (default 1). Under a prefix other than
+# /usr or /usr/local it ends by printing the PKG_CONFIG_PATH, CMAKE_PREFIX_PATH and LD_LIBRARY_PATH lines to set.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -57,7 +58,7 @@ includedir=\${prefix}/include
 Name: bvhc
 Description: Load, verify and trace bvhc's .bvh files (bounding volume hierarchies) from C
 Version: $version
-Libs: -L\${libdir} -lbvhc
+Libs: -L\${libdir} -Wl,-rpath,\${libdir} -lbvhc
 Libs.private: -lpthread -ldl -lm
 Cflags: -I\${includedir}
 EOF
@@ -101,3 +102,15 @@ endif()
 EOF
 
 echo "installed libbvhc $version (ABI $abi) under $destdir$prefix: $(du -h "$lib/libbvhc.so.$version" | cut -f1) shared, $(du -h "$lib/libbvhc.a" | cut -f1) static"
+# Outside the prefixes the tools search by default, say what to set (programs linked through pkg-config run
+# without more: bvhc.pc carries an rpath to $prefix/$libdir_name; CMake builds keep their own rpaths).
+case "$prefix" in
+  /usr | /usr/local) ;;
+  *)
+    echo "to build against it from $prefix:"
+    echo "  export PKG_CONFIG_PATH=\"$prefix/$libdir_name/pkgconfig\${PKG_CONFIG_PATH:+:\$PKG_CONFIG_PATH}\""
+    echo "  export CMAKE_PREFIX_PATH=\"$prefix\${CMAKE_PREFIX_PATH:+:\$CMAKE_PREFIX_PATH}\""
+    echo "  # programs linked otherwise find libbvhc.so at run time with:"
+    echo "  export LD_LIBRARY_PATH=\"$prefix/$libdir_name\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}\""
+    ;;
+esac

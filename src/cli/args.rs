@@ -191,8 +191,7 @@ pub struct OptionArgs {
     /// Stop optimizing after this many seconds (the result then depends on the machine's speed).
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds, help_heading = "Optimize")]
     pub time_budget: Option<std::time::Duration>,
-    /// What reinsertion optimizes over [default: the preset's: clusters with fast and balanced, choose with
-    /// max-quality].
+    /// What reinsertion optimizes over [default: clusters].
     #[arg(long, value_enum, help_heading = "Optimize")]
     pub optimize_over: Option<OptimizeOver>,
     /// Largest merged leaf of the binary tree [default: 8].
@@ -209,12 +208,12 @@ pub struct OptionArgs {
     /// that reach it instead of by its surface area, and the candidate trees (each build also unoptimized; with
     /// `--split-triangles choose` also without splits) are judged on as many held-out rays. Scenes of fewer than
     /// 1024 triangles are not sampled (the file says so).
-    #[arg(long, value_name = "COUNT", help_heading = "Output")]
+    #[arg(long, value_name = "COUNT", help_heading = "Leaf layout")]
     pub tune_rays: Option<usize>,
     /// Tune the tree to your own rays, as --tune-rays does: a ray file of `bvhc trace` (32-byte records; a
     /// renderer can dump a frame's rays), its even-numbered rays for training and its odd-numbered ones held out
     /// to judge the candidates. The file's hash is recorded, so a changed file converts again.
-    #[arg(long, value_name = "RAYS.bin", help_heading = "Output")]
+    #[arg(long, value_name = "RAYS.bin", help_heading = "Leaf layout")]
     pub train_rays: Option<PathBuf>,
     /// Also write the GPU sections of format 1.4: compressed 8-wide nodes (80 bytes) and their leaf triangles
     /// with vertices (40 bytes each), which the WGSL kernel of the loader crate traces (`bvhc trace --gpu`).

@@ -17,8 +17,8 @@ use bvhc_loader::Affine3x4;
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Instancing {
-    /// Instance a mesh whose extra placements add at least [`AUTO_MIN_SAVED_TRIANGLES`] triangles, or every
-    /// repeated mesh when the flattened scene would not fit the memory budget; flatten the rest.
+    /// Instance a mesh whose extra placements add at least 2^20 (1,048,576) triangles, or every repeated mesh
+    /// when the flattened scene would not fit the memory budget; flatten the rest.
     #[default]
     Auto,
     /// Instance every mesh placed more than once.

@@ -94,6 +94,58 @@ fn unreadable_inputs_are_exit_3() {
     assert!(!output.exists());
 }
 
+/// What a newcomer met: a glTF whose buffer is missing, an output in a folder that does not exist (named as
+/// such, not by the temporary file that could not be made there), a `.bvh` path that is a directory (its path
+/// once in the message): exit 3, as the README says.
+#[test]
+fn a_missing_buffer_or_output_folder_is_exit_3_naming_what_is_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let gltf = dir.path().join("m.gltf");
+    std::fs::write(
+        &gltf,
+        r#"{"asset":{"version":"2.0"},"buffers":[{"uri":"nothere.bin","byteLength":36}],
+            "bufferViews":[{"buffer":0,"byteLength":36}],
+            "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}],
+            "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]}"#,
+    )
+    .unwrap();
+    let run = bvhc(&[&gltf, &"-o", &dir.path().join("m.bvh")]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert!(stderr(&run).contains("nothere.bin"), "{}", stderr(&run));
+    let missing = dir.path().join("not").join("there").join("x.bvh");
+    let run = bvhc(&[&crate::cli::teapot(), &"-o", &missing]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert!(stderr(&run).contains("folder") && stderr(&run).contains("does not exist"), "{}", stderr(&run));
+    assert!(!stderr(&run).contains(".bvhc-"), "the temporary file is not the user's business: {}", stderr(&run));
+    let folder = dir.path().join("folder.bvh");
+    std::fs::create_dir(&folder).unwrap();
+    let run = bvhc(&[&"verify", &folder]);
+    assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+    assert_eq!(stderr(&run).matches("folder.bvh").count(), 1, "{}", stderr(&run));
+    assert!(stderr(&run).contains("is a directory"), "{}", stderr(&run));
+}
+
+/// `--help` speaks numbers, not rustdoc links, and lists each flag under its stage.
+#[test]
+fn help_has_no_rustdoc_links_and_flags_under_their_stages() {
+    for command in [&[][..], &["verify"][..], &["info"][..], &["render"][..], &["trace"][..], &["options"][..]] {
+        let mut args: Vec<&dyn AsRef<std::ffi::OsStr>> =
+            command.iter().map(|c| c as &dyn AsRef<std::ffi::OsStr>).collect();
+        args.push(&"--help");
+        let help = String::from_utf8(bvhc(&args).stdout).unwrap();
+        assert!(!help.contains("[`") && !help.contains("`]"), "{command:?}: a rustdoc link in --help");
+    }
+    let help = String::from_utf8(bvhc(&[&"--help"]).stdout).unwrap();
+    let section = |flag: &str| {
+        let at = help.find(flag).unwrap_or_else(|| panic!("{flag} in --help"));
+        help[..at].lines().rev().find(|l| !l.starts_with(' ') && l.ends_with(':')).unwrap().to_string()
+    };
+    assert_eq!(section("--tune-rays"), "Leaf layout:");
+    assert_eq!(section("--train-rays"), "Leaf layout:");
+    assert_eq!(section("--gpu-layout"), "Output:");
+    assert!(help.contains("1,048,576"), "the instancing threshold as a number");
+}
+
 #[test]
 fn outputs_that_are_inputs_or_not_regular_files_are_refused() {
     let dir = tempfile::tempdir().unwrap();

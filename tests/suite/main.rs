@@ -14,6 +14,7 @@ mod crossings;
 mod exact_reference;
 mod example_alpha;
 mod example_ao;
+mod fetch_scenes;
 mod filters;
 mod convert;
 mod convert_instances;

@@ -58,6 +58,7 @@ impl AtomicOutput {
         let io = |source| Error::Io { path: path.to_path_buf(), source };
         check_replaceable(path)?;
         let directory = directory_of(path);
+        folder_exists(directory).map_err(io)?;
         sweep_stale(directory);
         if let Some(temporary) = unnamed_in(directory) {
             return Ok(AtomicOutput { path: path.to_path_buf(), temporary });
@@ -123,6 +124,24 @@ impl AtomicOutput {
             }
         }
         Ok(())
+    }
+}
+
+/// `Ok` when `directory` (empty: the current one) is a folder; an error naming it otherwise, rather than the
+/// temporary file that could not be made in it.
+fn folder_exists(directory: &Path) -> std::io::Result<()> {
+    let shown = if directory.as_os_str().is_empty() { Path::new(".") } else { directory };
+    match std::fs::metadata(shown) {
+        Ok(metadata) if metadata.is_dir() => Ok(()),
+        Ok(_) => Err(std::io::Error::new(
+            std::io::ErrorKind::NotADirectory,
+            format!("the output's folder {} is not a folder", shown.display()),
+        )),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!("the output's folder {} does not exist; create it first", shown.display()),
+        )),
+        Err(e) => Err(std::io::Error::new(e.kind(), format!("the output's folder {}: {e}", shown.display()))),
     }
 }
 

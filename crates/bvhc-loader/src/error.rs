@@ -293,6 +293,15 @@ impl From<Violation> for Error {
 }
 
 impl Error {
+    /// The message for this error on the file at `path`: the error itself where it names the file already (a
+    /// file that cannot be read), else prefixed with the path.
+    pub fn for_file(&self, path: &std::path::Path) -> String {
+        match self {
+            Error::Io { .. } => self.to_string(),
+            _ => format!("{}: {self}", path.display()),
+        }
+    }
+
     /// The broken rule, if this error is one.
     pub fn rule(&self) -> Option<Rule> {
         match self {

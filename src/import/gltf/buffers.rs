@@ -120,8 +120,9 @@ impl<'a> Buffers<'a> {
             } else {
                 &self.base_dir
             })
-            .map_err(|e| format!("cannot read the input's folder: {e}"))?;
-            let resolved = std::fs::canonicalize(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            .map_err(|e| unreadable(format!("cannot read the input's folder: {e}")))?;
+            let resolved =
+                std::fs::canonicalize(&path).map_err(|e| unreadable(format!("cannot read {}: {e}", path.display())))?;
             if !resolved.starts_with(&folder) {
                 return Err(unreadable(format!(
                     "uri '{uri}' leaves the input's folder; buffers are read only from there (--allow-outside-buffers allows more)"
