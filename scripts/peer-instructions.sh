@@ -8,6 +8,8 @@ cd "$(dirname "$0")/.."
 scenes="${1:-kitchen,engine}"
 rays="${2:-100000}"
 feature="${BVHC_PEER_FEATURE:-embree4}"
+# `BVHC_PEER_CONTENDERS=bvhc` counts bvhc alone (a before/after gate for a loader change).
+contenders="${BVHC_PEER_CONTENDERS:-bvhc embree}"
 binary=$(cargo bench --bench peer --features "$feature" --no-run --message-format=json 2>/dev/null \
   | python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and "peer" in m["executable"]][-1])')
 out=$(mktemp -d)
@@ -18,7 +20,7 @@ for scene in ${scenes//,/ }; do
   BVHC_PEER_SCENES="$scene" BVHC_PEER_ONLY=bvhc BVHC_BENCH_RAYS=1 "$binary" --bench >/dev/null
   for set in incoherent primary; do
     for query in closest any; do
-      for contender in bvhc embree; do
+      for contender in $contenders; do
         file="$out/$scene-$set-$query-$contender.out"
         BVHC_PEER_SCENES="$scene" BVHC_PEER_ONLY="$contender" BVHC_PEER_SET="$set" BVHC_PEER_QUERY="$query" \
           BVHC_BENCH_RAYS="$rays" BVHC_PEER_CAMERA=400x250 \
@@ -26,7 +28,7 @@ for scene in ${scenes//,/ }; do
           "$binary" --bench >/dev/null 2>&1
         total=$(grep -m1 '^totals:' "$file" | awk '{print $2}')
         count=$([ "$set" = primary ] && echo 100000 || echo "$rays")
-        echo "| $scene | $set | $query | $contender | $((total / count)) |"
+        echo "| $scene | $set | $query | $contender | $(awk -v t="$total" -v c="$count" 'BEGIN { printf "%.1f", t / c }') |"
       done
     done
   done

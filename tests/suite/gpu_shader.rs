@@ -1,4 +1,4 @@
-//! The WGSL kernel (`crates/bvhc-loader/src/gpu.wgsl`) run through wgpu on the first adapter (in CI, Mesa's
+//! The WGSL kernel (`crates/bvhc-loader/src/gpu/gpu.wgsl`) run through wgpu on the first adapter (in CI, Mesa's
 //! software Vulkan driver, lavapipe, which `.ci/run` installs): its hits against the CPU kernel's on the stress
 //! scenes, random scenes and real scenes, within the classes of `format-spec/bvh-1.md` 11.4, and against the CPU
 //! model of the same walk ([`GpuLayoutTracer`]). SKIPPED, with the reason, where no adapter exists.

@@ -1,6 +1,6 @@
 //! Traversal through instances (format 1.3, `format-spec/bvh-1.md` 11.3): the top-level tree over instance
 //! boxes in world space, and for each instance whose box the ray enters, the ray mapped into the mesh's object
-//! space ([`crate::instance_transform`]) and traced through the mesh's own tree by a one-level kernel, with the
+//! space ([`crate::ray::transform`]) and traced through the mesh's own tree by a one-level kernel, with the
 //! closest hit so far as its `t_max`.
 //!
 //! The binary kernel walks the binary top tree as it walks a mesh (depth first, nearer child first, the same
@@ -8,45 +8,13 @@
 //! `top_node_count` visits); the wide kernel walks the 8-wide top tree ([`WideInstanceWalk`]) as it walks a
 //! mesh's wide tree. Both are safe on any input, and give the same hits (the tests check it).
 
-use crate::format::{InstanceRecord, LEAF_BIT, MAX_DEPTH, MeshRecord, PackedNode, WIDE, WideNode8};
-use crate::hit::{CULL_PADDING, Hit, TraversalCounter};
-use crate::instance_transform::{object_ray, world_normal};
-use crate::intersect::{PreparedRay, Ray};
+use crate::format::{LEAF_BIT, MAX_DEPTH, MeshRecord, WIDE};
+use crate::open::sections::TwoLevelSections;
+use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter};
+use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::transform::{object_ray, world_normal};
 use crate::simd::{Isa, Kernel};
-use crate::wide_walk::new_stack;
-
-/// The three sections of a two-level file (1.3), which a file has together or not at all (rule V8).
-#[derive(Clone, Copy, Debug)]
-pub struct TwoLevelSections<'a> {
-    /// The `meshes` section: each mesh's ranges of the one-level sections.
-    pub meshes: &'a [MeshRecord],
-    /// The `instances` section; an instance's index here is what hits report.
-    pub instances: &'a [InstanceRecord],
-    /// The `top_nodes` section: a binary tree over the instances in world space, node 0 the root, each leaf
-    /// one instance (`index` the instance, `count` 1).
-    pub top_nodes: &'a [PackedNode],
-    /// The `top_wide_nodes` section: the same tree 8-wide, each leaf slot `LEAF_BIT | instance`; empty in a
-    /// file without wide sections.
-    pub top_wide_nodes: &'a [WideNode8],
-}
-
-impl<'a> TwoLevelSections<'a> {
-    /// The instance at `instance_index` and the mesh it places, when both exist.
-    pub fn placement(&self, instance_index: u32) -> Option<(&'a InstanceRecord, &'a MeshRecord)> {
-        let instance = self.instances.get(instance_index as usize)?;
-        Some((instance, self.meshes.get(instance.mesh_index as usize)?))
-    }
-
-    /// Triangle records placed in world space: each instance's mesh's records, summed (with split references a
-    /// triangle has several records).
-    pub fn placed_record_count(&self) -> u64 {
-        self.instances
-            .iter()
-            .filter_map(|i| self.meshes.get(i.mesh_index as usize))
-            .map(|m| u64::from(m.triangle_count))
-            .sum()
-    }
-}
+use crate::wide::walk::new_stack;
 
 /// The hit of `ray` (with `t_max`, the closest hit so far) in instance `index`'s mesh: the ray mapped into the
 /// mesh's object space and traced by `trace_mesh`, whose hit (record index relative to the mesh) comes back with

@@ -49,101 +49,65 @@
 //! ray has no specified answer; [`Tracer::trusting_rays`] skips the check for callers that validate rays
 //! themselves ([`check_rays`] for a batch).
 
-#[cfg(feature = "write")]
-mod atomic;
-mod candidates;
-mod checksum;
-mod crossings;
-pub mod cost;
 mod error;
-mod exact_hit;
-mod exact_int;
-mod file;
-pub mod filter;
 pub mod format;
-mod format_gpu;
-mod format_header;
-mod format_instances;
-mod gpu_layout;
-pub mod gpu_shader;
-#[cfg(feature = "wgpu")]
-mod gpu_wgpu;
-mod hit;
-mod identity;
-mod instance_transform;
+mod gpu;
 mod instances;
-mod intersect;
-mod json;
-mod plain_data;
-mod ray_check;
+mod open;
+mod ray;
 mod simd;
-mod source_corners;
-mod spawn;
-mod structure;
-mod traced;
-mod tracer_batch;
-mod traverse;
-#[cfg(feature = "write")]
-mod uncached;
+mod source;
+mod tracer;
 mod verify;
-mod verify_consistency;
-mod verify_gpu;
-mod verify_instances;
-mod verify_metadata;
-mod verify_references;
-mod verify_source_vertices;
-mod verify_tree;
-mod verify_triangle_flags;
-mod verify_wide;
-mod view;
-mod watertight;
 mod wide;
-mod wide_coherent;
-mod wide_packets;
-mod wide_walk;
 #[cfg(feature = "write")]
-mod writer;
+mod write;
 
-#[cfg(feature = "write")]
-pub use atomic::{
-    AtomicOutput, TEMPORARY_PREFIX, TEMPORARY_SUFFIX, check_replaceable, directory_of, remove_own_temporary_files,
-    sweep_stale, write_atomic,
-};
-pub use checksum::{header_checksum, section_checksum};
-pub use crossings::Crossings;
 pub use error::{Error, Rule, Violation};
-pub use file::BvhFile;
-#[cfg(feature = "mmap")]
-pub use file::MappedBvh;
-pub use filter::{Candidate, FilterScope, FilteredTracer, HitFilter};
+pub use format::checksum::{header_checksum, section_checksum};
+pub use format::cost;
 pub use format::{
     Affine3x4, EMPTY_SLOT, InstanceRecord, LEAF_BIT, MeshRecord, PACKET_LANES, PackedNode, PackedTriangle, SectionKind,
     SourceRange, SourceVertexIndices, TrianglePacket4, WIDE, WideNode8,
 };
-pub use gpu_layout::{GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer};
 #[cfg(feature = "wgpu")]
-pub use gpu_wgpu::{GPU_BATCH_RAYS, GpuError, GpuTrace, GpuTracer};
-pub use hit::{BARYCENTRIC_SLACK, ForeignHit, Hit, TraversalCounter, TraversalStats, geometric_normal};
-pub use identity::TriangleIdentities;
-pub use instance_transform::{instance_world_box, transformed_box};
-pub use instances::TwoLevelSections;
-pub use intersect::{PreparedRay, Ray, TriangleHit};
-pub use ray_check::{BatchRayError, MIN_DIRECTION_COMPONENT, RayError, check_rays};
-pub use simd::KernelPath;
-pub use source_corners::SourceCorners;
-pub use spawn::SurfacePoint;
-pub use structure::SectionInfo;
-pub use traced::TracedFile;
-pub use tracer_batch::CHECKED_CHUNK;
-pub use traverse::{Kernel, Tracer};
+pub use gpu::device::{GPU_BATCH_RAYS, GpuError, GpuTrace, GpuTracer};
+pub use gpu::model::{GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer};
+pub use gpu::shader as gpu_shader;
+pub use open::file::BvhFile;
+#[cfg(feature = "mmap")]
+pub use open::file::MappedBvh;
+pub use open::sections::{GpuSections, TwoLevelSections, WideSections};
+pub use open::structure::SectionInfo;
 #[cfg(feature = "write")]
-pub use uncached::UncachedWriter;
+pub use open::uncached::UncachedWriter;
+pub use open::view::BvhView;
+pub use ray::check::{BatchRayError, MIN_DIRECTION_COMPONENT, RayError, check_rays};
+pub use ray::hit::{
+    BARYCENTRIC_SLACK, ForeignHit, Hit, TraversalCounter, TraversalStats, TriangleHit, geometric_normal,
+};
+pub use ray::intersect::{PreparedRay, Ray};
+pub use ray::spawn::SurfacePoint;
+pub use ray::transform::{instance_world_box, transformed_box};
+pub use simd::KernelPath;
+pub use source::corners::SourceCorners;
+pub use source::identity::TriangleIdentities;
+pub use tracer::batch::CHECKED_CHUNK;
+pub use tracer::crossings::Crossings;
+pub use tracer::filter;
+pub use tracer::filter::{Candidate, FilterScope, FilteredTracer, HitFilter};
+pub use tracer::traced::TracedFile;
+pub use tracer::{Kernel, Tracer};
 pub use verify::PARALLEL_VERIFY_BYTES;
-pub use verify_tree::verify_tree;
-pub use view::{BvhView, GpuSections, WideSections};
+pub use verify::tree::verify_tree;
 pub use wide::{WideBvh, WideTracer};
 #[cfg(feature = "write")]
-pub use writer::BvhWriter;
+pub use write::atomic::{
+    AtomicOutput, TEMPORARY_PREFIX, TEMPORARY_SUFFIX, check_replaceable, directory_of, remove_own_temporary_files,
+    sweep_stale, write_atomic,
+};
+#[cfg(feature = "write")]
+pub use write::writer::BvhWriter;
 
 /// The types a renderer shares between threads are `Send + Sync` (checked at compile time).
 const _: () = {

@@ -1,0 +1,7 @@
+//! The GPU layout (format 1.4): the WGSL kernel and its records, the CPU model that walks the GPU sections step
+//! for step as the kernel does, and (feature `wgpu`) the tracer that runs the kernel on a device.
+
+#[cfg(feature = "wgpu")]
+pub(crate) mod device;
+pub(crate) mod model;
+pub mod shader;

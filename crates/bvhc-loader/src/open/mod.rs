@@ -1,0 +1,9 @@
+//! Opening a file: its bytes (owned, aligned, or mapped), the structural rules checked on opening (header,
+//! section table, section sizes), and the view that hands out typed sections.
+
+pub(crate) mod file;
+pub(crate) mod sections;
+pub(crate) mod structure;
+#[cfg(feature = "write")]
+pub(crate) mod uncached;
+pub(crate) mod view;

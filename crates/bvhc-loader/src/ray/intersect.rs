@@ -1,0 +1,239 @@
+//! Robust ray-box and watertight ray-triangle tests.
+//!
+//! * Box: the slab test of T. Ize, "Robust BVH Ray Traversal", JCGT 2(2), 2013. Every slab's exit distance is
+//!   padded by `1 + 2 gamma(3)` (gamma(n) = n eps / (1 - n eps), eps = 2^-24), which bounds the rounding of
+//!   `(plane - origin) * (1 / direction)`, so a box that the exact ray touches is never missed. The padding is
+//!   folded into the exit reciprocal once per ray (`exit_inverse = (1 / direction) * (1 + 2 gamma(3))`): the exit
+//!   distance `(plane - origin) * exit_inverse` then carries four roundings, as Ize's `((plane - origin) *
+//!   (1 / direction)) * (1 + 2 gamma(3))` does, each at most a factor `1 - eps` away, and `(1 - eps)^4 (1 + 6
+//!   eps) > 1`, so it is still never below the exact distance; one multiplication a slab fewer.
+//! * Triangle: S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013
+//!   ([`crate::ray::watertight`], written once for every lane width; here its one-lane form). The 2D edge functions
+//!   U, V, W are recomputed in f64 when any is exactly 0, so a ray through a shared edge or vertex hits at
+//!   least one of the triangles that share it. An ill-conditioned hit (a needle, a sliver, a ray nearly in the
+//!   plane: `format-spec/bvh-1.md` 11.1 step 5) takes the exact `t`, `u`, `v` ([`crate::ray::exact_hit`]).
+//!
+//! Direction components of +0 and -0 give infinite reciprocals. The slab distances are then `+-inf`, or NaN
+//! when the origin lies exactly on a slab plane (`0 * inf`); the slab bounds are accumulated with comparisons
+//! that ignore a NaN operand, which treats the origin on the plane as inside the closed slab, as the exact test
+//! would.
+
+use crate::format::{PackedNode, PackedTriangle, WIDE};
+use crate::ray::exact_hit::exact_hit;
+use crate::ray::hit::TriangleHit;
+use crate::ray::watertight::{
+    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions,
+    edge_functions_f64, has_zero_edge, ill_conditioned, outside, sheared, zero_edges_exact,
+};
+use crate::simd::SlabRay;
+
+/// Machine epsilon for f32 rounding, 2^-24.
+const EPSILON: f32 = f32::EPSILON * 0.5;
+/// Ize's padding of the slab exit distance, `1 + 2 gamma(3)`.
+pub(crate) const EXIT_PADDING: f32 = 1.0 + 2.0 * (3.0 * EPSILON) / (1.0 - 3.0 * EPSILON);
+
+/// One slab of the robust box test: the distances to the entry and exit planes of one axis (the exit through the
+/// padded reciprocal `exit_inverse`) narrow the interval `near..far`. Compare-selects keep the accumulator when
+/// the new value is NaN (an origin on a slab plane of a zero direction component), as `f32::max`/`min` would, in
+/// one instruction each. The SIMD box tests perform exactly these operations in lanes.
+#[inline(always)]
+pub(crate) fn slab(
+    entry_plane: f32,
+    exit_plane: f32,
+    origin: f32,
+    (inverse, exit_inverse): (f32, f32),
+    near: f32,
+    far: f32,
+) -> (f32, f32) {
+    let t_entry = (entry_plane - origin) * inverse;
+    let t_exit = (exit_plane - origin) * exit_inverse;
+    (if t_entry > near { t_entry } else { near }, if t_exit < far { t_exit } else { far })
+}
+
+/// A ray: points `origin + t * direction` for `t` in `[t_min, t_max]`.
+///
+/// `direction` need not be normalized; `t` is measured in its units. `t_min` should be `>= 0`: boxes are tested
+/// conservatively only for non-negative distances. Plain data in the layout of the 32-byte ray records of
+/// `bvhc trace` and of the C API's `bvhc_ray` (`bytemuck::Pod`), so arrays of them can be viewed in place.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Start point.
+    pub origin: [f32; 3],
+    /// Direction; must not be the zero vector.
+    pub direction: [f32; 3],
+    /// Smallest distance that counts as a hit.
+    pub t_min: f32,
+    /// Largest distance that counts as a hit.
+    pub t_max: f32,
+}
+
+crate::format::plain_data::plain_data! { Ray { [f32; 3], [f32; 3], f32, f32 } }
+
+impl Ray {
+    /// A ray over `[0, +inf]`.
+    pub fn new(origin: [f32; 3], direction: [f32; 3]) -> Ray {
+        Ray { origin, direction, t_min: 0.0, t_max: f32::INFINITY }
+    }
+}
+
+/// Per-ray constants of both tests, computed once per ray.
+#[derive(Clone, Copy, Debug)]
+pub struct PreparedRay {
+    pub(crate) origin: [f32; 3],
+    /// The ray's direction, for the exact values of ill-conditioned hits.
+    direction: [f32; 3],
+    pub(crate) inverse_direction: [f32; 3],
+    /// `inverse_direction * EXIT_PADDING`: exit distances through it are Ize's padded ones.
+    pub(crate) exit_inverse: [f32; 3],
+    /// Per axis: whether the direction's sign bit is set, so the slab is entered through `max`.
+    pub(crate) negative: [bool; 3],
+    /// Per axis: where a wide node's entry and exit planes of the axis start, in `f32`s from the start of the
+    /// node (its three `min` rows, then its three `max` rows, `WIDE` lanes a row): `axis * WIDE`, plus
+    /// `3 * WIDE` for the `max` row. Only [`PreparedRay::new`] writes them, so they are always such offsets.
+    wide_plane_offsets: ([usize; 3], [usize; 3]),
+    pub(crate) t_min: f32,
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl PreparedRay {
+    /// Precomputes the reciprocal direction and the shear of `ray`.
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> PreparedRay {
+        let d = ray.direction;
+        let abs = d.map(f32::abs);
+        let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
+            0
+        } else if abs[1] >= abs[2] {
+            1
+        } else {
+            2
+        };
+        let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let inverse_direction = d.map(|c| 1.0 / c);
+        let row = |axis: usize, max: bool| axis * WIDE + if max { 3 * WIDE } else { 0 };
+        PreparedRay {
+            origin: ray.origin,
+            direction: d,
+            inverse_direction,
+            exit_inverse: inverse_direction.map(|i| i * EXIT_PADDING),
+            negative: d.map(f32::is_sign_negative),
+            wide_plane_offsets: (
+                std::array::from_fn(|axis| row(axis, d[axis].is_sign_negative())),
+                std::array::from_fn(|axis| row(axis, !d[axis].is_sign_negative())),
+            ),
+            t_min: ray.t_min,
+            kx,
+            ky,
+            kz,
+            sx: d[kx] / d[kz],
+            sy: d[ky] / d[kz],
+            sz: 1.0 / d[kz],
+        }
+    }
+
+    /// What the slab test of a wide node's eight boxes needs of this ray.
+    #[inline(always)]
+    pub(crate) fn slab_ray(&self) -> SlabRay<'_> {
+        SlabRay {
+            origin: &self.origin,
+            inverse_direction: &self.inverse_direction,
+            exit_inverse: &self.exit_inverse,
+            plane_offsets: &self.wide_plane_offsets,
+            t_min: self.t_min,
+        }
+    }
+
+    /// The permuted axes `[kx, ky, kz]` and the shear `[sx, sy, sz]` of Woop et al.'s test.
+    pub(crate) fn shear(&self) -> ([usize; 3], [f32; 3]) {
+        ([self.kx, self.ky, self.kz], [self.sx, self.sy, self.sz])
+    }
+
+    /// The distance at which the ray enters `node`'s box, if it overlaps the box within `[t_min, t_max]`.
+    #[inline(always)]
+    pub fn enter_box(&self, node: &PackedNode, t_max: f32) -> Option<f32> {
+        let mut t_near = self.t_min;
+        let mut t_far = t_max;
+        for axis in 0..3 {
+            let (entry_plane, exit_plane) =
+                if self.negative[axis] { (node.max[axis], node.min[axis]) } else { (node.min[axis], node.max[axis]) };
+            let inverses = (self.inverse_direction[axis], self.exit_inverse[axis]);
+            (t_near, t_far) = slab(entry_plane, exit_plane, self.origin[axis], inverses, t_near, t_far);
+        }
+        (t_near <= t_far).then_some(t_near)
+    }
+
+    /// The exact `t`, `u`, `v` of a hit on `triangle` that the watertight test found ill-conditioned
+    /// ([`exact_hit`]), as the hit within `[t_min, t_max]` or `Some(None)` when that `t` is outside; `None` when
+    /// there are none (the weights sum to zero), so that the test's own values stand.
+    pub(crate) fn exact_hit(&self, triangle: &PackedTriangle, t_max: f32) -> Option<Option<TriangleHit>> {
+        let hit = exact_hit(&self.origin, &self.direction, self.kz, &triangle.vertices)?;
+        Some((hit.t >= self.t_min && hit.t <= t_max).then_some(hit))
+    }
+
+    /// The triangle's vertices relative to the origin, in the ray's permuted axes.
+    #[inline(always)]
+    pub(crate) fn relative(&self, triangle: &PackedTriangle) -> RelativeTriangle<f32> {
+        let o = &self.origin;
+        let [v0, v1, v2] = &triangle.vertices;
+        let a = [v0[0] - o[0], v0[1] - o[1], v0[2] - o[2]];
+        let b = [v1[0] - o[0], v1[1] - o[1], v1[2] - o[2]];
+        let c = [v2[0] - o[0], v2[1] - o[1], v2[2] - o[2]];
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        RelativeTriangle { a: [a[kx], a[ky], a[kz]], b: [b[kx], b[ky], b[kz]], c: [c[kx], c[ky], c[kz]] }
+    }
+
+    /// The watertight test: a hit with `t_min <= t <= t_max`, from either side of the triangle.
+    #[inline(always)]
+    pub fn intersect_triangle(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
+        self.intersect_triangle_with::<true>(triangle, t_max)
+    }
+
+    /// The GPU kernel's form of [`PreparedRay::intersect_triangle`]: without f64, an edge function of exactly 0
+    /// becomes its exact value ([`zero_edges_exact`]: what the f64 recomputation gives that edge) while the other
+    /// two keep their f32 values (`crate::gpu::model` says what that changes).
+    #[inline(always)]
+    pub(crate) fn intersect_triangle_f32(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
+        self.intersect_triangle_with::<false>(triangle, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_triangle_with<const F64_EDGES: bool>(
+        &self,
+        triangle: &PackedTriangle,
+        t_max: f32,
+    ) -> Option<TriangleHit> {
+        let r = self.relative(triangle);
+        let p = sheared(&r, self.sx, self.sy);
+        let mut e = edge_functions(p);
+        if has_zero_edge(e, 0.0) {
+            e = if F64_EDGES { edge_functions_f64(p) } else { zero_edges_exact(p, e) };
+        }
+        if outside(e, 0.0) {
+            return None;
+        }
+        let det = determinant(e);
+        if det == 0.0 {
+            return None;
+        }
+        if ill_conditioned(p, &r, det, ILL_CONDITIONED, TINY_EXTENT)
+            && let Some(hit) = self.exact_hit(triangle, t_max)
+        {
+            return hit;
+        }
+        let t = distance(e, &r, self.sz, det);
+        if !(t >= self.t_min && t <= t_max) {
+            return None;
+        }
+        let (u, v) = barycentrics(e, det, 1.0);
+        Some(TriangleHit { t, u, v })
+    }
+}

@@ -1,0 +1,444 @@
+//! Closest-hit and any-hit traversal of a packed binary BVH.
+//!
+//! Depth first, nearer child first, with a fixed stack of [`MAX_DEPTH`] entries (the depth rule V20 makes it
+//! enough) and no heap allocation. The kernel is safe on any input: indices are bounds-checked, a child index
+//! must exceed its parent's (so paths cannot cycle), and a ray visits at most `node_count` nodes; on a file that
+//! fails verification it may return wrong hits, never panic or hang.
+
+pub(crate) mod batch;
+pub(crate) mod crossings;
+pub mod filter;
+mod of_view;
+pub(crate) mod traced;
+
+use crate::format::{MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle};
+use crate::instances::{WideInstanceWalk, walk_instances};
+use crate::open::sections::TwoLevelSections;
+use crate::ray::candidates::{Candidates, Unfiltered};
+use crate::ray::hit::{CULL_PADDING, ForeignHit, Hit, TraversalCounter};
+use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::spawn::SurfacePoint;
+use crate::simd::KernelPath;
+use crate::wide::WideTracer;
+
+/// The traversal kernel over borrowed node and triangle arrays (a `BvhView`'s, or in-memory ones),
+/// and, when it was given one ([`Tracer::with_wide`]), the wide kernel over the same triangles, which it then
+/// runs instead: both give the same closest `t` and any-hit answers. Over a two-level file
+/// ([`Tracer::with_instances`]) it walks the top-level tree and runs that kernel in each instance's mesh.
+///
+/// **Rays are checked**: every tracing call tests its rays against the ray contract ([`Ray::check`]: finite
+/// origin and direction, a direction not below `2^-64`, `0 <= t_min <= t_max`) and panics, naming the rule and
+/// the ray, on one that breaks it, since such a ray has no specified answer. The check costs about 30
+/// instructions for a single ray (SSE2) and about 7 a ray in the batch calls (AVX2, 8 rays at a time): 1-2% of
+/// a batch's instructions, 3-6% of a single ray's (`cargo bench --bench peer`, `BVHC_PEER_ONLY=ray-check`). A
+/// caller that validates its rays itself (or wants a ray it cannot vouch for answered anyway, safely but
+/// unspecified) uses [`Tracer::trusting_rays`].
+#[derive(Clone, Copy, Debug)]
+pub struct Tracer<'a> {
+    nodes: &'a [PackedNode],
+    triangles: &'a [PackedTriangle],
+    triangle_ids: Option<&'a [u32]>,
+    /// The `triangle_flags` section, for filtered tracing ([`crate::tracer::filter`]).
+    triangle_flags: Option<&'a [u8]>,
+    wide: Option<WideTracer<'a>>,
+    instances: Option<TwoLevelSections<'a>>,
+    /// Whether the tracing calls skip the ray check ([`Tracer::trusting_rays`]).
+    trusts_rays: bool,
+}
+
+/// Which kernel a [`Tracer`] runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// The binary kernel over the nodes section (the reference).
+    Binary,
+    /// The 8-wide kernel over the wide sections, on this path.
+    Wide(KernelPath),
+}
+
+/// What the traversal loop found: triangle index and hit.
+type Found = Option<(u32, crate::ray::hit::TriangleHit)>;
+
+impl<'a> Tracer<'a> {
+    /// A tracer over a tree in the layout of the nodes section (node 0 is the root).
+    pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle], triangle_ids: Option<&'a [u32]>) -> Self {
+        Tracer { nodes, triangles, triangle_ids, triangle_flags: None, wide: None, instances: None, trusts_rays: false }
+    }
+
+    /// This tracer with the file's `triangle_flags` section (1.5), which filtered tracing reads ([`crate::tracer::filter`]).
+    pub fn with_triangle_flags(self, flags: Option<&'a [u8]>) -> Self {
+        Tracer { triangle_flags: flags, ..self }
+    }
+
+    /// The triangle flags this tracer's filtered calls read.
+    pub(crate) fn triangle_flags(&self) -> Option<&'a [u8]> {
+        self.triangle_flags
+    }
+
+    /// The source ids of this tracer's triangles.
+    pub(crate) fn triangle_ids(&self) -> Option<&'a [u32]> {
+        self.triangle_ids
+    }
+
+    /// The two-level sections this tracer walks, if the file is two-level.
+    pub(crate) fn instance_sections(&self) -> Option<TwoLevelSections<'a>> {
+        self.instances
+    }
+
+    /// The largest side of the scene's box in world space (the top tree's root, or the tree's), 0 when empty.
+    pub(crate) fn scene_extent(&self) -> f32 {
+        let root = match &self.instances {
+            Some(sections) => sections.top_nodes.first(),
+            None => self.nodes.first(),
+        };
+        root.map_or(0.0, |r| (0..3).map(|a| r.max[a] - r.min[a]).fold(0.0, f32::max))
+    }
+
+    /// This tracer without the ray check: a ray that breaks the contract gets an unspecified answer (never a
+    /// panic, a hang or a memory error). For callers that check their rays themselves ([`Ray::check`],
+    /// [`crate::check_rays`]) or make them valid by construction.
+    pub fn trusting_rays(self) -> Self {
+        Tracer { trusts_rays: true, ..self }
+    }
+
+    /// Whether this tracer checks its rays (see [`Tracer::trusting_rays`]).
+    pub fn checks_rays(&self) -> bool {
+        !self.trusts_rays
+    }
+
+    /// Panics with `call`'s name when `ray` breaks the contract and this tracer checks rays.
+    #[inline(always)]
+    #[track_caller]
+    pub(crate) fn check(&self, call: &str, ray: &Ray) {
+        if !self.trusts_rays
+            && let Err(error) = ray.check()
+        {
+            refused(call, &error);
+        }
+    }
+
+    /// Panics with `call`'s name when a ray of `rays` breaks the contract and this tracer checks rays (the whole
+    /// batch first).
+    #[inline(always)]
+    #[track_caller]
+    pub(crate) fn check_batch(&self, call: &str, rays: &[Ray]) {
+        if !self.trusts_rays
+            && let Err(error) = crate::ray::check::check_rays(rays)
+        {
+            refused(call, &error);
+        }
+    }
+
+    /// This tracer over a two-level file (1.3): its arrays (and wide sections) are the meshes' trees, which
+    /// `sections` place; rays walk the top-level tree and are traced through each mesh they reach in its object
+    /// space (`format-spec/bvh-1.md` 11.3).
+    pub fn with_instances(self, sections: TwoLevelSections<'a>) -> Self {
+        Tracer { instances: Some(sections), ..self }
+    }
+
+    /// The two-level sections this tracer walks, if any.
+    pub fn instances(&self) -> Option<&TwoLevelSections<'a>> {
+        self.instances.as_ref()
+    }
+
+    /// The one-level tracer over `mesh`'s ranges of this tracer's arrays (indices relative to the mesh, as the
+    /// two-level layout stores them), with the wide kernel when this tracer has it. `None` when the ranges lie
+    /// outside the arrays (a file that breaks V41).
+    fn mesh_tracer(&self, mesh: &MeshRecord) -> Option<Tracer<'a>> {
+        let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
+        let nodes = self.nodes.get(range(mesh.first_node, mesh.node_count))?;
+        let triangle_range = range(mesh.first_triangle, mesh.triangle_count);
+        let triangles = self.triangles.get(triangle_range.clone())?;
+        let ids = self.triangle_ids.and_then(|ids| ids.get(triangle_range));
+        // The object-space ray comes from a checked world-space one; it is not checked again.
+        let bottom = Tracer::new(nodes, triangles, ids).trusting_rays();
+        let root = nodes.first()?;
+        Some(match self.wide.and_then(|wide| wide.mesh(mesh, (root.min, root.max), ids)) {
+            Some(wide) => bottom.with_wide(wide),
+            None => bottom,
+        })
+    }
+
+    /// This tracer running `wide` (built over the same triangles) instead of the binary kernel.
+    pub fn with_wide(self, wide: WideTracer<'a>) -> Self {
+        Tracer { wide: Some(wide), ..self }
+    }
+
+    /// The binary kernel alone: the reference traversal.
+    pub fn binary(&self) -> Tracer<'a> {
+        Tracer { wide: None, ..*self }
+    }
+
+    /// The wide kernel the batch calls stream rays through: this tracer's, for a one-level file.
+    pub(crate) fn one_level_wide(&self) -> Option<&WideTracer<'a>> {
+        self.wide.as_ref().filter(|_| self.instances.is_none())
+    }
+
+    /// The kernel that [`Tracer::closest_hit`] and [`Tracer::any_hit`] run.
+    pub fn kernel(&self) -> Kernel {
+        self.wide.map_or(Kernel::Binary, |wide| Kernel::Wide(wide.path()))
+    }
+
+    /// The point of `hit` (a hit this tracer returned) on its triangle, for spawning secondary rays without an
+    /// epsilon: `tracer.surface(&hit)?.spawn(direction)` is a ray with `t_min = 0` that does not meet the
+    /// triangle it starts on ([`SurfacePoint`]). Refuses a hit that cannot be this file's ([`ForeignHit`]: a
+    /// record or instance out of range, an instance in a one-level file or none in a two-level one, a record
+    /// outside the instance's mesh, `u`, `v` NaN or off the triangle), rather than make a ray from nothing.
+    pub fn surface(&self, hit: &Hit) -> Result<SurfacePoint, ForeignHit> {
+        let triangle = self.triangles.get(hit.triangle_index as usize);
+        let triangle =
+            triangle.ok_or(ForeignHit::Triangle { index: hit.triangle_index, count: self.triangles.len() })?;
+        match (hit.instance_index, self.instances) {
+            (None, None) => SurfacePoint::new(hit, triangle),
+            (Some(index), Some(sections)) => {
+                let count = sections.instances.len();
+                let (instance, mesh) = sections.placement(index).ok_or(ForeignHit::Instance { index, count })?;
+                let first = u64::from(mesh.first_triangle);
+                if !(first..first + u64::from(mesh.triangle_count)).contains(&u64::from(hit.triangle_index)) {
+                    return Err(ForeignHit::NotInMesh { triangle: hit.triangle_index, instance: index });
+                }
+                SurfacePoint::placed(hit, triangle, instance)
+            }
+            (_, sections) => Err(ForeignHit::Levels { two_level: sections.is_some() }),
+        }
+    }
+
+    /// The closest hit with `t_min <= t <= t_max`.
+    ///
+    /// # Panics
+    ///
+    /// When the ray breaks the contract and the tracer checks rays (see [`Tracer`]).
+    #[track_caller]
+    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.check("closest_hit", ray);
+        self.closest_hit_trusted(ray, &mut ())
+    }
+
+    /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter` (with the wide kernel:
+    /// wide node visits and packet tests).
+    ///
+    /// # Panics
+    ///
+    /// As [`Tracer::closest_hit`].
+    #[track_caller]
+    pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        self.check("closest_hit_counted", ray);
+        self.closest_hit_trusted(ray, counter)
+    }
+
+    /// The closest hit of a ray taken as valid.
+    #[inline(always)]
+    pub(crate) fn closest_hit_trusted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        self.closest_hit_inner(ray, counter, &Unfiltered)
+    }
+
+    /// The closest hit of a ray taken as valid among the candidates `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn closest_hit_inner<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Option<Hit> {
+        if let Some(sections) = &self.instances {
+            return self.closest_hit_through(sections, ray, counter, candidates);
+        }
+        let (triangle_index, hit) = match &self.wide {
+            None => self.traverse::<false, C>(ray, counter, candidates)?,
+            Some(wide) => return wide.closest_hit_filtered(ray, counter, candidates),
+        };
+        Some(Hit::new(triangle_index, hit, self.triangles, self.triangle_ids, &ray.direction))
+    }
+
+    /// Whether anything is hit with `t_min <= t <= t_max` (occlusion); stops at the first hit found.
+    ///
+    /// # Panics
+    ///
+    /// As [`Tracer::closest_hit`].
+    #[track_caller]
+    pub fn any_hit(&self, ray: &Ray) -> bool {
+        self.check("any_hit", ray);
+        self.any_hit_trusted(ray, &mut ())
+    }
+
+    /// [`Tracer::any_hit`], counting as [`Tracer::closest_hit_counted`] does.
+    ///
+    /// # Panics
+    ///
+    /// As [`Tracer::closest_hit`].
+    #[track_caller]
+    pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.check("any_hit_counted", ray);
+        self.any_hit_trusted(ray, counter)
+    }
+
+    /// Whether a ray taken as valid hits anything.
+    #[inline(always)]
+    pub(crate) fn any_hit_trusted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.any_hit_inner(ray, counter, &Unfiltered)
+    }
+
+    /// Whether a ray taken as valid hits anything `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn any_hit_inner<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> bool {
+        if let Some(sections) = &self.instances {
+            return self.any_hit_through(sections, ray, counter, candidates);
+        }
+        match &self.wide {
+            None => self.traverse::<true, C>(ray, counter, candidates).is_some(),
+            Some(wide) => wide.any_hit_filtered(ray, counter, candidates),
+        }
+    }
+
+    /// [`Tracer::closest_hit_counted`] in a two-level file: the wide top tree with the wide kernel, else the binary
+    /// one. Out of line, so that the one-level kernel inlines as before.
+    #[inline(never)]
+    fn closest_hit_through<C: Candidates>(
+        &self,
+        sections: &TwoLevelSections<'a>,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Option<Hit> {
+        let trace_mesh = |instance: u32, mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
+            let in_mesh = candidates.in_mesh(mesh.first_triangle, instance);
+            self.mesh_tracer(mesh)?.closest_hit_inner(object_ray, counter, &in_mesh)
+        };
+        match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
+            Some(wide) => {
+                let walk = WideInstanceWalk::<_, _, false> { sections, ray, counter, trace_mesh };
+                crate::simd::run(wide.avx2(), walk)
+            }
+            None => walk_instances::<_, false>(sections, ray, counter, trace_mesh),
+        }
+    }
+
+    /// [`Tracer::any_hit_counted`] in a two-level file, as [`Tracer::closest_hit_through`].
+    #[inline(never)]
+    fn any_hit_through<C: Candidates>(
+        &self,
+        sections: &TwoLevelSections<'a>,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> bool {
+        let occluding = |instance: u32, mesh: &MeshRecord, object_ray: &Ray, counter: &mut _| {
+            let in_mesh = candidates.in_mesh(mesh.first_triangle, instance);
+            self.mesh_tracer(mesh)?.any_hit_inner(object_ray, counter, &in_mesh).then_some(Hit::OCCLUSION)
+        };
+        match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
+            Some(wide) => {
+                let walk = WideInstanceWalk::<_, _, true> { sections, ray, counter, trace_mesh: occluding };
+                crate::simd::run(wide.avx2(), walk).is_some()
+            }
+            None => walk_instances::<_, true>(sections, ray, counter, occluding).is_some(),
+        }
+    }
+
+    #[inline(always)]
+    #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
+    fn traverse<const ANY_HIT: bool, C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Found {
+        let prepared = PreparedRay::new(ray);
+        let nodes = self.nodes;
+        let root = nodes.first()?;
+        prepared.enter_box(root, ray.t_max * CULL_PADDING)?;
+        let mut t_max = ray.t_max;
+        let mut found: Found = None;
+        // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
+        let mut stack = [const { std::mem::MaybeUninit::<(u32, f32)>::uninit() }; MAX_DEPTH];
+        let mut stack_len = 0usize;
+        let mut current = 0u32;
+        let mut visits_left = nodes.len();
+        'traverse: loop {
+            // Visit `current`; `break` out of this block to pop the next node.
+            'visit: {
+                let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else {
+                    return found; // only on a file that breaks V14
+                };
+                visits_left -= 1;
+                counter.node_visited();
+                if node.is_leaf() {
+                    let end = (node.index as usize).saturating_add(node.count as usize);
+                    let leaf_triangles = self.triangles.get(node.index as usize..end).unwrap_or(&[]);
+                    for (offset, triangle) in leaf_triangles.iter().enumerate() {
+                        counter.triangle_tested();
+                        let record = node.index.wrapping_add(offset as u32);
+                        if let Some(hit) = prepared.intersect_triangle(triangle, t_max)
+                            && (!C::ACTIVE || candidates.accept(record, &hit))
+                        {
+                            found = Some((record, hit));
+                            if ANY_HIT {
+                                return found;
+                            }
+                            t_max = hit.t;
+                        }
+                    }
+                    break 'visit;
+                }
+                let first = node.index;
+                let Some(second) = first.checked_add(1).filter(|_| first > current) else {
+                    break 'visit;
+                };
+                let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
+                    break 'visit;
+                };
+                let t_cull = t_max * CULL_PADDING;
+                match (prepared.enter_box(left, t_cull), prepared.enter_box(right, t_cull)) {
+                    (Some(t_left), Some(t_right)) => {
+                        let (near, far, t_far) =
+                            if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
+                        if let Some(slot) = stack.get_mut(stack_len) {
+                            slot.write((far, t_far));
+                            stack_len += 1;
+                        }
+                        current = near;
+                        continue 'traverse;
+                    }
+                    (Some(_), None) => {
+                        current = first;
+                        continue 'traverse;
+                    }
+                    (None, Some(_)) => {
+                        current = second;
+                        continue 'traverse;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop the nearest pending node that may still hold a closer hit.
+            loop {
+                if stack_len == 0 {
+                    return found;
+                }
+                stack_len -= 1;
+                // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
+                // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
+                let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
+                if t_entry <= t_max * CULL_PADDING {
+                    current = node;
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/// The panic of a checked call on a ray that breaks the contract.
+#[cold]
+#[inline(never)]
+#[track_caller]
+pub(crate) fn refused(call: &str, error: &dyn std::fmt::Display) -> ! {
+    panic!(
+        "Tracer::{call}: the ray breaks the ray contract: {error} (check rays with Ray::check, or use \
+         Tracer::trusting_rays to trace them unchecked)"
+    )
+}

@@ -1,0 +1,342 @@
+//! Packets of up to eight coherent rays (camera rays of neighbouring pixels) traced through the wide sections
+//! together: one traversal, its stack entries carrying a mask of the rays that go there (after Wald, Slusallek,
+//! Benthin, Wagner, "Interactive Rendering with Coherent Ray Tracing", Eurographics 2001, on an 8-wide BVH).
+//! At a wide node each occupied slot's box is tested against all the packet's rays at once, one ray a lane of
+//! the instruction set's eight lanes, with the single-ray kernel's robust slab test per lane (Ize 2013; entry
+//! and exit planes picked per lane by the sign of that ray's direction). Children are visited in the order of
+//! the packet's first active ray; each stack entry keeps every lane's entry distance, so on pop the rays whose
+//! closest hit is already nearer leave the packet. At a leaf, when the rays share their shear axes, each
+//! triangle is tested against all active rays in lanes ([`crate::ray::watertight`]); otherwise each ray tests the
+//! leaf's packets with the single-ray packet test (`wide_packets`).
+//!
+//! Each ray's closest `t` (and any-hit answer) is the single-ray kernel's: the box test is the same arithmetic,
+//! conservative for each ray, and culling uses the same padding; on a tie at that `t` the triangle reported may
+//! differ, as section 11 of the spec allows. Safe on any bytes: indices are bounds-checked and a packet visits
+//! at most `node_count` wide nodes.
+
+use std::mem::MaybeUninit;
+
+use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
+use crate::ray::candidates::Unfiltered;
+use crate::ray::hit::{CULL_PADDING, TriangleHit, lane_address};
+use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::watertight::{
+    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
+    hits, ill_conditioned, outside, sheared,
+};
+use crate::simd::{Isa, LaneMask, Lanes};
+use crate::wide::packets::closest_in_packet;
+use crate::wide::walk::{STACK_LEN, Sections};
+
+/// Rays in one packet.
+pub(crate) const PACKET_RAYS: usize = 8;
+
+/// A stack entry: a child reference, the rays that enter it, and each ray's entry distance.
+#[derive(Clone, Copy)]
+struct Entry {
+    child: u32,
+    rays: u8,
+    t_near: [f32; PACKET_RAYS],
+}
+
+/// The per-lane ray data of a packet, structure of arrays.
+struct RayLanes {
+    origin: [[f32; PACKET_RAYS]; 3],
+    inverse_direction: [[f32; PACKET_RAYS]; 3],
+    exit_inverse: [[f32; PACKET_RAYS]; 3],
+    /// Per axis and lane: -1 where the ray's direction has its sign bit set (it enters through `max`), else 1.
+    sign: [[f32; PACKET_RAYS]; 3],
+    t_min: [f32; PACKET_RAYS],
+    /// Woop et al.'s shear per lane, and whether every ray of the packet has the same axes `[kx, ky, kz]`
+    /// (those of the first ray), so that a triangle can be tested against all of them in lanes.
+    shear: [[f32; PACKET_RAYS]; 3],
+    shared_axes: Option<[usize; 3]>,
+}
+
+/// Each ray's search: its closest hit so far (any hit, for any-hit packets) and the distance limit.
+struct Found {
+    t_max: [f32; PACKET_RAYS],
+    hit: [Option<(u32, TriangleHit)>; PACKET_RAYS],
+}
+
+/// Traces `rays` (at most [`PACKET_RAYS`]) as one packet; `done(l, found)` receives ray `l`'s result.
+#[inline(always)]
+pub(crate) fn trace_packet<const ANY_HIT: bool, I: Isa>(
+    isa: I,
+    sections: &Sections<'_>,
+    rays: &[Ray],
+    done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
+) {
+    let rays = &rays[..rays.len().min(PACKET_RAYS)];
+    let prepared: [Option<PreparedRay>; PACKET_RAYS] = std::array::from_fn(|l| rays.get(l).map(PreparedRay::new));
+    let mut found = Found { t_max: [0.0; PACKET_RAYS], hit: [None; PACKET_RAYS] };
+    let mut root = Entry { child: 0, rays: 0, t_near: [0.0; PACKET_RAYS] };
+    let mut lanes = RayLanes {
+        origin: [[0.0; PACKET_RAYS]; 3],
+        inverse_direction: [[0.0; PACKET_RAYS]; 3],
+        exit_inverse: [[0.0; PACKET_RAYS]; 3],
+        sign: [[1.0; PACKET_RAYS]; 3],
+        t_min: [0.0; PACKET_RAYS],
+        shear: [[0.0; PACKET_RAYS]; 3],
+        shared_axes: prepared[0].map(|p| p.shear().0),
+    };
+    for (l, ray) in rays.iter().enumerate() {
+        let Some(p) = &prepared[l] else { continue };
+        found.t_max[l] = ray.t_max;
+        for axis in 0..3 {
+            lanes.origin[axis][l] = p.origin[axis];
+            lanes.inverse_direction[axis][l] = p.inverse_direction[axis];
+            lanes.exit_inverse[axis][l] = p.exit_inverse[axis];
+            lanes.sign[axis][l] = if p.negative[axis] { -1.0 } else { 1.0 };
+        }
+        lanes.t_min[l] = p.t_min;
+        let (axes, shear) = p.shear();
+        for (k, &value) in shear.iter().enumerate() {
+            lanes.shear[k][l] = value;
+        }
+        if lanes.shared_axes != Some(axes) {
+            lanes.shared_axes = None;
+        }
+        if !sections.nodes.is_empty()
+            && let Some(t) = p.enter_box(&sections.root, ray.t_max * CULL_PADDING)
+        {
+            root.rays |= 1 << l;
+            root.t_near[l] = t;
+        }
+    }
+    // Rays still looking: all of them for closest hits; for any hit, those without a hit yet.
+    let mut pending = root.rays;
+    let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_LEN];
+    let mut stack_len = 0usize;
+    let mut visits_left = sections.nodes.len();
+    let mut next = Some(root);
+    while let Some(entry) = next.take() {
+        let active = entry.rays & pending;
+        if active != 0 {
+            if entry.child & LEAF_BIT != 0 {
+                let (first, count) = WideNode8::leaf_packets(entry.child);
+                let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
+                let leaf = (first as usize, packets);
+                let hit = match lanes.shared_axes {
+                    Some(axes) => leaf_in_lanes::<ANY_HIT, I>(isa, leaf, &lanes, axes, active, &prepared, &mut found),
+                    None => leaf_ray_by_ray::<ANY_HIT, I>(isa, leaf, active, &prepared, &mut found),
+                };
+                if ANY_HIT {
+                    pending &= !hit;
+                }
+            } else if let Some(node) = sections.nodes.get(entry.child as usize).filter(|_| visits_left > 0) {
+                visits_left -= 1;
+                let t_far: [f32; PACKET_RAYS] = std::array::from_fn(|l| found.t_max[l] * CULL_PADDING);
+                let leader = active.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                // The hit slots, nearest first for the leader (the first active ray), ties in slot order.
+                let mut order = [Entry { child: 0, rays: 0, t_near: [0.0; PACKET_RAYS] }; WIDE];
+                let mut n = 0;
+                for slot in 0..WIDE {
+                    let child = node.child[slot];
+                    if child == EMPTY_SLOT {
+                        break;
+                    }
+                    let (hit, t_near) = slot_test(isa, node, slot, &lanes, &t_far);
+                    let hit = hit & active;
+                    if hit == 0 {
+                        continue;
+                    }
+                    let entry = Entry { child, rays: hit, t_near };
+                    let key = |e: &Entry| if e.rays & (1 << leader) != 0 { e.t_near[leader] } else { f32::INFINITY };
+                    let mut at = n;
+                    while at > 0 && key(&order[at - 1]) > key(&entry) {
+                        order[at] = order[at - 1];
+                        at -= 1;
+                    }
+                    order[at] = entry;
+                    n += 1;
+                }
+                if n > 0 {
+                    for entry in order[1..n].iter().rev() {
+                        if let Some(slot) = stack.get_mut(stack_len) {
+                            slot.write(*entry);
+                            stack_len += 1;
+                        }
+                    }
+                    next = Some(order[0]);
+                    continue;
+                }
+            }
+        }
+        next = pop(&mut stack, &mut stack_len, &found.t_max, pending);
+    }
+    for (l, hit) in found.hit.iter().enumerate().take(rays.len()) {
+        done(l, *hit);
+    }
+}
+
+/// The next entry that still has rays in `pending` whose closest hit is not nearer than its box.
+#[inline(always)]
+#[allow(unsafe_code)] // reading the stack, see the SAFETY note
+fn pop(
+    stack: &mut [MaybeUninit<Entry>; STACK_LEN],
+    stack_len: &mut usize,
+    t_max: &[f32; PACKET_RAYS],
+    pending: u8,
+) -> Option<Entry> {
+    while *stack_len > 0 {
+        *stack_len -= 1;
+        // SAFETY: entries below `stack_len` were written by the push in `trace_packet` before `stack_len` passed
+        // them, and `stack_len` only moves down by one here, so this entry is initialized.
+        let mut entry = unsafe { stack[*stack_len].assume_init() };
+        for (l, (&t_near, &t_best)) in entry.t_near.iter().zip(t_max).enumerate() {
+            if t_near > t_best * CULL_PADDING {
+                entry.rays &= !(1 << l);
+            }
+        }
+        if entry.rays & pending != 0 {
+            return Some(entry);
+        }
+    }
+    None
+}
+
+/// Slot `slot` of `node` against every lane: (bit mask of the lanes whose ray enters the box within
+/// `[t_min, t_far]`, entry distances). The single-ray slab test per lane.
+#[inline(always)]
+fn slot_test<I: Isa>(
+    isa: I,
+    node: &WideNode8,
+    slot: usize,
+    lanes: &RayLanes,
+    t_far: &[f32; PACKET_RAYS],
+) -> (u8, [f32; PACKET_RAYS]) {
+    let mut near = isa.f8(&lanes.t_min);
+    let mut far = isa.f8(t_far);
+    for axis in 0..3 {
+        let (low, high) = (isa.f8_splat(node.min[axis][slot]), isa.f8_splat(node.max[axis][slot]));
+        let negative = isa.f8(&lanes.sign[axis]).is_sign_negative();
+        let entry = I::F8::select(negative, high, low);
+        let exit = I::F8::select(negative, low, high);
+        let origin = isa.f8(&lanes.origin[axis]);
+        let t_entry = entry.sub(origin).mul(isa.f8(&lanes.inverse_direction[axis]));
+        let t_exit = exit.sub(origin).mul(isa.f8(&lanes.exit_inverse[axis]));
+        near = t_entry.max_or(near);
+        far = t_exit.min_or(far);
+    }
+    (near.le(far).bits() as u8, near.to_array())
+}
+
+/// The triangles of `packets`, one after the other, against the `active` rays in lanes, when every ray has the
+/// shear axes `axes`: per (ray, triangle) the scalar watertight test's operations in its order, a lane with an
+/// edge function exactly 0 or an ill-conditioned hit redone by the scalar test, and hits accepted in triangle
+/// order at `t <= t_max` of the ray, so each ray ends with what the single-ray packet test gives. Returns the rays
+/// that were hit.
+#[inline(always)]
+fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
+    isa: I,
+    (first, packets): (usize, &[TrianglePacket4]),
+    lanes: &RayLanes,
+    [kx, ky, kz]: [usize; 3],
+    mut active: u8,
+    prepared: &[Option<PreparedRay>; PACKET_RAYS],
+    found: &mut Found,
+) -> u8 {
+    let mut hit_rays = 0u8;
+    let origin = [isa.f8(&lanes.origin[kx]), isa.f8(&lanes.origin[ky]), isa.f8(&lanes.origin[kz])];
+    let (sx, sy, sz) = (isa.f8(&lanes.shear[0]), isa.f8(&lanes.shear[1]), isa.f8(&lanes.shear[2]));
+    let (t_min, zero, one) = (isa.f8(&lanes.t_min), isa.f8_splat(0.0), isa.f8_splat(1.0));
+    for (p, packet) in packets.iter().enumerate() {
+        for tri in 0..packet.used_lanes() {
+            let r = RelativeTriangle {
+                a: relative_vertex(isa, &packet.vertices[0], tri, [kx, ky, kz], &origin),
+                b: relative_vertex(isa, &packet.vertices[1], tri, [kx, ky, kz], &origin),
+                c: relative_vertex(isa, &packet.vertices[2], tri, [kx, ky, kz], &origin),
+            };
+            let projected = sheared(&r, sx, sy);
+            let e = edge_functions(projected);
+            let det = determinant(e);
+            let t = distance(e, &r, sz, det);
+            let outside = outside(e, zero);
+            let valid = hits(outside, det, t, zero, t_min, isa.f8(&found.t_max));
+            let inside = det.is_number().and_not(outside);
+            let mut redo_rays = has_zero_edge(e, zero).bits() as u8 & active;
+            if inside.bits() as u8 & active != 0 {
+                // Ill-conditioned hits get their exact values from the scalar test.
+                let ill = ill_conditioned(projected, &r, det, isa.f8_splat(ILL_CONDITIONED), isa.f8_splat(TINY_EXTENT));
+                redo_rays |= ill.and(inside).bits() as u8 & active;
+            }
+            let valid_rays = valid.bits() as u8 & active & !redo_rays;
+            if valid_rays != 0 {
+                let (u, v) = barycentrics(e, det, one);
+                let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+                let mut rays = valid_rays;
+                while rays != 0 {
+                    let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                    rays &= rays - 1;
+                    found.t_max[l] = t[l];
+                    found.hit[l] = Some((lane_address(first + p, tri), TriangleHit { t: t[l], u: u[l], v: v[l] }));
+                }
+                hit_rays |= valid_rays;
+            }
+            let mut rays = redo_rays;
+            while rays != 0 {
+                let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                rays &= rays - 1;
+                let Some(ray) = &prepared[l] else { continue };
+                if let Some(hit) = ray.intersect_triangle(&packet.triangle(tri), found.t_max[l]) {
+                    found.t_max[l] = hit.t;
+                    found.hit[l] = Some((lane_address(first + p, tri), hit));
+                    hit_rays |= 1 << l;
+                }
+            }
+        }
+        if ANY_HIT {
+            active &= !hit_rays;
+            if active == 0 {
+                break;
+            }
+        }
+    }
+    hit_rays
+}
+
+/// Vertex `vertex` of the packet's triangle in lane `tri` minus each ray's origin (`origin`, in the permuted
+/// axes), in the rays' permuted axes `[kx, ky, kz]`.
+#[inline(always)]
+fn relative_vertex<I: Isa>(
+    isa: I,
+    vertex: &[[f32; 4]; 3],
+    tri: usize,
+    [kx, ky, kz]: [usize; 3],
+    origin: &[I::F8; 3],
+) -> [I::F8; 3] {
+    [
+        isa.f8_splat(vertex[kx][tri]).sub(origin[0]),
+        isa.f8_splat(vertex[ky][tri]).sub(origin[1]),
+        isa.f8_splat(vertex[kz][tri]).sub(origin[2]),
+    ]
+}
+
+/// The leaf's packets for each `active` ray in turn, with the single-ray packet test (rays whose shear axes
+/// differ cannot share lanes). Returns the rays that were hit.
+#[inline(always)]
+fn leaf_ray_by_ray<const ANY_HIT: bool, I: Isa>(
+    isa: I,
+    (first, packets): (usize, &[TrianglePacket4]),
+    active: u8,
+    prepared: &[Option<PreparedRay>; PACKET_RAYS],
+    found: &mut Found,
+) -> u8 {
+    let mut hit_rays = 0u8;
+    for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
+        let Some(ray) = &prepared[l] else { continue };
+        for (p, packet) in packets.iter().enumerate() {
+            if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered)
+            {
+                found.t_max[l] = hit.t;
+                found.hit[l] = Some((lane_address(first + p, lane), hit));
+                hit_rays |= 1 << l;
+                if ANY_HIT {
+                    break;
+                }
+            }
+        }
+    }
+    hit_rays
+}

@@ -1,0 +1,384 @@
+//! The wide kernel's public face: [`WideBvh`] (wide sections in memory, checked by V29-V35) and [`WideTracer`]
+//! (closest hit, any hit, one ray, a stream of rays or packets of coherent rays). The traversal itself is
+//! `wide_walk` (wide nodes, box tests), `wide_packets` (triangle packets) and `wide_coherent` (ray packets);
+//! layout: `format::WideNode8`, `format::TrianglePacket4`.
+//!
+//! Each entry point is a [`Kernel`] written once over an instruction set and run by [`crate::simd::run`]: on
+//! AVX2 (box tests in AVX2, triangle packets in SSE2) inside one `target_feature` function, so everything
+//! inlines into it, or on the portable path, which gives the same hits bit for bit.
+
+pub(crate) mod coherent;
+pub(crate) mod packets;
+pub(crate) mod walk;
+
+use crate::error::Violation;
+use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
+use crate::ray::candidates::{Candidates, Unfiltered};
+use crate::ray::hit::{Hit, TraversalCounter, TriangleHit, slot_writer};
+use crate::ray::intersect::Ray;
+use crate::simd::{Avx2, Isa, Kernel, KernelPath};
+use crate::verify::wide::{WideContext, verify_wide};
+use crate::wide::coherent::{PACKET_RAYS, trace_packet};
+use crate::wide::walk::{Sections, Walk, new_stack};
+
+/// The wide sections in memory (owned), checked at construction against the triangles they index.
+#[derive(Clone, Debug)]
+pub struct WideBvh {
+    nodes: Vec<WideNode8>,
+    packets: Vec<TrianglePacket4>,
+    root: PackedNode,
+}
+
+impl WideBvh {
+    /// `nodes` (the root first) and `packets` over `triangles` (whose indices the packets' lanes hold), inside
+    /// `root_box` (the binary root's box). Fails with the first broken rule of V29-V35, naming the node, slot,
+    /// packet or lane.
+    pub fn new(
+        nodes: Vec<WideNode8>,
+        packets: Vec<TrianglePacket4>,
+        root_box: ([f32; 3], [f32; 3]),
+        triangles: &[PackedTriangle],
+    ) -> Result<WideBvh, Violation> {
+        WideBvh::checked(nodes, packets, root_box, triangles, false)
+    }
+
+    /// [`WideBvh::new`] for a triangles section with `SPLIT_REFERENCES` (a triangle may be stored in several
+    /// records, the records with its vertices): V35's split-reference clause applies, so a lane's triangle need
+    /// only overlap its slot's box, and the slots holding a triangle's records must cover it.
+    pub fn new_split_references(
+        nodes: Vec<WideNode8>,
+        packets: Vec<TrianglePacket4>,
+        root_box: ([f32; 3], [f32; 3]),
+        triangles: &[PackedTriangle],
+    ) -> Result<WideBvh, Violation> {
+        WideBvh::checked(nodes, packets, root_box, triangles, true)
+    }
+
+    fn checked(
+        nodes: Vec<WideNode8>,
+        packets: Vec<TrianglePacket4>,
+        root_box: ([f32; 3], [f32; 3]),
+        triangles: &[PackedTriangle],
+        split_references: bool,
+    ) -> Result<WideBvh, Violation> {
+        let context = WideContext { triangles, triangle_ids: None, root_box: Some(root_box), split_references };
+        verify_wide(&nodes, &packets, &context)?;
+        let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
+        Ok(WideBvh { nodes, packets, root })
+    }
+
+    /// The nodes (the `wide_nodes` section).
+    pub fn nodes(&self) -> &[WideNode8] {
+        &self.nodes
+    }
+
+    /// The packets (the `triangle_packets` section).
+    pub fn packets(&self) -> &[TrianglePacket4] {
+        &self.packets
+    }
+
+    /// The nodes and packets, moved out (to lay several trees out in one file).
+    pub fn into_parts(self) -> (Vec<WideNode8>, Vec<TrianglePacket4>) {
+        (self.nodes, self.packets)
+    }
+}
+
+/// Closest-hit and any-hit queries over wide sections (a file's, or a [`WideBvh`]): the kernel itself, which
+/// takes its rays as valid (it does not check the ray contract; a [`crate::Tracer`] does before running it).
+#[derive(Clone, Copy, Debug)]
+pub struct WideTracer<'a> {
+    sections: Sections<'a>,
+    triangle_ids: Option<&'a [u32]>,
+    /// The AVX2 token when the tracer runs the AVX2 path.
+    avx2: Option<Avx2>,
+    interleave: bool,
+}
+
+/// Rays a stream keeps in flight, their steps interleaved.
+const STREAM_WIDTH: usize = 8;
+
+/// Streams interleave rays only over wide sections larger than this; over smaller ones, which stay in the
+/// caches, the bookkeeping of interleaving costs more than it hides, and rays run one after the other (measured
+/// in `docs/evaluation.md`, traversal).
+const INTERLEAVE_ABOVE_BYTES: usize = 32 << 20;
+
+impl<'a> WideTracer<'a> {
+    /// A tracer over `bvh` on `path` (the portable one when `path` is not supported here). `triangle_ids` are
+    /// indexed by the packets' triangle indices; hits take their normals from the packets' vertices.
+    pub fn new(bvh: &'a WideBvh, triangle_ids: Option<&'a [u32]>, path: KernelPath) -> WideTracer<'a> {
+        WideTracer::over(&bvh.nodes, &bvh.packets, (bvh.root.min, bvh.root.max), triangle_ids, path)
+    }
+
+    /// A tracer over borrowed wide sections (a `BvhView`'s) inside `root_box`, the binary root's box.
+    /// Safe on any contents; the hits are those of the binary kernel when the sections pass V29-V35.
+    pub fn over(
+        nodes: &'a [WideNode8],
+        packets: &'a [TrianglePacket4],
+        root_box: ([f32; 3], [f32; 3]),
+        triangle_ids: Option<&'a [u32]>,
+        path: KernelPath,
+    ) -> WideTracer<'a> {
+        let avx2 = match path {
+            KernelPath::Avx2 => Avx2::detect(),
+            KernelPath::Portable => None,
+        };
+        let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
+        let interleave = size_of_val(nodes) + size_of_val(packets) > INTERLEAVE_ABOVE_BYTES;
+        WideTracer { sections: Sections { nodes, packets, root }, triangle_ids, avx2, interleave }
+    }
+
+    /// The tracer over mesh `mesh`'s ranges of these sections (a two-level file's, whose indices inside a mesh
+    /// are relative to its ranges), inside `root_box` (the mesh's binary root box), its lanes' source ids in
+    /// `triangle_ids` (the mesh's range of them). `None` when the ranges lie outside the sections (a file that
+    /// breaks V41).
+    pub(crate) fn mesh(
+        &self,
+        mesh: &crate::format::MeshRecord,
+        root_box: ([f32; 3], [f32; 3]),
+        triangle_ids: Option<&'a [u32]>,
+    ) -> Option<WideTracer<'a>> {
+        let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
+        let nodes = self.sections.nodes.get(range(mesh.first_wide_node, mesh.wide_node_count))?;
+        let packets = self.sections.packets.get(range(mesh.first_packet, mesh.packet_count))?;
+        Some(WideTracer::over(nodes, packets, root_box, triangle_ids, self.path()))
+    }
+
+    /// The AVX2 token when the tracer runs the AVX2 path (for walks of other wide trees on the same path).
+    pub(crate) fn avx2(&self) -> Option<Avx2> {
+        self.avx2
+    }
+
+    /// The path this tracer runs.
+    pub fn path(&self) -> KernelPath {
+        if self.avx2.is_some() { KernelPath::Avx2 } else { KernelPath::Portable }
+    }
+
+    /// The closest hit.
+    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_hit_counted(ray, &mut ())
+    }
+
+    /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (packets of
+    /// four count as one test each) into `counter`.
+    pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        self.closest_hit_filtered(ray, counter, &Unfiltered)
+    }
+
+    /// [`WideTracer::closest_hit_counted`] among the candidates `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn closest_hit_filtered<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Option<Hit> {
+        let (address, hit) = self.dispatch::<false, C>(ray, counter, candidates)?;
+        Some(Hit::in_lane(address, hit, self.sections.packets, self.triangle_ids, &ray.direction))
+    }
+
+    /// Whether any triangle is hit.
+    pub fn any_hit(&self, ray: &Ray) -> bool {
+        self.any_hit_counted(ray, &mut ())
+    }
+
+    /// [`WideTracer::any_hit`], counting as [`WideTracer::closest_hit_counted`] does.
+    pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.any_hit_filtered(ray, counter, &Unfiltered)
+    }
+
+    /// [`WideTracer::any_hit_counted`] among the candidates `candidates` accepts.
+    #[inline(always)]
+    pub(crate) fn any_hit_filtered<C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> bool {
+        self.dispatch::<true, C>(ray, counter, candidates).is_some()
+    }
+
+    /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call).
+    /// Over large sections several rays are in flight at once, their steps interleaved, so one ray's cache
+    /// misses overlap with the others' work ([`WideTracer::interleaves_streams`]); each ray's hit is the one
+    /// [`WideTracer::closest_hit`] returns, whichever way.
+    pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        crate::ray::hit::same_length("closest_hits", rays.len(), hits.len());
+        self.closest_hits_with(rays, false, &mut slot_writer(hits));
+    }
+
+    /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
+    /// panic naming the call), with rays interleaved as in [`WideTracer::closest_hits`].
+    pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
+        crate::ray::hit::same_length("any_hits", rays.len(), occluded.len());
+        self.any_hits_with(rays, false, &mut slot_writer(occluded));
+    }
+
+    /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call),
+    /// for coherent rays such as camera rays of neighbouring pixels: each 8 consecutive rays share one
+    /// traversal. Each ray's `t` is the one [`WideTracer::closest_hit`] returns; on a tie at that `t` the
+    /// triangle may be another one hit at the same `t`. Slower than [`WideTracer::closest_hits`] for rays that
+    /// go different ways.
+    pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        crate::ray::hit::same_length("closest_hits_coherent", rays.len(), hits.len());
+        self.closest_hits_with(rays, true, &mut slot_writer(hits));
+    }
+
+    /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
+    /// panic naming the call), 8 consecutive rays a traversal as in [`WideTracer::closest_hits_coherent`]; the same answers
+    /// as [`WideTracer::any_hit`].
+    pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
+        crate::ray::hit::same_length("any_hits_coherent", rays.len(), occluded.len());
+        self.any_hits_with(rays, true, &mut slot_writer(occluded));
+    }
+
+    /// Each ray's closest hit to `each(i, hit)`, once per ray: as a stream ([`WideTracer::closest_hits`]) or, when
+    /// `coherent`, in packets of 8 ([`WideTracer::closest_hits_coherent`]).
+    pub(crate) fn closest_hits_with(&self, rays: &[Ray], coherent: bool, each: &mut impl FnMut(usize, Option<Hit>)) {
+        let (packets, ids) = (self.sections.packets, self.triangle_ids);
+        let mut done = |i: usize, found: Option<(u32, TriangleHit)>| {
+            if let Some(ray) = rays.get(i) {
+                each(i, found.map(|(address, hit)| Hit::in_lane(address, hit, packets, ids, &ray.direction)));
+            }
+        };
+        match coherent {
+            true => self.packets::<false>(rays, &mut done),
+            false => self.stream::<false>(rays, &mut done),
+        }
+    }
+
+    /// Whether each ray hits anything to `each(i, occluded)`, once per ray, as [`WideTracer::closest_hits_with`].
+    pub(crate) fn any_hits_with(&self, rays: &[Ray], coherent: bool, each: &mut impl FnMut(usize, bool)) {
+        let mut done = |i: usize, found: Option<(u32, TriangleHit)>| each(i, found.is_some());
+        match coherent {
+            true => self.packets::<true>(rays, &mut done),
+            false => self.stream::<true>(rays, &mut done),
+        }
+    }
+
+    /// Packets of consecutive rays on the tracer's path; `done(i, found)` receives ray `i`'s result.
+    fn packets<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
+        crate::simd::run(self.avx2, Packets::<_, ANY_HIT> { sections: &self.sections, rays, done });
+    }
+
+    /// One ray's walk to its end on the tracer's path.
+    #[inline(always)]
+    fn dispatch<const ANY_HIT: bool, C: Candidates>(
+        &self,
+        ray: &Ray,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> Option<(u32, TriangleHit)> {
+        crate::simd::run(self.avx2, SingleRay::<_, _, ANY_HIT> { sections: &self.sections, ray, counter, candidates })
+    }
+
+    /// Whether streams interleave rays: by default when the wide sections exceed 32 MiB, where it measured
+    /// faster; the results are the same either way.
+    pub fn interleaves_streams(&self) -> bool {
+        self.interleave
+    }
+
+    /// This tracer with streams interleaving rays (`true`) or tracing them one by one (`false`), whatever the
+    /// size of the sections.
+    pub fn interleaving_streams(self, interleave: bool) -> WideTracer<'a> {
+        WideTracer { interleave, ..self }
+    }
+
+    /// The stream on the tracer's path; `done(i, found)` receives ray `i`'s result.
+    fn stream<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
+        if !self.interleaves_streams() {
+            for (i, ray) in rays.iter().enumerate() {
+                done(i, self.dispatch::<ANY_HIT, _>(ray, &mut (), &Unfiltered));
+            }
+            return;
+        }
+        crate::simd::run(self.avx2, Stream::<_, ANY_HIT> { sections: &self.sections, rays, done });
+    }
+}
+
+/// One ray's walk, to its end, among the candidates `candidates` accepts.
+struct SingleRay<'s, 'r, C, A, const ANY_HIT: bool> {
+    sections: &'s Sections<'s>,
+    ray: &'r Ray,
+    counter: &'r mut C,
+    candidates: &'r A,
+}
+
+impl<C: TraversalCounter, A: Candidates, const ANY_HIT: bool> Kernel for SingleRay<'_, '_, C, A, ANY_HIT> {
+    type Output = Option<(u32, TriangleHit)>;
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) -> Self::Output {
+        let mut walk = Walk::start(self.sections, self.ray)?;
+        let mut stack = new_stack();
+        while walk.step::<ANY_HIT, I, A>(isa, self.sections, &mut stack, self.counter, self.candidates) {}
+        walk.found()
+    }
+}
+
+/// A stream of rays, up to [`STREAM_WIDTH`] walks in flight, one step of each in turn; a finished walk's slot
+/// takes the next ray.
+struct Stream<'s, 'r, D, const ANY_HIT: bool> {
+    sections: &'s Sections<'s>,
+    rays: &'r [Ray],
+    done: &'r mut D,
+}
+
+impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel for Stream<'_, '_, D, ANY_HIT> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) {
+        let Stream { sections, rays, done } = self;
+        let mut stacks = [const { new_stack() }; STREAM_WIDTH];
+        let mut walks: [Option<(usize, Walk)>; STREAM_WIDTH] = [const { None }; STREAM_WIDTH];
+        let mut next = 0;
+        let mut in_flight = 0;
+        loop {
+            for (slot, stack) in walks.iter_mut().zip(&mut stacks) {
+                if slot.is_none() {
+                    // Start the next ray that enters the root's box; the others miss at once.
+                    while next < rays.len() && slot.is_none() {
+                        match Walk::start(sections, &rays[next]) {
+                            Some(walk) => {
+                                *slot = Some((next, walk));
+                                in_flight += 1;
+                            }
+                            None => done(next, None),
+                        }
+                        next += 1;
+                    }
+                }
+                if let Some((i, walk)) = slot
+                    && !walk.step::<ANY_HIT, I, _>(isa, sections, stack, &mut (), &Unfiltered)
+                {
+                    done(*i, walk.found());
+                    *slot = None;
+                    in_flight -= 1;
+                }
+            }
+            if in_flight == 0 && next >= rays.len() {
+                return;
+            }
+        }
+    }
+}
+
+/// Packets of [`PACKET_RAYS`] consecutive rays, one traversal each.
+struct Packets<'s, 'r, D, const ANY_HIT: bool> {
+    sections: &'s Sections<'s>,
+    rays: &'r [Ray],
+    done: &'r mut D,
+}
+
+impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel for Packets<'_, '_, D, ANY_HIT> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) {
+        for (p, chunk) in self.rays.chunks(PACKET_RAYS).enumerate() {
+            trace_packet::<ANY_HIT, I>(isa, self.sections, chunk, &mut |l, found| {
+                (self.done)(p * PACKET_RAYS + l, found)
+            });
+        }
+    }
+}

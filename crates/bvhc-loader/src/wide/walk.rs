@@ -1,0 +1,262 @@
+//! One ray's traversal of the wide sections, as a state machine that advances one wide node or leaf a step, so
+//! a single ray runs it to the end and a stream of rays interleaves several (each ray's steps, and so its hits,
+//! are the same either way; interleaving lets one ray's cache misses overlap with another's work).
+//!
+//! A step at a wide node tests the ray against the eight child boxes at once, in the instruction set's eight
+//! lanes (AVX2, or portable arrays with the same operations, so both give the same lanes bit for bit), with the
+//! binary kernel's robust slab test (Ize 2013: exit distances padded by `1 + 2 gamma(3)` through the ray's
+//! padded reciprocal, compare-selects that ignore the NaN of an origin on the slab plane of a zero direction
+//! component; nothing fused). For a closest hit the hit children go nearest first: one or two without a sort, more by insertion
+//! sort; the others are pushed with their entry distance and skipped on pop when a closer hit was found (with
+//! the binary kernel's cull padding). For any hit the order does not matter: the hit children are pushed in
+//! slot order and the walk goes on with the last, with no distance compared (Embree's occlusion traversal does
+//! the same), and a leaf ends the walk at its first hit. On the AVX2 path pushed children are prefetched, so
+//! their misses overlap with the work on the nearer ones. A step at a leaf tests its packets four triangles at
+//! a time (`wide_packets`).
+//!
+//! Safe on any bytes: every index is bounds-checked, and a walk visits at most `node_count` wide nodes (so a
+//! node referenced from many slots cannot make it run long); on a file that fails verification the hits are
+//! unspecified.
+
+use std::mem::MaybeUninit;
+
+use crate::format::{LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
+use crate::ray::candidates::Candidates;
+use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit, lane_address};
+use crate::ray::intersect::{PreparedRay, Ray};
+use crate::simd::Isa;
+use crate::wide::packets::closest_in_packet;
+
+/// Stack entries: each visited node pushes at most 7, and a verified file is at most `MAX_DEPTH` deep.
+pub(crate) const STACK_LEN: usize = (WIDE - 1) * MAX_DEPTH + 1;
+
+/// A walk's stack of (child reference, entry distance). Never initialized as a whole: 14 KiB of memset per ray
+/// cost more than a node visit; a walk only reads entries it wrote.
+pub(crate) type Stack = [MaybeUninit<(u32, f32)>; STACK_LEN];
+
+/// A new, unwritten stack.
+pub(crate) const fn new_stack() -> Stack {
+    [const { MaybeUninit::uninit() }; STACK_LEN]
+}
+
+/// The wide sections a walk runs over, and the binary root's box.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sections<'a> {
+    pub nodes: &'a [WideNode8],
+    pub packets: &'a [TrianglePacket4],
+    /// The binary root's box, tested first (as an inner node for the binary kernel's box test).
+    pub root: PackedNode,
+}
+
+/// One ray's traversal state; its stack is kept by the caller (one per walk in flight).
+pub(crate) struct Walk {
+    ray: PreparedRay,
+    t_max: f32,
+    found: Option<(u32, TriangleHit)>,
+    visits_left: usize,
+    current: u32,
+    /// Entries below this index of the walk's stack are written.
+    stack_len: usize,
+}
+
+impl Walk {
+    /// The walk of `ray` from the wide root, or `None` when there is no tree. The binary root's box is not
+    /// tested first: the root's slot boxes lie inside it (V32), so a ray that misses it misses them all in the
+    /// first step, and one that enters it saves a scalar box test.
+    #[inline(always)]
+    pub(crate) fn start(sections: &Sections<'_>, ray: &Ray) -> Option<Walk> {
+        if sections.nodes.is_empty() {
+            return None;
+        }
+        let prepared = PreparedRay::new(ray);
+        Some(Walk {
+            ray: prepared,
+            t_max: ray.t_max,
+            found: None,
+            visits_left: sections.nodes.len(),
+            current: 0,
+            stack_len: 0,
+        })
+    }
+
+    /// The closest hit so far (any hit, for `ANY_HIT` walks), as (triangle index, hit).
+    pub(crate) fn found(&self) -> Option<(u32, TriangleHit)> {
+        self.found
+    }
+
+    /// Processes the current wide node or leaf and moves to the next; `false` when the walk has ended.
+    /// `stack` must be the one this walk has used since it started.
+    #[inline(always)]
+    pub(crate) fn step<const ANY_HIT: bool, I: Isa, C: Candidates>(
+        &mut self,
+        isa: I,
+        sections: &Sections<'_>,
+        stack: &mut Stack,
+        counter: &mut impl TraversalCounter,
+        candidates: &C,
+    ) -> bool {
+        let current = self.current;
+        if current & LEAF_BIT != 0 {
+            let (first, count) = WideNode8::leaf_packets(current);
+            let leaf = (first as usize, count as usize);
+            if let Some(hit) =
+                leaf_hit::<ANY_HIT, I, C>(isa, sections, &self.ray, leaf, self.t_max, counter, candidates)
+            {
+                self.found = Some(hit);
+                if ANY_HIT {
+                    return false;
+                }
+                self.t_max = hit.1.t;
+            }
+        } else if let Some(node) = sections.nodes.get(current as usize).filter(|_| self.visits_left > 0) {
+            self.visits_left -= 1;
+            counter.node_visited();
+            let (mask, t_near) = isa.box_test(node, &self.ray.slab_ray(), self.t_max * CULL_PADDING);
+            let first = mask.trailing_zeros() as usize;
+            let rest = mask & mask.wrapping_sub(1);
+            if rest == 0 {
+                if let Some(&child) = node.child.get(first) {
+                    self.current = child;
+                    return true;
+                }
+            } else if ANY_HIT {
+                // Any hit needs no order: the hit children go on the stack in slot order and the walk goes on
+                // with the last (as Embree's occlusion traversal does), without comparing distances.
+                let mut lanes = mask;
+                loop {
+                    let lane = lanes.trailing_zeros() as usize & (WIDE - 1);
+                    lanes &= lanes - 1;
+                    if lanes == 0 {
+                        self.descend::<I>(sections, node.child[lane]);
+                        return true;
+                    }
+                    self.push::<I>(sections, stack, (node.child[lane], t_near[lane]));
+                }
+            } else if rest & (rest - 1) == 0 {
+                let second = rest.trailing_zeros() as usize & (WIDE - 1);
+                let (near, far) = if t_near[second] < t_near[first] { (second, first) } else { (first, second) };
+                self.push::<I>(sections, stack, (node.child[far], t_near[far]));
+                self.descend::<I>(sections, node.child[near]);
+                return true;
+            } else {
+                let mut order = [(0u32, 0f32); WIDE];
+                let mut n = 0;
+                let mut lanes = mask;
+                while lanes != 0 {
+                    let lane = lanes.trailing_zeros() as usize & (WIDE - 1);
+                    lanes &= lanes - 1;
+                    let entry = (node.child[lane], t_near[lane]);
+                    let mut at = n;
+                    while at > 0 && order[at - 1].1 > entry.1 {
+                        order[at] = order[at - 1];
+                        at -= 1;
+                    }
+                    order[at] = entry;
+                    n += 1;
+                }
+                for &entry in order[1..n].iter().rev() {
+                    self.push::<I>(sections, stack, entry);
+                }
+                self.descend::<I>(sections, order[0].0);
+                return true;
+            }
+        }
+        self.pop(stack)
+    }
+
+    /// Continues with `child`, prefetched on the AVX2 path (its loads then start together).
+    #[inline(always)]
+    fn descend<I: Isa>(&mut self, sections: &Sections<'_>, child: u32) {
+        if I::PREFETCH {
+            prefetch(sections, child);
+        }
+        self.current = child;
+    }
+
+    /// Pushes `entry` (dropped when the stack is full, which only a file that breaks V30 can cause) and, on
+    /// the AVX2 path, prefetches what it references.
+    #[inline(always)]
+    fn push<I: Isa>(&mut self, sections: &Sections<'_>, stack: &mut Stack, entry: (u32, f32)) {
+        if I::PREFETCH {
+            prefetch(sections, entry.0);
+        }
+        if let Some(slot) = stack.get_mut(self.stack_len) {
+            slot.write(entry);
+            self.stack_len += 1;
+        }
+    }
+
+    /// Continues with the nearest pushed entry not beyond the closest hit; `false` when there is none.
+    #[inline(always)]
+    #[allow(unsafe_code)] // reading the stack, see the SAFETY note
+    fn pop(&mut self, stack: &Stack) -> bool {
+        while self.stack_len > 0 {
+            self.stack_len -= 1;
+            // SAFETY: every index below `stack_len` was written by `push` before `stack_len` passed it (on this
+            // stack, as `step` requires), and `stack_len` only moves down by one here, so the entry is initialized.
+            let (next, t_entry) = unsafe { stack[self.stack_len].assume_init() };
+            if t_entry <= self.t_max * CULL_PADDING {
+                self.current = next;
+                return true;
+            }
+        }
+        false
+    }
+}
+
+/// The closest hit in packets `first .. first + count` (`leaf`), within `t_max`, among the candidates
+/// `candidates` accepts, as (lane address, hit); for `ANY_HIT`, the first packet's hit.
+#[inline(always)]
+fn leaf_hit<const ANY_HIT: bool, I: Isa, C: Candidates>(
+    isa: I,
+    sections: &Sections<'_>,
+    ray: &PreparedRay,
+    (first, count): (usize, usize),
+    t_max: f32,
+    counter: &mut impl TraversalCounter,
+    candidates: &C,
+) -> Option<(u32, TriangleHit)> {
+    let packets = sections.packets.get(first..first.saturating_add(count))?;
+    let mut best = None;
+    let mut limit = t_max;
+    for (p, packet) in packets.iter().enumerate() {
+        counter.triangle_tested();
+        if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I, C>(isa, packet, ray, limit, candidates) {
+            limit = hit.t;
+            best = Some((lane_address(first + p, lane), hit));
+            if ANY_HIT {
+                break;
+            }
+        }
+    }
+    best
+}
+
+/// Asks the cache for the wide node or the first packet `child` references: a hint with no effect on results,
+/// so the address is formed without a bounds check (a prefetch never faults, whatever the address).
+#[inline(always)]
+fn prefetch(sections: &Sections<'_>, child: u32) {
+    if child & LEAF_BIT == 0 {
+        prefetch_lines::<4>(sections.nodes.as_ptr().wrapping_add(child as usize).cast());
+    } else {
+        // A packet spans 3 cache lines (160 bytes from a multiple of 32).
+        let (first, _) = WideNode8::leaf_packets(child);
+        prefetch_lines::<3>(sections.packets.as_ptr().wrapping_add(first as usize).cast());
+    }
+}
+
+/// Prefetches `LINES` cache lines from `start` into all cache levels (x86-64; elsewhere nothing).
+#[inline(always)]
+#[allow(unsafe_code)] // the prefetch hint, see the SAFETY note
+fn prefetch_lines<const LINES: usize>(start: *const i8) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        for line in 0..LINES {
+            // SAFETY: a prefetch is a hint that never faults nor changes memory, whatever the address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(line * 64)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = start;
+}
