@@ -3,12 +3,12 @@
 //! space ([`crate::ray::transform`]) and traced through the mesh's own tree by a one-level kernel, with the
 //! closest hit so far as its `t_max`.
 //!
-//! The binary kernel walks the binary top tree as it walks a mesh (depth first, nearer child first, the same
-//! cull padding, a fixed stack of [`MAX_DEPTH`] entries, which rule V43 makes enough, and at most
-//! `top_node_count` visits); the wide kernel walks the 8-wide top tree ([`WideInstanceWalk`]) as it walks a
+//! The binary kernel walks the binary top tree with the walk it runs in a mesh ([`crate::binary::walk`], with
+//! instance leaves); the wide kernel walks the 8-wide top tree ([`WideInstanceWalk`]) as it walks a
 //! mesh's wide tree. Both are safe on any input, and give the same hits (the tests check it).
 
-use crate::format::{LEAF_BIT, MAX_DEPTH, MeshRecord, WIDE};
+use crate::binary::walk::{Leaves, walk};
+use crate::format::{LEAF_BIT, MeshRecord, PackedNode, WIDE};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter};
 use crate::ray::intersect::{PreparedRay, Ray};
@@ -36,88 +36,49 @@ fn visit_instance<C: TraversalCounter>(
     Some(hit)
 }
 
-/// The closest hit (or with `ANY_HIT`, the first hit found) of `ray` among the instances of `sections`.
-/// `trace_mesh` traces an object-space ray through one mesh and returns its hit with the triangle index relative
-/// to the mesh; this function makes the index absolute, and adds the instance index and the world-space normal.
+/// The closest hit (or with `ANY_HIT`, the first hit found) of `ray` among the instances of `sections`, by the
+/// binary walk over the top tree with instance leaves. `trace_mesh` traces an object-space ray through one mesh
+/// and returns its hit with the triangle index relative to the mesh; this function makes the index absolute,
+/// and adds the instance index and the world-space normal.
 #[inline(always)]
-#[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
 pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
     sections: &TwoLevelSections<'_>,
     ray: &Ray,
     counter: &mut C,
-    mut trace_mesh: impl FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
+    trace_mesh: impl FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 ) -> Option<Hit> {
-    let prepared = PreparedRay::new(ray);
-    let nodes = sections.top_nodes;
-    prepared.enter_box(nodes.first()?, ray.t_max * CULL_PADDING)?;
-    let mut t_max = ray.t_max;
-    let mut found: Option<Hit> = None;
-    // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
-    let mut stack = [const { std::mem::MaybeUninit::<(u32, f32)>::uninit() }; MAX_DEPTH];
-    let mut stack_len = 0usize;
-    let mut current = 0u32;
-    let mut visits_left = nodes.len();
-    'walk: loop {
-        'visit: {
-            let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else {
-                return found; // only on a file that breaks V43
-            };
-            visits_left -= 1;
-            counter.node_visited();
-            if node.is_leaf() {
-                if let Some(hit) = visit_instance(sections, node.index, ray, t_max, counter, &mut trace_mesh) {
-                    if ANY_HIT {
-                        return Some(hit);
-                    }
-                    t_max = hit.t;
-                    found = Some(hit);
-                }
-                break 'visit;
-            }
-            let first = node.index;
-            let Some(second) = first.checked_add(1).filter(|_| first > current) else {
-                break 'visit;
-            };
-            let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
-                break 'visit;
-            };
-            let t_cull = t_max * CULL_PADDING;
-            match (prepared.enter_box(left, t_cull), prepared.enter_box(right, t_cull)) {
-                (Some(t_left), Some(t_right)) => {
-                    let (near, far, t_far) =
-                        if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
-                    if let Some(slot) = stack.get_mut(stack_len) {
-                        slot.write((far, t_far));
-                        stack_len += 1;
-                    }
-                    current = near;
-                    continue 'walk;
-                }
-                (Some(_), None) => {
-                    current = first;
-                    continue 'walk;
-                }
-                (None, Some(_)) => {
-                    current = second;
-                    continue 'walk;
-                }
-                (None, None) => {}
-            }
-        }
-        // Pop the nearest pending node that may still hold a closer hit.
-        loop {
-            if stack_len == 0 {
-                return found;
-            }
-            stack_len -= 1;
-            // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
-            // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
-            let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
-            if t_entry <= t_max * CULL_PADDING {
-                current = node;
-                break;
-            }
-        }
+    walk::<ANY_HIT, _, _>(sections.top_nodes, ray, counter, InstanceLeaves { sections, trace_mesh })
+}
+
+/// The leaves of a two-level file's binary top tree: one instance each (`index` the instance, `count` 1).
+struct InstanceLeaves<'s, 'a, F> {
+    sections: &'s TwoLevelSections<'a>,
+    trace_mesh: F,
+}
+
+impl<C, F> Leaves<C> for InstanceLeaves<'_, '_, F>
+where
+    C: TraversalCounter,
+    F: FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
+{
+    type Found = Hit;
+
+    #[inline(always)]
+    fn test_leaf<const ANY_HIT: bool>(
+        &mut self,
+        node: &PackedNode,
+        ray: &Ray,
+        _: &PreparedRay,
+        t_max: &mut f32,
+        found: &mut Option<Hit>,
+        counter: &mut C,
+    ) -> bool {
+        let Some(hit) = visit_instance(self.sections, node.index, ray, *t_max, counter, &mut self.trace_mesh) else {
+            return false;
+        };
+        *t_max = hit.t;
+        *found = Some(hit);
+        ANY_HIT
     }
 }
 

@@ -49,6 +49,7 @@
 //! ray has no specified answer; [`Tracer::trusting_rays`] skips the check for callers that validate rays
 //! themselves ([`check_rays`] for a batch).
 
+mod binary;
 mod error;
 pub mod format;
 mod gpu;

@@ -1,9 +1,6 @@
-//! Closest-hit and any-hit traversal of a packed binary BVH.
-//!
-//! Depth first, nearer child first, with a fixed stack of [`MAX_DEPTH`] entries (the depth rule V20 makes it
-//! enough) and no heap allocation. The kernel is safe on any input: indices are bounds-checked, a child index
-//! must exceed its parent's (so paths cannot cycle), and a ray visits at most `node_count` nodes; on a file that
-//! fails verification it may return wrong hits, never panic or hang.
+//! The public tracer: closest-hit and any-hit calls over a file's trees, run by the wide kernel where the file
+//! has wide sections and by the binary walk ([`crate::binary::walk`]) otherwise, through the instances of a
+//! two-level file ([`crate::instances`]); its batch calls, filters, crossings and traced files beside it.
 
 pub(crate) mod batch;
 pub(crate) mod crossings;
@@ -11,12 +8,13 @@ pub mod filter;
 mod of_view;
 pub(crate) mod traced;
 
-use crate::format::{MAX_DEPTH, MeshRecord, PackedNode, PackedTriangle};
+use crate::binary::walk::{TriangleLeaves, walk};
+use crate::format::{MeshRecord, PackedNode, PackedTriangle};
 use crate::instances::{WideInstanceWalk, walk_instances};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::candidates::{Candidates, Unfiltered};
-use crate::ray::hit::{CULL_PADDING, ForeignHit, Hit, TraversalCounter};
-use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::hit::{ForeignHit, Hit, TraversalCounter};
+use crate::ray::intersect::Ray;
 use crate::ray::spawn::SurfacePoint;
 use crate::simd::KernelPath;
 use crate::wide::WideTracer;
@@ -339,96 +337,15 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    /// The binary kernel: the binary walk over this tracer's triangle leaves.
     #[inline(always)]
-    #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
     fn traverse<const ANY_HIT: bool, C: Candidates>(
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
         candidates: &C,
     ) -> Found {
-        let prepared = PreparedRay::new(ray);
-        let nodes = self.nodes;
-        let root = nodes.first()?;
-        prepared.enter_box(root, ray.t_max * CULL_PADDING)?;
-        let mut t_max = ray.t_max;
-        let mut found: Found = None;
-        // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
-        let mut stack = [const { std::mem::MaybeUninit::<(u32, f32)>::uninit() }; MAX_DEPTH];
-        let mut stack_len = 0usize;
-        let mut current = 0u32;
-        let mut visits_left = nodes.len();
-        'traverse: loop {
-            // Visit `current`; `break` out of this block to pop the next node.
-            'visit: {
-                let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else {
-                    return found; // only on a file that breaks V14
-                };
-                visits_left -= 1;
-                counter.node_visited();
-                if node.is_leaf() {
-                    let end = (node.index as usize).saturating_add(node.count as usize);
-                    let leaf_triangles = self.triangles.get(node.index as usize..end).unwrap_or(&[]);
-                    for (offset, triangle) in leaf_triangles.iter().enumerate() {
-                        counter.triangle_tested();
-                        let record = node.index.wrapping_add(offset as u32);
-                        if let Some(hit) = prepared.intersect_triangle(triangle, t_max)
-                            && (!C::ACTIVE || candidates.accept(record, &hit))
-                        {
-                            found = Some((record, hit));
-                            if ANY_HIT {
-                                return found;
-                            }
-                            t_max = hit.t;
-                        }
-                    }
-                    break 'visit;
-                }
-                let first = node.index;
-                let Some(second) = first.checked_add(1).filter(|_| first > current) else {
-                    break 'visit;
-                };
-                let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
-                    break 'visit;
-                };
-                let t_cull = t_max * CULL_PADDING;
-                match (prepared.enter_box(left, t_cull), prepared.enter_box(right, t_cull)) {
-                    (Some(t_left), Some(t_right)) => {
-                        let (near, far, t_far) =
-                            if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
-                        if let Some(slot) = stack.get_mut(stack_len) {
-                            slot.write((far, t_far));
-                            stack_len += 1;
-                        }
-                        current = near;
-                        continue 'traverse;
-                    }
-                    (Some(_), None) => {
-                        current = first;
-                        continue 'traverse;
-                    }
-                    (None, Some(_)) => {
-                        current = second;
-                        continue 'traverse;
-                    }
-                    (None, None) => {}
-                }
-            }
-            // Pop the nearest pending node that may still hold a closer hit.
-            loop {
-                if stack_len == 0 {
-                    return found;
-                }
-                stack_len -= 1;
-                // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
-                // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
-                let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
-                if t_entry <= t_max * CULL_PADDING {
-                    current = node;
-                    break;
-                }
-            }
-        }
+        walk::<ANY_HIT, _, _>(self.nodes, ray, counter, TriangleLeaves { triangles: self.triangles, candidates })
     }
 }
 

@@ -1,0 +1,154 @@
+//! One walk of a binary tree (`format-spec/bvh-1.md` 11.2 and, for the top tree, 11.3): depth first, nearer
+//! child first, boxes culled against the closest hit so far times [`CULL_PADDING`], with a fixed stack of
+//! [`MAX_DEPTH`] entries (the depth rules V20 and V43 make it enough) and no heap allocation.
+//!
+//! What a leaf holds is the [`Leaves`] parameter: [`TriangleLeaves`] (a mesh's triangle records, the candidates
+//! a filter accepts) or the instances of a two-level file (`crate::instances`). Each combination is
+//! monomorphized; nothing on the walk goes through `dyn`.
+//!
+//! The walk is safe on any input: indices are bounds-checked, a child index must exceed its parent's (so paths
+//! cannot cycle), and a ray visits at most `nodes.len()` nodes; on a file that fails verification it may return
+//! wrong hits, never panic or hang.
+
+use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
+use crate::ray::candidates::Candidates;
+use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit};
+use crate::ray::intersect::{PreparedRay, Ray};
+
+/// What the walk does at a leaf.
+pub(crate) trait Leaves<C: TraversalCounter> {
+    /// What a hit in a leaf is.
+    type Found;
+
+    /// Tests leaf `node` for hits with `t <= *t_max` of `ray` (prepared as `prepared`): each hit taken lowers
+    /// `*t_max` to its `t` and replaces `*found`. With `ANY_HIT`, returns `true` at the first hit taken, which
+    /// ends the walk; `false` otherwise.
+    fn test_leaf<const ANY_HIT: bool>(
+        &mut self,
+        node: &PackedNode,
+        ray: &Ray,
+        prepared: &PreparedRay,
+        t_max: &mut f32,
+        found: &mut Option<Self::Found>,
+        counter: &mut C,
+    ) -> bool;
+}
+
+/// The leaves of a mesh's tree: records `index .. index + count` of `triangles`, each tested by the watertight
+/// test and taken when `candidates` accepts it.
+pub(crate) struct TriangleLeaves<'t, 'c, F> {
+    pub triangles: &'t [PackedTriangle],
+    pub candidates: &'c F,
+}
+
+impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F> {
+    /// The record index and its hit.
+    type Found = (u32, TriangleHit);
+
+    #[inline(always)]
+    fn test_leaf<const ANY_HIT: bool>(
+        &mut self,
+        node: &PackedNode,
+        _: &Ray,
+        prepared: &PreparedRay,
+        t_max: &mut f32,
+        found: &mut Option<Self::Found>,
+        counter: &mut C,
+    ) -> bool {
+        let end = (node.index as usize).saturating_add(node.count as usize);
+        let leaf_triangles = self.triangles.get(node.index as usize..end).unwrap_or(&[]);
+        for (offset, triangle) in leaf_triangles.iter().enumerate() {
+            counter.triangle_tested();
+            let record = node.index.wrapping_add(offset as u32);
+            if let Some(hit) = prepared.intersect_triangle(triangle, *t_max)
+                && (!F::ACTIVE || self.candidates.accept(record, &hit))
+            {
+                *found = Some((record, hit));
+                if ANY_HIT {
+                    return true;
+                }
+                *t_max = hit.t;
+            }
+        }
+        false
+    }
+}
+
+/// The closest hit of `ray` in the tree `nodes` (node 0 the root), or with `ANY_HIT` the first hit found.
+#[inline(always)]
+#[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
+pub(crate) fn walk<const ANY_HIT: bool, C: TraversalCounter, L: Leaves<C>>(
+    nodes: &[PackedNode],
+    ray: &Ray,
+    counter: &mut C,
+    mut leaves: L,
+) -> Option<L::Found> {
+    let prepared = PreparedRay::new(ray);
+    prepared.enter_box(nodes.first()?, ray.t_max * CULL_PADDING)?;
+    let mut t_max = ray.t_max;
+    let mut found = None;
+    // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
+    let mut stack = [const { std::mem::MaybeUninit::<(u32, f32)>::uninit() }; MAX_DEPTH];
+    let mut stack_len = 0usize;
+    let mut current = 0u32;
+    let mut visits_left = nodes.len();
+    'walk: loop {
+        // Visit `current`; `break` out of this block to pop the next node.
+        'visit: {
+            let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else {
+                return found; // only on a file that breaks V14 (V43 in a top tree)
+            };
+            visits_left -= 1;
+            counter.node_visited();
+            if node.is_leaf() {
+                if leaves.test_leaf::<ANY_HIT>(node, ray, &prepared, &mut t_max, &mut found, counter) {
+                    return found;
+                }
+                break 'visit;
+            }
+            let first = node.index;
+            let Some(second) = first.checked_add(1).filter(|_| first > current) else {
+                break 'visit;
+            };
+            let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
+                break 'visit;
+            };
+            let t_cull = t_max * CULL_PADDING;
+            match (prepared.enter_box(left, t_cull), prepared.enter_box(right, t_cull)) {
+                (Some(t_left), Some(t_right)) => {
+                    let (near, far, t_far) =
+                        if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
+                    if let Some(slot) = stack.get_mut(stack_len) {
+                        slot.write((far, t_far));
+                        stack_len += 1;
+                    }
+                    current = near;
+                    continue 'walk;
+                }
+                (Some(_), None) => {
+                    current = first;
+                    continue 'walk;
+                }
+                (None, Some(_)) => {
+                    current = second;
+                    continue 'walk;
+                }
+                (None, None) => {}
+            }
+        }
+        // Pop the nearest pending node that may still hold a closer hit.
+        loop {
+            if stack_len == 0 {
+                return found;
+            }
+            stack_len -= 1;
+            // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
+            // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
+            let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
+            if t_entry <= t_max * CULL_PADDING {
+                current = node;
+                break;
+            }
+        }
+    }
+}
