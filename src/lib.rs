@@ -8,6 +8,14 @@
 //! (the one SAH definition), [`build_tree`] (the flat binary tree); [`epo`] measures trees for the evaluation, [`inspect`] reports a file as `bvhc info` does.
 #![forbid(unsafe_code)]
 
+/// The Rust snippets of the README and of the docs about the loader, compiled by `cargo test` (doctests) so
+/// that a wrong example fails the tests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+#[doc = include_str!("../docs/loader.md")]
+#[doc = include_str!("../docs/gpu.md")]
+pub struct DocSnippets;
+
 // Shared below every stage.
 pub mod geometry;
 pub mod cost;

@@ -110,6 +110,11 @@ pub use write::atomic::{
 #[cfg(feature = "write")]
 pub use write::writer::BvhWriter;
 
+/// The README's example, compiled by `cargo test` (a doctest) so that a wrong example fails the tests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctest;
+
 /// The types a renderer shares between threads are `Send + Sync` (checked at compile time).
 const _: () = {
     const fn shared<T: Send + Sync>() {}
