@@ -17,7 +17,7 @@ use std::ops::ControlFlow;
 
 use bvhc::builders::Builder;
 use bvhc::layout::{WideCosts, collapse};
-use bvhc::loader::{KernelPath, PackedTriangle, TraversalCounter, WideTracer};
+use bvhc::loader::{KernelPath, TraversalCounter, WideTracer, format::PackedTriangle};
 use bvhc::optimize::{OptTree, OptimizeParams, optimize};
 use bvhc::pack::pack_wide;
 
@@ -71,7 +71,7 @@ fn main() {
         optimize(&mut tree, &OptimizeParams::default(), &mut |_| ControlFlow::Continue(()));
         let soup: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
         let root = tree.nodes[tree.root as usize].aabb;
-        let node = bvhc::loader::PackedNode { min: root.min, max: root.max, index: 0, count: 0 };
+        let node = bvhc::loader::format::PackedNode { min: root.min, max: root.max, index: 0, count: 0 };
         let rays = rays::primary_rays(&node, 200_000);
         let mut samples = Vec::new();
         for width in [4, 8] {

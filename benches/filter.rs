@@ -26,7 +26,7 @@ mod cutouts;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use bvhc::convert::Conversion;
-use bvhc::loader::{BvhFile, BvhView, Candidate, FilterScope, HitFilter, Ray, Tracer};
+use bvhc::loader::{BvhFile, BvhView, HitFilter, Ray, Tracer, filter::Candidate, filter::FilterScope};
 
 use harness::median_time;
 

@@ -30,7 +30,8 @@ use std::time::Duration;
 use bvhc::convert::convert_with;
 use bvhc::loader::format::{GpuNode, GpuTriangle, PackedTriangle};
 use bvhc::loader::{
-    BvhFile, GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer, GpuSections, GpuTracer, Ray, TraversalStats,
+    BvhFile, GpuSections, Ray, TraversalStats, gpu::GPU_NODE_BYTES, gpu::GPU_TRIANGLE_BYTES, gpu::GpuLayoutTracer,
+    gpu::GpuTracer,
 };
 use bvhc::options::{Overrides, Preset, resolve};
 
@@ -166,7 +167,7 @@ fn gpu_speeds(
         for (k, tracer) in tracers.iter().enumerate() {
             let a = tracer.trace(&closest, false).expect("traces");
             let b = tracer.trace(&rays.ao, true).expect("traces");
-            let time = |t: &bvhc::loader::GpuTrace| t.kernel_seconds.unwrap_or(t.seconds);
+            let time = |t: &bvhc::loader::gpu::GpuTrace| t.kernel_seconds.unwrap_or(t.seconds);
             seconds[k].push(time(&a) + time(&b));
         }
     }

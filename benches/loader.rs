@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use bvhc::builders::build_binned_sah;
 use bvhc::import::{ImportOptions, import};
-use bvhc::loader::{BvhFile, BvhView, BvhWriter, MappedBvh, TraversalStats};
+use bvhc::loader::{BvhFile, BvhView, MappedBvh, TraversalStats, write::BvhWriter};
 use bvhc::pack::pack;
 
 #[path = "common/harness.rs"]

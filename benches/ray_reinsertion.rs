@@ -33,7 +33,7 @@ use bvhc::convert::merge_and_collapse;
 use bvhc::geometry::Aabb;
 use bvhc::import::{ImportOptions, import};
 use bvhc::layout::cluster_roots;
-use bvhc::loader::{BvhFile, BvhWriter, Ray, TraversalStats};
+use bvhc::loader::{BvhFile, Ray, TraversalStats, write::BvhWriter};
 use bvhc::optimize::{NONE, OptTree, optimize, optimize_over_clusters};
 use bvhc::options::preset::CLUSTER_SIZE;
 use bvhc::options::{ConvertOptions, Preset};

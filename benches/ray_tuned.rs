@@ -22,7 +22,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use bvhc::convert::convert_with;
-use bvhc::loader::{BvhFile, GpuLayoutTracer, Ray, Tracer, TraversalStats};
+use bvhc::loader::{BvhFile, Ray, Tracer, TraversalStats, gpu::GpuLayoutTracer};
 use bvhc::optimize::OptTree;
 use bvhc::options::{Overrides, Preset, resolve};
 use bvhc::sampling::{RayTuning, TrainingRays, training_rays};

@@ -20,7 +20,7 @@ use std::ops::ControlFlow;
 use bvhc::builders::Builder;
 use bvhc::layout::merge_leaves;
 use bvhc::layout::{WideChild, WideCosts, collapse};
-use bvhc::loader::{KernelPath, PackedTriangle, Ray, WideTracer};
+use bvhc::loader::{KernelPath, Ray, WideTracer, format::PackedTriangle};
 use bvhc::optimize::{OptTree, OptimizeParams, optimize};
 
 /// Bytes per N-wide node in structure-of-arrays order: 6 f32 bounds and one u32 reference per child.
@@ -102,7 +102,7 @@ fn kernel_speeds(
     wide: &bvhc::layout::WideTree,
 ) -> Vec<(&'static str, f64, f64, f64)> {
     let packed_tree = bvhc::pack::pack(merged, triangles).expect("memory");
-    let file = bvhc::loader::BvhWriter::new(&packed_tree.nodes, &packed_tree.triangles).build().unwrap();
+    let file = bvhc::loader::write::BvhWriter::new(&packed_tree.nodes, &packed_tree.triangles).build().unwrap();
     let binary = file.view().tracer();
     let soup: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
     let bvh = bvhc::pack::pack_wide(wide, &soup, &mut Some, false).unwrap();

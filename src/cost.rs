@@ -6,7 +6,7 @@
 //! `A_L = sum_leaf t * SA / SA(root)` are reported too, so any other convention can be recomputed from them:
 //! `C = c_T * A_I + c_I * A_L`. Sums run in f64 in node-index order, so the figure is deterministic.
 
-use bvhc_loader::PackedNode;
+use bvhc_loader::format::PackedNode;
 use serde::Serialize;
 
 use crate::geometry::Aabb;
@@ -68,9 +68,9 @@ impl Sums {
 }
 
 /// The cost of a packed tree, as stored in a `.bvh` file (node 0 the root): the format's definition
-/// ([`bvhc_loader::cost::binary_cost`]), which the verifier checks the metadata against.
+/// ([`bvhc_loader::format::cost::binary_cost`]), which the verifier checks the metadata against.
 pub fn sah_of_packed(nodes: &[PackedNode], constants: SahConstants) -> SahCost {
-    let cost = bvhc_loader::cost::binary_cost(nodes, constants.traversal, constants.intersection);
+    let cost = bvhc_loader::format::cost::binary_cost(nodes, constants.traversal, constants.intersection);
     SahCost { cost: cost.sah_cost, inner_area_ratio: cost.inner_area_ratio, leaf_area_ratio: cost.leaf_area_ratio }
 }
 

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use bvhc_loader::{BvhView, PackedNode};
+use bvhc_loader::{BvhView, format::PackedNode};
 
 use crate::cost::{SahConstants, SahCost, sah_of_packed};
 
@@ -58,7 +58,7 @@ pub fn inspect(view: &BvhView<'_>) -> Inspection {
     let wide_cost = view.wide_sections().filter(|_| two_level.is_none()).map(|wide| {
         let node_visit = wide_constants["node_visit"].as_f64().unwrap_or(1.0);
         let packet_test = wide_constants["packet_test"].as_f64().unwrap_or(1.0);
-        bvhc_loader::cost::wide_cost(view.nodes().first(), wide.nodes, node_visit, packet_test)
+        bvhc_loader::format::cost::wide_cost(view.nodes().first(), wide.nodes, node_visit, packet_test)
     });
     Inspection { stats, metadata, constants, cost, wide_cost, sections, unique_triangles }
 }
@@ -134,7 +134,7 @@ fn tree_stats(nodes: &[PackedNode]) -> TreeStats {
 }
 
 /// [`tree_stats`] of every mesh's tree of a two-level file, together (the deepest mesh's depth).
-fn meshes_stats(nodes: &[PackedNode], meshes: &[bvhc_loader::MeshRecord]) -> TreeStats {
+fn meshes_stats(nodes: &[PackedNode], meshes: &[bvhc_loader::format::MeshRecord]) -> TreeStats {
     let mut stats = TreeStats { leaf_count: 0, max_depth: 0, leaf_sizes: BTreeMap::new() };
     for mesh in meshes {
         let start = mesh.first_node as usize;

@@ -2,7 +2,7 @@
 
 #![allow(dead_code)] // each benchmark uses the sets it needs
 
-use bvhc::loader::{PackedNode, Ray};
+use bvhc::loader::{Ray, format::PackedNode};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 

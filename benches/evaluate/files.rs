@@ -7,7 +7,7 @@ use std::time::Duration;
 use bvhc::build_tree::BuildTree;
 use bvhc::convert::{convert_with, merge_and_collapse};
 use bvhc::cost::{SahConstants, sah_of_packed};
-use bvhc::loader::{BvhFile, BvhWriter, Tracer};
+use bvhc::loader::{BvhFile, Tracer, write::BvhWriter};
 use bvhc::optimize::OptTree;
 use bvhc::options::Preset;
 use bvhc::options::{ConvertOptions, OptimizeOver, SplitMethod, SplitOptions, SplitTriangles};

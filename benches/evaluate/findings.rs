@@ -4,7 +4,7 @@
 use bvhc::builders::sbvh::{SbvhParams, build_sbvh};
 use bvhc::cost::SahConstants;
 use bvhc::layout::{cluster_roots, merge_leaves_of_references, records};
-use bvhc::loader::{BvhWriter, Tracer};
+use bvhc::loader::{Tracer, write::BvhWriter};
 use bvhc::optimize::{OptTree, optimize_over_clusters};
 use bvhc::options::Preset;
 use bvhc::options::preset::CLUSTER_SIZE;

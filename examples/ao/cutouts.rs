@@ -18,7 +18,7 @@
 
 use std::path::Path;
 
-use bvhc::loader::{BvhView, Candidate, SourceCorners};
+use bvhc::loader::{BvhView, SourceCorners, filter::Candidate};
 use gltf::texture::WrappingMode;
 
 /// How a primitive's material treats alpha.

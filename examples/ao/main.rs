@@ -23,7 +23,9 @@ mod cutouts;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use bvhc::loader::{BvhFile, BvhView, Candidate, FilterScope, FilteredTracer, Hit, HitFilter, Ray, Tracer};
+use bvhc::loader::{
+    BvhFile, BvhView, FilteredTracer, Hit, HitFilter, Ray, Tracer, filter::Candidate, filter::FilterScope,
+};
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 

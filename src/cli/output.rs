@@ -37,14 +37,14 @@ pub fn error_line(exit: Exit, message: std::fmt::Arguments<'_>) -> Exit {
 
 /// Writes an output file of `trace` or `render`: a character device or FIFO that exists already (`-o /dev/null`,
 /// a pipe made by `mkfifo`) is written directly, since it holds no previous file to keep and a reader of a stream
-/// expects the bytes there; any other path is written atomically ([`bvhc::loader::write_atomic`]), which refuses
+/// expects the bytes there; any other path is written atomically ([`bvhc::loader::write::write_atomic`]), which refuses
 /// a directory. The error names the path.
 pub fn write_output(path: &Path, bytes: &[u8]) -> Result<(), String> {
     if is_stream(path) {
         let written = std::fs::OpenOptions::new().write(true).open(path).and_then(|mut file| file.write_all(bytes));
         return written.map_err(|error| format!("{}: {error}", path.display()));
     }
-    bvhc::loader::write_atomic(path, bytes).map_err(|error| error.to_string())
+    bvhc::loader::write::write_atomic(path, bytes).map_err(|error| error.to_string())
 }
 
 /// Whether `path` is a character device or a FIFO (following links, as `/dev/stdout` is one).

@@ -2,7 +2,7 @@
 //! pixel, parallel over rows (deterministic). Shading: the geometric normal as color, lit from the eye; or a
 //! heat map of traversal steps per pixel.
 
-use bvhc::loader::{PackedTriangle, TraversalStats};
+use bvhc::loader::{TraversalStats, format::PackedTriangle};
 use glam::Vec3;
 use rayon::prelude::*;
 

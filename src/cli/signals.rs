@@ -1,5 +1,5 @@
 //! Clean exit on SIGINT, SIGTERM and SIGHUP: the output is written through a temporary file in its
-//! directory (`bvhc_loader::write_atomic`), which an interrupted run would leave behind. A watcher thread waits
+//! directory (`bvhc_loader::write::write_atomic`), which an interrupted run would leave behind. A watcher thread waits
 //! for the signals; when one arrives it removes this process's temporary files in the output's directory and
 //! exits with 128 + the signal number, as a shell reports a process killed by it. The output itself is
 //! untouched: the rename that replaces it either happened or did not.
@@ -11,11 +11,11 @@ use std::path::Path;
 #[cfg(unix)]
 pub fn clean_up_on_signal(output: &Path) {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
-    let directory = bvhc::loader::directory_of(output).to_path_buf();
+    let directory = bvhc::loader::write::directory_of(output).to_path_buf();
     let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else { return };
     let _ = std::thread::Builder::new().name("signals".to_string()).spawn(move || {
         if let Some(signal) = signals.forever().next() {
-            bvhc::loader::remove_own_temporary_files(&directory);
+            bvhc::loader::write::remove_own_temporary_files(&directory);
             std::process::exit(128 + signal);
         }
     });

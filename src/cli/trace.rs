@@ -191,7 +191,7 @@ fn traced_in_place(
 /// The records of `rays` traced by the loader's WGSL kernel on the first wgpu adapter; the seconds count the
 /// dispatches and readbacks, not the upload of the sections.
 fn trace_on_gpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], any_hit: bool) -> Result<Traced, (Exit, String)> {
-    use bvhc::loader::{GpuError, GpuTracer};
+    use bvhc::loader::{gpu::GpuError, gpu::GpuTracer};
     let tracer = GpuTracer::new(view).map_err(|e| match e {
         GpuError::NoGpuSections => (Exit::InvalidInput, e.to_string()),
         _ => (Exit::Io, e.to_string()),
@@ -201,7 +201,7 @@ fn trace_on_gpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], any_hit: bool) -
     let (triangles, ids) = (view.triangles(), view.triangle_ids());
     let (records, hits): (Vec<u8>, usize) = if any_hit {
         let occluded: Vec<u8> =
-            trace.records.iter().map(|r| u8::from(r.triangle != bvhc::loader::gpu_shader::GPU_NO_HIT)).collect();
+            trace.records.iter().map(|r| u8::from(r.triangle != bvhc::loader::gpu::shader::GPU_NO_HIT)).collect();
         let hits = occluded.iter().filter(|&&o| o == 1).count();
         (occluded, hits)
     } else {

@@ -10,7 +10,7 @@
 
 use std::collections::HashSet;
 
-use bvhc::loader::{PackedTriangle, Tracer};
+use bvhc::loader::{Tracer, format::PackedTriangle};
 use glam::Vec3;
 
 use super::camera::Camera;

@@ -10,7 +10,7 @@ use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
 
-use bvhc_loader::{SourceVertexIndices, WideBvh};
+use bvhc_loader::{format::SourceVertexIndices, wide::WideBvh};
 
 use super::candidates::{Candidate, Chosen, best_candidate, lap};
 use super::report::{Choice, ConvertError, Event, Stage, Timings, WideSummary};

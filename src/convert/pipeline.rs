@@ -7,7 +7,7 @@ use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
 
-use bvhc_loader::BvhWriter;
+use bvhc_loader::write::BvhWriter;
 
 use super::candidates::lap;
 use super::files::{input_entries, refuse_output_among};
@@ -35,7 +35,7 @@ pub fn convert_with(
     options.validate()?;
     let notes = instancing_notes(input, options);
     let mut timings = Timings::default();
-    bvhc_loader::check_replaceable(output)?;
+    bvhc_loader::write::check_replaceable(output)?;
     refuse_output_among(output, std::slice::from_ref(&input.to_path_buf()))?;
     let _ = observer(Event::Stage(Stage::Import));
     let clock = Instant::now();

@@ -219,7 +219,7 @@ impl Conversion {
         let options = self.resolved_options()?;
         // Before the up-to-date check opens the output: a FIFO there would block it, and the output must never be
         // the input.
-        bvhc_loader::check_replaceable(&self.output)?;
+        bvhc_loader::write::check_replaceable(&self.output)?;
         refuse_output_among(&self.output, std::slice::from_ref(&self.input))?;
         if !self.force && is_up_to_date(&self.output, &self.input, &BuildRecord::of(&options)) {
             let files_read = recorded_inputs(&self.output, &self.input);

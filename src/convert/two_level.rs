@@ -9,8 +9,8 @@ use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
 
-use bvhc_loader::BvhWriter;
 use bvhc_loader::format::NO_INDEX;
+use bvhc_loader::write::BvhWriter;
 
 use super::candidates::lap;
 use super::files::input_entries;
@@ -24,7 +24,7 @@ use crate::instancing::{PackedMesh, Placement, TwoLevelScene};
 use crate::options::{ConvertOptions, OptionsError};
 
 /// The identity placement of the flattened part.
-const IDENTITY: bvhc_loader::Affine3x4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+const IDENTITY: bvhc_loader::format::Affine3x4 = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
 
 /// Converts an import with instanced meshes into the two-level file `output`.
 pub(super) fn convert_two_level(

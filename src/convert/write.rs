@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use bvhc_loader::{AtomicOutput, BvhFile, BvhWriter};
+use bvhc_loader::{BvhFile, write::AtomicOutput, write::BvhWriter};
 
 use super::part::out_of_memory;
 use super::report::ConvertError;

@@ -56,7 +56,7 @@ impl Aabb {
     /// `f64(max) - f64(min)` (so boxes near `f32::MAX` give finite areas), clamped below at 0 (the empty box and
     /// points have area 0). This is the area the format spec's cost definition uses.
     pub fn surface_area(&self) -> f64 {
-        bvhc_loader::cost::box_area(&self.min, &self.max)
+        bvhc_loader::format::cost::box_area(&self.min, &self.max)
     }
 
     /// The center of the box.

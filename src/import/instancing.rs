@@ -9,7 +9,7 @@
 
 use std::ops::Range;
 
-use bvhc_loader::Affine3x4;
+use bvhc_loader::format::Affine3x4;
 
 /// Whether a conversion keeps meshes placed more than once as instances (glTF inputs; OBJ and PLY files place
 /// each model once).

@@ -14,8 +14,8 @@
 use crate::import::limits::Meter;
 use crate::import::memory::{MemoryLimit, usable_memory};
 use crate::import::{ErrorKind, ImportLimits};
-use bvhc_loader::SourceRange;
 use bvhc_loader::format::NO_INDEX;
+use bvhc_loader::format::SourceRange;
 
 use super::report::{Degenerate, ImportReport};
 

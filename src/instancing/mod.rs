@@ -8,8 +8,9 @@ pub mod top_tree;
 pub mod top_wide;
 
 use bvhc_loader::{
-    Affine3x4, InstanceRecord, MeshRecord, PackedNode, PackedTriangle, SourceVertexIndices, TrianglePacket4,
-    TwoLevelSections, WideNode8, instance_world_box,
+    TwoLevelSections, format::Affine3x4, format::InstanceRecord, format::MeshRecord, format::PackedNode,
+    format::PackedTriangle, format::SourceVertexIndices, format::TrianglePacket4, format::WideNode8,
+    ray::instance_world_box,
 };
 
 pub use top_tree::build_top_tree;

@@ -6,7 +6,7 @@
 //! their parent. Deterministic: ties go to the lower slot.
 
 use bvhc_loader::format::{EMPTY_SLOT, LEAF_BIT, WIDE};
-use bvhc_loader::{PackedNode, WideNode8};
+use bvhc_loader::{format::PackedNode, format::WideNode8};
 
 fn half_area(node: &PackedNode) -> f64 {
     let d: [f64; 3] = std::array::from_fn(|k| f64::from(node.max[k] - node.min[k]).max(0.0));

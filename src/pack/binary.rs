@@ -5,7 +5,7 @@
 //! subtree's nodes are close together in memory. Triangles are emitted in the same depth-first leaf order,
 //! which makes the leaves partition the triangles section exactly as rule V15 requires.
 
-use bvhc_loader::{Error, PackedNode, PackedTriangle};
+use bvhc_loader::{Error, format::PackedNode, format::PackedTriangle};
 
 use crate::build_tree::{BuildNode, BuildTree};
 use crate::fallible::{vec_of, vec_with_capacity};

@@ -3,7 +3,10 @@
 //! four, the last one padded with unused lanes, and each lane holds the triangle's index in the file's
 //! triangles section.
 
-use bvhc_loader::{Error, PACKET_LANES, PackedTriangle, TrianglePacket4, WIDE, WideBvh, WideNode8};
+use bvhc_loader::{
+    Error, format::PACKET_LANES, format::PackedTriangle, format::TrianglePacket4, format::WIDE, format::WideNode8,
+    wide::WideBvh,
+};
 
 use crate::layout::{WideChild, WideTree};
 

@@ -5,7 +5,7 @@
 //! closest hit), so a node counts as reached exactly when a kernel over this tree would test its box and enter
 //! it.
 
-use bvhc_loader::{PackedNode, PackedTriangle, PreparedRay, Ray};
+use bvhc_loader::{Ray, format::PackedNode, format::PackedTriangle, ray::PreparedRay};
 
 use crate::geometry::Aabb;
 use crate::optimize::{NONE, OptTree};

@@ -7,7 +7,7 @@
 //! taken nearest first (leaves among them), and a child whose entry lies beyond the closest hit found so far is
 //! skipped. A leaf costs its packets (`ceil(count / packet_width)`), as [`WideCosts::leaf`] prices it.
 
-use bvhc_loader::{PackedTriangle, PreparedRay, Ray};
+use bvhc_loader::{Ray, format::PackedTriangle, ray::PreparedRay};
 use rayon::prelude::*;
 
 use super::trace::packed;

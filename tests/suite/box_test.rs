@@ -4,7 +4,8 @@
 //! from origins and directions of many magnitudes, with zero, negative-zero and tiny direction components.
 
 use bvhc::loader::{
-    PackedNode, PackedTriangle, PreparedRay, Ray, TraversalStats, TrianglePacket4, WideBvh, WideNode8, WideTracer,
+    Ray, TraversalStats, WideTracer, format::PackedNode, format::PackedTriangle, format::TrianglePacket4,
+    format::WideNode8, ray::PreparedRay, wide::WideBvh,
 };
 use rand::RngExt;
 

@@ -6,7 +6,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use bvhc::loader::format::{GpuNode, GpuSlot, GpuTriangle};
-use bvhc::loader::{BvhFile, PackedNode, PackedTriangle, SourceRange, TrianglePacket4, WideNode8};
+use bvhc::loader::{
+    BvhFile, format::PackedNode, format::PackedTriangle, format::SourceRange, format::TrianglePacket4,
+    format::WideNode8,
+};
 
 fn repository() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -83,7 +86,7 @@ fn the_c_header_compiles_and_reads_the_golden_files_as_the_rust_reader_does() {
         let leaf_packets: u32 = wide
             .iter()
             .flat_map(|w| w.nodes.iter().flat_map(|n| n.child))
-            .filter(|&c| c != bvhc::loader::EMPTY_SLOT && c & bvhc::loader::LEAF_BIT != 0)
+            .filter(|&c| c != bvhc::loader::format::EMPTY_SLOT && c & bvhc::loader::format::LEAF_BIT != 0)
             .map(|c| WideNode8::leaf_packets(c).1)
             .sum();
         let expected = [

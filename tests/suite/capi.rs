@@ -268,7 +268,7 @@ fn a_c_filter_gets_the_hits_of_rusts_filtered_tracer_and_is_asked_about_not_opaq
         assert!(run.status.success(), "capi_filter exit {:?} on {name}", run.status.code());
         let stdout = String::from_utf8(run.stdout).unwrap();
         let tracer = flagged.view().tracer();
-        let filtered = tracer.filtered(&crate::filters::accepts, bvhc::loader::FilterScope::NotOpaque);
+        let filtered = tracer.filtered(&crate::filters::accepts, bvhc::loader::filter::FilterScope::NotOpaque);
         let mut expected = String::new();
         let mut changed = 0;
         for ray in &rays {

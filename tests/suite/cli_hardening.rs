@@ -274,9 +274,9 @@ fn signals_leave_no_temporary_file_and_stale_ones_are_swept() {
         // Stand in for the temporary file a write in progress holds at the moment the signal arrives.
         let pending = out_dir.join(format!(
             "{}{}-pending{}",
-            bvhc::loader::TEMPORARY_PREFIX,
+            bvhc::loader::write::TEMPORARY_PREFIX,
             child.id(),
-            bvhc::loader::TEMPORARY_SUFFIX
+            bvhc::loader::write::TEMPORARY_SUFFIX
         ));
         std::fs::write(&pending, b"partial").unwrap();
         let sent = Command::new("kill").arg(format!("-{signal}")).arg(child.id().to_string()).status().unwrap();
@@ -287,8 +287,12 @@ fn signals_leave_no_temporary_file_and_stale_ones_are_swept() {
         assert_eq!(std::fs::read(&output).unwrap(), b"previous", "SIG{signal}: the output is untouched");
     }
     // A killed run's temporary file (its process is gone) is swept by the next write into that folder.
-    let stale =
-        out_dir.join(format!("{}{}-x{}", bvhc::loader::TEMPORARY_PREFIX, u32::MAX - 1, bvhc::loader::TEMPORARY_SUFFIX));
+    let stale = out_dir.join(format!(
+        "{}{}-x{}",
+        bvhc::loader::write::TEMPORARY_PREFIX,
+        u32::MAX - 1,
+        bvhc::loader::write::TEMPORARY_SUFFIX
+    ));
     std::fs::write(&stale, b"stale").unwrap();
     let run = bvhc(&[&teapot(), &"-o", &out_dir.join("teapot.bvh"), &"-q", &"--preset", &"fast"]);
     assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));

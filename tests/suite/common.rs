@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use bvhc::builders::build_binned_sah;
-use bvhc::loader::{BvhFile, BvhWriter, Hit, PreparedRay, Ray, SourceRange, Tracer};
+use bvhc::loader::{BvhFile, Hit, Ray, Tracer, format::SourceRange, ray::PreparedRay, write::BvhWriter};
 use bvhc::pack::{PackedTree, pack};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
@@ -105,7 +105,7 @@ pub fn write_wide_file(triangles: &[Triangle], max_leaf_size: usize) -> BvhFile 
 }
 
 /// The wide sections over a packed tree's triangles section (`tree.triangle_ids` are indices into `triangles`).
-pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
+pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loader::wide::WideBvh {
     let opt = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
     let collapsed = bvhc::layout::collapse(&opt, &bvhc::layout::WideCosts::default());
     let file_index_of = tree.file_index_of(triangles.len()).expect("memory");
@@ -115,7 +115,7 @@ pub fn wide_sections_for(tree: &PackedTree, triangles: &[Triangle]) -> bvhc::loa
 
 /// Overwrites the last used lane of the last packet with packet 0's lane 0 (index and vertices): a triangle
 /// then sits in two lanes and the one it replaced in none.
-pub fn repeat_first_lane_in_last(packets: &mut [bvhc::loader::TrianglePacket4]) {
+pub fn repeat_first_lane_in_last(packets: &mut [bvhc::loader::format::TrianglePacket4]) {
     let (index, triangle) = (packets[0].triangle_index[0], packets[0].triangle(0));
     let last = packets.len() - 1;
     let lane = packets[last].used_lanes() - 1;
@@ -133,7 +133,7 @@ pub fn brute_force_closest(triangles: &[Triangle], ray: &Ray) -> Option<(f32, us
     let mut best: Option<(f32, usize)> = None;
     for (i, vertices) in triangles.iter().enumerate() {
         let t_max = best.map_or(ray.t_max, |b| b.0);
-        let triangle = bvhc::loader::PackedTriangle { vertices: *vertices };
+        let triangle = bvhc::loader::format::PackedTriangle { vertices: *vertices };
         if let Some(hit) = prepared.intersect_triangle(&triangle, t_max)
             && best.is_none_or(|b| hit.t < b.0)
         {
@@ -272,16 +272,16 @@ pub fn assert_metadata_matches_schema(file: &BvhFile) -> serde_json::Value {
 
 /// The 8-wide BVH of `triangles` (binned SAH, one triangle per leaf, collapsed with the default costs), with
 /// triangle indices into `triangles`.
-pub fn wide_bvh(triangles: &[Triangle]) -> bvhc::loader::WideBvh {
+pub fn wide_bvh(triangles: &[Triangle]) -> bvhc::loader::wide::WideBvh {
     let tree = bvhc::optimize::OptTree::from_build_tree(&build_binned_sah(triangles, 1), triangles);
     wide_bvh_of(&tree, triangles)
 }
 
 /// [`wide_bvh`] from a given binary optimizer tree.
-pub fn wide_bvh_of(tree: &bvhc::optimize::OptTree, triangles: &[Triangle]) -> bvhc::loader::WideBvh {
+pub fn wide_bvh_of(tree: &bvhc::optimize::OptTree, triangles: &[Triangle]) -> bvhc::loader::wide::WideBvh {
     let wide = bvhc::layout::collapse(tree, &bvhc::layout::WideCosts::default());
-    let packed: Vec<bvhc::loader::PackedTriangle> =
-        triangles.iter().map(|&vertices| bvhc::loader::PackedTriangle { vertices }).collect();
+    let packed: Vec<bvhc::loader::format::PackedTriangle> =
+        triangles.iter().map(|&vertices| bvhc::loader::format::PackedTriangle { vertices }).collect();
     bvhc::pack::pack_wide(&wide, &packed, &mut Some, false).expect("a collapsed tree packs")
 }
 

@@ -1,7 +1,7 @@
 //! Compatibility rules: higher minor versions are read, unknown optional sections are skipped, unknown
 //! required ones are refused.
 
-use bvhc::loader::{BvhFile, BvhWriter, Rule, SectionKind};
+use bvhc::loader::{BvhFile, Rule, format::SectionKind, write::BvhWriter};
 
 use crate::common::*;
 use crate::corrupt::{good_bytes, refresh_checksums};

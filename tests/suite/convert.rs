@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use bvhc::convert::convert_with;
 use bvhc::import::{ImportOptions, import};
-use bvhc::loader::{BvhFile, SectionKind};
+use bvhc::loader::{BvhFile, format::SectionKind};
 use bvhc::options::ConvertOptions;
 use bvhc::options::Preset;
 

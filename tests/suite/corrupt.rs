@@ -1,7 +1,7 @@
 //! Shared tools of the corruption tests: a good file as plain bytes, byte access by section, checksum repair,
 //! and the rule a corrupted file breaks.
 
-use bvhc::loader::{BvhFile, PackedNode, Rule, header_checksum, section_checksum};
+use bvhc::loader::{BvhFile, Rule, format::PackedNode, format::header_checksum, format::section_checksum};
 
 use crate::common::*;
 

@@ -8,7 +8,7 @@
 //!   triangles, van Oosterom and Strackee 1983) on points not within `1e-5` of the surface, for closed meshes
 //!   at several scales and offsets and through instances, and with the mesh turned inside out.
 
-use bvhc::loader::{BvhView, Crossings, FilterScope, Hit, Ray};
+use bvhc::loader::{BvhView, Crossings, Hit, Ray, filter::FilterScope};
 use rand::RngExt;
 
 use crate::common::{Triangle, every_kernel, random_rays, random_triangles, rng, unit_icosphere, write_wide_file};
@@ -41,7 +41,7 @@ fn all_hits_are_every_triangle_the_test_hits_sorted_by_t() {
                 assert_eq!([h.u, h.v].map(f32::to_bits), [reference.u, reference.v].map(f32::to_bits));
             }
             // A filter leaves out exactly the triangles it rejects.
-            let odd = |c: &bvhc::loader::Candidate<'_>| c.source_triangle_id.is_some_and(|id| id % 2 == 1);
+            let odd = |c: &bvhc::loader::filter::Candidate<'_>| c.source_triangle_id.is_some_and(|id| id % 2 == 1);
             crossings.all_hits_filtered(ray, &odd, FilterScope::Every, &mut hits);
             let kept: Vec<(f32, usize)> = expected.iter().copied().filter(|&(_, i)| i % 2 == 1).collect();
             let got: Vec<(f32, usize)> = hits.iter().map(|h| (h.t, ids[h.triangle_index as usize] as usize)).collect();

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use bvhc::loader::{BvhFile, Candidate, FilterScope, Ray};
+use bvhc::loader::{BvhFile, Ray, filter::Candidate, filter::FilterScope};
 
 use crate::cli::bvhc;
 

@@ -6,7 +6,7 @@
 use std::cell::Cell;
 
 use bvhc::loader::format::TRIANGLE_NOT_OPAQUE;
-use bvhc::loader::{BvhFile, BvhWriter, Candidate, FilterScope, PreparedRay, Ray};
+use bvhc::loader::{BvhFile, Ray, filter::Candidate, filter::FilterScope, ray::PreparedRay, write::BvhWriter};
 
 use crate::common::{every_kernel, random_rays, random_triangles, write_wide_file};
 use crate::instances_exact::spec_object_ray;

@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use bvhc::loader::{BvhFile, BvhWriter, Ray, SectionKind, SourceVertexIndices};
+use bvhc::loader::{BvhFile, Ray, format::SectionKind, format::SourceVertexIndices, write::BvhWriter};
 
 use crate::common::*;
 

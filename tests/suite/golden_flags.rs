@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use bvhc::cost::SahConstants;
 use bvhc::layout::merge_leaves;
 use bvhc::loader::format::TRIANGLE_NOT_OPAQUE;
-use bvhc::loader::{BvhFile, BvhWriter, Candidate, FilterScope, Ray, SectionKind};
+use bvhc::loader::{BvhFile, Ray, filter::Candidate, filter::FilterScope, format::SectionKind, write::BvhWriter};
 use bvhc::optimize::OptTree;
 use bvhc::pack::pack;
 

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use bvhc::cost::SahConstants;
 use bvhc::layout::{GpuCosts, collapse, merge_leaves};
 use bvhc::loader::format::GpuSlot;
-use bvhc::loader::{BvhFile, BvhWriter, GpuLayoutTracer, Ray, SectionKind};
+use bvhc::loader::{BvhFile, Ray, format::SectionKind, gpu::GpuLayoutTracer, write::BvhWriter};
 use bvhc::optimize::OptTree;
 use bvhc::pack::{pack, pack_gpu};
 

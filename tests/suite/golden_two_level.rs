@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use bvhc::loader::{BvhFile, Kernel, Ray, SectionKind, SourceRange};
+use bvhc::loader::{BvhFile, Kernel, Ray, format::SectionKind, format::SourceRange};
 
 use crate::instances::{affine, packed_mesh, placement};
 
@@ -40,7 +40,7 @@ fn write_golden_scene() -> BvhFile {
         reserved: 0,
     };
     let sources = [range(0, 2, 0), range(2, 1, 1)];
-    bvhc::loader::BvhWriter::new(&scene.nodes, &scene.triangles)
+    bvhc::loader::write::BvhWriter::new(&scene.nodes, &scene.triangles)
         .triangle_ids(&scene.triangle_ids)
         .source_table(&sources)
         .metadata(GOLDEN_METADATA_1_3)

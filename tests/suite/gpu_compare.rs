@@ -6,7 +6,7 @@ use std::fmt;
 
 use bvhc::cost::SahConstants;
 use bvhc::layout::{GpuCosts, collapse, merge_leaves};
-use bvhc::loader::{BvhFile, BvhView, BvhWriter, Hit, PreparedRay, Ray};
+use bvhc::loader::{BvhFile, BvhView, Hit, Ray, ray::PreparedRay, write::BvhWriter};
 use bvhc::optimize::OptTree;
 use bvhc::pack::{pack, pack_gpu};
 

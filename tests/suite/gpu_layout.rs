@@ -10,7 +10,7 @@ use std::ops::ControlFlow;
 use std::path::Path;
 
 use bvhc::convert::convert_with;
-use bvhc::loader::{BvhFile, BvhView, GpuLayoutTracer, Ray};
+use bvhc::loader::{BvhFile, BvhView, Ray, gpu::GpuLayoutTracer};
 use bvhc::options::{ConvertOptions, Overrides, Preset, resolve};
 use rand::RngExt;
 

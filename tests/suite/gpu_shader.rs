@@ -5,7 +5,7 @@
 //!
 //! `cargo test --release gpu_shader -- --nocapture` prints the tables kept in `docs/gpu.md`.
 
-use bvhc::loader::{BvhView, GpuError, GpuLayoutTracer, GpuTracer, Hit, Ray};
+use bvhc::loader::{BvhView, Hit, Ray, gpu::GpuError, gpu::GpuLayoutTracer, gpu::GpuTracer};
 
 use crate::common::{Triangle, random_rays, random_triangles, scene};
 use crate::gpu_compare::{Tally, compare, gpu_file, table_header};
@@ -206,7 +206,7 @@ fn the_wgsl_exact_edge_function_equals_the_f64_recomputation() {
          @compute @workgroup_size(64)\nfn edge_check(@builtin(global_invocation_id) id: vec3<u32>) {{\n\
          if (id.x < arrayLength(&edge_operands)) {{ let o = edge_operands[id.x]; \
          edge_values[id.x] = edge_function(o.x, o.y, o.z, o.w); }}\n}}\n",
-        bvhc::loader::gpu_shader::GPU_TRAVERSAL_WGSL
+        bvhc::loader::gpu::shader::GPU_TRAVERSAL_WGSL
     );
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("edge check"),

@@ -5,7 +5,9 @@
 
 use bvhc::instancing::{PackedMesh, Placement, TwoLevelScene};
 use bvhc::loader::format::NO_INDEX;
-use bvhc::loader::{Affine3x4, BvhFile, BvhWriter, Hit, Ray, SourceRange, SourceVertexIndices, Tracer};
+use bvhc::loader::{
+    BvhFile, Hit, Ray, Tracer, format::Affine3x4, format::SourceRange, format::SourceVertexIndices, write::BvhWriter,
+};
 
 use crate::common::*;
 

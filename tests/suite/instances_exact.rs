@@ -7,7 +7,7 @@
 //! report it at a `t` within 11.3's bound.
 
 use bvhc::instancing::{Placement, TwoLevelScene};
-use bvhc::loader::{BvhFile, Hit, InstanceRecord, PreparedRay, Ray};
+use bvhc::loader::{BvhFile, Hit, Ray, format::InstanceRecord, ray::PreparedRay};
 use rand::RngExt;
 
 use crate::common::*;
@@ -169,7 +169,7 @@ fn overlap_rays(scene: &TwoLevelScene, count: usize, seed: u64) -> Vec<Ray> {
         // Half the rays at the vertex itself, the others at a point of the edge to the next vertex.
         let s = if rays.len().is_multiple_of(2) { 0.0 } else { rng.random_range(0.0..1.0f64) };
         let object: [f64; 3] = std::array::from_fn(|k| f64::from(p[k]) + s * (f64::from(q[k]) - f64::from(p[k])));
-        let world = bvhc::loader::transformed_box(
+        let world = bvhc::loader::ray::transformed_box(
             &instance.object_to_world,
             (object.map(|c| c as f32), object.map(|c| c as f32)),
         )

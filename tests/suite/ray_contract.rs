@@ -5,7 +5,7 @@
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
-use bvhc::loader::{BvhFile, CHECKED_CHUNK, ForeignHit, Hit, Ray, Tracer};
+use bvhc::loader::{BvhFile, ForeignHit, Hit, Ray, Tracer, tracer::CHECKED_CHUNK};
 
 use crate::common::{every_kernel, random_rays};
 

@@ -1,6 +1,6 @@
 //! write -> open -> traverse equals the in-memory tree; files on disk through every way in.
 
-use bvhc::loader::{BvhFile, BvhView, BvhWriter, Error, PackedNode, Rule, Tracer};
+use bvhc::loader::{BvhFile, BvhView, Error, Rule, Tracer, format::PackedNode, write::BvhWriter};
 
 use crate::common::*;
 

@@ -2,7 +2,7 @@
 //! expect exactly that rule. The tree and content rules are in `rules_tree.rs`, the wide sections' in
 //! `rules_wide.rs`.
 
-use bvhc::loader::{BvhFile, BvhWriter, Rule};
+use bvhc::loader::{BvhFile, Rule, write::BvhWriter};
 
 use crate::common::*;
 use crate::corrupt::*;

@@ -194,7 +194,7 @@ fn v38_gpu_leaves_hold_at_most_max_leaf_size_triangles() {
         )
     };
     let written = |limit: u32| {
-        bvhc::loader::BvhWriter::new(view.nodes(), view.triangles())
+        bvhc::loader::write::BvhWriter::new(view.nodes(), view.triangles())
             .triangle_ids(view.triangle_ids().unwrap())
             .source_table(view.source_table().unwrap())
             .metadata(&metadata(limit))
@@ -295,7 +295,7 @@ fn v10_gpu_counts() {
     let gpu = file.view().gpu_sections().unwrap();
     let view = file.view();
     let write = |nodes: &[GpuNode], gpu_triangles: &[GpuTriangle]| {
-        let writer = bvhc::loader::BvhWriter::new(view.nodes(), view.triangles())
+        let writer = bvhc::loader::write::BvhWriter::new(view.nodes(), view.triangles())
             .triangle_ids(view.triangle_ids().unwrap())
             .source_table(view.source_table().unwrap())
             .metadata(crate::gpu_compare::METADATA_1_4)
@@ -314,26 +314,26 @@ fn v38_build_gpu_agrees_with_the_sections() {
     let gpu = view.gpu_sections().unwrap();
     let with_key = r#"{"generator":"bvhc tests","format_version":"1.4","build":{"gpu":{"max_leaf_size":3,"node_visit":1.0,"triangle_test":0.3}}}"#;
     let older_key = with_key.replace("1.4", "1.0");
-    let without_sections = bvhc::loader::BvhWriter::new(view.nodes(), view.triangles())
+    let without_sections = bvhc::loader::write::BvhWriter::new(view.nodes(), view.triangles())
         .triangle_ids(view.triangle_ids().unwrap())
         .source_table(view.source_table().unwrap())
         .metadata(&older_key);
     assert_eq!(without_sections.build().err().and_then(|e| e.rule()), Some(Rule::MetadataBuild));
-    let with_sections = bvhc::loader::BvhWriter::new(view.nodes(), view.triangles())
+    let with_sections = bvhc::loader::write::BvhWriter::new(view.nodes(), view.triangles())
         .triangle_ids(view.triangle_ids().unwrap())
         .source_table(view.source_table().unwrap())
         .metadata(with_key)
         .gpu(gpu.nodes, gpu.triangles);
     assert!(with_sections.build().is_ok());
     let missing_key = r#"{"generator":"bvhc tests","format_version":"1.4","build":{"write_ids":true}}"#;
-    let without_key = bvhc::loader::BvhWriter::new(view.nodes(), view.triangles())
+    let without_key = bvhc::loader::write::BvhWriter::new(view.nodes(), view.triangles())
         .triangle_ids(view.triangle_ids().unwrap())
         .source_table(view.source_table().unwrap())
         .metadata(missing_key)
         .gpu(gpu.nodes, gpu.triangles);
     assert!(without_key.build().is_ok(), "an absent key is not checked (section 8)");
     let null_key = missing_key.replace(r#""write_ids":true"#, r#""gpu":null"#);
-    let with_null = bvhc::loader::BvhWriter::new(view.nodes(), view.triangles())
+    let with_null = bvhc::loader::write::BvhWriter::new(view.nodes(), view.triangles())
         .triangle_ids(view.triangle_ids().unwrap())
         .source_table(view.source_table().unwrap())
         .metadata(&null_key)

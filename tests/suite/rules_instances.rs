@@ -2,7 +2,7 @@
 //! test changes one thing in a good two-level scene and expects exactly that rule, the message naming the part.
 
 use bvhc::instancing::TwoLevelScene;
-use bvhc::loader::{BvhFile, Rule, SourceRange};
+use bvhc::loader::{BvhFile, Rule, format::SourceRange};
 
 use crate::common::*;
 use crate::corrupt::{broken_rule, entry, read_u32, refresh_checksums, write_u32};
@@ -181,7 +181,7 @@ fn v7_v8_v9_two_level_sections_are_required_together_and_only_in_1_3() {
 fn v37_v38_costs_are_not_defined_and_leaf_limits_apply_per_mesh_in_two_level_files() {
     let (scene, sources) = good();
     let write = |metadata: &str| {
-        bvhc::loader::BvhWriter::new(&scene.nodes, &scene.triangles)
+        bvhc::loader::write::BvhWriter::new(&scene.nodes, &scene.triangles)
             .triangle_ids(&scene.triangle_ids)
             .source_table(&sources)
             .metadata(metadata)
@@ -209,7 +209,7 @@ fn v36_the_two_level_counts_are_the_file_s() {
     let (scene, sources) = good();
     let write = |two_level: &str| {
         let metadata = format!(r#"{{"generator":"t","format_version":"1.3","two_level":{two_level}}}"#);
-        bvhc::loader::BvhWriter::new(&scene.nodes, &scene.triangles)
+        bvhc::loader::write::BvhWriter::new(&scene.nodes, &scene.triangles)
             .triangle_ids(&scene.triangle_ids)
             .source_table(&sources)
             .metadata(&metadata)
@@ -244,14 +244,15 @@ fn v36_the_two_level_counts_are_the_file_s() {
     // The key says the file is two-level: a one-level file with it breaks the rule.
     let tree = packed_tree(&random_triangles(4102, 20, 1.0), 2);
     let one_level = r#"{"generator":"t","format_version":"1.0","two_level":{"mesh_count":1}}"#;
-    let error = bvhc::loader::BvhWriter::new(&tree.nodes, &tree.triangles).metadata(one_level).build().unwrap_err();
+    let error =
+        bvhc::loader::write::BvhWriter::new(&tree.nodes, &tree.triangles).metadata(one_level).build().unwrap_err();
     assert_eq!(error.rule(), Some(Rule::MetadataCounts), "{error}");
     assert!(error.to_string().contains("not two-level"), "{error}");
 }
 
 /// The wide top tree's leaf slot of instance `instance`: (node, slot).
 fn wide_leaf_of(scene: &TwoLevelScene, instance: u32) -> (usize, usize) {
-    let flag = bvhc::loader::LEAF_BIT | instance;
+    let flag = bvhc::loader::format::LEAF_BIT | instance;
     scene
         .top_wide_nodes
         .iter()
@@ -264,7 +265,7 @@ fn wide_leaf_of(scene: &TwoLevelScene, instance: u32) -> (usize, usize) {
 fn v46_top_wide_tree() {
     expect(Rule::TopWideTree, "in a second slot", |s| {
         let (node, slot) = wide_leaf_of(s, 4);
-        s.top_wide_nodes[node].child[slot] = bvhc::loader::LEAF_BIT | 5;
+        s.top_wide_nodes[node].child[slot] = bvhc::loader::format::LEAF_BIT | 5;
     });
     expect(Rule::TopWideTree, "does not contain instance 3's mesh box", |s| {
         let (node, slot) = wide_leaf_of(s, 3);
@@ -273,12 +274,12 @@ fn v46_top_wide_tree() {
     expect(Rule::TopWideTree, "after an empty slot", |s| {
         // The last occupied slot emptied, its box kept: not the empty box.
         let root = &mut s.top_wide_nodes[0];
-        let occupied = root.child.iter().take_while(|&&c| c != bvhc::loader::EMPTY_SLOT).count();
-        root.child[occupied - 1] = bvhc::loader::EMPTY_SLOT;
+        let occupied = root.child.iter().take_while(|&&c| c != bvhc::loader::format::EMPTY_SLOT).count();
+        root.child[occupied - 1] = bvhc::loader::format::EMPTY_SLOT;
     });
     expect(Rule::TopWideTree, "out of range", |s| {
         let (node, slot) = wide_leaf_of(s, 0);
-        s.top_wide_nodes[node].child[slot] = bvhc::loader::LEAF_BIT | 99;
+        s.top_wide_nodes[node].child[slot] = bvhc::loader::format::LEAF_BIT | 99;
     });
     expect(Rule::ReservedZero, "top wide node 0: reserved", |s| s.top_wide_nodes[0].reserved[2] = 1);
 }
@@ -292,7 +293,7 @@ fn v8_v10_the_wide_top_tree_comes_exactly_with_a_two_level_file_s_wide_sections(
     assert!(error.to_string().contains("top_wide_nodes section comes exactly with"), "{error}");
     // More wide top nodes than instances (a node of one slot below the root): V10.
     scene.top_wide_nodes = wide_top.clone();
-    scene.top_wide_nodes.extend(std::iter::repeat_n(bvhc::loader::WideNode8::EMPTY, scene.instances.len()));
+    scene.top_wide_nodes.extend(std::iter::repeat_n(bvhc::loader::format::WideNode8::EMPTY, scene.instances.len()));
     let error = write_two_level(&scene, &sources).unwrap_err();
     assert_eq!(error.rule(), Some(Rule::Counts), "{error}");
     // Without the wide sections, a wide top tree has nothing to go with.

@@ -5,7 +5,7 @@
 
 use std::sync::OnceLock;
 
-use bvhc::loader::{BvhFile, BvhWriter, Rule};
+use bvhc::loader::{BvhFile, Rule, write::BvhWriter};
 use bvhc::options::{OptimizeOver, Overrides, Preset};
 use serde_json::{Value, json};
 
@@ -72,9 +72,9 @@ fn the_converted_file_has_every_key_the_rules_check_and_passes_them() {
     // bvhc writes the costs bit for bit as the spec computes them (one running sum in the stated order).
     let view = file.view();
     let wide = view.wide_sections().unwrap();
-    let recomputed = bvhc::loader::cost::wide_cost(view.nodes().first(), wide.nodes, 1.0, 1.0);
+    let recomputed = bvhc::loader::format::cost::wide_cost(view.nodes().first(), wide.nodes, 1.0, 1.0);
     assert_eq!(metadata["wide"]["cost"].as_f64().unwrap().to_bits(), recomputed.to_bits());
-    let binary = bvhc::loader::cost::binary_cost(view.nodes(), 3.0, 2.0);
+    let binary = bvhc::loader::format::cost::binary_cost(view.nodes(), 3.0, 2.0);
     assert_eq!(metadata["cost"]["sah_cost"].as_f64().unwrap().to_bits(), binary.sah_cost.to_bits());
     // Every key is optional: without them the rules have nothing to check.
     let mut bare = metadata.clone();

@@ -2,7 +2,7 @@
 //! changes one thing in a converted file (the max-quality teapot: split references, shared vertices) and expects
 //! exactly that rule.
 
-use bvhc::loader::{BvhFile, BvhWriter, Rule, SourceVertexIndices};
+use bvhc::loader::{BvhFile, Rule, format::SourceVertexIndices, write::BvhWriter};
 
 use crate::corrupt::{broken_rule, entry, refresh_checksums};
 use crate::rules_metadata::converted;

@@ -1,7 +1,7 @@
 //! One test per validity rule of the tree and its content (V14-V28): corrupt a good file in one way, or write
 //! one that breaks the rule, and expect exactly that rule.
 
-use bvhc::loader::{BvhFile, BvhWriter, PackedNode, PackedTriangle, Rule};
+use bvhc::loader::{BvhFile, Rule, format::PackedNode, format::PackedTriangle, write::BvhWriter};
 
 use crate::common::*;
 use crate::corrupt::*;

@@ -1,7 +1,9 @@
 //! One test per validity rule of the wide sections (format 1.1): corrupt a good 1.1 file in one way and expect
 //! exactly that rule (V29-V35), plus the wide clauses of V8, V9, V10 and V13.
 
-use bvhc::loader::{BvhFile, BvhWriter, EMPTY_SLOT, LEAF_BIT, Rule, TrianglePacket4, WideNode8};
+use bvhc::loader::{
+    BvhFile, Rule, format::EMPTY_SLOT, format::LEAF_BIT, format::TrianglePacket4, format::WideNode8, write::BvhWriter,
+};
 
 use crate::common::*;
 use crate::corrupt::{broken_rule, data, entry, refresh_checksums};

@@ -5,7 +5,7 @@
 //! record's normal and front-face flag are checked against f64.
 
 use bvhc::import::{ImportOptions, import};
-use bvhc::loader::{Hit, Ray, Tracer, geometric_normal};
+use bvhc::loader::{Hit, Ray, Tracer, ray::geometric_normal};
 use rand::RngExt;
 
 use crate::common::*;
@@ -334,7 +334,7 @@ fn cosine_directions_are_unit_in_the_facing_hemisphere_with_the_cosine_density()
     // Against the density cos(theta) / pi: E[cos theta] = 2/3 and P(cos theta > c) = 1 - c^2, for normals on
     // both sides of z = 0 (the basis' two branches) and on the side a back-face hit faces.
     // The point's normal is the hit's (normalized); the record only places the point.
-    let record = bvhc::loader::PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
+    let record = bvhc::loader::format::PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
     let mut rng = rng(99);
     for (normal, front_face) in [([0.0, 0.0, 1.0], true), ([0.0, 0.0, 1.0], false), ([0.6, -0.48, 0.64], true)] {
         let hit = Hit {

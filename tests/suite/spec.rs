@@ -90,8 +90,8 @@ fn the_spec_constants_match_the_code() {
 }
 
 /// The cost of section 5.6, computed from the spec's text alone over a file's nodes: (A_I, A_L).
-fn cost_as_specified(nodes: &[bvhc::loader::PackedNode]) -> (f64, f64) {
-    let area = |n: &bvhc::loader::PackedNode| {
+fn cost_as_specified(nodes: &[bvhc::loader::format::PackedNode]) -> (f64, f64) {
+    let area = |n: &bvhc::loader::format::PackedNode| {
         let e: Vec<f64> = (0..3).map(|a| (f64::from(n.max[a]) - f64::from(n.min[a])).max(0.0)).collect();
         2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0])
     };

@@ -21,7 +21,7 @@ use std::ops::ControlFlow;
 use bvhc::builders::Builder;
 use bvhc::cost::SahConstants;
 use bvhc::layout::merge_leaves;
-use bvhc::loader::{BvhWriter, Ray};
+use bvhc::loader::{Ray, write::BvhWriter};
 use bvhc::optimize::{OptTree, optimize};
 use bvhc::options::Preset;
 use bvhc::pack::pack;

@@ -119,8 +119,8 @@ fn two_level_hit_records_name_their_instance_and_its_record_gives_them_bit_for_b
         let Some(hit) = hit else { continue };
         // What a reader does with the record: map the ray into the named instance and test the named record.
         let object = crate::instances_exact::spec_object_ray(&sections.instances[instance as usize], ray);
-        let own =
-            bvhc::loader::PreparedRay::new(&object).intersect_triangle(&view.triangles()[triangle as usize], ray.t_max);
+        let own = bvhc::loader::ray::PreparedRay::new(&object)
+            .intersect_triangle(&view.triangles()[triangle as usize], ray.t_max);
         let own = own.expect("the named record is hit in the named instance");
         let stated = [0, 12, 16].map(|at| f32::from_le_bytes(word(record, at)));
         assert_eq!(stated, [own.t, own.u, own.v]);
@@ -220,9 +220,9 @@ fn trace_on_the_gpu_writes_the_gpu_tracers_records_and_counts_its_cpu_rays() {
     assert!(bvhc(&[&teapot(), &"-o", &bvh, &"-q", &"--preset", &"fast", &"--gpu-layout"]).status.success());
     let file = BvhFile::read(&bvh).unwrap();
     let view = file.view();
-    let gpu = match bvhc::loader::GpuTracer::new(&view) {
+    let gpu = match bvhc::loader::gpu::GpuTracer::new(&view) {
         Ok(gpu) => gpu,
-        Err(bvhc::loader::GpuError::NoAdapter(why)) => {
+        Err(bvhc::loader::gpu::GpuError::NoAdapter(why)) => {
             let what = format!("bvhc trace --gpu (no GPU adapter: {why})");
             return crate::skips::skipped(crate::skips::Needs::Vulkan, what);
         }

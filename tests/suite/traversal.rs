@@ -1,6 +1,6 @@
 //! Traversal equals brute force over all triangles, on random scenes with every leaf size and ray kind.
 
-use bvhc::loader::{PreparedRay, Ray, TraversalStats};
+use bvhc::loader::{Ray, TraversalStats, ray::PreparedRay};
 
 use crate::common::*;
 
@@ -93,7 +93,7 @@ fn triangle_test_agrees_with_double_precision() {
         let origin = random_point(&mut rng, 30.0);
         let direction: [f32; 3] = std::array::from_fn(|a| (target[a] - f64::from(origin[a])) as f32);
         let hit = PreparedRay::new(&Ray::new(origin, direction))
-            .intersect_triangle(&bvhc::loader::PackedTriangle { vertices: tri }, f32::INFINITY);
+            .intersect_triangle(&bvhc::loader::format::PackedTriangle { vertices: tri }, f32::INFINITY);
         let margin = b0.min(b1).min(b2);
         if margin > 0.01 {
             let hit = hit.expect("a ray well inside the triangle hits");

@@ -199,7 +199,7 @@ fn the_collapse_is_optimal_for_the_binary_topology() {
 /// and any hit, on random scenes and the stress scenes' kinds of rays (axis-parallel, +0/-0 components).
 #[test]
 fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
-    use bvhc::loader::{KernelPath, PackedTriangle, WideTracer};
+    use bvhc::loader::{KernelPath, WideTracer, format::PackedTriangle};
     for (seed, count, extent) in [(11u64, 1usize, 1.0f32), (12, 7, 1.0), (13, 300, 10.0), (14, 3000, 100.0)] {
         let triangles = random_triangles(seed, count, extent);
         let tree = binary(&triangles);
@@ -228,7 +228,7 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
                         assert_eq!(hit.source_triangle_id, Some(1000 + hit.triangle_index));
                         let brute = crate::common::brute_force_closest(&triangles, ray).unwrap();
                         assert_eq!(hit.t, brute.0);
-                        let prepared = bvhc::loader::PreparedRay::new(ray);
+                        let prepared = bvhc::loader::ray::PreparedRay::new(ray);
                         let at_t = prepared.intersect_triangle(&packed[hit.triangle_index as usize], f32::INFINITY);
                         assert_eq!(at_t.map(|h| h.t), Some(hit.t), "the reported triangle is hit at t");
                     }
@@ -241,7 +241,7 @@ fn wide_traversal_equals_binary_traversal_and_brute_force_on_every_path() {
 
 #[test]
 fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
-    use bvhc::loader::{PackedTriangle, Rule, WideBvh};
+    use bvhc::loader::{Rule, format::PackedTriangle, wide::WideBvh};
     let triangles = random_triangles(300, 200, 1.0);
     let good = crate::common::wide_bvh(&triangles);
     let packed: Vec<PackedTriangle> = triangles.iter().map(|&vertices| PackedTriangle { vertices }).collect();
@@ -266,8 +266,8 @@ fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
     assert_eq!(rebuild(good.nodes().to_vec(), packets, &packed).unwrap_err().rule, Rule::LaneCoverage);
     // A leaf pointing past the packets.
     let mut nodes = good.nodes().to_vec();
-    let slot = nodes[0].child.iter().position(|&c| c != bvhc::loader::EMPTY_SLOT).unwrap();
-    nodes[0].child[slot] = bvhc::loader::WideNode8::leaf(good.packets().len() as u32, 1).unwrap();
+    let slot = nodes[0].child.iter().position(|&c| c != bvhc::loader::format::EMPTY_SLOT).unwrap();
+    nodes[0].child[slot] = bvhc::loader::format::WideNode8::leaf(good.packets().len() as u32, 1).unwrap();
     assert_eq!(rebuild(nodes, good.packets().to_vec(), &packed).unwrap_err().rule, Rule::WideSlots);
 }
 
@@ -318,7 +318,7 @@ fn streams_of_rays_equal_single_rays_on_every_path() {
 /// cut short, and rays that miss the root's box.
 #[test]
 fn coherent_packets_equal_single_rays_on_every_path() {
-    use bvhc::loader::{PreparedRay, Ray};
+    use bvhc::loader::{Ray, ray::PreparedRay};
     for (seed, count) in [(31u64, 1usize), (32, 400), (33, 4000)] {
         let triangles = random_triangles(seed, count, 10.0);
         let file = crate::common::write_wide_file(&triangles, 4);

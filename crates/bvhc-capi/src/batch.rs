@@ -2,12 +2,12 @@
 //! interleaved over large files) or in coherent groups of 8, checked against the ray contract or (`_unchecked`)
 //! not. The caller's arrays are used in place: rays are read where they are (`bvhc_ray` is the Rust `Ray`) and
 //! each result is written straight into its slot, with no buffer between. A checked call checks its rays chunk
-//! by chunk (`bvhc_loader::CHECKED_CHUNK`), each just before tracing it, so the rays come from the caches the
+//! by chunk (`bvhc_loader::tracer::CHECKED_CHUNK`), each just before tracing it, so the rays come from the caches the
 //! second time; on `BVHC_ERROR_RAY` the results of the chunks before the named ray have been written.
 
 use std::ffi::c_int;
 
-use bvhc_loader::{BatchRayError, CHECKED_CHUNK, Tracer};
+use bvhc_loader::{BatchRayError, Tracer, tracer::CHECKED_CHUNK};
 
 use crate::boundary::{BVHC_ERROR_RAY, BVHC_OK, BvhcFile, argument, file_ref, guarded};
 use crate::records::{BvhcHit, BvhcRay};

@@ -8,7 +8,7 @@
 use std::ffi::{c_int, c_void};
 
 use bvhc_loader::format::NO_INDEX;
-use bvhc_loader::{BvhView, Candidate, FilterScope, HitFilter};
+use bvhc_loader::{BvhView, HitFilter, filter::Candidate, filter::FilterScope};
 
 use crate::boundary::{BVHC_ERROR_ARGUMENT, BvhcFile, argument, file_ref, guarded};
 use crate::records::{BvhcHit, BvhcRay};

@@ -6,7 +6,7 @@
 
 use std::ffi::{c_int, c_void};
 
-use bvhc_loader::{FilterScope, Ray};
+use bvhc_loader::{Ray, filter::FilterScope};
 
 use crate::boundary::{BVHC_ERROR_MEMORY, BVHC_ERROR_RAY, BVHC_OK, BvhcFile, argument, file_ref, guarded};
 use crate::filtered::{BvhcFilter, CFilter, filter_of};

@@ -1,7 +1,7 @@
 //! The plain structs of the C API (`bvhc_ray`, `bvhc_hit`, `bvhc_source_corners`, `bvhc_instance`,
 //! `bvhc_mesh` in the header), with the same fields as the Rust records they mirror, and their conversions.
 
-use bvhc_loader::{Hit, InstanceRecord, Ray, SourceCorners};
+use bvhc_loader::{Hit, Ray, SourceCorners, format::InstanceRecord};
 
 /// `bvhc_ray`: the Rust `Ray` itself (`#[repr(C)]`: origin, direction, `t_min`, `t_max`), so arrays of rays
 /// from C are traced in place, without a copy.

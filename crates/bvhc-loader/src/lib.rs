@@ -44,6 +44,12 @@
 //! example inside a rayon loop). The batch calls (`closest_hits`, `any_hits` and their coherent forms) panic
 //! when the result slice is not as long as the ray slice, naming the call.
 //!
+//! The crate root holds what a renderer uses; the rest is in modules, one a role: [`mod@format`] (the on-disk
+//! types, checksums and costs), [`ray`] (the ray, the box and triangle tests, hits, spawning, instance boxes),
+//! [`tracer`] and [`filter`] (the tracers, batch sizes, hit filters), [`wide`] (the 8-wide kernel over
+//! in-memory arrays), [`gpu`] (the WGSL kernel, its CPU model, the wgpu tracer), [`verify`] (single rules) and,
+//! with the `write` feature, `write` (the writer, atomic outputs).
+//!
 //! Rays: a [`Tracer`] checks every ray against the ray contract ([`Ray::check`]: finite origin and direction,
 //! the direction not below `2^-64`, `0 <= t_min <= t_max`) and panics naming the rule and the ray, since such a
 //! ray has no specified answer; [`Tracer::trusting_rays`] skips the check for callers that validate rays
@@ -52,63 +58,36 @@
 mod binary;
 mod error;
 pub mod format;
-mod gpu;
+pub mod gpu;
 mod instances;
 mod open;
-mod ray;
+pub mod ray;
 mod simd;
 mod source;
-mod tracer;
-mod verify;
-mod wide;
+pub mod tracer;
+pub mod verify;
+pub mod wide;
 #[cfg(feature = "write")]
-mod write;
+pub mod write;
 
 pub use error::{Error, Rule, Violation};
-pub use format::checksum::{header_checksum, section_checksum};
-pub use format::cost;
-pub use format::{
-    Affine3x4, EMPTY_SLOT, InstanceRecord, LEAF_BIT, MeshRecord, PACKET_LANES, PackedNode, PackedTriangle, SectionKind,
-    SourceRange, SourceVertexIndices, TrianglePacket4, WIDE, WideNode8,
-};
-#[cfg(feature = "wgpu")]
-pub use gpu::device::{GPU_BATCH_RAYS, GpuError, GpuTrace, GpuTracer};
-pub use gpu::model::{GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer};
-pub use gpu::shader as gpu_shader;
 pub use open::file::BvhFile;
 #[cfg(feature = "mmap")]
 pub use open::file::MappedBvh;
 pub use open::sections::{GpuSections, TwoLevelSections, WideSections};
 pub use open::structure::SectionInfo;
-#[cfg(feature = "write")]
-pub use open::uncached::UncachedWriter;
 pub use open::view::BvhView;
-pub use ray::check::{BatchRayError, MIN_DIRECTION_COMPONENT, RayError, check_rays};
-pub use ray::hit::{
-    BARYCENTRIC_SLACK, ForeignHit, Hit, TraversalCounter, TraversalStats, TriangleHit, geometric_normal,
+pub use ray::check_rays;
+pub use ray::{
+    BatchRayError, ForeignHit, Hit, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,
 };
-pub use ray::intersect::{PreparedRay, Ray};
-pub use ray::spawn::SurfacePoint;
-pub use ray::transform::{instance_world_box, transformed_box};
 pub use simd::KernelPath;
 pub use source::corners::SourceCorners;
 pub use source::identity::TriangleIdentities;
-pub use tracer::batch::CHECKED_CHUNK;
-pub use tracer::crossings::Crossings;
 pub use tracer::filter;
-pub use tracer::filter::{Candidate, FilterScope, FilteredTracer, HitFilter};
-pub use tracer::traced::TracedFile;
-pub use tracer::{Kernel, Tracer};
-pub use verify::PARALLEL_VERIFY_BYTES;
-pub use verify::tree::verify_tree;
-pub use wide::{WideBvh, WideTracer};
-#[cfg(feature = "write")]
-pub use write::atomic::{
-    AtomicOutput, TEMPORARY_PREFIX, TEMPORARY_SUFFIX, check_replaceable, directory_of, remove_own_temporary_files,
-    sweep_stale, write_atomic,
-};
-#[cfg(feature = "write")]
-pub use write::writer::BvhWriter;
+pub use tracer::filter::{FilteredTracer, HitFilter};
+pub use tracer::{Crossings, Kernel, TracedFile, Tracer};
+pub use wide::WideTracer;
 
 /// The README's example, compiled by `cargo test` (a doctest) so that a wrong example fails the tests.
 #[cfg(doctest)]

@@ -1,6 +1,6 @@
 //! The memory-mapped way in: the same bytes and view as reading the file.
 
-use bvhc_loader::{BvhFile, BvhWriter, MappedBvh, PackedNode, PackedTriangle, Ray};
+use bvhc_loader::{BvhFile, MappedBvh, Ray, format::PackedNode, format::PackedTriangle, write::BvhWriter};
 
 #[test]
 fn a_mapped_file_views_the_same_bytes_as_a_read_one() {

@@ -18,7 +18,7 @@ use glam::{DMat4, DQuat, DVec3};
 use gltf::json::Root;
 
 use bvhc_loader::format::NO_INDEX;
-use bvhc_loader::{Affine3x4, InstanceRecord};
+use bvhc_loader::{format::Affine3x4, format::InstanceRecord};
 
 use self::buffers::Buffers;
 use super::instancing::{InstancedMesh, MeshPlacement, choose_instanced, stored_triangles};

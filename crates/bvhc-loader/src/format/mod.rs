@@ -98,6 +98,7 @@ mod instances;
 pub(crate) mod plain_data;
 mod sections;
 
+pub use crate::format::checksum::{header_checksum, section_checksum};
 pub use crate::format::gpu::{
     GPU_MAX_DEPTH, GPU_MAX_LEAF_TRIANGLES, GPU_MAX_NODE_TRIANGLES, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, inner_meta,
     leaf_meta,

@@ -5,3 +5,7 @@
 pub(crate) mod device;
 pub(crate) mod model;
 pub mod shader;
+
+#[cfg(feature = "wgpu")]
+pub use device::{GPU_BATCH_RAYS, GpuError, GpuTrace, GpuTracer};
+pub use model::{GPU_NODE_BYTES, GPU_TRIANGLE_BYTES, GpuLayoutTracer};

@@ -73,7 +73,7 @@ impl<'a> GpuLayoutTracer<'a> {
     }
 
     /// The record the WGSL kernel writes for `ray` (the closest hit, or for `any_hit` the first hit found), with
-    /// ill-conditioned hits given their exact values: what [`crate::GpuTracer`] puts in place of a record the
+    /// ill-conditioned hits given their exact values: what `GpuTracer` (feature `wgpu`) puts in place of a record the
     /// kernel left to the CPU ([`crate::gpu::shader::GpuHitRecord::needs_cpu`]).
     pub fn record(&self, ray: &Ray, any_hit: bool) -> GpuHitRecord {
         let found = if any_hit { self.walk::<true>(ray, &mut ()) } else { self.walk::<false>(ray, &mut ()) };

@@ -1,6 +1,6 @@
 //! The WGSL kernel that traces the GPU sections of format 1.4 ([`GPU_TRAVERSAL_WGSL`], also shipped as
 //! `src/gpu.wgsl`), and the records it reads and writes, for programs that bring their own pipeline. The
-//! `wgpu` feature adds [`crate::GpuTracer`], which does the uploading and dispatching.
+//! `wgpu` feature adds `GpuTracer` (feature `wgpu`), which does the uploading and dispatching.
 //!
 //! Bindings, all in group 0 (the shader's header repeats them):
 //!
@@ -32,8 +32,9 @@ pub const GPU_NO_HIT: u32 = u32::MAX;
 
 /// [`GpuHitRecord::t`] of a record whose [`GpuHitRecord::triangle`] is [`GPU_NO_HIT`] when the kernel met an
 /// ill-conditioned hit that could decide the ray (`format-spec/bvh-1.md` 11.1 step 5, 11.4): its exact `t`,
-/// `u`, `v` need arithmetic WGSL lacks, so the ray is to be traced on the CPU ([`crate::GpuLayoutTracer::record`]
-/// gives the record the kernel would have written; [`crate::GpuTracer`] does this itself). A miss has `t = 0`.
+/// `u`, `v` need arithmetic WGSL lacks, so the ray is to be traced on the CPU
+/// ([`GpuLayoutTracer::record`](crate::gpu::GpuLayoutTracer::record) gives the record the kernel would have
+/// written; `GpuTracer`, feature `wgpu`, does this itself). A miss has `t = 0`.
 pub const GPU_REFINE_T: f32 = -1.0;
 
 /// A ray as the kernel reads it (binding 2), 32 bytes.

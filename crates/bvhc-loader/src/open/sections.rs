@@ -13,7 +13,7 @@ pub struct WideSections<'a> {
 }
 
 /// The GPU sections of a file (format 1.4): the compressed 8-wide nodes and their leaf triangles, which the
-/// WGSL kernel ([`crate::gpu::shader`]) traces; [`crate::GpuLayoutTracer`] traces them on the CPU the same way.
+/// WGSL kernel ([`crate::gpu::shader`]) traces; [`crate::gpu::GpuLayoutTracer`] traces them on the CPU the same way.
 #[derive(Clone, Copy, Debug)]
 pub struct GpuSections<'a> {
     /// The `gpu_nodes` section; node 0 is the root.

@@ -1,12 +1,16 @@
 //! The public tracer: closest-hit and any-hit calls over a file's trees, run by the wide kernel where the file
-//! has wide sections and by the binary walk ([`crate::binary::walk`]) otherwise, through the instances of a
-//! two-level file ([`crate::instances`]); its batch calls, filters, crossings and traced files beside it.
+//! has wide sections and by the binary walk (`crate::binary::walk`) otherwise, through the instances of a
+//! two-level file (`crate::instances`); its batch calls, filters, crossings and traced files beside it.
 
 pub(crate) mod batch;
 pub(crate) mod crossings;
 pub mod filter;
 mod of_view;
 pub(crate) mod traced;
+
+pub use batch::CHECKED_CHUNK;
+pub use crossings::Crossings;
+pub use traced::TracedFile;
 
 use crate::binary::walk::{TriangleLeaves, walk};
 use crate::format::{MeshRecord, PackedNode, PackedTriangle};

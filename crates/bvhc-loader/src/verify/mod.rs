@@ -1,9 +1,9 @@
 //! The full verifier: rules V11-V53 of `format-spec/bvh-1.md`, on top of the structural V1-V10 checked by open.
-//! V14-V20 (the binary tree) are in `verify_tree`, V24-V25 (references) are in `verify_references`, V23 and V26-V28 (metadata) in `verify_metadata`, V29-V35
-//! (the wide sections of 1.1) in `verify_wide`, V36-V39 (the metadata against the file) in
-//! `verify_consistency`, V40 (the source vertices of 1.2) in `verify_source_vertices`, V41-V46 (the two-level
-//! sections of 1.3, and the one-level rules per mesh) in `verify_instances`, V47-V50 (the GPU sections of 1.4) in
-//! `verify_gpu`, V52-V53 (the triangle flags of 1.5) in `verify_triangle_flags`; V51 (the version a file's
+//! V14-V20 (the binary tree) are in `tree`, V24-V25 (references) in `references`, V23 and V26-V28 (metadata)
+//! in `metadata`, V29-V35 (the wide sections of 1.1) in `wide`, V36-V39 (the metadata against the file) in
+//! `consistency`, V40 (the source vertices of 1.2) in `source_vertices`, V41-V46 (the two-level
+//! sections of 1.3, and the one-level rules per mesh) in `instances`, V47-V50 (the GPU sections of 1.4) in
+//! `gpu`, V52-V53 (the triangle flags of 1.5) in `triangle_flags`; V51 (the version a file's
 //! sections need) here.
 //!
 //! Cost: O(file length) for the checksums plus O(nodes + triangles + ids x log ranges) for the rest. Memory: one
@@ -20,13 +20,14 @@ pub(crate) mod tree;
 pub(crate) mod triangle_flags;
 pub(crate) mod wide;
 
+pub use tree::verify_tree;
+
 use crate::error::{Rule, Violation, violation};
 use crate::format::checksum::{header_checksum, section_checksum};
 use crate::format::{
     FileHeader, HEADER_BYTE_LEN, MinorFeatures, SECTION_ENTRY_BYTE_LEN, is_known_minor, written_minor,
 };
 use crate::open::view::{BvhView, section_bytes};
-use crate::verify::tree::verify_tree;
 
 /// Files at least this long check their wide sections on a second thread (see [`BvhView::verify`]): 64 MiB,
 /// where the wide checks take tens of milliseconds and a thread costs tens of microseconds.

@@ -1,9 +1,9 @@
 //! The wide kernel's public face: [`WideBvh`] (wide sections in memory, checked by V29-V35) and [`WideTracer`]
 //! (closest hit, any hit, one ray, a stream of rays or packets of coherent rays). The traversal itself is
-//! `wide_walk` (wide nodes, box tests), `wide_packets` (triangle packets) and `wide_coherent` (ray packets);
+//! `walk` (wide nodes, box tests), `packets` (triangle packets) and `coherent` (ray packets);
 //! layout: `format::WideNode8`, `format::TrianglePacket4`.
 //!
-//! Each entry point is a [`Kernel`] written once over an instruction set and run by [`crate::simd::run`]: on
+//! Each entry point is a `Kernel` written once over an instruction set and run by `crate::simd::run`: on
 //! AVX2 (box tests in AVX2, triangle packets in SSE2) inside one `target_feature` function, so everything
 //! inlines into it, or on the portable path, which gives the same hits bit for bit.
 
