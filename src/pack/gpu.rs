@@ -15,7 +15,6 @@ use bvhc_loader::format::{
 };
 use bvhc_loader::{Error, GpuSections};
 
-use super::quantize::quantize_node;
 use crate::geometry::Aabb;
 use crate::layout::{WideChild, WideTree};
 
@@ -98,16 +97,22 @@ pub fn pack_gpu(
                 Some((_, Slot::Leaf(records))) => triangles_box(file_triangles, records),
             })
             .collect();
-        let occupied: Vec<Aabb> = (0..GPU_WIDE).filter(|&s| node_slots[s].is_some()).map(|s| targets[s]).collect();
-        let quantized = quantize_node(&occupied)
-            .ok_or_else(|| unwritable(format!("node {i}: coordinates too large for a finite grid (near f32::MAX)")))?;
-        let mut node = GpuNode { quantized_min: [[0; 8]; 3], quantized_max: [[0; 8]; 3], ..quantized };
+        let mut node = GpuNode {
+            origin: [0.0; 3],
+            exponents: [1; 3],
+            inner_mask: 0,
+            child_base: 0,
+            triangle_base: 0,
+            meta: [0; 8],
+            quantized_min: [[0; 8]; 3],
+            quantized_max: [[0; 8]; 3],
+        };
+        let boxes = std::array::from_fn(|s| node_slots[s].as_ref().map(|_| (targets[s].min, targets[s].max)));
+        if !node.encode_slot_boxes(&boxes) {
+            return Err(unwritable(format!("node {i}: coordinates too large for a finite grid (near f32::MAX)")));
+        }
         let mut box_of_node = Aabb::EMPTY;
-        for (k, slot) in (0..GPU_WIDE).filter(|&s| node_slots[s].is_some()).enumerate() {
-            for a in 0..3 {
-                node.quantized_min[a][slot] = quantized.quantized_min[a][k];
-                node.quantized_max[a][slot] = quantized.quantized_max[a][k];
-            }
+        for slot in (0..GPU_WIDE).filter(|&s| node_slots[s].is_some()) {
             let slot_content = match &node_slots[slot] {
                 Some((_, Slot::Leaf(records))) if split_references => {
                     let (min, max) = node.slot_box(slot);

@@ -46,11 +46,7 @@ pub fn pack_wide(
     for (i, node) in tree.nodes.iter().enumerate() {
         let mut packed = WideNode8::EMPTY;
         for (slot, (aabb, child)) in node.children.iter().enumerate() {
-            for axis in 0..3 {
-                packed.min[axis][slot] = aabb.min[axis];
-                packed.max[axis][slot] = aabb.max[axis];
-            }
-            packed.child[slot] = match *child {
+            let child = match *child {
                 WideChild::Node(c) => c,
                 WideChild::Leaf { first, count } => {
                     let first_packet = packets.len() as u32;
@@ -77,6 +73,7 @@ pub fn pack_wide(
                     })?
                 }
             };
+            packed.set_slot(slot, (aabb.min, aabb.max), child);
         }
         nodes.push(packed);
     }

@@ -15,6 +15,7 @@ mod exact_reference;
 mod example_alpha;
 mod example_ao;
 mod fetch_scenes;
+mod reencode;
 mod filters;
 mod convert;
 mod convert_instances;

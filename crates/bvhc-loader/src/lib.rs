@@ -71,6 +71,7 @@ pub mod wide;
 pub mod write;
 
 pub use error::{Error, Rule, Violation};
+pub use open::edit::SectionsMut;
 pub use open::file::BvhFile;
 #[cfg(feature = "mmap")]
 pub use open::file::MappedBvh;

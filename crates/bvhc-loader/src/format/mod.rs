@@ -109,6 +109,9 @@ pub use crate::format::instances::{
 };
 pub use crate::format::sections::SectionKind;
 
+/// An axis-aligned box as the encoders take it: `(min, max)`.
+pub type Bounds = ([f32; 3], [f32; 3]);
+
 /// A node of the binary BVH: an axis-aligned box and one index and one count.
 ///
 /// * inner node: `count == 0`; its children are nodes `index` and `index + 1`, both after the node itself

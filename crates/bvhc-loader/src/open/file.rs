@@ -105,6 +105,11 @@ impl BvhFile {
         Ok(BvhFile { buffer })
     }
 
+    /// The file's bytes, for an edit in place ([`BvhFile::edit`], which keeps the section table as it is).
+    pub(crate) fn bytes_mut(&mut self) -> &mut [u8] {
+        self.buffer.as_bytes_mut()
+    }
+
     /// The file's bytes.
     pub fn as_bytes(&self) -> &[u8] {
         self.buffer.as_bytes()

@@ -1,6 +1,7 @@
 //! Opening a file: its bytes (owned, aligned, or mapped), the structural rules checked on opening (header,
-//! section table, section sizes), and the view that hands out typed sections.
+//! section table, section sizes), the view that hands out typed sections, and edits of an owned file in place.
 
+pub(crate) mod edit;
 pub(crate) mod file;
 pub(crate) mod sections;
 pub(crate) mod structure;

@@ -22,14 +22,14 @@
 //! candidate: the kernels find the closest accepted hit only if it does.
 //!
 //! ```
-//! use bvhc_loader::{BvhFile, FilterScope, Ray};
+//! use bvhc_loader::{BvhFile, filter::FilterScope, Ray};
 //!
 //! let file = BvhFile::from_bytes(include_bytes!("../../tests/data/quad-v1.1.bvh"))?;
 //! let tracer = file.view().tracer();
 //! let ray = Ray::new([0.25, 0.75, 1.0], [0.0, 0.0, -1.0]);
 //! let hit = tracer.closest_hit(&ray).expect("the quad is below");
 //! // A cut-out where v > u (a renderer samples its texture's alpha at the hit's texture coordinates instead).
-//! let cut_out = |candidate: &bvhc_loader::Candidate<'_>| candidate.v <= candidate.u;
+//! let cut_out = |candidate: &bvhc_loader::filter::Candidate<'_>| candidate.v <= candidate.u;
 //! let filtered = tracer.filtered(&cut_out, FilterScope::Every);
 //! assert_eq!(filtered.closest_hit(&ray).is_some(), hit.v <= hit.u);
 //! assert_eq!(filtered.any_hit(&ray), hit.v <= hit.u);

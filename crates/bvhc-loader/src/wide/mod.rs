@@ -8,6 +8,7 @@
 //! inlines into it, or on the portable path, which gives the same hits bit for bit.
 
 pub(crate) mod coherent;
+pub(crate) mod encode;
 pub(crate) mod packets;
 pub(crate) mod walk;
 

@@ -1,12 +1,12 @@
-//! Quantization of a GPU node's child boxes (format 1.4, `format-spec/bvh-1.md` 5.14): per axis an origin and a
-//! power-of-two step such that 255 steps reach the node's box, and per slot the bytes whose decoded values
-//! (`origin + q * step` in f32, as every reader decodes them) enclose the slot's box, rounding outward: the
-//! minimum down, the maximum up. Decoded values are kept zero or normal (a GPU may flush subnormals to zero,
-//! which would move a bound inward), and finite (rule V48).
+//! The GPU node's encoder, beside its decoder ([`GpuNode::decode`], [`GpuNode::slot_box`]): quantization of a
+//! node's child boxes (format 1.4, `format-spec/bvh-1.md` 5.14): per axis an origin and a power-of-two step such
+//! that 255 steps reach the node's box, and per slot the bytes whose decoded values (`origin + q * step` in
+//! f32, as every reader decodes them) enclose the slot's box, rounding outward: the minimum down, the maximum
+//! up. Decoded values are kept zero or normal (a GPU may flush subnormals to zero, which would move a bound
+//! inward), and finite (rule V48). The converter packs with it, and an edit of a file's GPU nodes
+//! ([`crate::BvhFile::edit`]) re-encodes them with it.
 
-use bvhc_loader::format::GpuNode;
-
-use crate::geometry::Aabb;
+use crate::format::{Bounds, GPU_WIDE, GpuNode};
 
 /// The step exponent's bias (that of f32): a biased exponent `e` stands for the step `2^(e - 127)`.
 const EXPONENT_BIAS: i32 = 127;
@@ -33,13 +33,13 @@ fn grid_origin(min: f32) -> f32 {
 
 /// The bytes of one axis for every box in `boxes` on the grid (`origin`, `exponent`), or `None` when some bound
 /// cannot be enclosed by a usable decoded value on this grid (a coarser one is then needed).
-fn quantize_axis(boxes: &[Aabb], axis: usize, origin: f32, exponent: u8) -> Option<Vec<(u8, u8)>> {
+fn quantize_axis(boxes: &[Bounds], axis: usize, origin: f32, exponent: u8) -> Option<Vec<(u8, u8)>> {
     let step = f64::from(f32::from_bits(u32::from(exponent) << 23));
     let value = |q: u8| decode(origin, exponent, q);
     boxes
         .iter()
         .map(|b| {
-            let (lo, hi) = (b.min[axis], b.max[axis]);
+            let (lo, hi) = (b.0[axis], b.1[axis]);
             // Estimates in f64, then corrected on the exact f32 decode.
             let guess = |v: f32| ((f64::from(v) - f64::from(origin)) / step).clamp(0.0, 255.0);
             let mut q_lo = guess(lo).floor() as u8;
@@ -56,10 +56,10 @@ fn quantize_axis(boxes: &[Aabb], axis: usize, origin: f32, exponent: u8) -> Opti
         .collect()
 }
 
-/// A node whose slots `0..boxes.len()` hold `boxes` (at most 8), quantized; the other fields are left for the
-/// caller. `None` when a coordinate is too large for any grid to enclose with finite values (magnitudes near
-/// `f32::MAX`).
-pub fn quantize_node(boxes: &[Aabb]) -> Option<GpuNode> {
+/// A node whose slots `0..boxes.len()` hold `boxes` (at most 8, each `(min, max)`), quantized; the other fields
+/// are left for the caller. `None` when a coordinate is too large for any grid to enclose with finite values
+/// (magnitudes near `f32::MAX`).
+pub fn quantize_node(boxes: &[Bounds]) -> Option<GpuNode> {
     let mut node = GpuNode {
         origin: [0.0; 3],
         exponents: [1; 3],
@@ -71,8 +71,8 @@ pub fn quantize_node(boxes: &[Aabb]) -> Option<GpuNode> {
         quantized_max: [[0; 8]; 3],
     };
     for axis in 0..3 {
-        let lo = boxes.iter().map(|b| b.min[axis]).fold(f32::INFINITY, f32::min);
-        let hi = boxes.iter().map(|b| b.max[axis]).fold(f32::NEG_INFINITY, f32::max);
+        let lo = boxes.iter().map(|b| b.0[axis]).fold(f32::INFINITY, f32::min);
+        let hi = boxes.iter().map(|b| b.1[axis]).fold(f32::NEG_INFINITY, f32::max);
         let origin = grid_origin(lo);
         // The smallest step with 255 steps reaching `hi`, then coarser while some bound does not fit.
         let extent = (f64::from(hi) - f64::from(origin)).max(0.0) / 255.0;
@@ -95,12 +95,33 @@ pub fn quantize_node(boxes: &[Aabb]) -> Option<GpuNode> {
     Some(node)
 }
 
+impl GpuNode {
+    /// Encodes `boxes` (one per slot: `Some` for an occupied slot) as this node's grid and quantized bytes, as
+    /// [`quantize_node`] over the occupied slots in slot order; the children, masks and bases stay. Empty slots
+    /// get zero bytes. `false`, with the node unchanged, when a coordinate is too large for a finite grid.
+    pub fn encode_slot_boxes(&mut self, boxes: &[Option<Bounds>; GPU_WIDE]) -> bool {
+        let occupied: Vec<Bounds> = boxes.iter().flatten().copied().collect();
+        let Some(quantized) = quantize_node(&occupied) else { return false };
+        self.origin = quantized.origin;
+        self.exponents = quantized.exponents;
+        self.quantized_min = [[0; GPU_WIDE]; 3];
+        self.quantized_max = [[0; GPU_WIDE]; 3];
+        for (k, slot) in (0..GPU_WIDE).filter(|&s| boxes[s].is_some()).enumerate() {
+            for a in 0..3 {
+                self.quantized_min[a][slot] = quantized.quantized_min[a][k];
+                self.quantized_max[a][slot] = quantized.quantized_max[a][k];
+            }
+        }
+        true
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn aabb(min: [f32; 3], max: [f32; 3]) -> Aabb {
-        Aabb { min, max }
+    fn aabb(min: [f32; 3], max: [f32; 3]) -> Bounds {
+        (min, max)
     }
 
     /// Every decoded box encloses its box, whatever the magnitudes and offsets.
@@ -120,7 +141,7 @@ mod tests {
             for (slot, b) in boxes.iter().enumerate() {
                 let (min, max) = node.slot_box(slot);
                 for a in 0..3 {
-                    assert!(min[a] <= b.min[a] && max[a] >= b.max[a], "{slot} axis {a}: {min:?}..{max:?} vs {b:?}");
+                    assert!(min[a] <= b.0[a] && max[a] >= b.1[a], "{slot} axis {a}: {min:?}..{max:?} vs {b:?}");
                     assert!(usable(min[a]) && usable(max[a]));
                 }
             }

@@ -1,0 +1,149 @@
+//! Editing a file in place (`BvhFile::edit`): every node of every layout re-encoded by the loader's encoders
+//! from the geometry beneath it, bottom up (the binary boxes as unions of their children's or triangles'
+//! bounds, each wide slot's box likewise, each GPU node's grid quantized again from its slots' exact boxes),
+//! gives the file's bytes back (but for the sign of zero bounds, and the checksums that follow them); and a changed box changes the section's checksum, which the
+//! edit recomputes, so the file still passes the checksum rules.
+
+use bvhc::loader::format::{GpuSlot, PackedTriangle, SectionKind, WIDE, WideNode8};
+use bvhc::loader::{BvhFile, Rule};
+use bvhc::options::{Overrides, Preset};
+
+type Bounds = ([f32; 3], [f32; 3]);
+
+const EMPTY: Bounds = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+
+fn union(a: Bounds, b: Bounds) -> Bounds {
+    (std::array::from_fn(|i| a.0[i].min(b.0[i])), std::array::from_fn(|i| a.1[i].max(b.1[i])))
+}
+
+fn triangle_box(t: &PackedTriangle) -> Bounds {
+    t.vertices.iter().fold(EMPTY, |b, v| union(b, (*v, *v)))
+}
+
+/// The teapot converted without split references (whose clipped boxes are not the triangles' bounds), with the
+/// wide and GPU layouts.
+fn converted(dir: &std::path::Path) -> BvhFile {
+    let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let output = dir.join("teapot.bvh");
+    let overrides = Overrides { splits: Some(false), gpu_layout: Some(true), ..Overrides::default() };
+    bvhc::Conversion::new(teapot, &output).preset(Preset::Balanced).overrides(overrides).run().unwrap();
+    BvhFile::read(&output).unwrap()
+}
+
+/// Every node of every layout re-encoded from the geometry beneath it, children before parents.
+fn reencode_everything(file: &mut BvhFile) {
+    let mut edit = file.edit().unwrap();
+    let triangles: Vec<PackedTriangle> = edit.triangles.to_vec();
+    // Binary: children follow their parent, so reverse order sees children first.
+    let nodes = &mut *edit.nodes;
+    for i in (0..nodes.len()).rev() {
+        let node = nodes[i];
+        let b = if node.is_leaf() {
+            let records = &triangles[node.index as usize..(node.index + node.count) as usize];
+            records.iter().fold(EMPTY, |b, t| union(b, triangle_box(t)))
+        } else {
+            let (l, r) = (nodes[node.index as usize], nodes[node.index as usize + 1]);
+            union((l.min, l.max), (r.min, r.max))
+        };
+        (nodes[i].min, nodes[i].max) = b;
+    }
+    // Wide: a slot's box is its child's slots' union, or its packets' lanes' triangles.
+    let packets = edit.triangle_packets.as_deref().expect("wide sections");
+    let wide = edit.wide_nodes.as_deref_mut().expect("wide sections");
+    let node_box = |n: &WideNode8| (0..WIDE).filter_map(|s| n.slot(s)).fold(EMPTY, |b, (sb, _)| union(b, sb));
+    for i in (0..wide.len()).rev() {
+        for slot in 0..WIDE {
+            let Some((_, child)) = wide[i].slot(slot) else { continue };
+            let b = if child & bvhc::loader::format::LEAF_BIT == 0 {
+                node_box(&wide[child as usize])
+            } else {
+                let (first, count) = WideNode8::leaf_packets(child);
+                let mut b = EMPTY;
+                for packet in &packets[first as usize..(first + count) as usize] {
+                    for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
+                        b = union(b, triangle_box(&triangles[packet.triangle_index[lane] as usize]));
+                    }
+                }
+                b
+            };
+            wide[i].set_slot_box(slot, b);
+        }
+    }
+    // GPU: breadth first, so reverse order sees children first; each node quantized from exact slot boxes.
+    let gpu_triangles = edit.gpu_triangles.as_deref().expect("GPU sections");
+    let gpu = edit.gpu_nodes.as_deref_mut().expect("GPU sections");
+    let mut content = vec![EMPTY; gpu.len()];
+    for i in (0..gpu.len()).rev() {
+        let boxes: [Option<Bounds>; 8] = std::array::from_fn(|slot| match gpu[i].slot(slot) {
+            GpuSlot::Inner(child) => Some(content[child as usize]),
+            GpuSlot::Leaf { first, count } => Some(
+                gpu_triangles[first as usize..(first + count) as usize]
+                    .iter()
+                    .fold(EMPTY, |b, t| union(b, t.vertices.iter().fold(EMPTY, |b, v| union(b, (*v, *v))))),
+            ),
+            _ => None,
+        });
+        content[i] = boxes.iter().flatten().fold(EMPTY, |b, s| union(b, *s));
+        assert!(gpu[i].encode_slot_boxes(&boxes), "node {i}");
+    }
+}
+
+#[test]
+fn every_node_re_encoded_in_place_gives_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut file = converted(dir.path());
+    let original = file.as_bytes().to_vec();
+    // Scramble every box and grid first, so that the re-encoding, not the old bytes, makes the result.
+    {
+        let mut edit = file.edit().unwrap();
+        edit.nodes.iter_mut().for_each(|n| (n.min, n.max) = ([0.0; 3], [0.0; 3]));
+        for node in edit.wide_nodes.as_deref_mut().unwrap() {
+            for slot in 0..WIDE {
+                if node.slot(slot).is_some() {
+                    node.set_slot_box(slot, ([0.0; 3], [1.0; 3]));
+                }
+            }
+        }
+        edit.gpu_nodes
+            .as_deref_mut()
+            .unwrap()
+            .iter_mut()
+            .for_each(|n| (n.origin, n.quantized_max) = ([0.0; 3], [[0; 8]; 3]));
+    }
+    assert_ne!(file.as_bytes(), &original[..]);
+    reencode_everything(&mut file);
+    // The same bytes, but for the sign of a zero bound: the converter's unions and these ones meet the vertex
+    // coordinates +0 and -0 in another order, and a box's bound is the same plane either way. The checksums
+    // (recomputed by the edit) then differ with them; the verifier checks them.
+    let same_but_zero_signs = |(a, b): (&[u8], &[u8])| {
+        a == b
+            || (a[..3] == b[..3]
+                && (a[3] | 0x80) == (b[3] | 0x80)
+                && u32::from_le_bytes(a.try_into().unwrap()) & 0x7FFF_FFFF == 0)
+    };
+    let sections = file.view().sections().collect::<Vec<_>>();
+    for section in sections.iter().filter(|s| s.kind.is_some_and(|k| !matches!(k, SectionKind::Metadata))) {
+        let range = section.entry.section_byte_offset as usize
+            ..(section.entry.section_byte_offset + section.entry.section_byte_len) as usize;
+        let (now, then) = (&file.as_bytes()[range.clone()], &original[range]);
+        let first = now.chunks(4).zip(then.chunks(4)).position(|words| !same_but_zero_signs(words));
+        assert_eq!(first, None, "{:?}: word {first:?} differs after re-encoding", section.kind);
+    }
+    assert_eq!(file.as_bytes().len(), original.len());
+    file.view().verify().unwrap();
+}
+
+#[test]
+fn an_edit_recomputes_the_checksums_of_what_it_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut file = converted(dir.path());
+    {
+        let edit = file.edit().unwrap();
+        // A leaf box grown: still enclosing, so the tree rules hold, but the bytes and the costs change.
+        let leaf = edit.nodes.iter_mut().rev().find(|n| n.is_leaf()).unwrap();
+        leaf.max[0] += 1.0;
+    }
+    // The checksums are right (V11, V12), so the first broken rule is the metadata's cost (V37) or a box rule.
+    let rule = file.view().verify().unwrap_err().rule;
+    assert!(!matches!(rule, Rule::HeaderChecksum | Rule::SectionChecksum), "the edit left a stale checksum: {rule:?}");
+}
