@@ -97,16 +97,7 @@ pub fn pack_gpu(
                 Some((_, Slot::Leaf(records))) => triangles_box(file_triangles, records),
             })
             .collect();
-        let mut node = GpuNode {
-            origin: [0.0; 3],
-            exponents: [1; 3],
-            inner_mask: 0,
-            child_base: 0,
-            triangle_base: 0,
-            meta: [0; 8],
-            quantized_min: [[0; 8]; 3],
-            quantized_max: [[0; 8]; 3],
-        };
+        let mut node = GpuNode::EMPTY;
         let boxes = std::array::from_fn(|s| node_slots[s].as_ref().map(|_| (targets[s].min, targets[s].max)));
         if !node.encode_slot_boxes(&boxes) {
             return Err(unwritable(format!("node {i}: coordinates too large for a finite grid (near f32::MAX)")));

@@ -14,7 +14,7 @@
 use std::cell::{Cell, RefCell};
 
 use bvhc::loader::format::SourceRange;
-use bvhc::loader::{BvhView, filter::Candidate, filter::FilterScope, HitFilter};
+use bvhc::loader::{BvhView, HitFilter, filter::Candidate, filter::FilterScope};
 use numpy::{PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 

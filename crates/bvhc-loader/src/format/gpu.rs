@@ -81,6 +81,18 @@ pub enum GpuSlot {
 }
 
 impl GpuNode {
+    /// A node with no children and a zero grid (origin 0, the smallest step): what an encoder starts from.
+    pub const EMPTY: GpuNode = GpuNode {
+        origin: [0.0; 3],
+        exponents: [1; 3],
+        inner_mask: 0,
+        child_base: 0,
+        triangle_base: 0,
+        meta: [0; 8],
+        quantized_min: [[0; 8]; 3],
+        quantized_max: [[0; 8]; 3],
+    };
+
     /// The grid step of `axis`: `2^(exponents[axis] - 127)`.
     pub fn scale(&self, axis: usize) -> f32 {
         f32::from_bits(u32::from(self.exponents[axis]) << 23)

@@ -60,16 +60,7 @@ fn quantize_axis(boxes: &[Bounds], axis: usize, origin: f32, exponent: u8) -> Op
 /// are left for the caller. `None` when a coordinate is too large for any grid to enclose with finite values
 /// (magnitudes near `f32::MAX`).
 pub fn quantize_node(boxes: &[Bounds]) -> Option<GpuNode> {
-    let mut node = GpuNode {
-        origin: [0.0; 3],
-        exponents: [1; 3],
-        inner_mask: 0,
-        child_base: 0,
-        triangle_base: 0,
-        meta: [0; 8],
-        quantized_min: [[0; 8]; 3],
-        quantized_max: [[0; 8]; 3],
-    };
+    let mut node = GpuNode::EMPTY;
     for axis in 0..3 {
         let lo = boxes.iter().map(|b| b.0[axis]).fold(f32::INFINITY, f32::min);
         let hi = boxes.iter().map(|b| b.1[axis]).fold(f32::NEG_INFINITY, f32::max);
