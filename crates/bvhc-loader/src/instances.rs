@@ -4,17 +4,18 @@
 //! closest hit so far as its `t_max`.
 //!
 //! The binary kernel walks the binary top tree with the walk it runs in a mesh ([`crate::binary::walk`], with
-//! instance leaves); the wide kernel walks the 8-wide top tree ([`WideInstanceWalk`]) as it walks a
-//! mesh's wide tree. Both are safe on any input, and give the same hits (the tests check it).
+//! instance leaves); the wide kernel walks the 8-wide top tree with the walk it runs in a mesh
+//! ([`crate::wide::walk`], with instance leaves: [`WideInstanceWalk`]). Both are safe on any input, and give
+//! the same hits (the tests check it).
 
 use crate::binary::walk::{Leaves, walk};
-use crate::format::{LEAF_BIT, MeshRecord, PackedNode, WIDE};
+use crate::format::{LEAF_BIT, MeshRecord, PackedNode};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::transform::{object_ray, world_normal};
 use crate::simd::{Isa, Kernel};
-use crate::wide::walk::new_stack;
+use crate::wide::walk::{Sections, Walk, WideLeaves, new_stack};
 
 /// The hit of `ray` (with `t_max`, the closest hit so far) in instance `index`'s mesh: the ray mapped into the
 /// mesh's object space and traced by `trace_mesh`, whose hit (record index relative to the mesh) comes back with
@@ -82,9 +83,10 @@ where
     }
 }
 
-/// The walk of [`walk_instances`] over the 8-wide top tree (`top_wide_nodes`), its slots tested in the
-/// instruction set's lanes as the meshes' wide nodes are (`Isa::box_test`: the same robust slab test per lane):
-/// hit slots nearest first for a closest hit, in slot order for any hit. The same hits as the binary walk.
+/// The walk of [`walk_instances`] over the 8-wide top tree (`top_wide_nodes`): the wide kernel's walk
+/// ([`crate::wide::walk`]) with instance leaves, its slots tested in the instruction set's lanes as the meshes'
+/// wide nodes are (`Isa::box_test`: the same robust slab test per lane), hit slots nearest first for a closest
+/// hit. The binary top root's box is tested first (a ray that misses it misses every instance).
 pub(crate) struct WideInstanceWalk<'a, 'r, C, F, const ANY_HIT: bool> {
     pub sections: &'a TwoLevelSections<'a>,
     pub ray: &'r Ray,
@@ -100,76 +102,50 @@ where
     type Output = Option<Hit>;
 
     #[inline(always)]
-    #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
-    fn run<I: Isa>(mut self, isa: I) -> Option<Hit> {
-        let (sections, ray) = (self.sections, self.ray);
-        let nodes = sections.top_wide_nodes;
-        let prepared = PreparedRay::new(ray);
-        prepared.enter_box(sections.top_nodes.first()?, ray.t_max * CULL_PADDING)?;
-        let mut t_max = ray.t_max;
-        let mut found: Option<Hit> = None;
+    fn run<I: Isa>(self, isa: I) -> Option<Hit> {
+        let WideInstanceWalk { sections, ray, counter, trace_mesh } = self;
+        let root = *sections.top_nodes.first()?;
+        PreparedRay::new(ray).enter_box(&root, ray.t_max * CULL_PADDING)?;
+        let top = Sections { nodes: sections.top_wide_nodes, packets: &[], root };
+        let mut walk = Walk::start(&top, ray)?;
         let mut stack = new_stack();
-        let mut stack_len = 0usize;
-        let mut current = 0u32;
-        let mut visits_left = nodes.len();
-        'walk: loop {
-            'visit: {
-                if current & LEAF_BIT != 0 {
-                    let index = current & !LEAF_BIT;
-                    if let Some(hit) = visit_instance(sections, index, ray, t_max, self.counter, &mut self.trace_mesh) {
-                        if ANY_HIT {
-                            return Some(hit);
-                        }
-                        t_max = hit.t;
-                        found = Some(hit);
-                    }
-                    break 'visit;
-                }
-                let Some(node) = nodes.get(current as usize).filter(|_| visits_left > 0) else { break 'visit };
-                visits_left -= 1;
-                self.counter.node_visited();
-                let (mask, t_near) = isa.box_test(node, &prepared.slab_ray(), t_max * CULL_PADDING);
-                // The hit slots sorted farthest first (for any hit: in reverse slot order); all but the nearest
-                // onto the stack (at most 7 a level, so `STACK_LEN` entries suffice), the walk going on with it.
-                let mut order = [(0u32, 0f32); WIDE];
-                let mut count = 0;
-                for (slot, (&t_slot, &child)) in t_near.iter().zip(&node.child).enumerate() {
-                    if mask & (1 << slot) != 0 {
-                        let t = if ANY_HIT { slot as f32 } else { t_slot };
-                        let mut k = count;
-                        while k > 0 && order[k - 1].1 < t {
-                            order[k] = order[k - 1];
-                            k -= 1;
-                        }
-                        order[k] = (child, t);
-                        count += 1;
-                    }
-                }
-                let Some(&(nearest, _)) = order[..count].last() else { break 'visit };
-                for &(child, t) in &order[..count - 1] {
-                    let t = if ANY_HIT { f32::NEG_INFINITY } else { t };
-                    if let Some(entry) = stack.get_mut(stack_len) {
-                        entry.write((child, t));
-                        stack_len += 1;
-                    }
-                }
-                current = nearest;
-                continue 'walk;
-            }
-            // Pop the nearest pending entry that may still hold a closer hit.
-            loop {
-                if stack_len == 0 {
-                    return found;
-                }
-                stack_len -= 1;
-                // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
-                // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
-                let (child, t_entry) = unsafe { stack[stack_len].assume_init() };
-                if t_entry <= t_max * CULL_PADDING {
-                    current = child;
-                    break;
-                }
-            }
-        }
+        let mut leaves = WideInstanceLeaves { sections, ray, trace_mesh };
+        while walk.step::<ANY_HIT, I, C, _>(isa, &top, &mut stack, counter, &mut leaves) {}
+        walk.found()
+    }
+}
+
+/// The leaf references of a two-level file's wide top tree: `LEAF_BIT | instance`.
+struct WideInstanceLeaves<'s, 'a, 'r, F> {
+    sections: &'s TwoLevelSections<'a>,
+    /// The world-space ray.
+    ray: &'r Ray,
+    trace_mesh: F,
+}
+
+impl<C, F> WideLeaves<C> for WideInstanceLeaves<'_, '_, '_, F>
+where
+    C: TraversalCounter,
+    F: FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
+{
+    type Found = Hit;
+    const PREFETCH_LEAVES: bool = false;
+
+    #[inline(always)]
+    fn test_leaf<const ANY_HIT: bool, I: Isa>(
+        &mut self,
+        _: I,
+        _: &Sections<'_>,
+        reference: u32,
+        _: &PreparedRay,
+        t_max: f32,
+        counter: &mut C,
+    ) -> Option<Hit> {
+        visit_instance(self.sections, reference & !LEAF_BIT, self.ray, t_max, counter, &mut self.trace_mesh)
+    }
+
+    #[inline(always)]
+    fn t(found: &Hit) -> f32 {
+        found.t
     }
 }

@@ -20,7 +20,7 @@ use crate::ray::intersect::Ray;
 use crate::simd::{Avx2, Isa, Kernel, KernelPath};
 use crate::verify::wide::{WideContext, verify_wide};
 use crate::wide::coherent::{PACKET_RAYS, trace_packet};
-use crate::wide::walk::{Sections, Walk, new_stack};
+use crate::wide::walk::{PacketHit, PacketLeaves, Sections, Walk, new_stack};
 
 /// The wide sections in memory (owned), checked at construction against the triangles they index.
 #[derive(Clone, Debug)]
@@ -311,7 +311,8 @@ impl<C: TraversalCounter, A: Candidates, const ANY_HIT: bool> Kernel for SingleR
     fn run<I: Isa>(self, isa: I) -> Self::Output {
         let mut walk = Walk::start(self.sections, self.ray)?;
         let mut stack = new_stack();
-        while walk.step::<ANY_HIT, I, A>(isa, self.sections, &mut stack, self.counter, self.candidates) {}
+        let mut leaves = PacketLeaves(self.candidates);
+        while walk.step::<ANY_HIT, I, C, _>(isa, self.sections, &mut stack, self.counter, &mut leaves) {}
         walk.found()
     }
 }
@@ -331,7 +332,7 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
     fn run<I: Isa>(self, isa: I) {
         let Stream { sections, rays, done } = self;
         let mut stacks = [const { new_stack() }; STREAM_WIDTH];
-        let mut walks: [Option<(usize, Walk)>; STREAM_WIDTH] = [const { None }; STREAM_WIDTH];
+        let mut walks: [Option<(usize, Walk<PacketHit>)>; STREAM_WIDTH] = [const { None }; STREAM_WIDTH];
         let mut next = 0;
         let mut in_flight = 0;
         loop {
@@ -350,7 +351,7 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
                     }
                 }
                 if let Some((i, walk)) = slot
-                    && !walk.step::<ANY_HIT, I, _>(isa, sections, stack, &mut (), &Unfiltered)
+                    && !walk.step::<ANY_HIT, I, (), _>(isa, sections, stack, &mut (), &mut PacketLeaves(&Unfiltered))
                 {
                     done(*i, walk.found());
                     *slot = None;

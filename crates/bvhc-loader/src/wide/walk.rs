@@ -48,23 +48,78 @@ pub(crate) struct Sections<'a> {
     pub root: PackedNode,
 }
 
+/// What a wide walk does at a leaf reference (a slot's child with [`LEAF_BIT`] set): test a mesh's triangle
+/// packets ([`PacketLeaves`]) or trace one instance's mesh (`crate::instances`). Each combination is
+/// monomorphized; nothing on the walk goes through `dyn`.
+pub(crate) trait WideLeaves<C: TraversalCounter> {
+    /// What a hit in a leaf is.
+    type Found: Copy;
+    /// Whether the AVX2 path prefetches what a leaf reference points at (packets do; an instance does not).
+    const PREFETCH_LEAVES: bool;
+
+    /// The nearest hit with `t <= t_max` in the leaf `reference` of `sections` (with `ANY_HIT`, the first
+    /// found), of the ray prepared as `ray`.
+    fn test_leaf<const ANY_HIT: bool, I: Isa>(
+        &mut self,
+        isa: I,
+        sections: &Sections<'_>,
+        reference: u32,
+        ray: &PreparedRay,
+        t_max: f32,
+        counter: &mut C,
+    ) -> Option<Self::Found>;
+
+    /// The distance of a hit.
+    fn t(found: &Self::Found) -> f32;
+}
+
+/// A hit in a mesh's packets: the lane address ([`lane_address`]) and the hit.
+pub(crate) type PacketHit = (u32, TriangleHit);
+
+/// The leaves of a mesh's wide tree: triangle packets, whose lanes `candidates` accepts or not.
+pub(crate) struct PacketLeaves<'c, A>(pub &'c A);
+
+impl<C: TraversalCounter, A: Candidates> WideLeaves<C> for PacketLeaves<'_, A> {
+    type Found = PacketHit;
+    const PREFETCH_LEAVES: bool = true;
+
+    #[inline(always)]
+    fn test_leaf<const ANY_HIT: bool, I: Isa>(
+        &mut self,
+        isa: I,
+        sections: &Sections<'_>,
+        reference: u32,
+        ray: &PreparedRay,
+        t_max: f32,
+        counter: &mut C,
+    ) -> Option<Self::Found> {
+        let (first, count) = WideNode8::leaf_packets(reference);
+        leaf_hit::<ANY_HIT, I, A>(isa, sections, ray, (first as usize, count as usize), t_max, counter, self.0)
+    }
+
+    #[inline(always)]
+    fn t(found: &Self::Found) -> f32 {
+        found.1.t
+    }
+}
+
 /// One ray's traversal state; its stack is kept by the caller (one per walk in flight).
-pub(crate) struct Walk {
+pub(crate) struct Walk<F> {
     ray: PreparedRay,
     t_max: f32,
-    found: Option<(u32, TriangleHit)>,
+    found: Option<F>,
     visits_left: usize,
     current: u32,
     /// Entries below this index of the walk's stack are written.
     stack_len: usize,
 }
 
-impl Walk {
+impl<F: Copy> Walk<F> {
     /// The walk of `ray` from the wide root, or `None` when there is no tree. The binary root's box is not
     /// tested first: the root's slot boxes lie inside it (V32), so a ray that misses it misses them all in the
     /// first step, and one that enters it saves a scalar box test.
     #[inline(always)]
-    pub(crate) fn start(sections: &Sections<'_>, ray: &Ray) -> Option<Walk> {
+    pub(crate) fn start(sections: &Sections<'_>, ray: &Ray) -> Option<Walk<F>> {
         if sections.nodes.is_empty() {
             return None;
         }
@@ -79,34 +134,30 @@ impl Walk {
         })
     }
 
-    /// The closest hit so far (any hit, for `ANY_HIT` walks), as (triangle index, hit).
-    pub(crate) fn found(&self) -> Option<(u32, TriangleHit)> {
+    /// The closest hit so far (any hit, for `ANY_HIT` walks).
+    pub(crate) fn found(&self) -> Option<F> {
         self.found
     }
 
     /// Processes the current wide node or leaf and moves to the next; `false` when the walk has ended.
     /// `stack` must be the one this walk has used since it started.
     #[inline(always)]
-    pub(crate) fn step<const ANY_HIT: bool, I: Isa, C: Candidates>(
+    pub(crate) fn step<const ANY_HIT: bool, I: Isa, C: TraversalCounter, L: WideLeaves<C, Found = F>>(
         &mut self,
         isa: I,
         sections: &Sections<'_>,
         stack: &mut Stack,
-        counter: &mut impl TraversalCounter,
-        candidates: &C,
+        counter: &mut C,
+        leaves: &mut L,
     ) -> bool {
         let current = self.current;
         if current & LEAF_BIT != 0 {
-            let (first, count) = WideNode8::leaf_packets(current);
-            let leaf = (first as usize, count as usize);
-            if let Some(hit) =
-                leaf_hit::<ANY_HIT, I, C>(isa, sections, &self.ray, leaf, self.t_max, counter, candidates)
-            {
+            if let Some(hit) = leaves.test_leaf::<ANY_HIT, I>(isa, sections, current, &self.ray, self.t_max, counter) {
                 self.found = Some(hit);
                 if ANY_HIT {
                     return false;
                 }
-                self.t_max = hit.1.t;
+                self.t_max = L::t(&hit);
             }
         } else if let Some(node) = sections.nodes.get(current as usize).filter(|_| self.visits_left > 0) {
             self.visits_left -= 1;
@@ -127,16 +178,16 @@ impl Walk {
                     let lane = lanes.trailing_zeros() as usize & (WIDE - 1);
                     lanes &= lanes - 1;
                     if lanes == 0 {
-                        self.descend::<I>(sections, node.child[lane]);
+                        self.descend::<I>(sections, node.child[lane], L::PREFETCH_LEAVES);
                         return true;
                     }
-                    self.push::<I>(sections, stack, (node.child[lane], t_near[lane]));
+                    self.push::<I>(sections, stack, (node.child[lane], t_near[lane]), L::PREFETCH_LEAVES);
                 }
             } else if rest & (rest - 1) == 0 {
                 let second = rest.trailing_zeros() as usize & (WIDE - 1);
                 let (near, far) = if t_near[second] < t_near[first] { (second, first) } else { (first, second) };
-                self.push::<I>(sections, stack, (node.child[far], t_near[far]));
-                self.descend::<I>(sections, node.child[near]);
+                self.push::<I>(sections, stack, (node.child[far], t_near[far]), L::PREFETCH_LEAVES);
+                self.descend::<I>(sections, node.child[near], L::PREFETCH_LEAVES);
                 return true;
             } else {
                 let mut order = [(0u32, 0f32); WIDE];
@@ -155,29 +206,30 @@ impl Walk {
                     n += 1;
                 }
                 for &entry in order[1..n].iter().rev() {
-                    self.push::<I>(sections, stack, entry);
+                    self.push::<I>(sections, stack, entry, L::PREFETCH_LEAVES);
                 }
-                self.descend::<I>(sections, order[0].0);
+                self.descend::<I>(sections, order[0].0, L::PREFETCH_LEAVES);
                 return true;
             }
         }
         self.pop(stack)
     }
 
-    /// Continues with `child`, prefetched on the AVX2 path (its loads then start together).
+    /// Continues with `child`, prefetched on the AVX2 path (its loads then start together; a leaf only when
+    /// `prefetch_leaves`, a constant of the leaf type).
     #[inline(always)]
-    fn descend<I: Isa>(&mut self, sections: &Sections<'_>, child: u32) {
-        if I::PREFETCH {
+    fn descend<I: Isa>(&mut self, sections: &Sections<'_>, child: u32, prefetch_leaves: bool) {
+        if I::PREFETCH && (prefetch_leaves || child & LEAF_BIT == 0) {
             prefetch(sections, child);
         }
         self.current = child;
     }
 
     /// Pushes `entry` (dropped when the stack is full, which only a file that breaks V30 can cause) and, on
-    /// the AVX2 path, prefetches what it references.
+    /// the AVX2 path, prefetches what it references (a leaf only when `prefetch_leaves`).
     #[inline(always)]
-    fn push<I: Isa>(&mut self, sections: &Sections<'_>, stack: &mut Stack, entry: (u32, f32)) {
-        if I::PREFETCH {
+    fn push<I: Isa>(&mut self, sections: &Sections<'_>, stack: &mut Stack, entry: (u32, f32), prefetch_leaves: bool) {
+        if I::PREFETCH && (prefetch_leaves || entry.0 & LEAF_BIT == 0) {
             prefetch(sections, entry.0);
         }
         if let Some(slot) = stack.get_mut(self.stack_len) {
