@@ -14,23 +14,14 @@ use crate::format::{
     SourceRange, SourceVertexIndices, TrianglePacket4, VERSION_MAJOR, WideNode8, align_up, written_minor,
 };
 use crate::open::file::{AlignedBuffer, BvhFile};
-use crate::open::sections::TwoLevelSections;
+use crate::open::sections::{GpuSections, SectionSet, TwoLevelSections, WideSections};
 use crate::write::atomic::write_atomic;
 
 /// Collects the parts of a `.bvh` file; [`BvhWriter::build`] lays them out.
 #[derive(Clone, Debug)]
 pub struct BvhWriter<'a> {
-    nodes: &'a [PackedNode],
-    triangles: &'a [PackedTriangle],
-    triangle_ids: Option<&'a [u32]>,
-    source_table: Option<&'a [SourceRange]>,
-    source_vertices: Option<&'a [SourceVertexIndices]>,
-    triangle_flags: Option<&'a [u8]>,
-    metadata: Option<&'a str>,
-    split_references: bool,
-    wide: Option<(&'a [WideNode8], &'a [TrianglePacket4])>,
-    gpu: Option<(&'a [GpuNode], &'a [GpuTriangle])>,
-    two_level: Option<TwoLevelSections<'a>>,
+    /// The sections of known kinds, laid out in [`SectionKind::ALL`]'s order.
+    sections: SectionSet<'a>,
     extra_sections: Vec<ExtraSection<'a>>,
 }
 
@@ -52,31 +43,18 @@ struct Planned<'a> {
 impl<'a> BvhWriter<'a> {
     /// A file holding `nodes` (node 0 the root, in the nodes section's layout) and `triangles` in leaf order.
     pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle]) -> Self {
-        BvhWriter {
-            nodes,
-            triangles,
-            triangle_ids: None,
-            source_table: None,
-            source_vertices: None,
-            triangle_flags: None,
-            metadata: None,
-            split_references: false,
-            wide: None,
-            gpu: None,
-            two_level: None,
-            extra_sections: Vec::new(),
-        }
+        BvhWriter { sections: SectionSet { nodes, triangles, ..SectionSet::EMPTY }, extra_sections: Vec::new() }
     }
 
     /// Adds the triangle_ids section: one source id per triangle.
     pub fn triangle_ids(mut self, ids: &'a [u32]) -> Self {
-        self.triangle_ids = Some(ids);
+        self.sections.triangle_ids = Some(ids);
         self
     }
 
     /// Adds the source_table section (needs triangle ids).
     pub fn source_table(mut self, ranges: &'a [SourceRange]) -> Self {
-        self.source_table = Some(ranges);
+        self.sections.source_table = Some(ranges);
         self
     }
 
@@ -84,40 +62,40 @@ impl<'a> BvhWriter<'a> {
     /// [`BvhWriter::new`]'s triangles, the source vertex indices of its `v0`, `v1`, `v2`. The file is then
     /// written as version 1.2.
     pub fn source_vertices(mut self, indices: &'a [SourceVertexIndices]) -> Self {
-        self.source_vertices = Some(indices);
+        self.sections.source_vertices = Some(indices);
         self
     }
 
     /// Adds the triangle_flags section (format 1.5): per triangle, in the order of [`BvhWriter::new`]'s
     /// triangles, its flags ([`crate::format::TRIANGLE_NOT_OPAQUE`]). The file is then written as version 1.5.
     pub fn triangle_flags(mut self, flags: &'a [u8]) -> Self {
-        self.triangle_flags = Some(flags);
+        self.sections.triangle_flags = Some(flags);
         self
     }
 
     /// Adds the metadata section: a JSON object as text.
     pub fn metadata(mut self, json: &'a str) -> Self {
-        self.metadata = Some(json);
+        self.sections.metadata = Some(json.as_bytes());
         self
     }
 
     /// Marks the triangles section as holding split references (a triangle may appear in several leaves).
     pub fn split_references(mut self, split: bool) -> Self {
-        self.split_references = split;
+        self.sections.split_references = split;
         self
     }
 
     /// Adds the wide BVH (format 1.1): the `wide_nodes` and `triangle_packets` sections, whose lanes index the
     /// triangles given to [`BvhWriter::new`]. The file is then written as version 1.1.
     pub fn wide(mut self, nodes: &'a [WideNode8], packets: &'a [TrianglePacket4]) -> Self {
-        self.wide = Some((nodes, packets));
+        self.sections.wide = Some(WideSections { nodes, packets });
         self
     }
 
     /// Adds the GPU sections (format 1.4): compressed 8-wide nodes and their leaf triangles over the same
     /// triangles section (`format-spec/bvh-1.md` 5.14-5.15). The file is then written as version 1.4.
     pub fn gpu(mut self, nodes: &'a [GpuNode], triangles: &'a [GpuTriangle]) -> Self {
-        self.gpu = Some((nodes, triangles));
+        self.sections.gpu = Some(GpuSections { nodes, triangles });
         self
     }
 
@@ -127,18 +105,18 @@ impl<'a> BvhWriter<'a> {
     /// tree `sections.top_nodes` (and its 8-wide form `sections.top_wide_nodes`, which a file with wide sections
     /// needs; `format-spec/bvh-1.md` 5.10-5.13). The file is then written as version 1.3.
     pub fn two_level(mut self, sections: TwoLevelSections<'a>) -> Self {
-        self.two_level = Some(sections);
+        self.sections.two_level = Some(sections);
         self
     }
 
     /// The minor version the file will have: the lowest its sections need ([`written_minor`]).
     pub fn version_minor(&self) -> u16 {
         written_minor(MinorFeatures {
-            wide: self.wide.is_some(),
-            source_vertices: self.source_vertices.is_some(),
-            instances: self.two_level.is_some(),
-            gpu: self.gpu.is_some(),
-            triangle_flags: self.triangle_flags.is_some(),
+            wide: self.sections.wide.is_some(),
+            source_vertices: self.sections.source_vertices.is_some(),
+            instances: self.sections.two_level.is_some(),
+            gpu: self.sections.gpu.is_some(),
+            triangle_flags: self.sections.triangle_flags.is_some(),
         })
     }
 
@@ -171,40 +149,9 @@ impl<'a> BvhWriter<'a> {
             let flags = flags | if kind.is_required() { SECTION_FLAG_REQUIRED } else { 0 };
             planned.push(plan(kind.code(), flags, kind.element_byte_len(), count, bytes));
         };
-        let split = if self.split_references { SECTION_FLAG_SPLIT_REFERENCES } else { 0 };
-        known(SectionKind::Nodes, bytemuck::cast_slice(self.nodes), self.nodes.len(), 0);
-        known(SectionKind::Triangles, bytemuck::cast_slice(self.triangles), self.triangles.len(), split);
-        if let Some(ids) = self.triangle_ids {
-            known(SectionKind::TriangleIds, bytemuck::cast_slice(ids), ids.len(), 0);
-        }
-        if let Some(ranges) = self.source_table {
-            known(SectionKind::SourceTable, bytemuck::cast_slice(ranges), ranges.len(), 0);
-        }
-        if let Some(json) = self.metadata {
-            known(SectionKind::Metadata, json.as_bytes(), json.len(), 0);
-        }
-        if let Some((nodes, packets)) = self.wide {
-            known(SectionKind::WideNodes, bytemuck::cast_slice(nodes), nodes.len(), 0);
-            known(SectionKind::TrianglePackets, bytemuck::cast_slice(packets), packets.len(), 0);
-        }
-        if let Some(indices) = self.source_vertices {
-            known(SectionKind::SourceVertices, bytemuck::cast_slice(indices), indices.len(), 0);
-        }
-        if let Some(two_level) = &self.two_level {
-            known(SectionKind::Meshes, bytemuck::cast_slice(two_level.meshes), two_level.meshes.len(), 0);
-            known(SectionKind::Instances, bytemuck::cast_slice(two_level.instances), two_level.instances.len(), 0);
-            known(SectionKind::TopNodes, bytemuck::cast_slice(two_level.top_nodes), two_level.top_nodes.len(), 0);
-            if !two_level.top_wide_nodes.is_empty() {
-                let wide = two_level.top_wide_nodes;
-                known(SectionKind::TopWideNodes, bytemuck::cast_slice(wide), wide.len(), 0);
-            }
-        }
-        if let Some((nodes, triangles)) = self.gpu {
-            known(SectionKind::GpuNodes, bytemuck::cast_slice(nodes), nodes.len(), 0);
-            known(SectionKind::GpuTriangles, bytemuck::cast_slice(triangles), triangles.len(), 0);
-        }
-        if let Some(flags) = self.triangle_flags {
-            known(SectionKind::TriangleFlags, flags, flags.len(), 0);
+        for (kind, bytes, count) in self.sections.present() {
+            let split = kind == SectionKind::Triangles && self.sections.split_references;
+            known(kind, bytes, count, if split { SECTION_FLAG_SPLIT_REFERENCES } else { 0 });
         }
         for extra in &self.extra_sections {
             if extra.element_byte_len == 0 || extra.bytes.len() % extra.element_byte_len as usize != 0 {
