@@ -13,6 +13,7 @@ mod harness;
 #[path = "common/rays.rs"]
 mod rays;
 
+use bvhc_loader::Trace;
 use std::ops::ControlFlow;
 
 use bvhc::builders::Builder;

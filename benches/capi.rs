@@ -20,6 +20,7 @@ mod harness;
 #[path = "common/rays.rs"]
 mod rays;
 
+use bvhc_loader::Trace;
 use std::time::Instant;
 
 use bvhc::loader::BvhFile;

@@ -11,6 +11,7 @@
 #[path = "common/harness.rs"]
 mod harness;
 
+use bvhc_loader::Trace;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};

@@ -23,6 +23,7 @@ mod rays;
 #[allow(dead_code)]
 mod cutouts;
 
+use bvhc_loader::Trace;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use bvhc::convert::Conversion;

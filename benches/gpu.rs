@@ -24,6 +24,7 @@ mod harness;
 #[allow(dead_code)]
 mod ray_set;
 
+use bvhc_loader::Trace;
 use std::ops::ControlFlow;
 use std::time::Duration;
 

@@ -27,6 +27,7 @@ mod grid_scene;
 #[path = "common/embree.rs"]
 mod embree;
 
+use bvhc_loader::Trace;
 use std::path::Path;
 use std::time::Instant;
 

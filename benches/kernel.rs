@@ -22,6 +22,7 @@ mod harness;
 mod rays;
 
 use bvhc::loader::{BvhFile, KernelPath, Ray, Tracer, TraversalStats};
+use bvhc_loader::Trace;
 
 fn env_usize(name: &str, default: usize) -> usize {
     std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)

@@ -4,6 +4,7 @@
 //! `cargo bench --bench loader` prints a Markdown table. Every figure is the median of several repetitions in
 //! this one run. Environment: `BVHC_SCENES` (scenes folder), `BVHC_BENCH_RAYS` (default 1,000,000).
 
+use bvhc_loader::Trace;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -48,7 +48,7 @@ fn main() {
 mod peer {
     use std::time::Instant;
 
-    use bvhc::loader::{BvhFile, Ray, Tracer};
+    use bvhc::loader::{BvhFile, Ray, Trace, Tracer};
 
     use crate::embree::{self, Embree, FlushToZero};
     use crate::{harness, rays};

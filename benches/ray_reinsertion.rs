@@ -25,6 +25,7 @@ mod harness;
 #[allow(dead_code)]
 mod ray_set;
 
+use bvhc::loader::Trace;
 use std::time::Instant;
 
 use bvhc::builders::Builder;

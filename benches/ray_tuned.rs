@@ -18,6 +18,7 @@ mod harness;
 #[allow(dead_code)]
 mod ray_set;
 
+use bvhc_loader::Trace;
 use std::ops::ControlFlow;
 use std::time::Instant;
 

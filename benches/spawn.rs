@@ -10,6 +10,7 @@
 #[path = "common/harness.rs"]
 mod harness;
 
+use bvhc_loader::Trace;
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;

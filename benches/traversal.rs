@@ -29,6 +29,7 @@ mod rays;
 #[path = "common/embree.rs"]
 mod embree;
 
+use bvhc_loader::Trace;
 use std::time::Duration;
 
 use bvhc::convert::convert_with;

@@ -2,6 +2,7 @@
 
 #![allow(dead_code)] // each benchmark uses the part it needs
 
+use bvhc_loader::Trace;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 

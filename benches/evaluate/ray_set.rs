@@ -1,6 +1,7 @@
 //! The fixed ray set every tree is traced with, and the render timings and traversal counts over it.
 
 use bvhc::loader::{Ray, Tracer, TraversalStats};
+use bvhc_loader::Trace;
 use rayon::prelude::*;
 
 /// The fixed ray set of every method: primary rays (a 512 x 384 camera), 4 ambient occlusion rays per primary

@@ -20,6 +20,7 @@
 
 mod cutouts;
 
+use bvhc_loader::Trace;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -122,7 +123,7 @@ impl Scene for Tracer<'_> {
         self.closest_hits_coherent(rays, hits);
     }
     fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
-        Tracer::any_hits(self, rays, occluded);
+        Trace::any_hits(self, rays, occluded);
     }
 }
 

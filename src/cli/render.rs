@@ -3,6 +3,7 @@
 //! heat map of traversal steps per pixel.
 
 use bvhc::loader::{TraversalStats, format::PackedTriangle};
+use bvhc_loader::Trace;
 use glam::Vec3;
 use rayon::prelude::*;
 

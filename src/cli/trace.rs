@@ -6,6 +6,8 @@
 //! (reading, verifying, tracing, writing) is reported beside them. Record layouts:
 //! `format-spec/rays-and-hits.md`.
 
+use bvhc_loader::Order;
+use bvhc_loader::Trace;
 use std::time::Instant;
 
 use bvhc::loader::{BatchRayError, Hit, Ray};
@@ -143,16 +145,16 @@ fn trace_on_cpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], args: &TraceArgs
     let start = Instant::now();
     let traced = if args.any_hit {
         traced_in_place(rays, &mut records, 1, |chunk, each| match coherent {
-            true => tracer.any_hits_coherent_with(chunk, |i, occluded| each(i, occluded.then_some(&[1][..]))),
-            false => tracer.any_hits_with(chunk, |i, occluded| each(i, occluded.then_some(&[1][..]))),
+            true => tracer.any_hits_with(chunk, Order::Coherent, |i, occluded| each(i, occluded.then_some(&[1][..]))),
+            false => tracer.any_hits_with(chunk, Order::Stream, |i, occluded| each(i, occluded.then_some(&[1][..]))),
         })
     } else {
         traced_in_place(rays, &mut records, HIT_RECORD_BYTE_LEN, |chunk, each| {
             let mut write =
                 |i: usize, hit: Option<Hit>| each(i, hit.map(|h| hit_record(Some(&h))).as_ref().map(|r| &r[..]));
             match coherent {
-                true => tracer.closest_hits_coherent_with(chunk, &mut write),
-                false => tracer.closest_hits_with(chunk, &mut write),
+                true => tracer.closest_hits_with(chunk, Order::Coherent, &mut write),
+                false => tracer.closest_hits_with(chunk, Order::Stream, &mut write),
             }
         })
     };

@@ -8,6 +8,7 @@
 //! triangles as the outside view; among those, the one seeing the most. So a building or a closed room is shown
 //! from inside, and objects, and rooms open to the outside, from outside.
 
+use bvhc_loader::Trace;
 use std::collections::HashSet;
 
 use bvhc::loader::{Tracer, format::PackedTriangle};

@@ -7,6 +7,7 @@ use bvhc::loader::{
     Ray, TraversalStats, WideTracer, format::PackedNode, format::PackedTriangle, format::TrianglePacket4,
     format::WideNode8, ray::PreparedRay, wide::WideBvh,
 };
+use bvhc_loader::Trace;
 use rand::RngExt;
 
 use crate::common::{kernel_paths, rng};

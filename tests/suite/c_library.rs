@@ -3,6 +3,7 @@
 //! a user builds it, through pkg-config (shared and static) and through CMake's `find_package(bvhc)`, tracing
 //! what the Rust API traces. SKIPPED without the installed prefix, a C compiler, pkg-config or CMake.
 
+use bvhc_loader::Trace;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -4,6 +4,7 @@
 //! declares exactly the library's exported functions. SKIPPED without a C compiler or without the library
 //! (`.ci/run` builds it with `cargo build --release -p bvhc-capi`).
 
+use bvhc_loader::Trace;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

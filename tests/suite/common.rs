@@ -1,6 +1,7 @@
 //! Shared helpers: deterministic random scenes and rays, the build -> pack -> write path, and the brute-force
 //! oracle every traversal test compares against.
 
+use bvhc_loader::Trace;
 use std::path::PathBuf;
 
 use bvhc::builders::build_binned_sah;

@@ -3,6 +3,7 @@
 //! (same placement and source triangle, `t` within the documented tolerance), its bytes do not depend on the
 //! thread count, `auto` flattens what saves little, and the options refuse what would do nothing.
 
+use bvhc_loader::Trace;
 use std::path::{Path, PathBuf};
 
 use bvhc::import::Instancing;

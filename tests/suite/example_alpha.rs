@@ -4,6 +4,7 @@
 //! renders the scenes with their cut-outs, alike from one- and two-level files (the vase places its flowers
 //! twice).
 
+use bvhc_loader::Trace;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -3,6 +3,7 @@
 //! two-level files, single and batch calls; with the file's flags the filter is asked about not-opaque triangles
 //! only, with `FilterScope::Every` about every candidate; a filter that accepts everything traces as no filter.
 
+use bvhc_loader::Trace;
 use std::cell::Cell;
 
 use bvhc::loader::format::TRIANGLE_NOT_OPAQUE;

@@ -4,6 +4,7 @@
 //! `quad-v1.2.bvh` (and with the source vertices of 1.2) were written by this writer from the scene below. Regenerate them only for a deliberate format change that keeps
 //! major version 1 (`BVHC_BLESS=1 cargo test golden`), and never change what the assertions below expect.
 
+use bvhc_loader::Trace;
 use std::path::PathBuf;
 
 use bvhc::loader::{BvhFile, Ray, format::SectionKind, format::SourceVertexIndices, write::BvhWriter};

@@ -3,6 +3,7 @@
 //! it only for a deliberate format change that keeps major version 1 (`BVHC_BLESS=1 cargo test golden`), and
 //! never change what the assertions expect.
 
+use bvhc_loader::Trace;
 use std::path::PathBuf;
 
 use bvhc::cost::SahConstants;

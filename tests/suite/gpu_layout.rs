@@ -6,6 +6,7 @@
 //!
 //! `cargo test --release gpu_layout -- --nocapture` prints the tables kept in `docs/gpu.md`.
 
+use bvhc_loader::Trace;
 use std::ops::ControlFlow;
 use std::path::Path;
 

@@ -6,6 +6,7 @@
 //! `cargo test --release gpu_shader -- --nocapture` prints the tables kept in `docs/gpu.md`.
 
 use bvhc::loader::{BvhView, Hit, Ray, gpu::GpuError, gpu::GpuLayoutTracer, gpu::GpuTracer};
+use bvhc_loader::Trace;
 
 use crate::common::{Triangle, random_rays, random_triangles, scene};
 use crate::gpu_compare::{Tally, compare, gpu_file, table_header};

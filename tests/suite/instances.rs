@@ -8,6 +8,7 @@ use bvhc::loader::format::NO_INDEX;
 use bvhc::loader::{
     BvhFile, Hit, Ray, Tracer, format::Affine3x4, format::SourceRange, format::SourceVertexIndices, write::BvhWriter,
 };
+use bvhc_loader::Trace;
 
 use crate::common::*;
 

@@ -8,6 +8,7 @@
 
 use bvhc::instancing::{Placement, TwoLevelScene};
 use bvhc::loader::{BvhFile, Hit, Ray, format::InstanceRecord, ray::PreparedRay};
+use bvhc_loader::Trace;
 use rand::RngExt;
 
 use crate::common::*;

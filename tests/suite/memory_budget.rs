@@ -2,6 +2,7 @@
 //! its triangles are held, quickly, with an error naming the file, the estimate and `--max-memory`; instanced
 //! (the default for it), or within the budget, it converts.
 
+use bvhc_loader::Trace;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -4,6 +4,7 @@
 //! corners looked up.
 
 use bvhc::loader::{BvhFile, Ray};
+use bvhc_loader::Trace;
 use proptest::prelude::*;
 
 use crate::corrupt::{good_bytes, try_refresh_checksums};

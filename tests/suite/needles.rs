@@ -15,6 +15,7 @@
 //! The table (`cargo test --release --test suite needles -- --nocapture`) is kept in `docs/stability.md`.
 
 use bvhc::loader::{Hit, Ray};
+use bvhc_loader::Trace;
 use rand::RngExt;
 use rand_pcg::Pcg64Mcg;
 

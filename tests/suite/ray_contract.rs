@@ -3,6 +3,8 @@
 //! files, before tracing the ray's chunk of a batch (the `_with` calls return it as an error); a trusting tracer answers the same rays without a panic, and
 //! answers valid rays exactly as the checking one. `Tracer::surface` refuses hits that are not the file's.
 
+use bvhc_loader::Order;
+use bvhc_loader::Trace;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use bvhc::loader::{BvhFile, ForeignHit, Hit, Ray, Tracer, tracer::CHECKED_CHUNK};
@@ -84,16 +86,16 @@ fn refuses_broken_rays(tracer: &Tracer<'_>) {
         assert!(hits.iter().all(|h| *h == sentinel) && occluded.iter().all(|&o| o), "a refused batch wrote results");
         // The `_with` calls return the ray as an error; `each` is called for no ray of its chunk.
         let mut calls = 0;
-        let refused = tracer.closest_hits_with(&rays, |_, _| calls += 1).unwrap_err();
+        let refused = tracer.closest_hits_with(&rays, Order::Stream, |_, _| calls += 1).unwrap_err();
         assert_eq!((refused.index, refused.to_string().contains(rule)), (17, true), "{refused}");
-        let refused = tracer.any_hits_coherent_with(&rays, |_, _| calls += 1).unwrap_err();
+        let refused = tracer.any_hits_with(&rays, Order::Coherent, |_, _| calls += 1).unwrap_err();
         assert_eq!((refused.index, refused.to_string().contains(rule)), (17, true), "{refused}");
         assert_eq!(calls, 0);
         // In a later chunk: the chunks before it are traced, and the error names the ray by its batch index.
         let mut long = random_rays(6, 2 * CHECKED_CHUNK + 5, 3.0);
         long[CHECKED_CHUNK + 3] = broken;
         let mut seen = vec![false; long.len()];
-        let refused = tracer.closest_hits_with(&long, |i, _| seen[i] = true).unwrap_err();
+        let refused = tracer.closest_hits_with(&long, Order::Stream, |i, _| seen[i] = true).unwrap_err();
         assert_eq!(refused.index, CHECKED_CHUNK + 3);
         assert!(seen[..CHECKED_CHUNK].iter().all(|&s| s) && !seen[CHECKED_CHUNK..].iter().any(|&s| s));
         let message = panic_of(|| tracer.any_hits(&long, &mut vec![false; long.len()])).unwrap();
@@ -113,7 +115,7 @@ fn refuses_broken_rays(tracer: &Tracer<'_>) {
     trusting.closest_hits(&good, &mut trusted);
     assert_eq!(checked, trusted);
     let mut each = vec![None; good.len()];
-    tracer.closest_hits_with(&good, |i, hit| each[i] = hit).unwrap();
+    tracer.closest_hits_with(&good, Order::Stream, |i, hit| each[i] = hit).unwrap();
     assert_eq!(each, checked);
     for (ray, hit) in good.iter().zip(&checked) {
         assert_eq!(trusting.closest_hit(ray), *hit);

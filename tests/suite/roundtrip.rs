@@ -1,6 +1,7 @@
 //! write -> open -> traverse equals the in-memory tree; files on disk through every way in.
 
 use bvhc::loader::{BvhFile, BvhView, Error, Rule, Tracer, format::PackedNode, write::BvhWriter};
+use bvhc_loader::Trace;
 
 use crate::common::*;
 

@@ -2,6 +2,7 @@
 //! one that breaks the rule, and expect exactly that rule.
 
 use bvhc::loader::{BvhFile, Rule, format::PackedNode, format::PackedTriangle, write::BvhWriter};
+use bvhc_loader::Trace;
 
 use crate::common::*;
 use crate::corrupt::*;

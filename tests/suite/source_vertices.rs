@@ -3,6 +3,7 @@
 //! by the gltf crate and placed by their nodes, mirrored placements included); hits on converted files
 //! interpolate the source's own positions to the hit point; and the options that leave the section out.
 
+use bvhc_loader::Trace;
 use std::path::Path;
 
 use bvhc::import::{ImportOptions, import};

@@ -6,6 +6,7 @@
 
 use bvhc::import::{ImportOptions, import};
 use bvhc::loader::{Hit, Ray, Tracer, ray::geometric_normal};
+use bvhc_loader::Trace;
 use rand::RngExt;
 
 use crate::common::*;

@@ -16,6 +16,7 @@
 //! The table of counts is printed (`cargo test --release stress -- --nocapture`) and kept in
 //! `docs/stability.md`.
 
+use bvhc_loader::Trace;
 use std::ops::ControlFlow;
 
 use bvhc::builders::Builder;

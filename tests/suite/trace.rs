@@ -1,6 +1,7 @@
 //! `bvhc trace`: the hit file equals `Tracer` on the same file and rays (closest and any hit), is the same for
 //! any thread count, the JSON report has its keys, and bad ray files are refused naming the ray.
 
+use bvhc_loader::Trace;
 use std::path::Path;
 
 use bvhc::loader::{BvhFile, Ray};

@@ -1,6 +1,7 @@
 //! Traversal equals brute force over all triangles, on random scenes with every leaf size and ray kind.
 
 use bvhc::loader::{Ray, TraversalStats, ray::PreparedRay};
+use bvhc_loader::Trace;
 
 use crate::common::*;
 

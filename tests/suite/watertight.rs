@@ -2,6 +2,7 @@
 //! slip through.
 
 use bvhc::loader::Ray;
+use bvhc_loader::Trace;
 use rand::RngExt;
 
 use crate::common::*;

@@ -6,6 +6,7 @@ use bvhc::builders::Builder;
 use bvhc::geometry::Aabb;
 use bvhc::layout::{WideChild, WideCosts, WideTree, collapse};
 use bvhc::optimize::{NONE, OptTree};
+use bvhc_loader::Trace;
 
 use crate::common::{Triangle, random_triangles};
 

@@ -5,6 +5,8 @@
 //! by chunk (`bvhc_loader::tracer::CHECKED_CHUNK`), each just before tracing it, so the rays come from the caches the
 //! second time; on `BVHC_ERROR_RAY` the results of the chunks before the named ray have been written.
 
+use bvhc_loader::Order;
+use bvhc_loader::Trace;
 use std::ffi::c_int;
 
 use bvhc_loader::{BatchRayError, Tracer, tracer::CHECKED_CHUNK};
@@ -181,8 +183,8 @@ unsafe fn closest_hits(
             };
             // The file's tracer trusts its rays (they were checked above): these calls cannot fail.
             match mode.coherent {
-                true => tracer.closest_hits_coherent_with(chunk, each),
-                false => tracer.closest_hits_with(chunk, each),
+                true => tracer.closest_hits_with(chunk, Order::Coherent, each),
+                false => tracer.closest_hits_with(chunk, Order::Stream, each),
             }
         })
     })
@@ -210,8 +212,8 @@ unsafe fn any_hits(mode: Mode, file: *const BvhcFile, rays: *const BvhcRay, coun
                 }
             };
             match mode.coherent {
-                true => tracer.any_hits_coherent_with(chunk, each),
-                false => tracer.any_hits_with(chunk, each),
+                true => tracer.any_hits_with(chunk, Order::Coherent, each),
+                false => tracer.any_hits_with(chunk, Order::Stream, each),
             }
         })
     })

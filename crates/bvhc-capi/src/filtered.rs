@@ -5,6 +5,7 @@
 //! record's source vertices. Closest and any hit of one ray here, one- and two-level files; rays checked as the
 //! other calls check them. Batches: `filtered_batch.rs`.
 
+use bvhc_loader::Trace;
 use std::ffi::{c_int, c_void};
 
 use bvhc_loader::format::NO_INDEX;

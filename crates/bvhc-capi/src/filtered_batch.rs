@@ -4,6 +4,7 @@
 //! the caller allows (the filter is then called from all of them at once). Results are each ray's own, whatever
 //! the thread count.
 
+use bvhc_loader::Trace;
 use std::ffi::{c_int, c_void};
 
 use bvhc_loader::{Ray, filter::FilterScope};

@@ -1,6 +1,7 @@
 //! One ray at a time: `bvhc_closest_hit`, `bvhc_any_hit` (checked against the ray contract) and their
 //! `_unchecked` forms, `bvhc_check_rays`, and `bvhc_spawn_ray` for secondary rays.
 
+use bvhc_loader::Trace;
 use std::ffi::c_int;
 
 use bvhc_loader::Ray;

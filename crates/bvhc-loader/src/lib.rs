@@ -5,7 +5,7 @@
 //! single source of truth in Rust, used by the writer and the reader alike.
 //!
 //! ```
-//! use bvhc_loader::{BvhFile, Ray};
+//! use bvhc_loader::{BvhFile, Ray, Trace};
 //!
 //! // A file `bvhc` converted: here the golden quad of the format spec, embedded; `BvhFile::read("scene.bvh")`
 //! // reads one from disk, `MappedBvh::open` maps it.
@@ -43,6 +43,10 @@
 //! tracing takes `&self`, allocates nothing and never blocks, so one tracer is shared by every thread (for
 //! example inside a rayon loop). The batch calls (`closest_hits`, `any_hits` and their coherent forms) panic
 //! when the result slice is not as long as the ray slice, naming the call.
+//!
+//! Every CPU tracer ([`Tracer`], [`WideTracer`], [`FilteredTracer`], `gpu::GpuLayoutTracer`) answers the
+//! queries of one trait, [`Trace`] (bring it into scope): closest hit and any hit of one ray, and the batch
+//! calls (slices, or a callback per ray with `_with`; a stream or coherent packets, [`Order`]).
 //!
 //! The crate root holds what a renderer uses; the rest is in modules, one a role: [`mod@format`] (the on-disk
 //! types, checksums and costs), [`ray`] (the ray, the box and triangle tests, hits, spawning, instance boxes),
@@ -87,7 +91,7 @@ pub use source::corners::SourceCorners;
 pub use source::identity::TriangleIdentities;
 pub use tracer::filter;
 pub use tracer::filter::{FilteredTracer, HitFilter};
-pub use tracer::{Crossings, Kernel, TracedFile, Tracer};
+pub use tracer::{Crossings, Kernel, Order, Trace, TracedFile, Tracer};
 pub use wide::WideTracer;
 
 /// The README's example, compiled by `cargo test` (a doctest) so that a wrong example fails the tests.

@@ -1,5 +1,6 @@
 //! The memory-mapped way in: the same bytes and view as reading the file.
 
+use bvhc_loader::Trace;
 use bvhc_loader::{BvhFile, MappedBvh, Ray, format::PackedNode, format::PackedTriangle, write::BvhWriter};
 
 #[test]

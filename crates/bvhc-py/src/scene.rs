@@ -3,6 +3,7 @@
 //! structural checks, O(sections)) and traces on all cores with the GIL released; the array is borrowed
 //! read-only meanwhile.
 
+use bvhc::loader::Trace;
 use bvhc::loader::{BvhView, Hit, Ray};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1};

@@ -2,6 +2,7 @@
 //! without a filter, `filters.rs`), and inside tests of points. Without a Python callback they run on the pool
 //! with the GIL released; with one, in order on the calling thread (the callback needs the GIL).
 
+use bvhc::loader::Trace;
 use std::cell::{Cell, RefCell};
 
 use bvhc::loader::{BatchRayError, BvhView, Crossings, Hit, Ray, Tracer};

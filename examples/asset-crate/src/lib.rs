@@ -12,7 +12,7 @@ pub fn teapot() -> Result<BvhFile, bvhc_loader::Error> {
 
 #[cfg(test)]
 mod tests {
-    use bvhc_loader::Ray;
+    use bvhc_loader::{Ray, Trace};
 
     use super::*;
 

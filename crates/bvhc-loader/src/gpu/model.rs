@@ -29,6 +29,7 @@ use crate::gpu::shader::GpuHitRecord;
 use crate::open::sections::GpuSections;
 use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
+use crate::tracer::trace::Trace;
 
 /// Traces rays through a file's GPU sections on the CPU, exactly as the WGSL kernel does (see the module
 /// documentation); hits name the record of the `triangles` section and its source id, as every kernel's do.
@@ -59,19 +60,6 @@ impl<'a> GpuLayoutTracer<'a> {
         GpuLayoutTracer { nodes: gpu.nodes, gpu_triangles: gpu.triangles, triangles, triangle_ids }
     }
 
-    /// The closest hit within `[t_min, t_max]`.
-    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_hit_counted(ray, &mut ())
-    }
-
-    /// [`GpuLayoutTracer::closest_hit`], counting node visits and triangle tests into `counter` (bytes read:
-    /// [`GPU_NODE_BYTES`] and [`GPU_TRIANGLE_BYTES`] each).
-    pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        let (g, hit) = self.walk::<false>(ray, counter)?;
-        let index = self.gpu_triangles.get(g as usize)?.triangle_index;
-        Some(Hit::new(index, hit, self.triangles, self.triangle_ids, &ray.direction))
-    }
-
     /// The record the WGSL kernel writes for `ray` (the closest hit, or for `any_hit` the first hit found), with
     /// ill-conditioned hits given their exact values: what `GpuTracer` (feature `wgpu`) puts in place of a record the
     /// kernel left to the CPU ([`crate::gpu::shader::GpuHitRecord::needs_cpu`]).
@@ -83,16 +71,6 @@ impl<'a> GpuLayoutTracer<'a> {
                 Some(GpuHitRecord { t: hit.t, u: hit.u, v: hit.v, triangle })
             })
             .unwrap_or(GpuHitRecord::MISS)
-    }
-
-    /// Whether anything is hit within `[t_min, t_max]`.
-    pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.any_hit_counted(ray, &mut ())
-    }
-
-    /// [`GpuLayoutTracer::any_hit`], counting node visits and triangle tests into `counter`.
-    pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
-        self.walk::<true>(ray, counter).is_some()
     }
 
     /// The walk; returns the GPU triangle hit and the hit. Safe on any bytes: indices are checked, at most
@@ -157,6 +135,22 @@ impl<'a> GpuLayoutTracer<'a> {
                 node_group = stack[stack_len];
             }
         }
+    }
+}
+
+/// The CPU model's walk, a step-for-step mirror of the WGSL kernel's.
+impl Trace for GpuLayoutTracer<'_> {
+    /// [`Trace::closest_hit`], counting node visits and triangle tests into `counter` (bytes read:
+    /// [`GPU_NODE_BYTES`] and [`GPU_TRIANGLE_BYTES`] each).
+    fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        let (g, hit) = self.walk::<false>(ray, counter)?;
+        let index = self.gpu_triangles.get(g as usize)?.triangle_index;
+        Some(Hit::new(index, hit, self.triangles, self.triangle_ids, &ray.direction))
+    }
+
+    /// [`Trace::any_hit`], counting node visits and triangle tests into `counter`.
+    fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.walk::<true>(ray, counter).is_some()
     }
 }
 

@@ -5,7 +5,7 @@
 //! colours) with them, as Embree's `rtcInterpolate` does for its geometries.
 //!
 //! ```
-//! use bvhc_loader::{BvhFile, Ray};
+//! use bvhc_loader::{BvhFile, Ray, Trace};
 //!
 //! // The golden quad of the format spec, written with its source vertices (a glTF primitive of 4 vertices).
 //! let file = BvhFile::from_bytes(include_bytes!("../../tests/data/quad-v1.2.bvh"))?;

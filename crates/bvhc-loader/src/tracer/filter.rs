@@ -22,7 +22,7 @@
 //! candidate: the kernels find the closest accepted hit only if it does.
 //!
 //! ```
-//! use bvhc_loader::{BvhFile, filter::FilterScope, Ray};
+//! use bvhc_loader::{BvhFile, Ray, Trace, filter::FilterScope};
 //!
 //! let file = BvhFile::from_bytes(include_bytes!("../../tests/data/quad-v1.1.bvh"))?;
 //! let tracer = file.view().tracer();
@@ -41,9 +41,10 @@
 pub use crate::ray::candidates::{Candidate, FilterScope, HitFilter};
 
 use crate::ray::candidates::Filtering;
-use crate::ray::hit::Hit;
+use crate::ray::hit::{Hit, TraversalCounter};
 use crate::ray::intersect::Ray;
 use crate::tracer::Tracer;
+use crate::tracer::trace::{BatchResult, Order, Trace};
 
 /// A tracer that runs a [`HitFilter`] on candidate hits ([`Tracer::filtered`]): the same calls as [`Tracer`],
 /// checking rays as it does. Batch calls trace one ray after the other with the single-ray kernel (no stream
@@ -80,67 +81,60 @@ impl<F: HitFilter + ?Sized> FilteredTracer<'_, '_, F> {
             instance: None,
         }
     }
+}
 
-    /// The closest accepted hit with `t_min <= t <= t_max`.
+/// The filtered calls: a tracer with every triangle opaque (or no filter to ask) runs the plain ones.
+impl<F: HitFilter + ?Sized> Trace for FilteredTracer<'_, '_, F> {
+    /// The closest accepted hit with `t_min <= t <= t_max`, counting into `counter`.
     ///
     /// # Panics
     ///
-    /// As [`Tracer::closest_hit`].
+    /// As [`Trace::closest_hit`] for the tracer filtered.
     #[track_caller]
-    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+    fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
         if self.all_opaque() {
-            return self.tracer.closest_hit(ray);
+            return self.tracer.closest_hit_counted(ray, counter);
         }
         self.tracer.check("closest_hit", ray);
-        self.tracer.closest_hit_inner(ray, &mut (), &self.filtering(ray))
+        self.tracer.closest_hit_inner(ray, counter, &self.filtering(ray))
     }
 
     /// Whether an accepted hit lies within `[t_min, t_max]`; stops at the first.
     ///
     /// # Panics
     ///
-    /// As [`Tracer::closest_hit`].
+    /// As [`Trace::closest_hit`] for the tracer filtered.
     #[track_caller]
-    pub fn any_hit(&self, ray: &Ray) -> bool {
+    fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
         if self.all_opaque() {
-            return self.tracer.any_hit(ray);
+            return self.tracer.any_hit_counted(ray, counter);
         }
         self.tracer.check("any_hit", ray);
-        self.tracer.any_hit_inner(ray, &mut (), &self.filtering(ray))
+        self.tracer.any_hit_inner(ray, counter, &self.filtering(ray))
     }
 
-    /// [`FilteredTracer::closest_hit`] of each ray into the `hits` slot of the same index.
-    ///
-    /// # Panics
-    ///
-    /// When `hits` is not as long as `rays`, or (for a tracer that checks rays) a ray breaks the contract, before
-    /// any ray is traced.
-    #[track_caller]
-    pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+    /// Each ray's closest accepted hit to `each`; the rays (for a tracer that checks them) all checked before
+    /// any is traced.
+    fn closest_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, Option<Hit>)) -> BatchResult {
         if self.all_opaque() {
-            return self.tracer.closest_hits(rays, hits);
+            return self.tracer.closest_hits_with(rays, order, each);
         }
-        crate::ray::hit::same_length("closest_hits", rays.len(), hits.len());
-        self.tracer.check_batch("closest_hits", rays);
-        for (ray, hit) in rays.iter().zip(hits) {
-            *hit = self.tracer.closest_hit_inner(ray, &mut (), &self.filtering(ray));
-        }
+        self.tracer.check_all(rays)?;
+        rays.iter()
+            .enumerate()
+            .for_each(|(i, ray)| each(i, self.tracer.closest_hit_inner(ray, &mut (), &self.filtering(ray))));
+        Ok(())
     }
 
-    /// [`FilteredTracer::any_hit`] of each ray into the `occluded` slot of the same index.
-    ///
-    /// # Panics
-    ///
-    /// As [`FilteredTracer::closest_hits`].
-    #[track_caller]
-    pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
+    /// Whether each ray has an accepted hit, to `each`, as [`Trace::closest_hits_with`] for this tracer.
+    fn any_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, bool)) -> BatchResult {
         if self.all_opaque() {
-            return self.tracer.any_hits(rays, occluded);
+            return self.tracer.any_hits_with(rays, order, each);
         }
-        crate::ray::hit::same_length("any_hits", rays.len(), occluded.len());
-        self.tracer.check_batch("any_hits", rays);
-        for (ray, hit) in rays.iter().zip(occluded) {
-            *hit = self.tracer.any_hit_inner(ray, &mut (), &self.filtering(ray));
-        }
+        self.tracer.check_all(rays)?;
+        rays.iter()
+            .enumerate()
+            .for_each(|(i, ray)| each(i, self.tracer.any_hit_inner(ray, &mut (), &self.filtering(ray))));
+        Ok(())
     }
 }

@@ -6,10 +6,12 @@ pub(crate) mod batch;
 pub(crate) mod crossings;
 pub mod filter;
 mod of_view;
+pub(crate) mod trace;
 pub(crate) mod traced;
 
 pub use batch::CHECKED_CHUNK;
 pub use crossings::Crossings;
+pub use trace::{BatchResult, Order, Trace};
 pub use traced::TracedFile;
 
 use crate::binary::walk::{TriangleLeaves, walk};
@@ -17,6 +19,7 @@ use crate::format::{MeshRecord, PackedNode, PackedTriangle};
 use crate::instances::{WideInstanceWalk, walk_instances};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::candidates::{Candidates, Unfiltered};
+use crate::ray::check::BatchRayError;
 use crate::ray::hit::{ForeignHit, Hit, TraversalCounter};
 use crate::ray::intersect::Ray;
 use crate::ray::spawn::SurfacePoint;
@@ -118,15 +121,12 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// Panics with `call`'s name when a ray of `rays` breaks the contract and this tracer checks rays (the whole
-    /// batch first).
-    #[inline(always)]
-    #[track_caller]
-    pub(crate) fn check_batch(&self, call: &str, rays: &[Ray]) {
-        if !self.trusts_rays
-            && let Err(error) = crate::ray::check::check_rays(rays)
-        {
-            refused(call, &error);
+    /// The first ray of `rays` that breaks the contract, as an error, when this tracer checks rays (the whole
+    /// batch checked before any ray is traced).
+    pub(crate) fn check_all(&self, rays: &[Ray]) -> Result<(), BatchRayError> {
+        match self.trusts_rays {
+            true => Ok(()),
+            false => crate::ray::check::check_rays(rays),
         }
     }
 
@@ -204,29 +204,6 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// The closest hit with `t_min <= t <= t_max`.
-    ///
-    /// # Panics
-    ///
-    /// When the ray breaks the contract and the tracer checks rays (see [`Tracer`]).
-    #[track_caller]
-    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.check("closest_hit", ray);
-        self.closest_hit_trusted(ray, &mut ())
-    }
-
-    /// [`Tracer::closest_hit`], counting node visits and triangle tests into `counter` (with the wide kernel:
-    /// wide node visits and packet tests).
-    ///
-    /// # Panics
-    ///
-    /// As [`Tracer::closest_hit`].
-    #[track_caller]
-    pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        self.check("closest_hit_counted", ray);
-        self.closest_hit_trusted(ray, counter)
-    }
-
     /// The closest hit of a ray taken as valid.
     #[inline(always)]
     pub(crate) fn closest_hit_trusted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
@@ -249,28 +226,6 @@ impl<'a> Tracer<'a> {
             Some(wide) => return wide.closest_hit_filtered(ray, counter, candidates),
         };
         Some(Hit::new(triangle_index, hit, self.triangles, self.triangle_ids, &ray.direction))
-    }
-
-    /// Whether anything is hit with `t_min <= t <= t_max` (occlusion); stops at the first hit found.
-    ///
-    /// # Panics
-    ///
-    /// As [`Tracer::closest_hit`].
-    #[track_caller]
-    pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.check("any_hit", ray);
-        self.any_hit_trusted(ray, &mut ())
-    }
-
-    /// [`Tracer::any_hit`], counting as [`Tracer::closest_hit_counted`] does.
-    ///
-    /// # Panics
-    ///
-    /// As [`Tracer::closest_hit`].
-    #[track_caller]
-    pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
-        self.check("any_hit_counted", ray);
-        self.any_hit_trusted(ray, counter)
     }
 
     /// Whether a ray taken as valid hits anything.
@@ -350,6 +305,67 @@ impl<'a> Tracer<'a> {
         candidates: &C,
     ) -> Found {
         walk::<ANY_HIT, _, _>(self.nodes, ray, counter, TriangleLeaves { triangles: self.triangles, candidates })
+    }
+}
+
+/// The checked single-ray calls (the ray contract checked, the call named in a panic) and the batch calls of
+/// `tracer/batch.rs`.
+impl Trace for Tracer<'_> {
+    /// The closest hit with `t_min <= t <= t_max`.
+    ///
+    /// # Panics
+    ///
+    /// When the ray breaks the contract and the tracer checks rays (see [`Tracer`]).
+    #[track_caller]
+    fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
+        self.check("closest_hit", ray);
+        self.closest_hit_trusted(ray, &mut ())
+    }
+
+    /// [`Trace::closest_hit`], counting node visits and triangle tests into `counter` (with the wide kernel:
+    /// wide node visits and packet tests).
+    ///
+    /// # Panics
+    ///
+    /// As [`Trace::closest_hit`].
+    #[track_caller]
+    fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        self.check("closest_hit_counted", ray);
+        self.closest_hit_trusted(ray, counter)
+    }
+
+    /// Whether anything is hit with `t_min <= t <= t_max` (occlusion); stops at the first hit found.
+    ///
+    /// # Panics
+    ///
+    /// As [`Trace::closest_hit`].
+    #[track_caller]
+    fn any_hit(&self, ray: &Ray) -> bool {
+        self.check("any_hit", ray);
+        self.any_hit_trusted(ray, &mut ())
+    }
+
+    /// [`Trace::any_hit`], counting as [`Trace::closest_hit_counted`] does.
+    ///
+    /// # Panics
+    ///
+    /// As [`Trace::closest_hit`].
+    #[track_caller]
+    fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.check("any_hit_counted", ray);
+        self.any_hit_trusted(ray, counter)
+    }
+
+    /// Each ray's closest hit to `each`, with the wide kernel's stream (rays interleaved over large files,
+    /// [`crate::WideTracer`]) or coherent packets in a one-level file, ray after ray otherwise; the rays checked
+    /// chunk by chunk ([`CHECKED_CHUNK`]), each chunk just before it is traced.
+    fn closest_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, Option<Hit>)) -> BatchResult {
+        self.closest_hits_each(rays, order, &mut each)
+    }
+
+    /// Each ray's any-hit answer to `each`, as [`Trace::closest_hits_with`] for this tracer.
+    fn any_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, bool)) -> BatchResult {
+        self.any_hits_each(rays, order, &mut each)
     }
 }
 

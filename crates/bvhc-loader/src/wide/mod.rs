@@ -15,9 +15,10 @@ pub(crate) mod walk;
 use crate::error::Violation;
 use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
 use crate::ray::candidates::{Candidates, Unfiltered};
-use crate::ray::hit::{Hit, TraversalCounter, TriangleHit, slot_writer};
+use crate::ray::hit::{Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::Ray;
 use crate::simd::{Avx2, Isa, Kernel, KernelPath};
+use crate::tracer::trace::{BatchResult, Order, Trace};
 use crate::verify::wide::{WideContext, verify_wide};
 use crate::wide::coherent::{PACKET_RAYS, trace_packet};
 use crate::wide::walk::{PacketHit, PacketLeaves, Sections, Walk, new_stack};
@@ -154,17 +155,6 @@ impl<'a> WideTracer<'a> {
         if self.avx2.is_some() { KernelPath::Avx2 } else { KernelPath::Portable }
     }
 
-    /// The closest hit.
-    pub fn closest_hit(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_hit_counted(ray, &mut ())
-    }
-
-    /// [`WideTracer::closest_hit`], counting wide node visits and triangle tests (packets of
-    /// four count as one test each) into `counter`.
-    pub fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        self.closest_hit_filtered(ray, counter, &Unfiltered)
-    }
-
     /// [`WideTracer::closest_hit_counted`] among the candidates `candidates` accepts.
     #[inline(always)]
     pub(crate) fn closest_hit_filtered<C: Candidates>(
@@ -175,16 +165,6 @@ impl<'a> WideTracer<'a> {
     ) -> Option<Hit> {
         let (address, hit) = self.dispatch::<false, C>(ray, counter, candidates)?;
         Some(Hit::in_lane(address, hit, self.sections.packets, self.triangle_ids, &ray.direction))
-    }
-
-    /// Whether any triangle is hit.
-    pub fn any_hit(&self, ray: &Ray) -> bool {
-        self.any_hit_counted(ray, &mut ())
-    }
-
-    /// [`WideTracer::any_hit`], counting as [`WideTracer::closest_hit_counted`] does.
-    pub fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
-        self.any_hit_filtered(ray, counter, &Unfiltered)
     }
 
     /// [`WideTracer::any_hit_counted`] among the candidates `candidates` accepts.
@@ -198,59 +178,25 @@ impl<'a> WideTracer<'a> {
         self.dispatch::<true, C>(ray, counter, candidates).is_some()
     }
 
-    /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call).
-    /// Over large sections several rays are in flight at once, their steps interleaved, so one ray's cache
-    /// misses overlap with the others' work ([`WideTracer::interleaves_streams`]); each ray's hit is the one
-    /// [`WideTracer::closest_hit`] returns, whichever way.
-    pub fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        crate::ray::hit::same_length("closest_hits", rays.len(), hits.len());
-        self.closest_hits_with(rays, false, &mut slot_writer(hits));
-    }
-
-    /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
-    /// panic naming the call), with rays interleaved as in [`WideTracer::closest_hits`].
-    pub fn any_hits(&self, rays: &[Ray], occluded: &mut [bool]) {
-        crate::ray::hit::same_length("any_hits", rays.len(), occluded.len());
-        self.any_hits_with(rays, false, &mut slot_writer(occluded));
-    }
-
-    /// The closest hit of each ray into the `hits` slot of the same index (as many slots as rays, or a panic naming the call),
-    /// for coherent rays such as camera rays of neighbouring pixels: each 8 consecutive rays share one
-    /// traversal. Each ray's `t` is the one [`WideTracer::closest_hit`] returns; on a tie at that `t` the
-    /// triangle may be another one hit at the same `t`. Slower than [`WideTracer::closest_hits`] for rays that
-    /// go different ways.
-    pub fn closest_hits_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        crate::ray::hit::same_length("closest_hits_coherent", rays.len(), hits.len());
-        self.closest_hits_with(rays, true, &mut slot_writer(hits));
-    }
-
-    /// Whether each ray hits anything, into the `occluded` slot of the same index (as many slots as rays, or a
-    /// panic naming the call), 8 consecutive rays a traversal as in [`WideTracer::closest_hits_coherent`]; the same answers
-    /// as [`WideTracer::any_hit`].
-    pub fn any_hits_coherent(&self, rays: &[Ray], occluded: &mut [bool]) {
-        crate::ray::hit::same_length("any_hits_coherent", rays.len(), occluded.len());
-        self.any_hits_with(rays, true, &mut slot_writer(occluded));
-    }
-
     /// Each ray's closest hit to `each(i, hit)`, once per ray: as a stream ([`WideTracer::closest_hits`]) or, when
     /// `coherent`, in packets of 8 ([`WideTracer::closest_hits_coherent`]).
-    pub(crate) fn closest_hits_with(&self, rays: &[Ray], coherent: bool, each: &mut impl FnMut(usize, Option<Hit>)) {
+    pub(crate) fn closest_hits_each(&self, rays: &[Ray], order: Order, each: &mut impl FnMut(usize, Option<Hit>)) {
         let (packets, ids) = (self.sections.packets, self.triangle_ids);
         let mut done = |i: usize, found: Option<(u32, TriangleHit)>| {
             if let Some(ray) = rays.get(i) {
                 each(i, found.map(|(address, hit)| Hit::in_lane(address, hit, packets, ids, &ray.direction)));
             }
         };
-        match coherent {
+        match order == Order::Coherent {
             true => self.packets::<false>(rays, &mut done),
             false => self.stream::<false>(rays, &mut done),
         }
     }
 
     /// Whether each ray hits anything to `each(i, occluded)`, once per ray, as [`WideTracer::closest_hits_with`].
-    pub(crate) fn any_hits_with(&self, rays: &[Ray], coherent: bool, each: &mut impl FnMut(usize, bool)) {
+    pub(crate) fn any_hits_each(&self, rays: &[Ray], order: Order, each: &mut impl FnMut(usize, bool)) {
         let mut done = |i: usize, found: Option<(u32, TriangleHit)>| each(i, found.is_some());
-        match coherent {
+        match order == Order::Coherent {
             true => self.packets::<true>(rays, &mut done),
             false => self.stream::<true>(rays, &mut done),
         }
@@ -293,6 +239,35 @@ impl<'a> WideTracer<'a> {
             return;
         }
         crate::simd::run(self.avx2, Stream::<_, ANY_HIT> { sections: &self.sections, rays, done });
+    }
+}
+
+/// The single-ray calls, and the batch calls as a stream of interleaved rays ([`WideTracer::interleaves_streams`])
+/// or in coherent packets of 8 consecutive rays: the same `t` for each ray either way, and the same triangle but
+/// for a tie at that `t` in a packet.
+impl Trace for WideTracer<'_> {
+    /// [`Trace::closest_hit`], counting wide node visits and triangle tests (packets of
+    /// four count as one test each) into `counter`.
+    fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
+        self.closest_hit_filtered(ray, counter, &Unfiltered)
+    }
+
+    /// [`Trace::any_hit`], counting as [`Trace::closest_hit_counted`] does.
+    fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
+        self.any_hit_filtered(ray, counter, &Unfiltered)
+    }
+
+    /// Each ray's closest hit to `each(i, hit)`: a stream, over large sections several rays in flight at once
+    /// so that one ray's cache misses overlap with the others' work, or packets of 8 ([`Order::Coherent`]).
+    fn closest_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, Option<Hit>)) -> BatchResult {
+        self.closest_hits_each(rays, order, &mut each);
+        Ok(())
+    }
+
+    /// Whether each ray hits anything to `each(i, occluded)`, as [`Trace::closest_hits_with`] for this tracer.
+    fn any_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, bool)) -> BatchResult {
+        self.any_hits_each(rays, order, &mut each);
+        Ok(())
     }
 }
 
