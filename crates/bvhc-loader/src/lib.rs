@@ -68,6 +68,7 @@ mod open;
 pub mod ray;
 mod simd;
 mod source;
+mod trace;
 pub mod tracer;
 pub mod verify;
 pub mod wide;
@@ -89,9 +90,10 @@ pub use ray::{
 pub use simd::KernelPath;
 pub use source::corners::SourceCorners;
 pub use source::identity::TriangleIdentities;
+pub use trace::{BatchResult, Order, Trace};
 pub use tracer::filter;
 pub use tracer::filter::{FilteredTracer, HitFilter};
-pub use tracer::{Crossings, Kernel, Order, Trace, TracedFile, Tracer};
+pub use tracer::{Crossings, Kernel, TracedFile, Tracer};
 pub use wide::WideTracer;
 
 /// The README's example, compiled by `cargo test` (a doctest) so that a wrong example fails the tests.

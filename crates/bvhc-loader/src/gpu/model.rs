@@ -29,7 +29,7 @@ use crate::gpu::shader::GpuHitRecord;
 use crate::open::sections::GpuSections;
 use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::tracer::trace::Trace;
+use crate::trace::Trace;
 
 /// Traces rays through a file's GPU sections on the CPU, exactly as the WGSL kernel does (see the module
 /// documentation); hits name the record of the `triangles` section and its source id, as every kernel's do.

@@ -13,8 +13,8 @@
 use crate::ray::check::BatchRayError;
 use crate::ray::hit::Hit;
 use crate::ray::intersect::Ray;
+use crate::trace::Order;
 use crate::tracer::Tracer;
-use crate::tracer::trace::Order;
 
 /// Rays a batch call checks at a time before tracing them (32 KiB of rays, which stay in the core's caches
 /// between the check and the tracing). A multiple of 8, so that coherent packets keep their groups.

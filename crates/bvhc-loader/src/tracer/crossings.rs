@@ -28,7 +28,7 @@
 //! consistently oriented mesh, whichever way it is wound; 0 outside). A point on the surface (a hit at
 //! `t <= 2^-20` of the scene's size over the direction's length from it) counts as inside.
 
-use crate::tracer::trace::Trace;
+use crate::trace::Trace;
 use std::cell::RefCell;
 
 use crate::format::{PackedTriangle, TRIANGLE_NOT_OPAQUE};

@@ -43,8 +43,8 @@ pub use crate::ray::candidates::{Candidate, FilterScope, HitFilter};
 use crate::ray::candidates::Filtering;
 use crate::ray::hit::{Hit, TraversalCounter};
 use crate::ray::intersect::Ray;
+use crate::trace::{BatchResult, Order, Trace};
 use crate::tracer::Tracer;
-use crate::tracer::trace::{BatchResult, Order, Trace};
 
 /// A tracer that runs a [`HitFilter`] on candidate hits ([`Tracer::filtered`]): the same calls as [`Tracer`],
 /// checking rays as it does. Batch calls trace one ray after the other with the single-ray kernel (no stream

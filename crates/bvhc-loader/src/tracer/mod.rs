@@ -6,12 +6,10 @@ pub(crate) mod batch;
 pub(crate) mod crossings;
 pub mod filter;
 mod of_view;
-pub(crate) mod trace;
 pub(crate) mod traced;
 
 pub use batch::CHECKED_CHUNK;
 pub use crossings::Crossings;
-pub use trace::{BatchResult, Order, Trace};
 pub use traced::TracedFile;
 
 use crate::binary::walk::{TriangleLeaves, walk};
@@ -24,6 +22,7 @@ use crate::ray::hit::{ForeignHit, Hit, TraversalCounter};
 use crate::ray::intersect::Ray;
 use crate::ray::spawn::SurfacePoint;
 use crate::simd::KernelPath;
+use crate::trace::{BatchResult, Order, Trace, refused};
 use crate::wide::WideTracer;
 
 /// The traversal kernel over borrowed node and triangle arrays (a `BvhView`'s, or in-memory ones),
@@ -367,15 +366,4 @@ impl Trace for Tracer<'_> {
     fn any_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, bool)) -> BatchResult {
         self.any_hits_each(rays, order, &mut each)
     }
-}
-
-/// The panic of a checked call on a ray that breaks the contract.
-#[cold]
-#[inline(never)]
-#[track_caller]
-pub(crate) fn refused(call: &str, error: &dyn std::fmt::Display) -> ! {
-    panic!(
-        "Tracer::{call}: the ray breaks the ray contract: {error} (check rays with Ray::check, or use \
-         Tracer::trusting_rays to trace them unchecked)"
-    )
 }

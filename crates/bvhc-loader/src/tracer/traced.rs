@@ -61,7 +61,7 @@ impl std::fmt::Debug for TracedFile {
 mod tests {
     use super::*;
     use crate::ray::intersect::Ray;
-    use crate::tracer::trace::Trace;
+    use crate::trace::Trace;
 
     #[test]
     fn the_kept_tracer_traces_as_a_fresh_one_after_the_file_moved() {

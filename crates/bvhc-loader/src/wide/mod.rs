@@ -18,7 +18,7 @@ use crate::ray::candidates::{Candidates, Unfiltered};
 use crate::ray::hit::{Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::Ray;
 use crate::simd::{Avx2, Isa, Kernel, KernelPath};
-use crate::tracer::trace::{BatchResult, Order, Trace};
+use crate::trace::{BatchResult, Order, Trace};
 use crate::verify::wide::{WideContext, verify_wide};
 use crate::wide::coherent::{PACKET_RAYS, trace_packet};
 use crate::wide::walk::{PacketHit, PacketLeaves, Sections, Walk, new_stack};

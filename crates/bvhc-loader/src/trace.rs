@@ -1,4 +1,5 @@
-//! [`Trace`]: the calls every CPU tracer answers ([`crate::Tracer`], [`crate::WideTracer`],
+//! [`Trace`]: the calls every CPU tracer answers (beneath the tracers, so that each layout's tracer implements it
+//! without importing upward) ([`crate::Tracer`], [`crate::WideTracer`],
 //! [`crate::FilteredTracer`], [`crate::gpu::GpuLayoutTracer`]). A tracer writes the two single-ray queries; the
 //! batch calls are provided on top of them, and a tracer with a faster way (streams of interleaved rays, coherent
 //! packets, rays checked chunk by chunk) writes its own `closest_hits_with` and `any_hits_with`.
@@ -6,7 +7,6 @@
 use crate::ray::check::BatchRayError;
 use crate::ray::hit::{Hit, TraversalCounter, same_length, slot_writer};
 use crate::ray::intersect::Ray;
-use crate::tracer::refused;
 
 /// How a batch call traces its rays; the results are the same either way, but for which triangle a tie at the
 /// closest `t` names with [`Order::Coherent`].
@@ -121,4 +121,15 @@ fn into_slots<T>(
     if let Err(error) = trace(&mut slot_writer(slots)) {
         refused(call, &error);
     }
+}
+
+/// The panic of a checked call on a ray that breaks the contract.
+#[cold]
+#[inline(never)]
+#[track_caller]
+pub(crate) fn refused(call: &str, error: &dyn std::fmt::Display) -> ! {
+    panic!(
+        "Tracer::{call}: the ray breaks the ray contract: {error} (check rays with Ray::check, or use \
+         Tracer::trusting_rays to trace them unchecked)"
+    )
 }
