@@ -136,7 +136,7 @@ struct Traced {
 fn trace_on_cpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], args: &TraceArgs) -> Result<Traced, (Exit, String)> {
     // `parse_rays` checked every ray against the contract, so the tracer need not check them again.
     let tracer = view.tracer().trusting_rays();
-    let coherent = args.coherent;
+    let order = if args.coherent { Order::Coherent } else { Order::Stream };
     let mut records = match args.any_hit {
         true => vec![0u8; rays.len()],
         false => hit_record(None).repeat(rays.len()),
@@ -144,18 +144,14 @@ fn trace_on_cpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], args: &TraceArgs
     records.iter_mut().step_by(4096).for_each(|b| *b = std::hint::black_box(*b)); // touch every page
     let start = Instant::now();
     let traced = if args.any_hit {
-        traced_in_place(rays, &mut records, 1, |chunk, each| match coherent {
-            true => tracer.any_hits_with(chunk, Order::Coherent, |i, occluded| each(i, occluded.then_some(&[1][..]))),
-            false => tracer.any_hits_with(chunk, Order::Stream, |i, occluded| each(i, occluded.then_some(&[1][..]))),
+        traced_in_place(rays, &mut records, 1, |chunk, each| {
+            tracer.any_hits_with(chunk, order, |i, occluded| each(i, occluded.then_some(&[1][..])))
         })
     } else {
         traced_in_place(rays, &mut records, HIT_RECORD_BYTE_LEN, |chunk, each| {
-            let mut write =
-                |i: usize, hit: Option<Hit>| each(i, hit.map(|h| hit_record(Some(&h))).as_ref().map(|r| &r[..]));
-            match coherent {
-                true => tracer.closest_hits_with(chunk, Order::Coherent, &mut write),
-                false => tracer.closest_hits_with(chunk, Order::Stream, &mut write),
-            }
+            tracer.closest_hits_with(chunk, order, |i, hit: Option<Hit>| {
+                each(i, hit.map(|h| hit_record(Some(&h))).as_ref().map(|r| &r[..]))
+            })
         })
     };
     let seconds = start.elapsed().as_secs_f64();

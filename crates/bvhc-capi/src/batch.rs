@@ -25,6 +25,13 @@ struct Mode {
     coherent: bool,
 }
 
+impl Mode {
+    /// The batch order the loader's `_with` calls take for this mode.
+    fn order(&self) -> Order {
+        if self.coherent { Order::Coherent } else { Order::Stream }
+    }
+}
+
 /// Declares a batch closest-hit entry point of `mode`.
 macro_rules! closest_hits_entry {
     ($(#[$doc:meta])* $name:ident, $check:expr, $coherent:expr) => {
@@ -182,10 +189,7 @@ unsafe fn closest_hits(
                 }
             };
             // The file's tracer trusts its rays (they were checked above): these calls cannot fail.
-            match mode.coherent {
-                true => tracer.closest_hits_with(chunk, Order::Coherent, each),
-                false => tracer.closest_hits_with(chunk, Order::Stream, each),
-            }
+            tracer.closest_hits_with(chunk, mode.order(), each)
         })
     })
 }
@@ -211,10 +215,7 @@ unsafe fn any_hits(mode: Mode, file: *const BvhcFile, rays: *const BvhcRay, coun
                     *flag = u8::from(hit);
                 }
             };
-            match mode.coherent {
-                true => tracer.any_hits_with(chunk, Order::Coherent, each),
-                false => tracer.any_hits_with(chunk, Order::Stream, each),
-            }
+            tracer.any_hits_with(chunk, mode.order(), each)
         })
     })
 }

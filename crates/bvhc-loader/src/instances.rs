@@ -11,7 +11,7 @@
 use crate::binary::walk::{Leaves, walk};
 use crate::format::{LEAF_BIT, MeshRecord, PackedNode};
 use crate::open::sections::TwoLevelSections;
-use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter};
+use crate::ray::hit::{Hit, TraversalCounter};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::transform::{object_ray, world_normal};
 use crate::simd::{Isa, Kernel};
@@ -105,9 +105,8 @@ where
     fn run<I: Isa>(self, isa: I) -> Option<Hit> {
         let WideInstanceWalk { sections, ray, counter, trace_mesh } = self;
         let root = *sections.top_nodes.first()?;
-        PreparedRay::new(ray).enter_box(&root, ray.t_max * CULL_PADDING)?;
         let top = Sections { nodes: sections.top_wide_nodes, packets: &[], root };
-        let mut walk = Walk::start(&top, ray)?;
+        let mut walk = Walk::start(&top, ray).filter(|walk| walk.enters(&root))?;
         let mut stack = new_stack();
         let mut leaves = WideInstanceLeaves { sections, ray, trace_mesh };
         while walk.step::<ANY_HIT, I, C, _>(isa, &top, &mut stack, counter, &mut leaves) {}

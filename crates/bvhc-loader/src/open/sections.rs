@@ -157,6 +157,7 @@ impl<'a> SectionSet<'a> {
 
     /// The bytes and element count of the section of `kind`, when the set has it (an empty top wide tree is
     /// no section).
+    #[cfg(feature = "write")]
     pub(crate) fn get(&self, kind: SectionKind) -> Option<(&'a [u8], usize)> {
         fn raw<T: bytemuck::Pod>(slice: &[T]) -> (&[u8], usize) {
             (bytemuck::cast_slice(slice), slice.len())
@@ -184,6 +185,7 @@ impl<'a> SectionSet<'a> {
 
     /// Every section the set has, in [`SectionKind::ALL`]'s order (the order the writer stores them): kind,
     /// bytes, element count.
+    #[cfg(feature = "write")]
     pub(crate) fn present(&self) -> impl Iterator<Item = (SectionKind, &'a [u8], usize)> + '_ {
         SectionKind::ALL.into_iter().filter_map(|kind| self.get(kind).map(|(bytes, count)| (kind, bytes, count)))
     }

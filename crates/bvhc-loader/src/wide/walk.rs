@@ -134,6 +134,12 @@ impl<F: Copy> Walk<F> {
         })
     }
 
+    /// Whether the ray enters `node`'s box within its `t_max` (the padded cull of the walk).
+    #[inline(always)]
+    pub(crate) fn enters(&self, node: &PackedNode) -> bool {
+        self.ray.enter_box(node, self.t_max * CULL_PADDING).is_some()
+    }
+
     /// The closest hit so far (any hit, for `ANY_HIT` walks).
     pub(crate) fn found(&self) -> Option<F> {
         self.found
