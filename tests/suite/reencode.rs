@@ -6,7 +6,7 @@
 
 use bvhc::loader::format::{GpuSlot, PackedTriangle, SectionKind, WIDE, WideNode8};
 use bvhc::loader::{BvhFile, Rule};
-use bvhc::options::{Overrides, Preset};
+use bvhc::options::{OptimizeOver, Overrides, Preset};
 
 type Bounds = ([f32; 3], [f32; 3]);
 
@@ -23,9 +23,14 @@ fn triangle_box(t: &PackedTriangle) -> Bounds {
 /// The teapot converted without split references (whose clipped boxes are not the triangles' bounds), with the
 /// wide and GPU layouts.
 fn converted(dir: &std::path::Path) -> BvhFile {
+    converted_with(dir, Overrides::default())
+}
+
+/// The teapot converted as [`converted`] says, with `overrides` on top.
+fn converted_with(dir: &std::path::Path, overrides: Overrides) -> BvhFile {
     let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
     let output = dir.join("teapot.bvh");
-    let overrides = Overrides { splits: Some(false), gpu_layout: Some(true), ..Overrides::default() };
+    let overrides = Overrides { splits: Some(false), gpu_layout: Some(true), ..overrides };
     bvhc::Conversion::new(teapot, &output).preset(Preset::Balanced).overrides(overrides).run().unwrap();
     BvhFile::read(&output).unwrap()
 }
@@ -146,4 +151,88 @@ fn an_edit_recomputes_the_checksums_of_what_it_changed() {
     // The checksums are right (V11, V12), so the first broken rule is the metadata's cost (V37) or a box rule.
     let rule = file.view().verify().unwrap_err().rule;
     assert!(!matches!(rule, Rule::HeaderChecksum | Rule::SectionChecksum), "the edit left a stale checksum: {rule:?}");
+}
+
+/// The metadata as JSON.
+fn metadata_of(file: &BvhFile) -> serde_json::Value {
+    serde_json::from_str(file.view().metadata_str().unwrap().unwrap()).unwrap()
+}
+
+#[test]
+fn a_file_rewritten_without_an_edit_is_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    for overrides in
+        [Overrides::default(), Overrides { optimize_over: Some(OptimizeOver::Choose), ..Overrides::default() }]
+    {
+        let file = converted_with(dir.path(), overrides);
+        let rewritten = file.rewritten().unwrap();
+        assert!(rewritten.as_bytes() == file.as_bytes(), "the converter's costs are the file's, to the bit");
+    }
+}
+
+#[test]
+fn an_edited_file_rewritten_states_its_new_costs_and_verifies() {
+    let dir = tempfile::tempdir().unwrap();
+    let overrides = Overrides { optimize_over: Some(OptimizeOver::Choose), ..Overrides::default() };
+    let mut file = converted_with(dir.path(), overrides);
+    let before = metadata_of(&file);
+    assert!(before.get("choice").is_some(), "the conversion chose among candidates: {before}");
+    // Stretch the teapot to twice its width (exact in f32), then re-encode every node: a valid tree whose
+    // costs changed (its boxes' areas do not all scale alike).
+    {
+        let mut edit = file.edit().unwrap();
+        edit.triangles.iter_mut().flat_map(|t| t.vertices.iter_mut()).for_each(|v| v[0] *= 2.0);
+        for packet in edit.triangle_packets.as_deref_mut().unwrap() {
+            for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
+                packet.vertices.iter_mut().for_each(|v| v[0][lane] *= 2.0);
+            }
+        }
+        edit.gpu_triangles
+            .as_deref_mut()
+            .unwrap()
+            .iter_mut()
+            .flat_map(|t| t.vertices.iter_mut())
+            .for_each(|v| v[0] *= 2.0);
+    }
+    reencode_everything(&mut file);
+    assert_eq!(file.view().verify().unwrap_err().rule, Rule::MetadataCost, "the edit left the costs stale");
+
+    let rewritten = file.rewritten().unwrap();
+    rewritten.view().verify().unwrap();
+    let view = rewritten.view();
+    let after = metadata_of(&rewritten);
+    let binary = bvhc::loader::format::cost::binary_cost(view.nodes(), 3.0, 2.0);
+    let wide =
+        bvhc::loader::format::cost::wide_cost(view.nodes().first(), view.wide_sections().unwrap().nodes, 1.0, 1.0);
+    for (key, stated, computed) in [
+        ("cost.sah_cost", &after["cost"]["sah_cost"], binary.sah_cost),
+        ("cost.inner_area_ratio", &after["cost"]["inner_area_ratio"], binary.inner_area_ratio),
+        ("cost.leaf_area_ratio", &after["cost"]["leaf_area_ratio"], binary.leaf_area_ratio),
+        ("wide.cost", &after["wide"]["cost"], wide),
+    ] {
+        assert_eq!(stated.as_f64().map(f64::to_bits), Some(computed.to_bits()), "{key}: {stated} against {computed}");
+    }
+    assert_ne!(after["cost"]["sah_cost"], before["cost"]["sah_cost"], "the stretch changed the cost");
+    assert!(after.get("choice").is_none(), "the conversion's candidates were measured on other geometry");
+    // The rest of the metadata is as it was, and so is every other section.
+    let (mut rest_before, mut rest_after) = (before.clone(), after.clone());
+    for rest in [&mut rest_before, &mut rest_after] {
+        let object = rest.as_object_mut().unwrap();
+        object.remove("choice");
+        object.remove("cost");
+        object["wide"].as_object_mut().unwrap().remove("cost");
+    }
+    assert_eq!(rest_before, rest_after);
+    let sections_of = |file: &BvhFile| {
+        let view = file.view();
+        let bytes = view.bytes();
+        view.sections()
+            .filter(|s| s.kind != Some(SectionKind::Metadata))
+            .map(|s| {
+                (s.kind, bytes[s.entry.section_byte_offset as usize..][..s.entry.section_byte_len as usize].to_vec())
+            })
+            .collect::<Vec<_>>()
+    };
+    assert!(sections_of(&rewritten) == sections_of(&file));
+    assert_eq!(view.version(), file.view().version());
 }

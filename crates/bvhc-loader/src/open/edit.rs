@@ -3,8 +3,9 @@
 //! sections and of the header recomputed when the edit ends, so the file's bytes stay a valid file whenever the
 //! new contents keep the rules (section offsets, sizes and every other section are untouched).
 //!
-//! The metadata is not rewritten: an edit that changes boxes changes the tree's costs, which rule V37 compares
-//! with the metadata's, so such a file verifies again only once its metadata is rewritten with it.
+//! The metadata is not rewritten here (its length may change, which moves every later section): an edit that
+//! changes boxes changes the tree's costs, which rule V37 compares with the metadata's, so such a file verifies
+//! again once `BvhFile::rewritten` (feature `write`) has written it anew with its costs recomputed.
 
 use crate::error::Error;
 use crate::format::checksum::{HEADER_CHECKSUM_BYTE_OFFSET, header_checksum, section_checksum};

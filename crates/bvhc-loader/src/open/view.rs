@@ -148,6 +148,12 @@ impl<'a> BvhView<'a> {
         self.sections.two_level
     }
 
+    /// Every typed section of the file (what a writer copying the file lays out).
+    #[cfg(feature = "write")]
+    pub(crate) fn section_set(&self) -> SectionSet<'a> {
+        self.sections
+    }
+
     /// Builds a view without checking any rule.
     ///
     /// # Safety

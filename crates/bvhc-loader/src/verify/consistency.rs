@@ -12,16 +12,12 @@
 use crate::verify::json::{Map, Value};
 
 use crate::error::{Rule, Violation, violation};
-use crate::format::cost::{binary_cost, wide_cost};
 use crate::format::{
     EMPTY_SLOT, GPU_WIDE, GpuSlot, LEAF_BIT, PACKET_LANES, PackedNode, PackedTriangle, TrianglePacket4, UNUSED_LANE,
     WIDE, WideNode8,
 };
 use crate::open::view::BvhView;
-
-/// Largest relative difference accepted between a cost in the metadata and the cost recomputed from the file
-/// (V37): summing in another order than the spec's changes the last bits, never the ninth digit.
-pub const COST_TOLERANCE: f64 = 1e-9;
+use crate::verify::costs::{close, verify_costs};
 
 /// V36-V39 on `metadata`, the parsed metadata section (V23 held).
 pub(crate) fn verify_consistency(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
@@ -31,10 +27,6 @@ pub(crate) fn verify_consistency(view: &BvhView<'_>, metadata: &Map) -> Result<(
     verify_costs(view, metadata)?;
     verify_build(view, metadata)?;
     verify_choice(metadata)
-}
-
-fn object<'m>(metadata: &'m Map, key: &str) -> Option<&'m Map> {
-    metadata.get(key).and_then(Value::as_object)
 }
 
 /// V36, the `wide` object: present exactly as the sections are, with their element counts.
@@ -63,10 +55,10 @@ fn verify_wide_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violatio
 /// V36, the `triangles` object: ids below `source_triangle_count`; stored plus dropped is the source count;
 /// `stored_count` is the number of distinct source triangles the file holds.
 fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
-    let Some(record) = object(metadata, "triangles") else { return Ok(()) };
+    let Some(record) = metadata.object("triangles") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataCounts, format!("metadata triangles: {detail}")));
     let count = |key: &str| record.get(key).and_then(Value::as_u64);
-    let dropped: Option<u64> = object(record, "dropped").and_then(|d| {
+    let dropped: Option<u64> = record.object("dropped").and_then(|d| {
         ["repeated_index", "zero_area", "zero_area_after_placement"]
             .iter()
             .map(|k| d.get(k).and_then(Value::as_u64))
@@ -123,7 +115,7 @@ fn verify_triangle_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Viol
 /// reference and two source triangles with the same vertices look alike, between the distinct vertex triples and
 /// the records.
 fn verify_two_level_counts(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
-    let Some(record) = object(metadata, "two_level") else { return Ok(()) };
+    let Some(record) = metadata.object("two_level") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataCounts, format!("metadata two_level: {detail}")));
     let Some(sections) = view.two_level() else {
         return fail("present, but the file is not two-level".into());
@@ -206,62 +198,10 @@ fn distinct_id_count(ids: &[u32]) -> u64 {
     seen.iter().map(|w| u64::from(w.count_ones())).sum()
 }
 
-fn number(record: &Map, key: &str) -> Option<f64> {
-    record.get(key).and_then(Value::as_f64)
-}
-
-/// Whether `stated` is `computed` within [`COST_TOLERANCE`] relative to `computed`.
-fn close(stated: f64, computed: f64) -> bool {
-    (stated - computed).abs() <= COST_TOLERANCE * computed.abs()
-}
-
-/// V37: `cost` and `wide.cost` equal the costs recomputed from the file.
-fn verify_costs(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
-    let wide_cost_stated = object(metadata, "wide").is_some_and(|wide| wide.get("cost").is_some());
-    if view.two_level().is_some() && (metadata.get("cost").is_some() || wide_cost_stated) {
-        return Err(violation(
-            Rule::MetadataCost,
-            "metadata cost or wide.cost in a two-level file, for which 1.3 defines no cost".to_string(),
-        ));
-    }
-    if let Some(record) = object(metadata, "cost") {
-        let (c_t, c_i) = (number(record, "c_t").unwrap_or(3.0), number(record, "c_i").unwrap_or(2.0));
-        let cost = binary_cost(view.nodes(), c_t, c_i);
-        for (key, computed) in [
-            ("sah_cost", cost.sah_cost),
-            ("inner_area_ratio", cost.inner_area_ratio),
-            ("leaf_area_ratio", cost.leaf_area_ratio),
-        ] {
-            if let Some(stated) = number(record, key)
-                && !close(stated, computed)
-            {
-                return Err(violation(
-                    Rule::MetadataCost,
-                    format!("metadata cost.{key} {stated}, but the tree's is {computed}"),
-                ));
-            }
-        }
-    }
-    let stated = object(metadata, "wide").and_then(|wide| number(wide, "cost"));
-    let constants = object(metadata, "build").and_then(|build| object(build, "wide"));
-    if let (Some(stated), Some(constants), Some(sections)) = (stated, constants, view.wide_sections()) {
-        let node_visit = number(constants, "node_visit").unwrap_or(1.0);
-        let packet_test = number(constants, "packet_test").unwrap_or(1.0);
-        let computed = wide_cost(view.nodes().first(), sections.nodes, node_visit, packet_test);
-        if !close(stated, computed) {
-            return Err(violation(
-                Rule::MetadataCost,
-                format!("metadata wide.cost {stated}, but the wide tree's is {computed}"),
-            ));
-        }
-    }
-    Ok(())
-}
-
 /// V38: `build.wide`, `build.gpu`, `build.write_ids`, `build.write_source_vertices` and `build.opacity` agree
 /// with the sections; binary, wide and GPU leaves hold at most their `max_leaf_size` distinct triangles.
 fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
-    let Some(build) = object(metadata, "build") else { return Ok(()) };
+    let Some(build) = metadata.object("build") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataBuild, format!("metadata build: {detail}")));
     match (build.get("wide"), view.wide_sections()) {
         (Some(Value::Null), Some(_)) => return fail("wide is null, but the file has wide sections".into()),
@@ -353,7 +293,7 @@ fn verify_build(view: &BvhView<'_>, metadata: &Map) -> Result<(), Violation> {
             }
         }
     }
-    let wide_limit = object(build, "wide").and_then(|wide| wide.get("max_leaf_size")).and_then(Value::as_u64);
+    let wide_limit = build.object("wide").and_then(|wide| wide.get("max_leaf_size")).and_then(Value::as_u64);
     let Some(limit) = wide_limit else { return Ok(()) };
     for tree in &trees {
         let Some((nodes, packets)) = tree.wide else { continue };
@@ -424,7 +364,7 @@ impl TriangleIdentity<'_, '_> {
 
 /// V39: `choice.kept` names a candidate, the first of lowest cost, and its cost is the file's under `measure`.
 fn verify_choice(metadata: &Map) -> Result<(), Violation> {
-    let Some(choice) = object(metadata, "choice") else { return Ok(()) };
+    let Some(choice) = metadata.object("choice") else { return Ok(()) };
     let fail = |detail: String| Err(violation(Rule::MetadataChoice, format!("metadata choice: {detail}")));
     let Some(candidates) = choice.get("candidates").and_then(Value::as_array) else { return Ok(()) };
     let costs: Vec<Option<f64>> = candidates.iter().map(|c| c.get("cost").and_then(Value::as_f64)).collect();
@@ -439,8 +379,8 @@ fn verify_choice(metadata: &Map) -> Result<(), Violation> {
         return fail(format!("kept {index} (cost {kept_cost}), but candidate {first_lowest} costs as little or less"));
     }
     let file_cost = match choice.get("measure").and_then(Value::as_str) {
-        Some("wide_cost") => object(metadata, "wide").and_then(|w| number(w, "cost")),
-        Some("sah_cost") => object(metadata, "cost").and_then(|c| number(c, "sah_cost")),
+        Some("wide_cost") => metadata.object("wide").and_then(|w| w.number("cost")),
+        Some("sah_cost") => metadata.object("cost").and_then(|c| c.number("sah_cost")),
         _ => None,
     };
     if let Some(file_cost) = file_cost

@@ -6,6 +6,7 @@
 //! tree is at most a small multiple of the text's size.
 
 use std::fmt;
+use std::ops::Range;
 
 /// Deepest nesting of arrays and objects accepted.
 pub(crate) const MAX_DEPTH: usize = 128;
@@ -22,22 +23,62 @@ pub(crate) enum Value {
 }
 
 /// A JSON number: its nearest f64, and its value as an integer when the text is a non-negative integer that
-/// fits a `u64` (no fraction, no exponent), as `serde_json` gives it.
+/// fits a `u64` (no fraction, no exponent), as `serde_json` gives it; and where its text stands in the parsed
+/// text (so that a writer can replace it and leave every other byte alone).
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Number {
     text: String,
     value: f64,
     integer: Option<u64>,
+    start: usize,
 }
 
-/// A JSON object: its members in the order written; a repeated name's last member counts.
+impl Number {
+    /// The nearest f64.
+    pub(crate) fn value(&self) -> f64 {
+        self.value
+    }
+
+    /// The byte range of the number's text in the text [`parse_object`] read.
+    #[cfg_attr(not(feature = "write"), allow(dead_code))]
+    pub(crate) fn span(&self) -> Range<usize> {
+        self.start..self.start + self.text.len()
+    }
+}
+
+/// A JSON object: its members in the order written, each with the byte range of its text (from the name's
+/// opening quote to the value's end) in the parsed text; a repeated name's last member counts.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub(crate) struct Map(Vec<(String, Value)>);
+pub(crate) struct Map(Vec<(String, Value, Range<usize>)>);
 
 impl Map {
     /// The value of the last member named `key`.
     pub(crate) fn get(&self, key: &str) -> Option<&Value> {
-        self.0.iter().rev().find(|(name, _)| name == key).map(|(_, value)| value)
+        self.0.iter().rev().find(|(name, ..)| name == key).map(|(_, value, _)| value)
+    }
+
+    /// The object value of the last member named `key`.
+    pub(crate) fn object(&self, key: &str) -> Option<&Map> {
+        self.get(key).and_then(Value::as_object)
+    }
+
+    /// The number value of the last member named `key`, as its nearest f64.
+    pub(crate) fn number(&self, key: &str) -> Option<f64> {
+        self.get(key).and_then(Value::as_f64)
+    }
+
+    /// The bytes to cut from the parsed text to remove the last member named `key`, with one of the commas
+    /// around it, so that what is left is the object without that member: from the previous member's end, or
+    /// else up to the next member's start, or else the member alone.
+    #[cfg_attr(not(feature = "write"), allow(dead_code))]
+    pub(crate) fn removal_span(&self, key: &str) -> Option<Range<usize>> {
+        let index = self.0.iter().rposition(|(name, ..)| name == key)?;
+        let span = &self.0[index].2;
+        Some(match (index.checked_sub(1).map(|i| &self.0[i].2), self.0.get(index + 1)) {
+            (Some(previous), _) => previous.end..span.end,
+            (None, Some((.., next))) => span.start..next.start,
+            (None, None) => span.clone(),
+        })
     }
 }
 
@@ -63,6 +104,9 @@ impl Value {
     pub(crate) fn as_u64(&self) -> Option<u64> {
         if let Value::Number(number) = self { number.integer } else { None }
     }
+    pub(crate) fn as_number(&self) -> Option<&Number> {
+        if let Value::Number(number) = self { Some(number) } else { None }
+    }
 }
 
 impl fmt::Display for Value {
@@ -82,7 +126,7 @@ impl fmt::Display for Value {
             }
             Value::Object(object) => {
                 write!(f, "{{")?;
-                for (i, (name, value)) in object.0.iter().enumerate() {
+                for (i, (name, value, _)) in object.0.iter().enumerate() {
                     write!(f, "{}{name:?}:{value}", if i > 0 { "," } else { "" })?;
                 }
                 write!(f, "}}")
@@ -167,11 +211,12 @@ impl Parser<'_> {
             if self.peek() != Some(b'"') {
                 return Err(self.error("expected a member name"));
             }
+            let start = self.at;
             let name = self.string()?;
             self.skip_whitespace();
             self.expect(":")?;
             let value = self.value(depth + 1)?;
-            members.push((name, value));
+            members.push((name, value, start..self.at));
             self.skip_whitespace();
             match self.peek() {
                 Some(b',') => self.at += 1,
@@ -315,7 +360,7 @@ impl Parser<'_> {
             return Err(self.error("number out of range"));
         }
         let integer = if integer { text.parse::<u64>().ok() } else { None };
-        Ok(Number { text: text.to_string(), value, integer })
+        Ok(Number { text: text.to_string(), value, integer, start })
     }
 }
 
@@ -325,14 +370,16 @@ mod tests {
 
     #[test]
     fn reads_what_the_metadata_holds_and_refuses_what_json_forbids() {
-        let object = parse_object(
-            r#" {"a": 1, "b": [true, false, null], "c": {"d": -2.5e-3, "e": "x\"\u00e9\ud83d\ude00"}, "a": 18446744073709551615} "#,
-        )
-        .unwrap();
+        let text = r#" {"a": 1, "b": [true, false, null], "c": {"d": -2.5e-3, "e": "x\"\u00e9\ud83d\ude00"}, "a": 18446744073709551615} "#;
+        let object = parse_object(text).unwrap();
         assert_eq!(object.get("a").and_then(Value::as_u64), Some(u64::MAX), "the last repeated member counts");
         assert_eq!(object.get("c").and_then(|c| c.get("d")).and_then(Value::as_f64), Some(-2.5e-3));
         assert_eq!(object.get("c").and_then(|c| c.get("e")).and_then(Value::as_str), Some("x\"é😀"));
         assert_eq!(object.get("b").and_then(Value::as_array).map(Vec::len), Some(3));
+        assert_eq!(
+            object.get("c").and_then(|c| c.get("d")).and_then(Value::as_number).map(|n| &text[n.span()]),
+            Some("-2.5e-3")
+        );
         assert_eq!(parse_object(r#"{"n": 1.0}"#).unwrap().get("n").and_then(Value::as_u64), None);
         assert_eq!(
             parse_object(r#"{"n": 7.7771232602156735}"#).unwrap().get("n").and_then(Value::as_f64),
@@ -361,5 +408,24 @@ mod tests {
         assert!(parse_object(&deep).unwrap_err().contains("nested too deeply"));
         let fine = format!("{{\"a\":{}{}}}", "[".repeat(MAX_DEPTH - 2), "]".repeat(MAX_DEPTH - 2));
         assert!(parse_object(&fine).is_ok());
+    }
+
+    #[test]
+    fn a_member_removed_by_its_span_leaves_the_object_without_it() {
+        let cut = |text: &str, key: &str| {
+            let span = parse_object(text).unwrap().removal_span(key)?;
+            let mut left = text.to_string();
+            left.replace_range(span, "");
+            Some(left)
+        };
+        assert_eq!(cut(r#"{"a": 1, "b": {"c": 2}, "d": 3}"#, "b").as_deref(), Some(r#"{"a": 1, "d": 3}"#));
+        assert_eq!(cut(r#"{ "b": [1, 2] ,"d": 3}"#, "b").as_deref(), Some(r#"{ "d": 3}"#));
+        assert_eq!(cut(r#"{"a": 1, "b": 2 }"#, "b").as_deref(), Some(r#"{"a": 1 }"#));
+        assert_eq!(cut(r#"{ "b": 2 }"#, "b").as_deref(), Some(r#"{  }"#));
+        assert_eq!(cut(r#"{"b": 1, "a": 0, "b": 2}"#, "b").as_deref(), Some(r#"{"b": 1, "a": 0}"#), "the last counts");
+        assert_eq!(cut(r#"{"a": {"b": 1}}"#, "b"), None, "members of nested objects are not the object's");
+        for text in [r#"{"a": 1, "b": {"c": 2}, "d": 3}"#, r#"{ "b": [1, 2] ,"d": 3}"#, r#"{ "b": 2 }"#] {
+            assert!(parse_object(&cut(text, "b").unwrap()).is_ok());
+        }
     }
 }

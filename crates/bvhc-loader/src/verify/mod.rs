@@ -10,6 +10,7 @@
 //! bit per node and a stack bounded by `MAX_DEPTH`, never more than the file's own size. No input panics it.
 
 pub(crate) mod consistency;
+pub(crate) mod costs;
 pub(crate) mod gpu;
 pub(crate) mod instances;
 pub(crate) mod json;

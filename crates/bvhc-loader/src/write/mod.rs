@@ -3,6 +3,7 @@
 //! the sweeping of stale temporaries), and page-cache-bypassing writes.
 
 pub(crate) mod atomic;
+pub(crate) mod rewrite;
 pub(crate) mod writer;
 
 pub use crate::open::uncached::UncachedWriter;

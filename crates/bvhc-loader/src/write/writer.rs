@@ -15,6 +15,7 @@ use crate::format::{
 };
 use crate::open::file::{AlignedBuffer, BvhFile};
 use crate::open::sections::{GpuSections, SectionSet, TwoLevelSections, WideSections};
+use crate::open::view::{BvhView, section_bytes};
 use crate::write::atomic::write_atomic;
 
 /// Collects the parts of a `.bvh` file; [`BvhWriter::build`] lays them out.
@@ -23,6 +24,8 @@ pub struct BvhWriter<'a> {
     /// The sections of known kinds, laid out in [`SectionKind::ALL`]'s order.
     sections: SectionSet<'a>,
     extra_sections: Vec<ExtraSection<'a>>,
+    /// The lowest minor version to write (0 but for a copy of a file, which keeps its version).
+    minor_at_least: u16,
 }
 
 /// A section of a kind this crate does not define (an extension, or a test of forward compatibility).
@@ -43,7 +46,31 @@ struct Planned<'a> {
 impl<'a> BvhWriter<'a> {
     /// A file holding `nodes` (node 0 the root, in the nodes section's layout) and `triangles` in leaf order.
     pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle]) -> Self {
-        BvhWriter { sections: SectionSet { nodes, triangles, ..SectionSet::EMPTY }, extra_sections: Vec::new() }
+        BvhWriter {
+            sections: SectionSet { nodes, triangles, ..SectionSet::EMPTY },
+            extra_sections: Vec::new(),
+            minor_at_least: 0,
+        }
+    }
+
+    /// A writer holding every section of `view` as it stands: the sections of kinds this version defines, and
+    /// those of other kinds with their table entry's flags, element size and bytes; the file's minor version is
+    /// kept (a writer from parts writes the lowest its sections need). Building it lays the same contents out
+    /// again, the known kinds in [`SectionKind::ALL`]'s order, then the others in table order; a later call
+    /// (say [`BvhWriter::metadata`]) replaces a section.
+    pub fn from_view(view: &BvhView<'a>) -> Self {
+        let bytes = view.bytes();
+        let extra_sections = view
+            .sections()
+            .filter(|info| info.kind.is_none())
+            .map(|info| ExtraSection {
+                kind: info.entry.kind,
+                section_flags: info.entry.section_flags,
+                element_byte_len: info.entry.element_byte_len,
+                bytes: section_bytes(bytes, &info.entry),
+            })
+            .collect();
+        BvhWriter { sections: view.section_set(), extra_sections, minor_at_least: view.version().1 }
     }
 
     /// Adds the triangle_ids section: one source id per triangle.
@@ -109,15 +136,16 @@ impl<'a> BvhWriter<'a> {
         self
     }
 
-    /// The minor version the file will have: the lowest its sections need ([`written_minor`]).
+    /// The minor version the file will have: the lowest its sections need ([`written_minor`]), or a copied
+    /// file's own where that is higher ([`BvhWriter::from_view`]).
     pub fn version_minor(&self) -> u16 {
-        written_minor(MinorFeatures {
+        self.minor_at_least.max(written_minor(MinorFeatures {
             wide: self.sections.wide.is_some(),
             source_vertices: self.sections.source_vertices.is_some(),
             instances: self.sections.two_level.is_some(),
             gpu: self.sections.gpu.is_some(),
             triangle_flags: self.sections.triangle_flags.is_some(),
-        })
+        }))
     }
 
     /// Appends a section of a kind that this version does not define. `required` sets its REQUIRED flag, which
