@@ -13,9 +13,11 @@ use crate::format::{LEAF_BIT, MeshRecord, PackedNode};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::hit::{Hit, TraversalCounter};
 use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::query::Query;
 use crate::ray::transform::{object_ray, world_normal};
 use crate::simd::{Isa, Kernel};
 use crate::wide::walk::{Sections, Walk, WideLeaves, new_stack};
+use std::marker::PhantomData;
 
 /// The hit of `ray` (with `t_max`, the closest hit so far) in instance `index`'s mesh: the ray mapped into the
 /// mesh's object space and traced by `trace_mesh`, whose hit (record index relative to the mesh) comes back with
@@ -37,18 +39,18 @@ fn visit_instance<C: TraversalCounter>(
     Some(hit)
 }
 
-/// The closest hit (or with `ANY_HIT`, the first hit found) of `ray` among the instances of `sections`, by the
+/// The closest hit (or for an any-hit query, the first hit found) of `ray` among the instances of `sections`, by the
 /// binary walk over the top tree with instance leaves. `trace_mesh` traces an object-space ray through one mesh
 /// and returns its hit with the triangle index relative to the mesh; this function makes the index absolute,
 /// and adds the instance index and the world-space normal.
 #[inline(always)]
-pub(crate) fn walk_instances<C: TraversalCounter, const ANY_HIT: bool>(
+pub(crate) fn walk_instances<C: TraversalCounter, Q: Query>(
     sections: &TwoLevelSections<'_>,
     ray: &Ray,
     counter: &mut C,
     trace_mesh: impl FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 ) -> Option<Hit> {
-    walk::<ANY_HIT, _, _>(sections.top_nodes, ray, counter, InstanceLeaves { sections, trace_mesh })
+    walk::<Q, _, _>(sections.top_nodes, ray, counter, InstanceLeaves { sections, trace_mesh })
 }
 
 /// The leaves of a two-level file's binary top tree: one instance each (`index` the instance, `count` 1).
@@ -65,7 +67,7 @@ where
     type Found = Hit;
 
     #[inline(always)]
-    fn test_leaf<const ANY_HIT: bool>(
+    fn test_leaf<Q: Query>(
         &mut self,
         node: &PackedNode,
         ray: &Ray,
@@ -79,7 +81,7 @@ where
         };
         *t_max = hit.t;
         *found = Some(hit);
-        ANY_HIT
+        Q::FIRST_HIT_ENDS
     }
 }
 
@@ -87,14 +89,15 @@ where
 /// ([`crate::wide::walk`]) with instance leaves, its slots tested in the instruction set's lanes as the meshes'
 /// wide nodes are (`Isa::box_test`: the same robust slab test per lane), hit slots nearest first for a closest
 /// hit. The binary top root's box is tested first (a ray that misses it misses every instance).
-pub(crate) struct WideInstanceWalk<'a, 'r, C, F, const ANY_HIT: bool> {
+pub(crate) struct WideInstanceWalk<'a, 'r, C, F, Q: Query> {
     pub sections: &'a TwoLevelSections<'a>,
     pub ray: &'r Ray,
     pub counter: &'r mut C,
     pub trace_mesh: F,
+    pub query: PhantomData<Q>,
 }
 
-impl<C, F, const ANY_HIT: bool> Kernel for WideInstanceWalk<'_, '_, C, F, ANY_HIT>
+impl<C, F, Q: Query> Kernel for WideInstanceWalk<'_, '_, C, F, Q>
 where
     C: TraversalCounter,
     F: FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
@@ -103,13 +106,13 @@ where
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) -> Option<Hit> {
-        let WideInstanceWalk { sections, ray, counter, trace_mesh } = self;
+        let WideInstanceWalk { sections, ray, counter, trace_mesh, .. } = self;
         let root = *sections.top_nodes.first()?;
         let top = Sections { nodes: sections.top_wide_nodes, packets: &[], root };
         let mut walk = Walk::start(&top, ray).filter(|walk| walk.enters(&root))?;
         let mut stack = new_stack();
         let mut leaves = WideInstanceLeaves { sections, ray, trace_mesh };
-        while walk.step::<ANY_HIT, I, C, _>(isa, &top, &mut stack, counter, &mut leaves) {}
+        while walk.step::<Q, I, C, _>(isa, &top, &mut stack, counter, &mut leaves) {}
         walk.found()
     }
 }
@@ -131,7 +134,7 @@ where
     const PREFETCH_LEAVES: bool = false;
 
     #[inline(always)]
-    fn test_leaf<const ANY_HIT: bool, I: Isa>(
+    fn test_leaf<Q: Query, I: Isa>(
         &mut self,
         _: I,
         _: &Sections<'_>,

@@ -14,6 +14,7 @@ use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
 use crate::ray::candidates::Candidates;
 use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::query::Query;
 
 /// What the walk does at a leaf.
 pub(crate) trait Leaves<C: TraversalCounter> {
@@ -21,9 +22,9 @@ pub(crate) trait Leaves<C: TraversalCounter> {
     type Found;
 
     /// Tests leaf `node` for hits with `t <= *t_max` of `ray` (prepared as `prepared`): each hit taken lowers
-    /// `*t_max` to its `t` and replaces `*found`. With `ANY_HIT`, returns `true` at the first hit taken, which
+    /// `*t_max` to its `t` and replaces `*found`. For an any-hit query, returns `true` at the first hit taken, which
     /// ends the walk; `false` otherwise.
-    fn test_leaf<const ANY_HIT: bool>(
+    fn test_leaf<Q: Query>(
         &mut self,
         node: &PackedNode,
         ray: &Ray,
@@ -46,7 +47,7 @@ impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F>
     type Found = (u32, TriangleHit);
 
     #[inline(always)]
-    fn test_leaf<const ANY_HIT: bool>(
+    fn test_leaf<Q: Query>(
         &mut self,
         node: &PackedNode,
         _: &Ray,
@@ -64,7 +65,7 @@ impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F>
                 && (!F::ACTIVE || self.candidates.accept(record, &hit))
             {
                 *found = Some((record, hit));
-                if ANY_HIT {
+                if Q::FIRST_HIT_ENDS {
                     return true;
                 }
                 *t_max = hit.t;
@@ -74,10 +75,10 @@ impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F>
     }
 }
 
-/// The closest hit of `ray` in the tree `nodes` (node 0 the root), or with `ANY_HIT` the first hit found.
+/// The closest hit of `ray` in the tree `nodes` (node 0 the root), or for an any-hit query the first hit found.
 #[inline(always)]
 #[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
-pub(crate) fn walk<const ANY_HIT: bool, C: TraversalCounter, L: Leaves<C>>(
+pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
     nodes: &[PackedNode],
     ray: &Ray,
     counter: &mut C,
@@ -101,7 +102,7 @@ pub(crate) fn walk<const ANY_HIT: bool, C: TraversalCounter, L: Leaves<C>>(
             visits_left -= 1;
             counter.node_visited();
             if node.is_leaf() {
-                if leaves.test_leaf::<ANY_HIT>(node, ray, &prepared, &mut t_max, &mut found, counter) {
+                if leaves.test_leaf::<Q>(node, ray, &prepared, &mut t_max, &mut found, counter) {
                     return found;
                 }
                 break 'visit;

@@ -29,6 +29,7 @@ use crate::gpu::shader::GpuHitRecord;
 use crate::open::sections::GpuSections;
 use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::query::{AnyHit, ClosestHit, Query};
 use crate::trace::Trace;
 
 /// Traces rays through a file's GPU sections on the CPU, exactly as the WGSL kernel does (see the module
@@ -64,7 +65,7 @@ impl<'a> GpuLayoutTracer<'a> {
     /// ill-conditioned hits given their exact values: what `GpuTracer` (feature `wgpu`) puts in place of a record the
     /// kernel left to the CPU ([`crate::gpu::shader::GpuHitRecord::needs_cpu`]).
     pub fn record(&self, ray: &Ray, any_hit: bool) -> GpuHitRecord {
-        let found = if any_hit { self.walk::<true>(ray, &mut ()) } else { self.walk::<false>(ray, &mut ()) };
+        let found = if any_hit { self.walk::<AnyHit>(ray, &mut ()) } else { self.walk::<ClosestHit>(ray, &mut ()) };
         found
             .and_then(|(g, hit)| {
                 let triangle = self.gpu_triangles.get(g as usize)?.triangle_index;
@@ -75,7 +76,7 @@ impl<'a> GpuLayoutTracer<'a> {
 
     /// The walk; returns the GPU triangle hit and the hit. Safe on any bytes: indices are checked, at most
     /// `node_count` nodes are visited and a full stack ends the walk.
-    fn walk<const ANY_HIT: bool>(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<(u32, TriangleHit)> {
+    fn walk<Q: Query>(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<(u32, TriangleHit)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -122,7 +123,7 @@ impl<'a> GpuLayoutTracer<'a> {
                 if let Some(hit) = prepared.intersect_triangle_f32(&packed, best_t) {
                     best_t = hit.t;
                     found = Some((g, hit));
-                    if ANY_HIT {
+                    if Q::FIRST_HIT_ENDS {
                         return found;
                     }
                 }
@@ -143,14 +144,14 @@ impl Trace for GpuLayoutTracer<'_> {
     /// [`Trace::closest_hit`], counting node visits and triangle tests into `counter` (bytes read:
     /// [`GPU_NODE_BYTES`] and [`GPU_TRIANGLE_BYTES`] each).
     fn closest_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> Option<Hit> {
-        let (g, hit) = self.walk::<false>(ray, counter)?;
+        let (g, hit) = self.walk::<ClosestHit>(ray, counter)?;
         let index = self.gpu_triangles.get(g as usize)?.triangle_index;
         Some(Hit::new(index, hit, self.triangles, self.triangle_ids, &ray.direction))
     }
 
     /// [`Trace::any_hit`], counting node visits and triangle tests into `counter`.
     fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
-        self.walk::<true>(ray, counter).is_some()
+        self.walk::<AnyHit>(ray, counter).is_some()
     }
 }
 

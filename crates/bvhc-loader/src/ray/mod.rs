@@ -1,6 +1,7 @@
 //! One ray against one primitive: the ray and its contract, the robust box test and the watertight triangle
 //! test (with the exact values of ill-conditioned hits), the hit records, secondary rays, instance transforms,
-//! and the candidate tests that filters plug in. Every layout's walk is built from these.
+//! the queries a walk answers (closest hit, any hit), and the candidate tests that filters plug in. Every
+//! layout's walk is built from these.
 
 pub(crate) mod candidates;
 pub(crate) mod check;
@@ -8,6 +9,7 @@ pub(crate) mod exact_hit;
 pub(crate) mod exact_int;
 pub(crate) mod hit;
 pub(crate) mod intersect;
+pub(crate) mod query;
 pub(crate) mod spawn;
 pub(crate) mod transform;
 pub(crate) mod watertight;

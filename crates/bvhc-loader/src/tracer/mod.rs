@@ -20,10 +20,12 @@ use crate::ray::candidates::{Candidates, Unfiltered};
 use crate::ray::check::BatchRayError;
 use crate::ray::hit::{ForeignHit, Hit, TraversalCounter};
 use crate::ray::intersect::Ray;
+use crate::ray::query::{AnyHit, ClosestHit, Query};
 use crate::ray::spawn::SurfacePoint;
 use crate::simd::KernelPath;
 use crate::trace::{BatchResult, Order, Trace, refused};
 use crate::wide::WideTracer;
+use std::marker::PhantomData;
 
 /// The traversal kernel over borrowed node and triangle arrays (a `BvhView`'s, or in-memory ones),
 /// and, when it was given one ([`Tracer::with_wide`]), the wide kernel over the same triangles, which it then
@@ -221,7 +223,7 @@ impl<'a> Tracer<'a> {
             return self.closest_hit_through(sections, ray, counter, candidates);
         }
         let (triangle_index, hit) = match &self.wide {
-            None => self.traverse::<false, C>(ray, counter, candidates)?,
+            None => self.traverse::<ClosestHit, C>(ray, counter, candidates)?,
             Some(wide) => return wide.closest_hit_filtered(ray, counter, candidates),
         };
         Some(Hit::new(triangle_index, hit, self.triangles, self.triangle_ids, &ray.direction))
@@ -245,7 +247,7 @@ impl<'a> Tracer<'a> {
             return self.any_hit_through(sections, ray, counter, candidates);
         }
         match &self.wide {
-            None => self.traverse::<true, C>(ray, counter, candidates).is_some(),
+            None => self.traverse::<AnyHit, C>(ray, counter, candidates).is_some(),
             Some(wide) => wide.any_hit_filtered(ray, counter, candidates),
         }
     }
@@ -266,10 +268,11 @@ impl<'a> Tracer<'a> {
         };
         match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
             Some(wide) => {
-                let walk = WideInstanceWalk::<_, _, false> { sections, ray, counter, trace_mesh };
+                let walk =
+                    WideInstanceWalk::<_, _, ClosestHit> { sections, ray, counter, trace_mesh, query: PhantomData };
                 crate::simd::run(wide.avx2(), walk)
             }
-            None => walk_instances::<_, false>(sections, ray, counter, trace_mesh),
+            None => walk_instances::<_, ClosestHit>(sections, ray, counter, trace_mesh),
         }
     }
 
@@ -288,22 +291,28 @@ impl<'a> Tracer<'a> {
         };
         match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
             Some(wide) => {
-                let walk = WideInstanceWalk::<_, _, true> { sections, ray, counter, trace_mesh: occluding };
+                let walk = WideInstanceWalk::<_, _, AnyHit> {
+                    sections,
+                    ray,
+                    counter,
+                    trace_mesh: occluding,
+                    query: PhantomData,
+                };
                 crate::simd::run(wide.avx2(), walk).is_some()
             }
-            None => walk_instances::<_, true>(sections, ray, counter, occluding).is_some(),
+            None => walk_instances::<_, AnyHit>(sections, ray, counter, occluding).is_some(),
         }
     }
 
     /// The binary kernel: the binary walk over this tracer's triangle leaves.
     #[inline(always)]
-    fn traverse<const ANY_HIT: bool, C: Candidates>(
+    fn traverse<Q: Query, C: Candidates>(
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
         candidates: &C,
     ) -> Found {
-        walk::<ANY_HIT, _, _>(self.nodes, ray, counter, TriangleLeaves { triangles: self.triangles, candidates })
+        walk::<Q, _, _>(self.nodes, ray, counter, TriangleLeaves { triangles: self.triangles, candidates })
     }
 }
 

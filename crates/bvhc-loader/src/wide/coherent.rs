@@ -20,6 +20,7 @@ use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
 use crate::ray::candidates::Unfiltered;
 use crate::ray::hit::{CULL_PADDING, TriangleHit, lane_address};
 use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::query::Query;
 use crate::ray::watertight::{
     ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
     hits, ill_conditioned, outside, sheared,
@@ -61,7 +62,7 @@ struct Found {
 
 /// Traces `rays` (at most [`PACKET_RAYS`]) as one packet; `done(l, found)` receives ray `l`'s result.
 #[inline(always)]
-pub(crate) fn trace_packet<const ANY_HIT: bool, I: Isa>(
+pub(crate) fn trace_packet<Q: Query, I: Isa>(
     isa: I,
     sections: &Sections<'_>,
     rays: &[Ray],
@@ -118,10 +119,10 @@ pub(crate) fn trace_packet<const ANY_HIT: bool, I: Isa>(
                 let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
                 let leaf = (first as usize, packets);
                 let hit = match lanes.shared_axes {
-                    Some(axes) => leaf_in_lanes::<ANY_HIT, I>(isa, leaf, &lanes, axes, active, &prepared, &mut found),
-                    None => leaf_ray_by_ray::<ANY_HIT, I>(isa, leaf, active, &prepared, &mut found),
+                    Some(axes) => leaf_in_lanes::<Q, I>(isa, leaf, &lanes, axes, active, &prepared, &mut found),
+                    None => leaf_ray_by_ray::<Q, I>(isa, leaf, active, &prepared, &mut found),
                 };
-                if ANY_HIT {
+                if Q::FIRST_HIT_ENDS {
                     pending &= !hit;
                 }
             } else if let Some(node) = sections.nodes.get(entry.child as usize).filter(|_| visits_left > 0) {
@@ -228,7 +229,7 @@ fn slot_test<I: Isa>(
 /// order at `t <= t_max` of the ray, so each ray ends with what the single-ray packet test gives. Returns the rays
 /// that were hit.
 #[inline(always)]
-fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
+fn leaf_in_lanes<Q: Query, I: Isa>(
     isa: I,
     (first, packets): (usize, &[TrianglePacket4]),
     lanes: &RayLanes,
@@ -286,7 +287,7 @@ fn leaf_in_lanes<const ANY_HIT: bool, I: Isa>(
                 }
             }
         }
-        if ANY_HIT {
+        if Q::FIRST_HIT_ENDS {
             active &= !hit_rays;
             if active == 0 {
                 break;
@@ -316,7 +317,7 @@ fn relative_vertex<I: Isa>(
 /// The leaf's packets for each `active` ray in turn, with the single-ray packet test (rays whose shear axes
 /// differ cannot share lanes). Returns the rays that were hit.
 #[inline(always)]
-fn leaf_ray_by_ray<const ANY_HIT: bool, I: Isa>(
+fn leaf_ray_by_ray<Q: Query, I: Isa>(
     isa: I,
     (first, packets): (usize, &[TrianglePacket4]),
     active: u8,
@@ -327,12 +328,11 @@ fn leaf_ray_by_ray<const ANY_HIT: bool, I: Isa>(
     for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
         let Some(ray) = &prepared[l] else { continue };
         for (p, packet) in packets.iter().enumerate() {
-            if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered)
-            {
+            if let Some((lane, hit)) = closest_in_packet::<Q, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered) {
                 found.t_max[l] = hit.t;
                 found.hit[l] = Some((lane_address(first + p, lane), hit));
                 hit_rays |= 1 << l;
-                if ANY_HIT {
+                if Q::FIRST_HIT_ENDS {
                     break;
                 }
             }

@@ -17,11 +17,13 @@ use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
 use crate::ray::candidates::{Candidates, Unfiltered};
 use crate::ray::hit::{Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::Ray;
+use crate::ray::query::{AnyHit, ClosestHit, Query};
 use crate::simd::{Avx2, Isa, Kernel, KernelPath};
 use crate::trace::{BatchResult, Order, Trace};
 use crate::verify::wide::{WideContext, verify_wide};
 use crate::wide::coherent::{PACKET_RAYS, trace_packet};
 use crate::wide::walk::{PacketHit, PacketLeaves, Sections, Walk, new_stack};
+use std::marker::PhantomData;
 
 /// The wide sections in memory (owned), checked at construction against the triangles they index.
 #[derive(Clone, Debug)]
@@ -163,7 +165,7 @@ impl<'a> WideTracer<'a> {
         counter: &mut impl TraversalCounter,
         candidates: &C,
     ) -> Option<Hit> {
-        let (address, hit) = self.dispatch::<false, C>(ray, counter, candidates)?;
+        let (address, hit) = self.dispatch::<ClosestHit, C>(ray, counter, candidates)?;
         Some(Hit::in_lane(address, hit, self.sections.packets, self.triangle_ids, &ray.direction))
     }
 
@@ -175,7 +177,7 @@ impl<'a> WideTracer<'a> {
         counter: &mut impl TraversalCounter,
         candidates: &C,
     ) -> bool {
-        self.dispatch::<true, C>(ray, counter, candidates).is_some()
+        self.dispatch::<AnyHit, C>(ray, counter, candidates).is_some()
     }
 
     /// Each ray's closest hit to `each(i, hit)`, once per ray: as a stream ([`WideTracer::closest_hits`]) or, when
@@ -188,8 +190,8 @@ impl<'a> WideTracer<'a> {
             }
         };
         match order == Order::Coherent {
-            true => self.packets::<false>(rays, &mut done),
-            false => self.stream::<false>(rays, &mut done),
+            true => self.packets::<ClosestHit>(rays, &mut done),
+            false => self.stream::<ClosestHit>(rays, &mut done),
         }
     }
 
@@ -197,25 +199,28 @@ impl<'a> WideTracer<'a> {
     pub(crate) fn any_hits_each(&self, rays: &[Ray], order: Order, each: &mut impl FnMut(usize, bool)) {
         let mut done = |i: usize, found: Option<(u32, TriangleHit)>| each(i, found.is_some());
         match order == Order::Coherent {
-            true => self.packets::<true>(rays, &mut done),
-            false => self.stream::<true>(rays, &mut done),
+            true => self.packets::<AnyHit>(rays, &mut done),
+            false => self.stream::<AnyHit>(rays, &mut done),
         }
     }
 
     /// Packets of consecutive rays on the tracer's path; `done(i, found)` receives ray `i`'s result.
-    fn packets<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
-        crate::simd::run(self.avx2, Packets::<_, ANY_HIT> { sections: &self.sections, rays, done });
+    fn packets<Q: Query>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
+        crate::simd::run(self.avx2, Packets::<_, Q> { sections: &self.sections, rays, done, query: PhantomData });
     }
 
     /// One ray's walk to its end on the tracer's path.
     #[inline(always)]
-    fn dispatch<const ANY_HIT: bool, C: Candidates>(
+    fn dispatch<Q: Query, C: Candidates>(
         &self,
         ray: &Ray,
         counter: &mut impl TraversalCounter,
         candidates: &C,
     ) -> Option<(u32, TriangleHit)> {
-        crate::simd::run(self.avx2, SingleRay::<_, _, ANY_HIT> { sections: &self.sections, ray, counter, candidates })
+        crate::simd::run(
+            self.avx2,
+            SingleRay::<_, _, Q> { sections: &self.sections, ray, counter, candidates, query: PhantomData },
+        )
     }
 
     /// Whether streams interleave rays: by default when the wide sections exceed 32 MiB, where it measured
@@ -231,14 +236,14 @@ impl<'a> WideTracer<'a> {
     }
 
     /// The stream on the tracer's path; `done(i, found)` receives ray `i`'s result.
-    fn stream<const ANY_HIT: bool>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
+    fn stream<Q: Query>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
         if !self.interleaves_streams() {
             for (i, ray) in rays.iter().enumerate() {
-                done(i, self.dispatch::<ANY_HIT, _>(ray, &mut (), &Unfiltered));
+                done(i, self.dispatch::<Q, _>(ray, &mut (), &Unfiltered));
             }
             return;
         }
-        crate::simd::run(self.avx2, Stream::<_, ANY_HIT> { sections: &self.sections, rays, done });
+        crate::simd::run(self.avx2, Stream::<_, Q> { sections: &self.sections, rays, done, query: PhantomData });
     }
 }
 
@@ -272,14 +277,15 @@ impl Trace for WideTracer<'_> {
 }
 
 /// One ray's walk, to its end, among the candidates `candidates` accepts.
-struct SingleRay<'s, 'r, C, A, const ANY_HIT: bool> {
+struct SingleRay<'s, 'r, C, A, Q: Query> {
     sections: &'s Sections<'s>,
     ray: &'r Ray,
     counter: &'r mut C,
     candidates: &'r A,
+    query: PhantomData<Q>,
 }
 
-impl<C: TraversalCounter, A: Candidates, const ANY_HIT: bool> Kernel for SingleRay<'_, '_, C, A, ANY_HIT> {
+impl<C: TraversalCounter, A: Candidates, Q: Query> Kernel for SingleRay<'_, '_, C, A, Q> {
     type Output = Option<(u32, TriangleHit)>;
 
     #[inline(always)]
@@ -287,25 +293,26 @@ impl<C: TraversalCounter, A: Candidates, const ANY_HIT: bool> Kernel for SingleR
         let mut walk = Walk::start(self.sections, self.ray)?;
         let mut stack = new_stack();
         let mut leaves = PacketLeaves(self.candidates);
-        while walk.step::<ANY_HIT, I, C, _>(isa, self.sections, &mut stack, self.counter, &mut leaves) {}
+        while walk.step::<Q, I, C, _>(isa, self.sections, &mut stack, self.counter, &mut leaves) {}
         walk.found()
     }
 }
 
 /// A stream of rays, up to [`STREAM_WIDTH`] walks in flight, one step of each in turn; a finished walk's slot
 /// takes the next ray.
-struct Stream<'s, 'r, D, const ANY_HIT: bool> {
+struct Stream<'s, 'r, D, Q: Query> {
     sections: &'s Sections<'s>,
     rays: &'r [Ray],
     done: &'r mut D,
+    query: PhantomData<Q>,
 }
 
-impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel for Stream<'_, '_, D, ANY_HIT> {
+impl<D: FnMut(usize, Option<(u32, TriangleHit)>), Q: Query> Kernel for Stream<'_, '_, D, Q> {
     type Output = ();
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) {
-        let Stream { sections, rays, done } = self;
+        let Stream { sections, rays, done, .. } = self;
         let mut stacks = [const { new_stack() }; STREAM_WIDTH];
         let mut walks: [Option<(usize, Walk<PacketHit>)>; STREAM_WIDTH] = [const { None }; STREAM_WIDTH];
         let mut next = 0;
@@ -326,7 +333,7 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
                     }
                 }
                 if let Some((i, walk)) = slot
-                    && !walk.step::<ANY_HIT, I, (), _>(isa, sections, stack, &mut (), &mut PacketLeaves(&Unfiltered))
+                    && !walk.step::<Q, I, (), _>(isa, sections, stack, &mut (), &mut PacketLeaves(&Unfiltered))
                 {
                     done(*i, walk.found());
                     *slot = None;
@@ -341,21 +348,20 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel fo
 }
 
 /// Packets of [`PACKET_RAYS`] consecutive rays, one traversal each.
-struct Packets<'s, 'r, D, const ANY_HIT: bool> {
+struct Packets<'s, 'r, D, Q: Query> {
     sections: &'s Sections<'s>,
     rays: &'r [Ray],
     done: &'r mut D,
+    query: PhantomData<Q>,
 }
 
-impl<D: FnMut(usize, Option<(u32, TriangleHit)>), const ANY_HIT: bool> Kernel for Packets<'_, '_, D, ANY_HIT> {
+impl<D: FnMut(usize, Option<(u32, TriangleHit)>), Q: Query> Kernel for Packets<'_, '_, D, Q> {
     type Output = ();
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) {
         for (p, chunk) in self.rays.chunks(PACKET_RAYS).enumerate() {
-            trace_packet::<ANY_HIT, I>(isa, self.sections, chunk, &mut |l, found| {
-                (self.done)(p * PACKET_RAYS + l, found)
-            });
+            trace_packet::<Q, I>(isa, self.sections, chunk, &mut |l, found| (self.done)(p * PACKET_RAYS + l, found));
         }
     }
 }

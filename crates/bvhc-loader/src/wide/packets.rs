@@ -8,6 +8,7 @@ use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::ray::candidates::Candidates;
 use crate::ray::hit::TriangleHit;
 use crate::ray::intersect::PreparedRay;
+use crate::ray::query::Query;
 use crate::ray::watertight::{
     ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
     hits, ill_conditioned, outside, sheared,
@@ -28,20 +29,20 @@ struct PacketLanes {
 }
 
 /// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
-/// `t <= t_max` would end with), as (lane, hit); for `ANY_HIT`, the last lane that hits when no lane needs the
+/// `t <= t_max` would end with), as (lane, hit); for an any-hit query, the last lane that hits when no lane needs the
 /// scalar redo, without looking for the nearest or computing `u` and `v` (0). The same hits on every
 /// instruction set. With active `candidates` (a hit filter), the lanes go one by one as in the scalar redo,
 /// each hit asked whether it is accepted (with its `u` and `v`), and the closest accepted one returned (for
-/// `ANY_HIT`, the first).
+/// an any-hit query, the first).
 #[inline(always)]
-pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
+pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
     isa: I,
     packet: &TrianglePacket4,
     ray: &PreparedRay,
     t_max: f32,
     candidates: &C,
 ) -> Option<(usize, TriangleHit)> {
-    let lanes = packet_lanes::<ANY_HIT, I>(isa, packet, ray, t_max)?;
+    let lanes = packet_lanes::<Q, I>(isa, packet, ray, t_max)?;
     let hit_in = |lane: usize| {
         let (u, v) = barycentrics([0.0, lanes.v[lane], lanes.w[lane]], lanes.det[lane], 1.0);
         TriangleHit { t: lanes.t[lane], u, v }
@@ -49,12 +50,12 @@ pub(crate) fn closest_in_packet<const ANY_HIT: bool, I: Isa, C: Candidates>(
     // A filter is consulted only when a lane that may hit is one it asks about (in practice: a lane of a
     // not-opaque triangle); otherwise every hit is accepted and the plain choice below is the filtered one.
     if C::ACTIVE && asks_in_packet(packet, lanes.valid | lanes.redo, candidates) {
-        return accepted_in_packet::<ANY_HIT, C>(packet, ray, t_max, &lanes, &hit_in, candidates);
+        return accepted_in_packet::<Q, C>(packet, ray, t_max, &lanes, &hit_in, candidates);
     }
     if lanes.redo == 0 {
         // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t. An any-hit
         // query only needs to know that a lane hits: its `u` and `v` are not computed (0).
-        if ANY_HIT {
+        if Q::FIRST_HIT_ENDS {
             let last = 31usize.checked_sub(lanes.valid.leading_zeros() as usize)?;
             return Some((last, TriangleHit { t: lanes.t[last & (LANES - 1)], u: 0.0, v: 0.0 }));
         }
@@ -92,11 +93,11 @@ fn asks_in_packet<C: Candidates>(packet: &TrianglePacket4, mask: u32, candidates
     false
 }
 
-/// The closest lane hit within `t_max` that `candidates` accepts (the first, for `ANY_HIT`), the lanes taken one
+/// The closest lane hit within `t_max` that `candidates` accepts (the first, for an any-hit query), the lanes taken one
 /// by one (a lane with a zero edge function redone by the scalar test), each hit offered to `candidates` with
 /// its record index; ties as [`closest_in_packet`] (the last accepted lane at the smallest `t`).
 #[inline(never)]
-fn accepted_in_packet<const ANY_HIT: bool, C: Candidates>(
+fn accepted_in_packet<Q: Query, C: Candidates>(
     packet: &TrianglePacket4,
     ray: &PreparedRay,
     t_max: f32,
@@ -117,7 +118,7 @@ fn accepted_in_packet<const ANY_HIT: bool, C: Candidates>(
         if let Some(hit) = hit
             && candidates.accept(packet.triangle_index[lane], &hit)
         {
-            if ANY_HIT {
+            if Q::FIRST_HIT_ENDS {
                 return Some((lane, hit));
             }
             limit = hit.t;
@@ -130,7 +131,7 @@ fn accepted_in_packet<const ANY_HIT: bool, C: Candidates>(
 /// The four lanes' test; `None` as soon as the edge functions show that no lane can hit (every lane outside or
 /// unused, none with a zero edge function), before `t` is computed: most packet tests end there.
 #[inline(always)]
-fn packet_lanes<const ANY_HIT: bool, I: Isa>(
+fn packet_lanes<Q: Query, I: Isa>(
     isa: I,
     packet: &TrianglePacket4,
     ray: &PreparedRay,
@@ -162,7 +163,7 @@ fn packet_lanes<const ANY_HIT: bool, I: Isa>(
     let redo = on_edge.or(ill.and(inside));
     let t = distance(e, &r, sz, det);
     let valid = hits(outside, det, t, zero, isa.f4_splat(t_min), isa.f4_splat(t_max));
-    let nearest = if ANY_HIT {
+    let nearest = if Q::FIRST_HIT_ENDS {
         0 // an any-hit query takes any valid lane
     } else {
         let masked = I::F4::select(valid, t, isa.f4_splat(f32::INFINITY));

@@ -24,6 +24,7 @@ use crate::format::{LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, Wide
 use crate::ray::candidates::Candidates;
 use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit, lane_address};
 use crate::ray::intersect::{PreparedRay, Ray};
+use crate::ray::query::Query;
 use crate::simd::Isa;
 use crate::wide::packets::closest_in_packet;
 
@@ -57,9 +58,9 @@ pub(crate) trait WideLeaves<C: TraversalCounter> {
     /// Whether the AVX2 path prefetches what a leaf reference points at (packets do; an instance does not).
     const PREFETCH_LEAVES: bool;
 
-    /// The nearest hit with `t <= t_max` in the leaf `reference` of `sections` (with `ANY_HIT`, the first
+    /// The nearest hit with `t <= t_max` in the leaf `reference` of `sections` (for an any-hit query, the first
     /// found), of the ray prepared as `ray`.
-    fn test_leaf<const ANY_HIT: bool, I: Isa>(
+    fn test_leaf<Q: Query, I: Isa>(
         &mut self,
         isa: I,
         sections: &Sections<'_>,
@@ -84,7 +85,7 @@ impl<C: TraversalCounter, A: Candidates> WideLeaves<C> for PacketLeaves<'_, A> {
     const PREFETCH_LEAVES: bool = true;
 
     #[inline(always)]
-    fn test_leaf<const ANY_HIT: bool, I: Isa>(
+    fn test_leaf<Q: Query, I: Isa>(
         &mut self,
         isa: I,
         sections: &Sections<'_>,
@@ -94,7 +95,7 @@ impl<C: TraversalCounter, A: Candidates> WideLeaves<C> for PacketLeaves<'_, A> {
         counter: &mut C,
     ) -> Option<Self::Found> {
         let (first, count) = WideNode8::leaf_packets(reference);
-        leaf_hit::<ANY_HIT, I, A>(isa, sections, ray, (first as usize, count as usize), t_max, counter, self.0)
+        leaf_hit::<Q, I, A>(isa, sections, ray, (first as usize, count as usize), t_max, counter, self.0)
     }
 
     #[inline(always)]
@@ -140,7 +141,7 @@ impl<F: Copy> Walk<F> {
         self.ray.enter_box(node, self.t_max * CULL_PADDING).is_some()
     }
 
-    /// The closest hit so far (any hit, for `ANY_HIT` walks).
+    /// The closest hit so far (any hit, for an any-hit query).
     pub(crate) fn found(&self) -> Option<F> {
         self.found
     }
@@ -148,7 +149,7 @@ impl<F: Copy> Walk<F> {
     /// Processes the current wide node or leaf and moves to the next; `false` when the walk has ended.
     /// `stack` must be the one this walk has used since it started.
     #[inline(always)]
-    pub(crate) fn step<const ANY_HIT: bool, I: Isa, C: TraversalCounter, L: WideLeaves<C, Found = F>>(
+    pub(crate) fn step<Q: Query, I: Isa, C: TraversalCounter, L: WideLeaves<C, Found = F>>(
         &mut self,
         isa: I,
         sections: &Sections<'_>,
@@ -158,9 +159,9 @@ impl<F: Copy> Walk<F> {
     ) -> bool {
         let current = self.current;
         if current & LEAF_BIT != 0 {
-            if let Some(hit) = leaves.test_leaf::<ANY_HIT, I>(isa, sections, current, &self.ray, self.t_max, counter) {
+            if let Some(hit) = leaves.test_leaf::<Q, I>(isa, sections, current, &self.ray, self.t_max, counter) {
                 self.found = Some(hit);
-                if ANY_HIT {
+                if Q::FIRST_HIT_ENDS {
                     return false;
                 }
                 self.t_max = L::t(&hit);
@@ -176,7 +177,7 @@ impl<F: Copy> Walk<F> {
                     self.current = child;
                     return true;
                 }
-            } else if ANY_HIT {
+            } else if Q::FIRST_HIT_ENDS {
                 // Any hit needs no order: the hit children go on the stack in slot order and the walk goes on
                 // with the last (as Embree's occlusion traversal does), without comparing distances.
                 let mut lanes = mask;
@@ -263,9 +264,9 @@ impl<F: Copy> Walk<F> {
 }
 
 /// The closest hit in packets `first .. first + count` (`leaf`), within `t_max`, among the candidates
-/// `candidates` accepts, as (lane address, hit); for `ANY_HIT`, the first packet's hit.
+/// `candidates` accepts, as (lane address, hit); for an any-hit query, the first packet's hit.
 #[inline(always)]
-fn leaf_hit<const ANY_HIT: bool, I: Isa, C: Candidates>(
+fn leaf_hit<Q: Query, I: Isa, C: Candidates>(
     isa: I,
     sections: &Sections<'_>,
     ray: &PreparedRay,
@@ -279,10 +280,10 @@ fn leaf_hit<const ANY_HIT: bool, I: Isa, C: Candidates>(
     let mut limit = t_max;
     for (p, packet) in packets.iter().enumerate() {
         counter.triangle_tested();
-        if let Some((lane, hit)) = closest_in_packet::<ANY_HIT, I, C>(isa, packet, ray, limit, candidates) {
+        if let Some((lane, hit)) = closest_in_packet::<Q, I, C>(isa, packet, ray, limit, candidates) {
             limit = hit.t;
             best = Some((lane_address(first + p, lane), hit));
-            if ANY_HIT {
+            if Q::FIRST_HIT_ENDS {
                 break;
             }
         }
