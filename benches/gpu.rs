@@ -121,7 +121,8 @@ struct Counts {
 }
 
 fn count(sections: GpuSections<'_>, view: &bvhc::loader::BvhView<'_>, rays: &ray_set::RaySet) -> Counts {
-    let model = GpuLayoutTracer::new(sections, view.triangles(), view.triangle_ids());
+    let model = GpuLayoutTracer::new(sections, view.triangles(), view.triangle_ids())
+        .with_split_references(view.has_split_references());
     let cpu = view.tracer();
     let mut stats = TraversalStats::default();
     let mut unlike = 0;

@@ -23,7 +23,7 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use bvhc::convert::convert_with;
-use bvhc::loader::{BvhFile, Ray, Tracer, TraversalStats, gpu::GpuLayoutTracer};
+use bvhc::loader::{BvhFile, Ray, Tracer, TraversalStats};
 use bvhc::optimize::OptTree;
 use bvhc::options::{Overrides, Preset, resolve};
 use bvhc::sampling::{RayTuning, TrainingRays, training_rays};
@@ -160,7 +160,7 @@ fn counts_per_ray(tracer: &Tracer<'_>, rays: &[Ray]) -> (f64, f64) {
 /// The GPU model's node visits per ray (closest hits).
 fn gpu_visits(file: &BvhFile, rays: &[Ray]) -> f64 {
     let view = file.view();
-    let model = GpuLayoutTracer::new(view.gpu_sections().expect("GPU sections"), view.triangles(), view.triangle_ids());
+    let model = view.gpu_layout_tracer().expect("GPU sections");
     let mut stats = TraversalStats::default();
     for ray in rays {
         model.closest_hit_counted(ray, &mut stats);

@@ -74,7 +74,8 @@ pub struct TraceArgs {
     #[arg(long)]
     pub any_hit: bool,
     /// The rays come in coherent groups (camera rays of neighbouring pixels): trace each 8 consecutive rays
-    /// together (the same t for each ray; on a tie at it, possibly another triangle).
+    /// together (the same hit for each ray as one at a time, ties included; with split references possibly
+    /// another record of the same triangle).
     #[arg(long)]
     pub coherent: bool,
     /// Trace on the GPU: the loader's WGSL kernel over the file's GPU sections (written by `--gpu-layout`), on

@@ -68,7 +68,8 @@ fn golden_v1_4_file_reads_verifies_and_traces_its_gpu_sections() {
     let leaves: Vec<GpuSlot> = (0..8).map(|s| root.slot(s)).filter(|s| *s != GpuSlot::Empty).collect();
     assert_eq!(leaves.len(), 2, "{leaves:?}");
     assert_eq!(root.inner_mask, 0);
-    let model = GpuLayoutTracer::new(gpu, view.triangles(), view.triangle_ids());
+    let model = GpuLayoutTracer::new(gpu, view.triangles(), view.triangle_ids())
+        .with_split_references(view.has_split_references());
     let down = |x: f32, y: f32| model.closest_hit(&Ray::new([x, y, 1.0], [0.0, 0.0, -1.0]));
     let ids = view.triangle_ids().unwrap();
     let quad = down(0.75, 0.25).unwrap();

@@ -21,7 +21,8 @@ use crate::gpu_compare::{Tally, compare, gpu_file, table_header};
 /// Compares the GPU model with the file's CPU kernel on every ray.
 pub fn tally(view: &BvhView<'_>, rays: &[Ray]) -> Tally {
     let gpu = view.gpu_sections().expect("a file with the GPU sections");
-    let model = GpuLayoutTracer::new(gpu, view.triangles(), view.triangle_ids());
+    let model = GpuLayoutTracer::new(gpu, view.triangles(), view.triangle_ids())
+        .with_split_references(view.has_split_references());
     let cpu = view.tracer();
     let mut tally = Tally::default();
     for ray in rays {
@@ -55,7 +56,7 @@ fn the_model_of_the_gpu_kernel_agrees_with_the_cpu_kernel_under_stress() {
         println!("| {} {tally}", case.name);
         assert_within_classes(&case.name, &tally);
         if case.must_hit {
-            let model = GpuLayoutTracer::new(view.gpu_sections().unwrap(), view.triangles(), view.triangle_ids());
+            let model = view.gpu_layout_tracer().unwrap();
             let missed = case.rays.iter().filter(|r| model.closest_hit(r).is_none()).count();
             assert_eq!(missed, 0, "{}: rays from inside a closed mesh missed it", case.name);
         }
@@ -82,7 +83,8 @@ fn an_empty_scene_and_a_single_triangle_have_gpu_sections() {
         view.verify().expect("verifies");
         let gpu = view.gpu_sections().unwrap();
         assert_eq!(gpu.nodes.len(), triangles.len());
-        let model = GpuLayoutTracer::new(gpu, view.triangles(), view.triangle_ids());
+        let model = GpuLayoutTracer::new(gpu, view.triangles(), view.triangle_ids())
+            .with_split_references(view.has_split_references());
         let hit = model.closest_hit(&Ray::new([0.25, 0.25, 1.0], [0.0, 0.0, -1.0]));
         assert_eq!(hit.map(|h| h.t), (!triangles.is_empty()).then_some(1.0));
     }

@@ -5,7 +5,7 @@
 //!
 //! `cargo test --release gpu_shader -- --nocapture` prints the tables kept in `docs/gpu.md`.
 
-use bvhc::loader::{BvhView, Hit, Ray, gpu::GpuError, gpu::GpuLayoutTracer, gpu::GpuTracer};
+use bvhc::loader::{BvhView, Hit, Ray, gpu::GpuError, gpu::GpuTracer};
 use bvhc_loader::Trace;
 
 use crate::common::{Triangle, random_rays, random_triangles, scene};
@@ -30,7 +30,7 @@ fn gpu_tracer<'a>(view: &BvhView<'a>) -> Option<GpuTracer<'a>> {
 /// The shader's hits against the CPU kernel's (and the model's) on `rays`.
 fn tally(view: &BvhView<'_>, tracer: &GpuTracer<'_>, rays: &[Ray]) -> (Tally, usize) {
     let cpu = view.tracer();
-    let model = GpuLayoutTracer::new(view.gpu_sections().unwrap(), view.triangles(), view.triangle_ids());
+    let model = view.gpu_layout_tracer().unwrap();
     let closest = tracer.closest_hits(rays).expect("traces");
     let any = tracer.any_hits(rays).expect("traces");
     let mut tally = Tally::default();
@@ -97,7 +97,7 @@ fn rays_with_ill_conditioned_hits_are_left_to_the_cpu_and_the_others_are_the_mod
         let file = gpu_file(&scene.triangles);
         let view = file.view();
         let tracer = gpu_tracer(&view).expect("the adapter found above");
-        let model = GpuLayoutTracer::new(view.gpu_sections().unwrap(), view.triangles(), view.triangle_ids());
+        let model = view.gpu_layout_tracer().unwrap();
         let (closest, any) = (tracer.trace(&scene.rays, false).unwrap(), tracer.trace(&scene.rays, true).unwrap());
         println!("| {} | {} | {} | {} |", scene.name, scene.rays.len(), closest.cpu_rays, any.cpu_rays);
         assert!(

@@ -66,6 +66,7 @@ mod split;
 mod split_layout;
 mod stress;
 mod trace;
+mod ties;
 mod traversal;
 mod watertight;
 mod wide;

@@ -135,8 +135,9 @@ bvhc_status bvhc_check_rays(const bvhc_ray *rays, size_t count, size_t *first_in
 bvhc_status bvhc_closest_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
                               uint8_t *found);
 bvhc_status bvhc_any_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
-/* Coherent rays (camera rays of neighbouring pixels): each 8 consecutive rays traced together; the same t and
- * occlusion as one at a time (on a tie at t, possibly another triangle). */
+/* Coherent rays (camera rays of neighbouring pixels): each 8 consecutive rays traced together; the same hits and
+ * occlusion as one at a time, ties decided as spec 11.1 says (with split references, possibly another record of
+ * the same triangle). */
 bvhc_status bvhc_closest_hits_coherent(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
                                        uint8_t *found);
 bvhc_status bvhc_any_hits_coherent(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);

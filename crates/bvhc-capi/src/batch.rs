@@ -93,8 +93,8 @@ closest_hits_entry!(
 );
 closest_hits_entry!(
     /// [`bvhc_closest_hits`] for coherent rays (camera rays of neighbouring pixels): each 8 consecutive rays are
-    /// traced together (`Tracer::closest_hits_coherent`: the same `t` for each ray; on a tie at it, possibly
-    /// another triangle).
+    /// traced together (`Tracer::closest_hits_coherent`: the same hit for each ray as one at a time, ties
+    /// included; with split references possibly another record of the same triangle).
     ///
     /// # Safety
     ///

@@ -13,7 +13,7 @@ use crate::format::{LEAF_BIT, MeshRecord, PackedNode};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::hit::{Hit, TraversalCounter};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::Query;
+use crate::ray::query::{Query, precedes};
 use crate::ray::transform::{object_ray, world_normal};
 use crate::simd::{Isa, Kernel};
 use crate::wide::walk::{Sections, Walk, WideLeaves, new_stack};
@@ -37,6 +37,12 @@ fn visit_instance<C: TraversalCounter>(
     hit.instance_index = Some(index);
     hit.normal = world_normal(instance, hit.normal);
     Some(hit)
+}
+
+/// The tie keys of two hits in instances (spec 11.1): the instance index, then the record.
+#[inline]
+fn tie_keys(hit: &Hit, best: &Hit) -> ((Option<u32>, u32), (Option<u32>, u32)) {
+    ((hit.instance_index, hit.triangle_index), (best.instance_index, best.triangle_index))
 }
 
 /// The closest hit (or for an any-hit query, the first hit found) of `ray` among the instances of `sections`, by the
@@ -79,8 +85,10 @@ where
         let Some(hit) = visit_instance(self.sections, node.index, ray, *t_max, counter, &mut self.trace_mesh) else {
             return false;
         };
-        *t_max = hit.t;
-        *found = Some(hit);
+        if Q::FIRST_HIT_ENDS || found.as_ref().is_none_or(|best| precedes(hit.t, best.t, || tie_keys(&hit, best))) {
+            *t_max = hit.t;
+            *found = Some(hit);
+        }
         Q::FIRST_HIT_ENDS
     }
 }
@@ -108,7 +116,7 @@ where
     fn run<I: Isa>(self, isa: I) -> Option<Hit> {
         let WideInstanceWalk { sections, ray, counter, trace_mesh, .. } = self;
         let root = *sections.top_nodes.first()?;
-        let top = Sections { nodes: sections.top_wide_nodes, packets: &[], root };
+        let top = Sections { nodes: sections.top_wide_nodes, packets: &[], root, split_references: false };
         let mut walk = Walk::start(&top, ray).filter(|walk| walk.enters(&root))?;
         let mut stack = new_stack();
         let mut leaves = WideInstanceLeaves { sections, ray, trace_mesh };
@@ -149,5 +157,12 @@ where
     #[inline(always)]
     fn t(found: &Hit) -> f32 {
         found.t
+    }
+
+    /// The lower instance (a walk meets an instance once, so two hits at one `t` are in two instances).
+    #[cold]
+    #[inline(never)]
+    fn first_at_tie(_: &Sections<'_>, found: &Hit, best: &Hit) -> bool {
+        tie_keys(found, best).0 < tie_keys(found, best).1
     }
 }

@@ -86,8 +86,8 @@ pub trait Trace {
         into_slots("any_hits", rays, occluded, |each| self.any_hits_with(rays, Order::Stream, each));
     }
 
-    /// [`Trace::closest_hits`] for coherent rays ([`Order::Coherent`]): the same `t` for each ray, on a tie at it
-    /// possibly another triangle.
+    /// [`Trace::closest_hits`] for coherent rays ([`Order::Coherent`]): the same hit for each ray as one at a time,
+    /// ties decided as spec 11.1 says (with split references, possibly another record of the same triangle).
     ///
     /// # Panics
     ///

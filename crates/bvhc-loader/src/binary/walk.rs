@@ -14,15 +14,16 @@ use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
 use crate::ray::candidates::Candidates;
 use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::Query;
+use crate::ray::query::{Query, TieKey, precedes};
 
 /// What the walk does at a leaf.
 pub(crate) trait Leaves<C: TraversalCounter> {
     /// What a hit in a leaf is.
     type Found;
 
-    /// Tests leaf `node` for hits with `t <= *t_max` of `ray` (prepared as `prepared`): each hit taken lowers
-    /// `*t_max` to its `t` and replaces `*found`. For an any-hit query, returns `true` at the first hit taken, which
+    /// Tests leaf `node` for hits with `t <= *t_max` of `ray` (prepared as `prepared`): each hit that precedes
+    /// `*found` ([`precedes`]: a smaller `t`, or the same and a lower key) replaces it and lowers `*t_max` to its
+    /// `t`. For an any-hit query, returns `true` at the first hit taken, which
     /// ends the walk; `false` otherwise.
     fn test_leaf<Q: Query>(
         &mut self,
@@ -40,6 +41,21 @@ pub(crate) trait Leaves<C: TraversalCounter> {
 pub(crate) struct TriangleLeaves<'t, 'c, F> {
     pub triangles: &'t [PackedTriangle],
     pub candidates: &'c F,
+    /// The triangles section's `SPLIT_REFERENCES` flag: which [`TieKey`] orders hits at one `t`.
+    pub split_references: bool,
+}
+
+impl<F> TriangleLeaves<'_, '_, F> {
+    /// The tie keys of records `record` and `best`.
+    #[inline(never)]
+    fn tie_keys(&self, record: u32, best: u32) -> (TieKey, TieKey) {
+        let key = |r: u32| {
+            TieKey::of(self.split_references, r, || {
+                self.triangles.get(r as usize).map_or([u32::MAX; 9], PackedTriangle::coordinate_bits)
+            })
+        };
+        (key(record), key(best))
+    }
 }
 
 impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F> {
@@ -64,11 +80,14 @@ impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F>
             if let Some(hit) = prepared.intersect_triangle(triangle, *t_max)
                 && (!F::ACTIVE || self.candidates.accept(record, &hit))
             {
-                *found = Some((record, hit));
                 if Q::FIRST_HIT_ENDS {
+                    *found = Some((record, hit));
                     return true;
                 }
-                *t_max = hit.t;
+                if found.is_none_or(|(best, best_hit)| precedes(hit.t, best_hit.t, || self.tie_keys(record, best))) {
+                    *found = Some((record, hit));
+                    *t_max = hit.t;
+                }
             }
         }
         false

@@ -85,7 +85,14 @@ impl<'a> GpuTracer<'a> {
     /// with the adapter's own buffer limits.
     pub fn new(view: &BvhView<'a>) -> Result<GpuTracer<'a>, GpuError> {
         let gpu = view.gpu_sections().ok_or(GpuError::NoGpuSections)?;
-        GpuTracer::on_sections(gpu, view.triangles(), view.triangle_ids())
+        Ok(GpuTracer::on_sections(gpu, view.triangles(), view.triangle_ids())?
+            .with_split_references(view.has_split_references()))
+    }
+
+    /// This tracer over a triangles section with the `SPLIT_REFERENCES` flag (`split`; [`GpuTracer::new`] reads
+    /// it from the file): hits at one `t` are then ordered by coordinates (`format-spec/bvh-1.md` 11.1).
+    pub fn with_split_references(self, split: bool) -> Self {
+        GpuTracer { model: self.model.with_split_references(split), ..self }
     }
 
     /// [`GpuTracer::new`] for sections held elsewhere (a benchmark's other builder, say), in the layout of
@@ -280,7 +287,8 @@ impl<'a> GpuTracer<'a> {
             contents: bytemuck::cast_slice(&gpu_rays),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let params = GpuParams { ray_count: rays.len() as u32, reserved: [0; 3] };
+        let split_references = u32::from(self.model.splits_references());
+        let params = GpuParams { ray_count: rays.len() as u32, split_references, reserved: [0; 2] };
         let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("params"),
             contents: bytemuck::bytes_of(&params),

@@ -31,7 +31,8 @@ struct HitRecord {
 
 struct Params {
     ray_count: u32,
-    reserved0: u32,
+    // 1 when the triangles section has SPLIT_REFERENCES: hits at one t are then ordered by coordinates.
+    split_references: u32,
     reserved1: u32,
     reserved2: u32,
 }
@@ -342,6 +343,23 @@ fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
 
 // One ray's walk (Ylitie et al. 2017, Algorithm 1, triangles tested as soon as their node is visited): the hit
 // record, for any hit the first found.
+// Whether, of two hits at one t, the one on GPU triangle g (record `triangle`) comes before the one on best_g
+// (record `best`): the lower record, or with split references the lower coordinates (nine bit patterns compared
+// as unsigned integers in order), as format-spec/bvh-1.md 11.1 orders them.
+fn precedes_at_tie(g: u32, triangle: u32, best_g: u32, best: u32) -> bool {
+    if (params.split_references == 0u) {
+        return triangle < best;
+    }
+    for (var k = 0u; k < 9u; k += 1u) {
+        let a = gpu_triangles[g * 5u + k / 2u][k % 2u];
+        let b = gpu_triangles[best_g * 5u + k / 2u][k % 2u];
+        if (a != b) {
+            return a < b;
+        }
+    }
+    return false;
+}
+
 fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
     var record = HitRecord(0.0, 0.0, 0.0, NO_HIT);
     let node_count = arrayLength(&gpu_nodes) / 5u;
@@ -351,6 +369,7 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
     let ray = prepare(ray_in);
     let inv = octant_inverse(ray_in.direction);
     var best_t = ray_in.t_max;
+    var best_g = 0u;
     // The lowest t an ill-conditioned candidate could have (within [t_min, ...]); above t_max: none met.
     var ill_low = F32_MAX;
     var ill = false;
@@ -395,10 +414,17 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
                     ill_low = min(ill_low, hit.x);
                 }
             } else if (hit.w != 0.0) {
-                best_t = hit.x;
-                record = HitRecord(hit.x, hit.y, hit.z, gpu_triangles[g * 5u + 4u].y);
-                if (any_hit) {
-                    return record;
+                // Of two hits at one t the first in spec 11.1's order is kept (the lower record, or with split
+                // references the lower coordinates).
+                let triangle = gpu_triangles[g * 5u + 4u].y;
+                if (any_hit || hit.x < best_t || record.triangle == NO_HIT
+                    || (hit.x == best_t && precedes_at_tie(g, triangle, best_g, record.triangle))) {
+                    best_t = hit.x;
+                    best_g = g;
+                    record = HitRecord(hit.x, hit.y, hit.z, triangle);
+                    if (any_hit) {
+                        return record;
+                    }
                 }
             }
         }

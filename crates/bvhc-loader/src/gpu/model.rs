@@ -27,6 +27,7 @@
 use crate::format::{GPU_MAX_DEPTH, GPU_WIDE, GpuNode, GpuTriangle, PackedTriangle};
 use crate::gpu::shader::GpuHitRecord;
 use crate::open::sections::GpuSections;
+use crate::open::view::BvhView;
 use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::query::{AnyHit, ClosestHit, Query};
@@ -40,6 +41,16 @@ pub struct GpuLayoutTracer<'a> {
     gpu_triangles: &'a [GpuTriangle],
     triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
+    /// The triangles section's `SPLIT_REFERENCES` flag: hits at one `t` ordered by coordinates, not records.
+    split_references: bool,
+}
+
+impl<'a> BvhView<'a> {
+    /// The CPU model of the GPU kernel over this file's GPU sections ([`GpuLayoutTracer`]), when it has them.
+    pub fn gpu_layout_tracer(&self) -> Option<GpuLayoutTracer<'a>> {
+        let tracer = GpuLayoutTracer::new(self.gpu_sections()?, self.triangles(), self.triangle_ids());
+        Some(tracer.with_split_references(self.has_split_references()))
+    }
 }
 
 /// Bytes one node visit reads (one [`GpuNode`]).
@@ -58,7 +69,39 @@ const INNER_MASK: u32 = 0xff00_0000;
 impl<'a> GpuLayoutTracer<'a> {
     /// A tracer over `gpu` whose triangles are records of `triangles` (the file's), with their ids.
     pub fn new(gpu: GpuSections<'a>, triangles: &'a [PackedTriangle], triangle_ids: Option<&'a [u32]>) -> Self {
-        GpuLayoutTracer { nodes: gpu.nodes, gpu_triangles: gpu.triangles, triangles, triangle_ids }
+        GpuLayoutTracer {
+            nodes: gpu.nodes,
+            gpu_triangles: gpu.triangles,
+            triangles,
+            triangle_ids,
+            split_references: false,
+        }
+    }
+
+    /// This tracer over a triangles section with the `SPLIT_REFERENCES` flag (`split`): of hits at one `t` the
+    /// closest is then the one of lowest coordinates, not of lowest record (`format-spec/bvh-1.md` 11.1), as the
+    /// shader does with `Params::split_references` set.
+    pub fn with_split_references(self, split: bool) -> Self {
+        GpuLayoutTracer { split_references: split, ..self }
+    }
+
+    /// Whether this tracer orders hits at one `t` by coordinates ([`GpuLayoutTracer::with_split_references`]).
+    #[cfg_attr(not(feature = "wgpu"), allow(dead_code))]
+    pub(crate) fn splits_references(&self) -> bool {
+        self.split_references
+    }
+
+    /// Whether of two hits at one `t` the one on GPU triangle `g` comes before the one on `best` (records
+    /// `record` and `best_record`): the shader's `precedes_at_tie`.
+    #[inline(never)]
+    fn precedes_at_tie(&self, (g, record): (u32, u32), (best, best_record): (u32, u32)) -> bool {
+        if !self.split_references {
+            return record < best_record;
+        }
+        let bits = |g: u32| {
+            self.gpu_triangles.get(g as usize).map(|t| PackedTriangle { vertices: t.vertices }.coordinate_bits())
+        };
+        bits(g) < bits(best)
     }
 
     /// The record the WGSL kernel writes for `ray` (the closest hit, or for `any_hit` the first hit found), with
@@ -84,6 +127,9 @@ impl<'a> GpuLayoutTracer<'a> {
         let inv = octant_inverse(&ray.direction);
         let mut best_t = ray.t_max.min(f32::MAX);
         let mut found: Option<(u32, TriangleHit)> = None;
+        // The closest hit's record and GPU triangle: of two hits at one `t`, the first in spec 11.1's order is
+        // kept; u32::MAX, the shader's NO_HIT, before the first hit.
+        let (mut best_record, mut best_g) = (u32::MAX, u32::MAX);
         let mut stack = [(0u32, 0u32); GPU_MAX_DEPTH];
         let mut stack_len = 0;
         let mut visits_left = self.nodes.len();
@@ -120,8 +166,16 @@ impl<'a> GpuLayoutTracer<'a> {
                 let triangle = self.gpu_triangles.get(g as usize)?;
                 counter.triangle_tested();
                 let packed = PackedTriangle { vertices: triangle.vertices };
-                if let Some(hit) = prepared.intersect_triangle_f32(&packed, best_t) {
+                if let Some(hit) = prepared.intersect_triangle_f32(&packed, best_t)
+                    && (Q::FIRST_HIT_ENDS
+                        || hit.t < best_t
+                        || best_record == u32::MAX
+                        || (hit.t == best_t
+                            && self.precedes_at_tie((g, triangle.triangle_index), (best_g, best_record))))
+                {
                     best_t = hit.t;
+                    best_record = triangle.triangle_index;
+                    best_g = g;
                     found = Some((g, hit));
                     if Q::FIRST_HIT_ENDS {
                         return found;

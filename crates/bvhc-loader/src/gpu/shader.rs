@@ -99,12 +99,15 @@ impl GpuHitRecord {
 pub struct GpuParams {
     /// Rays in binding 2 (and results in binding 3).
     pub ray_count: u32,
+    /// 1 when the file's triangles section has `SPLIT_REFERENCES` (hits at one `t` are then ordered by their
+    /// triangles' coordinates, `format-spec/bvh-1.md` 11.1), else 0.
+    pub split_references: u32,
     /// Zero.
-    pub reserved: [u32; 3],
+    pub reserved: [u32; 2],
 }
 
 crate::format::plain_data::plain_data! {
     GpuRay { [f32; 3], f32, [f32; 3], f32 }
     GpuHitRecord { f32, f32, f32, u32 }
-    GpuParams { u32, [u32; 3] }
+    GpuParams { u32, u32, [u32; 2] }
 }

@@ -136,6 +136,14 @@ pub(crate) fn lane_address(packet: usize, lane: usize) -> u32 {
     (packet * PACKET_LANES + lane) as u32
 }
 
+/// The triangle record at lane address `address` ([`lane_address`]) of `packets`: a hit's tie key in the wide
+/// kernels (`u32::MAX` past the end, which only a file that fails verification gives).
+#[inline]
+pub(crate) fn lane_record(packets: &[TrianglePacket4], address: u32) -> u32 {
+    let (packet, lane) = (address as usize / PACKET_LANES, address as usize % PACKET_LANES);
+    packets.get(packet).map_or(u32::MAX, |packet| packet.triangle_index[lane])
+}
+
 /// Receives traversal events. The default path uses `()`, whose empty methods compile away.
 pub trait TraversalCounter {
     /// A node was visited (its children's boxes tested, or its triangles).

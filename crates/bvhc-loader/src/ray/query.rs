@@ -3,7 +3,11 @@
 //! the walk asks at run time which one it runs.
 //!
 //! Both queries bound the walk by the closest hit taken so far: a hit shrinks `t_max` to its `t`, and boxes
-//! entered beyond it (padded, 11.2) are culled. They differ in whether the first hit taken ends the walk. A query
+//! entered beyond it (padded, 11.2) are culled. They differ in whether the first hit taken ends the walk. The
+//! closest hit is the first in `(t, key)` order ([`precedes`]), the key being the triangle record, or with
+//! split references its coordinates ([`TieKey`]; in a two-level file the instance first): wherever two hits
+//! meet (lanes of a packet, packets of a leaf, leaves, instances, the rays of a coherent packet), the walks keep
+//! the one that precedes, so the order in which they meet never decides a tie (spec 11.1, revision 1.5.2). A query
 //! that bounds by another measure (the closest point to a position: the distance to a box instead of the slab
 //! test) would bring its own node and leaf tests as well.
 
@@ -26,4 +30,35 @@ impl Query for ClosestHit {
 
 impl Query for AnyHit {
     const FIRST_HIT_ENDS: bool = true;
+}
+
+/// Whether a hit at `t` with tie key `key` precedes the closest hit so far, at `best_t` with key `best_key`: a
+/// smaller `t`, or the same `t` and a lower key (spec 11.1: the lowest [`TieKey`] among the hits at the smallest
+/// `t`; in a two-level file the lowest instance first). `keys` gives
+/// `(key, best_key)` and is called only on a tie, so a walk pays for the keys' loads only there.
+#[inline(always)]
+pub(crate) fn precedes<K: Ord>(t: f32, best_t: f32, keys: impl FnOnce() -> (K, K)) -> bool {
+    t < best_t
+        || (t == best_t && {
+            let (key, best_key) = keys();
+            key < best_key
+        })
+}
+
+/// A hit's place among the hits at one `t` (spec 11.1): in a file without `SPLIT_REFERENCES` its record index;
+/// with them, its record's nine coordinates as bit patterns (`v0.x, v0.y, ..., v2.z`, compared as unsigned
+/// integers in that order), since a triangle's records are then interchangeable (5.2) and a walk may meet any
+/// of them. A file's keys are all of one kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) enum TieKey {
+    Record(u32),
+    Coordinates([u32; 9]),
+}
+
+impl TieKey {
+    /// The key of `record`, whose coordinate bits `coordinates` gives (called only with split references).
+    #[inline]
+    pub(crate) fn of(split_references: bool, record: u32, coordinates: impl FnOnce() -> [u32; 9]) -> TieKey {
+        if split_references { TieKey::Coordinates(coordinates()) } else { TieKey::Record(record) }
+    }
 }

@@ -50,6 +50,8 @@ pub struct Tracer<'a> {
     instances: Option<TwoLevelSections<'a>>,
     /// Whether the tracing calls skip the ray check ([`Tracer::trusting_rays`]).
     trusts_rays: bool,
+    /// The triangles section's `SPLIT_REFERENCES` flag ([`Tracer::with_split_references`]).
+    split_references: bool,
 }
 
 /// Which kernel a [`Tracer`] runs.
@@ -67,7 +69,24 @@ type Found = Option<(u32, crate::ray::hit::TriangleHit)>;
 impl<'a> Tracer<'a> {
     /// A tracer over a tree in the layout of the nodes section (node 0 is the root).
     pub fn new(nodes: &'a [PackedNode], triangles: &'a [PackedTriangle], triangle_ids: Option<&'a [u32]>) -> Self {
-        Tracer { nodes, triangles, triangle_ids, triangle_flags: None, wide: None, instances: None, trusts_rays: false }
+        Tracer {
+            nodes,
+            triangles,
+            triangle_ids,
+            triangle_flags: None,
+            wide: None,
+            instances: None,
+            trusts_rays: false,
+            split_references: false,
+        }
+    }
+
+    /// This tracer over a triangles section with the `SPLIT_REFERENCES` flag (`split`), as
+    /// [`crate::BvhView::tracer`] makes it for such a file: a triangle then has several records, a ray may meet
+    /// any of them, and of hits at one `t` the closest is decided by the triangles' coordinates rather than by
+    /// the records' indices (`format-spec/bvh-1.md` 11.1). Its wide kernel, given before or after, follows.
+    pub fn with_split_references(self, split: bool) -> Self {
+        Tracer { split_references: split, wide: self.wide.map(|w| w.with_split_references(split)), ..self }
     }
 
     /// This tracer with the file's `triangle_flags` section (1.5), which filtered tracing reads ([`crate::tracer::filter`]).
@@ -153,7 +172,7 @@ impl<'a> Tracer<'a> {
         let triangles = self.triangles.get(triangle_range.clone())?;
         let ids = self.triangle_ids.and_then(|ids| ids.get(triangle_range));
         // The object-space ray comes from a checked world-space one; it is not checked again.
-        let bottom = Tracer::new(nodes, triangles, ids).trusting_rays();
+        let bottom = Tracer::new(nodes, triangles, ids).trusting_rays().with_split_references(self.split_references);
         let root = nodes.first()?;
         Some(match self.wide.and_then(|wide| wide.mesh(mesh, (root.min, root.max), ids)) {
             Some(wide) => bottom.with_wide(wide),
@@ -163,7 +182,7 @@ impl<'a> Tracer<'a> {
 
     /// This tracer running `wide` (built over the same triangles) instead of the binary kernel.
     pub fn with_wide(self, wide: WideTracer<'a>) -> Self {
-        Tracer { wide: Some(wide), ..self }
+        Tracer { wide: Some(wide.with_split_references(self.split_references)), ..self }
     }
 
     /// The binary kernel alone: the reference traversal.
@@ -312,7 +331,12 @@ impl<'a> Tracer<'a> {
         counter: &mut impl TraversalCounter,
         candidates: &C,
     ) -> Found {
-        walk::<Q, _, _>(self.nodes, ray, counter, TriangleLeaves { triangles: self.triangles, candidates })
+        walk::<Q, _, _>(
+            self.nodes,
+            ray,
+            counter,
+            TriangleLeaves { triangles: self.triangles, candidates, split_references: self.split_references },
+        )
     }
 }
 

@@ -19,8 +19,9 @@ impl<'a> BvhView<'a> {
 
     /// The binary kernel over the nodes and triangles sections: the reference traversal.
     pub fn binary_tracer(&self) -> Tracer<'a> {
-        let tracer =
-            Tracer::new(self.nodes(), self.triangles(), self.triangle_ids()).with_triangle_flags(self.triangle_flags());
+        let tracer = Tracer::new(self.nodes(), self.triangles(), self.triangle_ids())
+            .with_triangle_flags(self.triangle_flags())
+            .with_split_references(self.has_split_references());
         match self.two_level() {
             Some(sections) => tracer.with_instances(sections),
             None => tracer,
@@ -43,6 +44,7 @@ impl<'a> BvhView<'a> {
     pub fn wide_tracer(&self, path: KernelPath) -> Option<WideTracer<'a>> {
         let wide = self.wide_sections()?;
         let root = self.nodes().first()?;
-        Some(WideTracer::over(wide.nodes, wide.packets, (root.min, root.max), self.triangle_ids(), path))
+        let tracer = WideTracer::over(wide.nodes, wide.packets, (root.min, root.max), self.triangle_ids(), path);
+        Some(tracer.with_split_references(self.has_split_references()))
     }
 }

@@ -9,9 +9,10 @@
 //! triangle is tested against all active rays in lanes ([`crate::ray::watertight`]); otherwise each ray tests the
 //! leaf's packets with the single-ray packet test (`wide_packets`).
 //!
-//! Each ray's closest `t` (and any-hit answer) is the single-ray kernel's: the box test is the same arithmetic,
-//! conservative for each ray, and culling uses the same padding; on a tie at that `t` the triangle reported may
-//! differ, as section 11 of the spec allows. Safe on any bytes: indices are bounds-checked and a packet visits
+//! Each ray's closest hit (and any-hit answer) is the single-ray kernel's: the box test is the same arithmetic,
+//! conservative for each ray, culling uses the same padding, and a tie at the closest `t` goes to the first in
+//! spec 11.1's order (the lowest record, or with split references the lowest coordinates), whichever order the
+//! packet met the triangles in. Safe on any bytes: indices are bounds-checked and a packet visits
 //! at most `node_count` wide nodes.
 
 use std::mem::MaybeUninit;
@@ -58,6 +59,25 @@ struct RayLanes {
 struct Found {
     t_max: [f32; PACKET_RAYS],
     hit: [Option<(u32, TriangleHit)>; PACKET_RAYS],
+}
+
+impl Found {
+    /// Whether a hit of ray `l` at `t` (within its `t_max`) in the lane at `address` of `sections` precedes its
+    /// closest hit so far (spec 11.1's tie order, [`Sections::tie_key`]).
+    #[inline(always)]
+    fn taken_by(&self, sections: &Sections<'_>, l: usize, t: f32, address: u32) -> bool {
+        match self.hit[l] {
+            None => true,
+            Some((best, _)) => t < self.t_max[l] || (t == self.t_max[l] && sections.first_at_tie(address, best)),
+        }
+    }
+
+    /// Ray `l`'s new closest hit.
+    #[inline(always)]
+    fn take(&mut self, l: usize, address: u32, hit: TriangleHit) {
+        self.t_max[l] = hit.t;
+        self.hit[l] = Some((address, hit));
+    }
 }
 
 /// Traces `rays` (at most [`PACKET_RAYS`]) as one packet; `done(l, found)` receives ray `l`'s result.
@@ -119,8 +139,10 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
                 let packets = sections.packets.get(first as usize..(first + count) as usize).unwrap_or(&[]);
                 let leaf = (first as usize, packets);
                 let hit = match lanes.shared_axes {
-                    Some(axes) => leaf_in_lanes::<Q, I>(isa, leaf, &lanes, axes, active, &prepared, &mut found),
-                    None => leaf_ray_by_ray::<Q, I>(isa, leaf, active, &prepared, &mut found),
+                    Some(axes) => {
+                        leaf_in_lanes::<Q, I>(isa, sections, leaf, &lanes, axes, active, &prepared, &mut found)
+                    }
+                    None => leaf_ray_by_ray::<Q, I>(isa, sections, leaf, active, &prepared, &mut found),
                 };
                 if Q::FIRST_HIT_ENDS {
                     pending &= !hit;
@@ -225,12 +247,14 @@ fn slot_test<I: Isa>(
 
 /// The triangles of `packets`, one after the other, against the `active` rays in lanes, when every ray has the
 /// shear axes `axes`: per (ray, triangle) the scalar watertight test's operations in its order, a lane with an
-/// edge function exactly 0 or an ill-conditioned hit redone by the scalar test, and hits accepted in triangle
-/// order at `t <= t_max` of the ray, so each ray ends with what the single-ray packet test gives. Returns the rays
-/// that were hit.
+/// edge function exactly 0 or an ill-conditioned hit redone by the scalar test, and a hit taken when it precedes
+/// the ray's closest so far (a smaller `t`, or the same and a lower record), so each ray ends with what the
+/// single-ray packet test gives. Returns the rays that took a hit.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)] // the packet's state, passed apart so that it stays in registers
 fn leaf_in_lanes<Q: Query, I: Isa>(
     isa: I,
+    sections: &Sections<'_>,
     (first, packets): (usize, &[TrianglePacket4]),
     lanes: &RayLanes,
     [kx, ky, kz]: [usize; 3],
@@ -263,6 +287,7 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
                 redo_rays |= ill.and(inside).bits() as u8 & active;
             }
             let valid_rays = valid.bits() as u8 & active & !redo_rays;
+            let address = lane_address(first + p, tri);
             if valid_rays != 0 {
                 let (u, v) = barycentrics(e, det, one);
                 let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
@@ -270,19 +295,21 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
                 while rays != 0 {
                     let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
                     rays &= rays - 1;
-                    found.t_max[l] = t[l];
-                    found.hit[l] = Some((lane_address(first + p, tri), TriangleHit { t: t[l], u: u[l], v: v[l] }));
+                    if Q::FIRST_HIT_ENDS || found.taken_by(sections, l, t[l], address) {
+                        found.take(l, address, TriangleHit { t: t[l], u: u[l], v: v[l] });
+                        hit_rays |= 1 << l;
+                    }
                 }
-                hit_rays |= valid_rays;
             }
             let mut rays = redo_rays;
             while rays != 0 {
                 let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
                 rays &= rays - 1;
                 let Some(ray) = &prepared[l] else { continue };
-                if let Some(hit) = ray.intersect_triangle(&packet.triangle(tri), found.t_max[l]) {
-                    found.t_max[l] = hit.t;
-                    found.hit[l] = Some((lane_address(first + p, tri), hit));
+                if let Some(hit) = ray.intersect_triangle(&packet.triangle(tri), found.t_max[l])
+                    && (Q::FIRST_HIT_ENDS || found.taken_by(sections, l, hit.t, address))
+                {
+                    found.take(l, address, hit);
                     hit_rays |= 1 << l;
                 }
             }
@@ -319,6 +346,7 @@ fn relative_vertex<I: Isa>(
 #[inline(always)]
 fn leaf_ray_by_ray<Q: Query, I: Isa>(
     isa: I,
+    sections: &Sections<'_>,
     (first, packets): (usize, &[TrianglePacket4]),
     active: u8,
     prepared: &[Option<PreparedRay>; PACKET_RAYS],
@@ -328,10 +356,15 @@ fn leaf_ray_by_ray<Q: Query, I: Isa>(
     for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
         let Some(ray) = &prepared[l] else { continue };
         for (p, packet) in packets.iter().enumerate() {
-            if let Some((lane, hit)) = closest_in_packet::<Q, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered) {
-                found.t_max[l] = hit.t;
-                found.hit[l] = Some((lane_address(first + p, lane), hit));
-                hit_rays |= 1 << l;
+            let split = sections.split_references;
+            if let Some((lane, hit)) =
+                closest_in_packet::<Q, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered, split)
+            {
+                let address = lane_address(first + p, lane);
+                if Q::FIRST_HIT_ENDS || found.taken_by(sections, l, hit.t, address) {
+                    found.take(l, address, hit);
+                    hit_rays |= 1 << l;
+                }
                 if Q::FIRST_HIT_ENDS {
                     break;
                 }

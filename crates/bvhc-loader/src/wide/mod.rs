@@ -128,7 +128,8 @@ impl<'a> WideTracer<'a> {
         };
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
         let interleave = size_of_val(nodes) + size_of_val(packets) > INTERLEAVE_ABOVE_BYTES;
-        WideTracer { sections: Sections { nodes, packets, root }, triangle_ids, avx2, interleave }
+        let sections = Sections { nodes, packets, root, split_references: false };
+        WideTracer { sections, triangle_ids, avx2, interleave }
     }
 
     /// The tracer over mesh `mesh`'s ranges of these sections (a two-level file's, whose indices inside a mesh
@@ -144,7 +145,14 @@ impl<'a> WideTracer<'a> {
         let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
         let nodes = self.sections.nodes.get(range(mesh.first_wide_node, mesh.wide_node_count))?;
         let packets = self.sections.packets.get(range(mesh.first_packet, mesh.packet_count))?;
-        Some(WideTracer::over(nodes, packets, root_box, triangle_ids, self.path()))
+        let tracer = WideTracer::over(nodes, packets, root_box, triangle_ids, self.path());
+        Some(tracer.with_split_references(self.sections.split_references))
+    }
+
+    /// This tracer over packets whose triangles section has the `SPLIT_REFERENCES` flag (`split`): hits at one
+    /// `t` are then ordered by their triangles' coordinates, not by record (`format-spec/bvh-1.md` 11.1).
+    pub fn with_split_references(self, split: bool) -> WideTracer<'a> {
+        WideTracer { sections: Sections { split_references: split, ..self.sections }, ..self }
     }
 
     /// The AVX2 token when the tracer runs the AVX2 path (for walks of other wide trees on the same path).
@@ -248,8 +256,8 @@ impl<'a> WideTracer<'a> {
 }
 
 /// The single-ray calls, and the batch calls as a stream of interleaved rays ([`WideTracer::interleaves_streams`])
-/// or in coherent packets of 8 consecutive rays: the same `t` for each ray either way, and the same triangle but
-/// for a tie at that `t` in a packet.
+/// or in coherent packets of 8 consecutive rays: the same hit for each ray either way, ties decided as spec 11.1
+/// says (with split references, possibly another record of the same triangle).
 impl Trace for WideTracer<'_> {
     /// [`Trace::closest_hit`], counting wide node visits and triangle tests (packets of
     /// four count as one test each) into `counter`.

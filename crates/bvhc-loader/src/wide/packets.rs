@@ -8,7 +8,7 @@ use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::ray::candidates::Candidates;
 use crate::ray::hit::TriangleHit;
 use crate::ray::intersect::PreparedRay;
-use crate::ray::query::Query;
+use crate::ray::query::{Query, TieKey};
 use crate::ray::watertight::{
     ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
     hits, ill_conditioned, outside, sheared,
@@ -28,8 +28,8 @@ struct PacketLanes {
     nearest: u32,
 }
 
-/// The closest hit among the packet's lanes within `t_max` (ties: the last lane, as a scalar loop that accepts
-/// `t <= t_max` would end with), as (lane, hit); for an any-hit query, the last lane that hits when no lane needs the
+/// The closest hit among the packet's lanes within `t_max` (ties: the first lane in spec 11.1's order), as
+/// (lane, hit); for an any-hit query, the last lane that hits when no lane needs the
 /// scalar redo, without looking for the nearest or computing `u` and `v` (0). The same hits on every
 /// instruction set. With active `candidates` (a hit filter), the lanes go one by one as in the scalar redo,
 /// each hit asked whether it is accepted (with its `u` and `v`), and the closest accepted one returned (for
@@ -41,6 +41,7 @@ pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
     ray: &PreparedRay,
     t_max: f32,
     candidates: &C,
+    split_references: bool,
 ) -> Option<(usize, TriangleHit)> {
     let lanes = packet_lanes::<Q, I>(isa, packet, ray, t_max)?;
     let hit_in = |lane: usize| {
@@ -50,17 +51,21 @@ pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
     // A filter is consulted only when a lane that may hit is one it asks about (in practice: a lane of a
     // not-opaque triangle); otherwise every hit is accepted and the plain choice below is the filtered one.
     if C::ACTIVE && asks_in_packet(packet, lanes.valid | lanes.redo, candidates) {
-        return accepted_in_packet::<Q, C>(packet, ray, t_max, &lanes, &hit_in, candidates);
+        return accepted_in_packet::<Q, C>(packet, ray, (t_max, split_references), &lanes, &hit_in, candidates);
     }
     if lanes.redo == 0 {
-        // No lane needs the scalar redo: the loop below would end on the last lane at the smallest t. An any-hit
-        // query only needs to know that a lane hits: its `u` and `v` are not computed (0).
+        // No lane needs the scalar redo: the loop below would end on the first in tie order at the smallest t.
+        // An any-hit query only needs to know that a lane hits: its `u` and `v` are not computed (0).
         if Q::FIRST_HIT_ENDS {
             let last = 31usize.checked_sub(lanes.valid.leading_zeros() as usize)?;
             return Some((last, TriangleHit { t: lanes.t[last & (LANES - 1)], u: 0.0, v: 0.0 }));
         }
-        let last = 31usize.checked_sub(lanes.nearest.leading_zeros() as usize)?;
-        return Some((last, hit_in(last & (LANES - 1))));
+        let nearest = lanes.nearest;
+        let lane = match nearest & nearest.wrapping_sub(1) {
+            0 => 31usize.checked_sub(nearest.leading_zeros() as usize)? & (LANES - 1),
+            _ => first_in_tie_order(packet, nearest, split_references),
+        };
+        return Some((lane, hit_in(lane)));
     }
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
@@ -72,12 +77,43 @@ pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
         } else {
             None
         };
-        if let Some(hit) = hit {
+        if let Some(hit) = hit
+            && best.is_none_or(|(best, _)| {
+                hit.t < limit || (hit.t == limit && lane_first_at_tie(packet, lane, best, split_references))
+            })
+        {
             limit = hit.t;
             best = Some((lane, hit));
         }
     }
     best
+}
+
+/// Of the lanes in `mask` (two or more hit lanes at the smallest `t`), the first in the tie order ([`TieKey`]:
+/// the lowest record, or with split references the lowest coordinates; the first lane of equal keys). Cold: one
+/// lane, the usual case, needs no key.
+#[cold]
+#[inline(never)]
+fn first_in_tie_order(packet: &TrianglePacket4, mask: u32, split_references: bool) -> usize {
+    let mut lowest = mask.trailing_zeros() as usize & (LANES - 1);
+    let mut rest = mask & mask.wrapping_sub(1);
+    while rest != 0 {
+        let lane = rest.trailing_zeros() as usize & (LANES - 1);
+        rest &= rest - 1;
+        if lane_first_at_tie(packet, lane, lowest, split_references) {
+            lowest = lane;
+        }
+    }
+    lowest
+}
+
+/// Whether, of two hits at one `t`, lane `lane`'s comes before lane `best`'s in spec 11.1's order.
+#[cold]
+#[inline(never)]
+fn lane_first_at_tie(packet: &TrianglePacket4, lane: usize, best: usize, split_references: bool) -> bool {
+    let key =
+        |l: usize| TieKey::of(split_references, packet.triangle_index[l], || packet.triangle(l).coordinate_bits());
+    key(lane) < key(best)
 }
 
 /// Whether `candidates` asks about any of the lanes in `mask`.
@@ -95,12 +131,12 @@ fn asks_in_packet<C: Candidates>(packet: &TrianglePacket4, mask: u32, candidates
 
 /// The closest lane hit within `t_max` that `candidates` accepts (the first, for an any-hit query), the lanes taken one
 /// by one (a lane with a zero edge function redone by the scalar test), each hit offered to `candidates` with
-/// its record index; ties as [`closest_in_packet`] (the last accepted lane at the smallest `t`).
+/// its record index; ties as [`closest_in_packet`] (the accepted lane first in tie order at the smallest `t`).
 #[inline(never)]
 fn accepted_in_packet<Q: Query, C: Candidates>(
     packet: &TrianglePacket4,
     ray: &PreparedRay,
-    t_max: f32,
+    (t_max, split_references): (f32, bool),
     lanes: &PacketLanes,
     hit_in: &impl Fn(usize) -> TriangleHit,
     candidates: &C,
@@ -121,8 +157,12 @@ fn accepted_in_packet<Q: Query, C: Candidates>(
             if Q::FIRST_HIT_ENDS {
                 return Some((lane, hit));
             }
-            limit = hit.t;
-            best = Some((lane, hit));
+            if best.is_none_or(|(best, _)| {
+                hit.t < limit || (hit.t == limit && lane_first_at_tie(packet, lane, best, split_references))
+            }) {
+                limit = hit.t;
+                best = Some((lane, hit));
+            }
         }
     }
     best

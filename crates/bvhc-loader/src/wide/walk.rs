@@ -20,11 +20,11 @@
 
 use std::mem::MaybeUninit;
 
-use crate::format::{LEAF_BIT, MAX_DEPTH, PackedNode, TrianglePacket4, WIDE, WideNode8};
+use crate::format::{LEAF_BIT, MAX_DEPTH, PACKET_LANES, PackedNode, TrianglePacket4, WIDE, WideNode8};
 use crate::ray::candidates::Candidates;
-use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit, lane_address};
+use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit, lane_address, lane_record};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::Query;
+use crate::ray::query::{Query, TieKey};
 use crate::simd::Isa;
 use crate::wide::packets::closest_in_packet;
 
@@ -47,6 +47,27 @@ pub(crate) struct Sections<'a> {
     pub packets: &'a [TrianglePacket4],
     /// The binary root's box, tested first (as an inner node for the binary kernel's box test).
     pub root: PackedNode,
+    /// The triangles section's `SPLIT_REFERENCES` flag: which [`TieKey`] orders hits at one `t`.
+    pub split_references: bool,
+}
+
+impl Sections<'_> {
+    /// The tie key of the lane at `address` ([`lane_address`]).
+    fn tie_key(&self, address: u32) -> TieKey {
+        let (packet, lane) = (address as usize / PACKET_LANES, address as usize % PACKET_LANES);
+        let record = lane_record(self.packets, address);
+        TieKey::of(self.split_references, record, || {
+            self.packets.get(packet).map_or([u32::MAX; 9], |p| p.triangle(lane).coordinate_bits())
+        })
+    }
+
+    /// Whether, of two hits at one `t`, the one in the lane at `address` comes before the one at `best` in spec
+    /// 11.1's order. Cold: the walks call it only on an exact tie.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn first_at_tie(&self, address: u32, best: u32) -> bool {
+        self.tie_key(address) < self.tie_key(best)
+    }
 }
 
 /// What a wide walk does at a leaf reference (a slot's child with [`LEAF_BIT`] set): test a mesh's triangle
@@ -72,6 +93,10 @@ pub(crate) trait WideLeaves<C: TraversalCounter> {
 
     /// The distance of a hit.
     fn t(found: &Self::Found) -> f32;
+
+    /// Whether, of two hits at one `t` in `sections`, `found` comes before `best` in spec 11.1's order (the
+    /// walk keeps the first). Out of line and cold: ties are rare, and the walk's registers stay its own.
+    fn first_at_tie(sections: &Sections<'_>, found: &Self::Found, best: &Self::Found) -> bool;
 }
 
 /// A hit in a mesh's packets: the lane address ([`lane_address`]) and the hit.
@@ -101,6 +126,12 @@ impl<C: TraversalCounter, A: Candidates> WideLeaves<C> for PacketLeaves<'_, A> {
     #[inline(always)]
     fn t(found: &Self::Found) -> f32 {
         found.1.t
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn first_at_tie(sections: &Sections<'_>, found: &Self::Found, best: &Self::Found) -> bool {
+        sections.first_at_tie(found.0, best.0)
     }
 }
 
@@ -160,11 +191,19 @@ impl<F: Copy> Walk<F> {
         let current = self.current;
         if current & LEAF_BIT != 0 {
             if let Some(hit) = leaves.test_leaf::<Q, I>(isa, sections, current, &self.ray, self.t_max, counter) {
-                self.found = Some(hit);
                 if Q::FIRST_HIT_ENDS {
+                    self.found = Some(hit);
                     return false;
                 }
-                self.t_max = L::t(&hit);
+                let t = L::t(&hit);
+                let taken = match &self.found {
+                    None => true,
+                    Some(best) => t < self.t_max || (t == self.t_max && L::first_at_tie(sections, &hit, best)),
+                };
+                if taken {
+                    self.found = Some(hit);
+                    self.t_max = t;
+                }
             }
         } else if let Some(node) = sections.nodes.get(current as usize).filter(|_| self.visits_left > 0) {
             self.visits_left -= 1;
@@ -264,7 +303,8 @@ impl<F: Copy> Walk<F> {
 }
 
 /// The closest hit in packets `first .. first + count` (`leaf`), within `t_max`, among the candidates
-/// `candidates` accepts, as (lane address, hit); for an any-hit query, the first packet's hit.
+/// `candidates` accepts, as (lane address, hit), ties to the first in spec 11.1's order; for an any-hit query,
+/// the first packet's hit.
 #[inline(always)]
 fn leaf_hit<Q: Query, I: Isa, C: Candidates>(
     isa: I,
@@ -280,11 +320,20 @@ fn leaf_hit<Q: Query, I: Isa, C: Candidates>(
     let mut limit = t_max;
     for (p, packet) in packets.iter().enumerate() {
         counter.triangle_tested();
-        if let Some((lane, hit)) = closest_in_packet::<Q, I, C>(isa, packet, ray, limit, candidates) {
-            limit = hit.t;
-            best = Some((lane_address(first + p, lane), hit));
+        if let Some((lane, hit)) =
+            closest_in_packet::<Q, I, C>(isa, packet, ray, limit, candidates, sections.split_references)
+        {
+            let address = lane_address(first + p, lane);
             if Q::FIRST_HIT_ENDS {
-                break;
+                return Some((address, hit));
+            }
+            let taken = match best {
+                None => true,
+                Some((best, _)) => hit.t < limit || (hit.t == limit && sections.first_at_tie(address, best)),
+            };
+            if taken {
+                limit = hit.t;
+                best = Some((address, hit));
             }
         }
     }
