@@ -60,10 +60,11 @@ pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
             let last = 31usize.checked_sub(lanes.valid.leading_zeros() as usize)?;
             return Some((last, TriangleHit { t: lanes.t[last & (LANES - 1)], u: 0.0, v: 0.0 }));
         }
-        let nearest = lanes.nearest;
-        let lane = match nearest & nearest.wrapping_sub(1) {
-            0 => 31usize.checked_sub(nearest.leading_zeros() as usize)? & (LANES - 1),
-            _ => first_in_tie_order(packet, nearest, split_references),
+        let last = 31usize.checked_sub(lanes.nearest.leading_zeros() as usize)? & (LANES - 1);
+        // Two lanes at the nearest `t` (rare) are ordered out of line.
+        let lane = match lanes.nearest == 1 << last {
+            true => last,
+            false => first_in_tie_order(packet, lanes.nearest, split_references),
         };
         return Some((lane, hit_in(lane)));
     }

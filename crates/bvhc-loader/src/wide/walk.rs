@@ -68,6 +68,14 @@ impl Sections<'_> {
     pub(crate) fn first_at_tie(&self, address: u32, best: u32) -> bool {
         self.tie_key(address) < self.tie_key(best)
     }
+
+    /// Whether a hit at the limit `t` (not nearer: `t <= limit` and not `t < limit`) in the lane at `address`
+    /// is taken over `best`, the closest so far: when there is none, or it comes first at the tie.
+    #[cold]
+    #[inline(never)]
+    pub(crate) fn taken_at_limit(&self, address: u32, best: Option<u32>) -> bool {
+        best.is_none_or(|best| self.first_at_tie(address, best))
+    }
 }
 
 /// What a wide walk does at a leaf reference (a slot's child with [`LEAF_BIT`] set): test a mesh's triangle
@@ -190,20 +198,18 @@ impl<F: Copy> Walk<F> {
     ) -> bool {
         let current = self.current;
         if current & LEAF_BIT != 0 {
-            if let Some(hit) = leaves.test_leaf::<Q, I>(isa, sections, current, &self.ray, self.t_max, counter) {
+            if let Some(hit) = leaves.test_leaf::<Q, I>(isa, sections, current, &self.ray, self.t_max, counter)
+                // A hit nearer than the closest so far is taken at once; the rest (the first hit at `t_max`, a
+                // tie) out of line.
+                && (Q::FIRST_HIT_ENDS
+                    || L::t(&hit) < self.t_max
+                    || taken_at_limit::<L, C>(sections, &hit, self.found.as_ref()))
+            {
+                self.found = Some(hit);
                 if Q::FIRST_HIT_ENDS {
-                    self.found = Some(hit);
                     return false;
                 }
-                let t = L::t(&hit);
-                let taken = match &self.found {
-                    None => true,
-                    Some(best) => t < self.t_max || (t == self.t_max && L::first_at_tie(sections, &hit, best)),
-                };
-                if taken {
-                    self.found = Some(hit);
-                    self.t_max = t;
-                }
+                self.t_max = L::t(&hit);
             }
         } else if let Some(node) = sections.nodes.get(current as usize).filter(|_| self.visits_left > 0) {
             self.visits_left -= 1;
@@ -302,6 +308,18 @@ impl<F: Copy> Walk<F> {
     }
 }
 
+/// Whether a leaf's hit at the walk's limit `t` (not nearer) is taken over `best`, the closest so far: when
+/// there is none, or it comes first at the tie. Out of line: a nearer hit, the usual case, never asks.
+#[cold]
+#[inline(never)]
+fn taken_at_limit<L: WideLeaves<C>, C: TraversalCounter>(
+    sections: &Sections<'_>,
+    hit: &L::Found,
+    best: Option<&L::Found>,
+) -> bool {
+    best.is_none_or(|best| L::first_at_tie(sections, hit, best))
+}
+
 /// The closest hit in packets `first .. first + count` (`leaf`), within `t_max`, among the candidates
 /// `candidates` accepts, as (lane address, hit), ties to the first in spec 11.1's order; for an any-hit query,
 /// the first packet's hit.
@@ -322,18 +340,14 @@ fn leaf_hit<Q: Query, I: Isa, C: Candidates>(
         counter.triangle_tested();
         if let Some((lane, hit)) =
             closest_in_packet::<Q, I, C>(isa, packet, ray, limit, candidates, sections.split_references)
+            && (Q::FIRST_HIT_ENDS
+                || hit.t < limit
+                || sections.taken_at_limit(lane_address(first + p, lane), best.map(|(best, _)| best)))
         {
-            let address = lane_address(first + p, lane);
+            limit = hit.t;
+            best = Some((lane_address(first + p, lane), hit));
             if Q::FIRST_HIT_ENDS {
-                return Some((address, hit));
-            }
-            let taken = match best {
-                None => true,
-                Some((best, _)) => hit.t < limit || (hit.t == limit && sections.first_at_tie(address, best)),
-            };
-            if taken {
-                limit = hit.t;
-                best = Some((address, hit));
+                break;
             }
         }
     }
