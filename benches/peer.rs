@@ -23,6 +23,8 @@
 //! (`Tracer::trusting_rays`), as Embree does; `BVHC_PEER_ONLY=bvhc-checked` with it, and `BVHC_PEER_ONLY=ray-check` times the checking tracer
 //! against the trusting one, single rays and batches, rounds interleaved: the check's cost; `BVHC_PEER_BATCH=1`
 //! makes the one-contender pass use the batch calls (streams; packets for `BVHC_PEER_SET=primary`).
+//! `BVHC_PEER_WRITE=DIR` writes each scene's conversion, Embree's triangles and the ray sets to `DIR` instead of
+//! timing, for the same comparison made from outside (`scripts/peer-outside.sh`).
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -48,7 +50,7 @@ fn main() {
 mod peer {
     use std::time::Instant;
 
-    use bvhc::loader::{BvhFile, Ray, Trace, Tracer};
+    use bvhc::loader::{BvhFile, BvhView, Ray, Trace, Tracer};
 
     use crate::embree::{self, Embree, FlushToZero};
     use crate::{harness, rays};
@@ -156,6 +158,34 @@ mod peer {
 
     /// The scene's default conversion, kept in `target/peer/` between runs (a conversion whose output is up to
     /// date is skipped, so a run under callgrind does not convert again).
+    /// What an outside program needs to run this comparison itself (`benches/c/embree_peer.c`,
+    /// `scripts/peer-outside.sh`): into `dir`, the scene's conversion (`NAME.bvh`), the triangles Embree is
+    /// built from (`NAME-triangles.bin`, nine f32 a triangle) and each ray set as a ray file
+    /// (`NAME-SET.bin`, `format-spec/rays-and-hits.md`).
+    fn write_inputs(
+        dir: &std::path::Path,
+        name: &str,
+        view: &BvhView<'_>,
+        triangles: &[[[f32; 3]; 3]],
+        sets: &[(&str, Vec<Ray>)],
+    ) {
+        std::fs::create_dir_all(dir).expect("the output folder can be made");
+        let stem = name.replace(' ', "-");
+        std::fs::write(dir.join(format!("{stem}.bvh")), view.bytes()).expect("the conversion is written");
+        let flat: Vec<f32> = triangles.iter().flatten().flatten().copied().collect();
+        let bytes: Vec<u8> = flat.iter().flat_map(|c| c.to_le_bytes()).collect();
+        std::fs::write(dir.join(format!("{stem}-triangles.bin")), bytes).expect("the triangles are written");
+        for (set, rays) in sets {
+            let bytes: Vec<u8> = rays
+                .iter()
+                .flat_map(|r| r.origin.into_iter().chain(r.direction).chain([r.t_min, r.t_max]))
+                .flat_map(|c| c.to_le_bytes())
+                .collect();
+            std::fs::write(dir.join(format!("{stem}-{set}.bin")), bytes).expect("the rays are written");
+        }
+        println!("{name}: {} triangles and rays written to {}", triangles.len(), dir.display());
+    }
+
     fn converted(name: &str, path: &std::path::Path) -> BvhFile {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/peer");
         std::fs::create_dir_all(&dir).expect("target/peer can be made");
@@ -176,9 +206,11 @@ mod peer {
         if only.is_none() {
             println!(
                 "{} against bvhc, one thread, Mrays/s: medians of {rounds} interleaved rounds in this run; {} \
-                 incoherent rays (uniform origins in the box, uniform directions) and 1024x768 primary rays.\n",
+                 incoherent rays (uniform origins in the box, uniform directions) and {}x{} primary rays.\n",
                 embree::VERSION,
-                ray_count
+                ray_count,
+                camera.0,
+                camera.1
             );
             println!(
                 "| scene | rays | query | bvhc | Embree AVX2 | Embree native | robust AVX2 | robust native | bvhc / Embree AVX2 | bvhc / native | bvhc / robust AVX2 | answers unlike Embree AVX2 |"
@@ -220,6 +252,10 @@ mod peer {
                 ("incoherent", rays::uniform_rays(&root, ray_count, UNIFORM_SEED)),
                 ("primary", rays::camera_rays(&root, camera.0, camera.1)),
             ];
+            if let Some(dir) = std::env::var_os("BVHC_PEER_WRITE") {
+                write_inputs(std::path::Path::new(&dir), name, &view, &triangles, &sets);
+                continue;
+            }
             for (set, rays) in &sets {
                 for closest in [true, false] {
                     let query = if closest { "closest" } else { "any" };
@@ -312,7 +348,8 @@ mod peer {
         }
         if only.is_none() {
             println!(
-                "\nCoherent primary rays (1024x768, rows in order), closest hit, Mrays/s, medians of {rounds} interleaved rounds:\n"
+                "\nCoherent primary rays ({}x{}, rows in order), closest hit, Mrays/s, medians of {rounds} interleaved rounds:\n",
+                camera.0, camera.1
             );
             println!(
                 "| scene | bvhc single rays | bvhc 8-ray packets | Embree AVX2 rtcIntersect8 | Embree AVX2 rtcIntersect16 | Embree native rtcIntersect16 | packets / best Embree |"

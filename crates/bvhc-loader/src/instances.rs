@@ -149,20 +149,19 @@ where
         reference: u32,
         _: &PreparedRay,
         t_max: f32,
+        best: Option<Hit>,
         counter: &mut C,
     ) -> Option<Hit> {
-        visit_instance(self.sections, reference & !LEAF_BIT, self.ray, t_max, counter, &mut self.trace_mesh)
+        let hit = visit_instance(self.sections, reference & !LEAF_BIT, self.ray, t_max, counter, &mut self.trace_mesh)?;
+        let first = best.is_none_or(|best| {
+            let (key, best_key) = tie_keys(&hit, &best);
+            hit.t < best.t || key < best_key
+        });
+        (Q::FIRST_HIT_ENDS || first).then_some(hit)
     }
 
     #[inline(always)]
     fn t(found: &Hit) -> f32 {
         found.t
-    }
-
-    /// The lower instance (a walk meets an instance once, so two hits at one `t` are in two instances).
-    #[cold]
-    #[inline(never)]
-    fn first_at_tie(_: &Sections<'_>, found: &Hit, best: &Hit) -> bool {
-        tie_keys(found, best).0 < tie_keys(found, best).1
     }
 }
