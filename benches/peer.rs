@@ -2,7 +2,8 @@
 //! Embree 4.4 with `--features embree4` (run `scripts/embree4.sh` first), or Embree 3.13.5 with
 //! `--features embree` (Debian's `libembree-dev`). Without either feature it only says so.
 //!
-//! Per scene: bvhc's default conversion traced by `view.tracer()` (the wide kernel on the best path), and Embree
+//! Scenes: the six, then a 2-triangle and a 12-triangle one (the fixed cost of a ray). Per scene: bvhc's
+//! default conversion traced by `view.tracer()` (the wide kernel on the best path), and Embree
 //! over the scene's triangles (HIGH quality: spatial splits), plain and robust (`RTC_SCENE_FLAG_ROBUST`), each
 //! on AVX2 kernels (`isa=avx2`, bvhc's instruction set) and on Embree's native choice for this CPU. Ray sets:
 //! 1,000,000 incoherent rays (origins uniform in the scene's box, directions uniform on the sphere, a seed of
@@ -146,14 +147,17 @@ mod peer {
         samples[samples.len() / 2]
     }
 
-    /// The scenes of the targets, in the shared scenes folder.
-    const SCENES: [(&str, &str); 6] = [
+    /// The scenes of the targets, in the shared scenes folder; the last two, of 2 and 12 triangles, show
+    /// the fixed cost of a ray (the call, the set-up, the first node), which the tiniest scenes are made of.
+    const SCENES: [(&str, &str); 8] = [
         ("kitchen", "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz"),
         ("engine", "khr-2cylinder-engine/2CylinderEngine.gltf"),
         ("toy car", "khr-toy-car/ToyCar.gltf"),
         ("dragon", "stanford-dragon/dragon_vrip.ply.gz"),
         ("buddha", "happy-buddha-decimated/stanford-buddha.obj"),
         ("bunny", "stanford-bunny-ply/bun_zipper.ply"),
+        ("2-triangles", "trimesh-objcases/face_in_group_name_mid_file.obj"),
+        ("box", "khr-box/Box.gltf"),
     ];
 
     /// The scene's default conversion, kept in `target/peer/` between runs (a conversion whose output is up to
