@@ -153,10 +153,7 @@ where
         counter: &mut C,
     ) -> Option<Hit> {
         let hit = visit_instance(self.sections, reference & !LEAF_BIT, self.ray, t_max, counter, &mut self.trace_mesh)?;
-        let first = best.is_none_or(|best| {
-            let (key, best_key) = tie_keys(&hit, &best);
-            hit.t < best.t || key < best_key
-        });
+        let first = best.is_none_or(|best| precedes(hit.t, best.t, || tie_keys(&hit, &best)));
         (Q::FIRST_HIT_ENDS || first).then_some(hit)
     }
 

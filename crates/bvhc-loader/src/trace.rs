@@ -8,8 +8,8 @@ use crate::ray::check::BatchRayError;
 use crate::ray::hit::{Hit, TraversalCounter, same_length, slot_writer};
 use crate::ray::intersect::Ray;
 
-/// How a batch call traces its rays; the results are the same either way, but for which triangle a tie at the
-/// closest `t` names with [`Order::Coherent`].
+/// How a batch call traces its rays; the results are the same either way (ties are decided by spec 11.1), but
+/// for which record of a split triangle a hit names.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Order {
     /// Ray by ray (interleaved over large files by the wide kernel).

@@ -30,7 +30,7 @@ use crate::open::sections::GpuSections;
 use crate::open::view::BvhView;
 use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::{AnyHit, ClosestHit, Query};
+use crate::ray::query::{AnyHit, ClosestHit, Query, TieKey};
 use crate::trace::Trace;
 
 /// Traces rays through a file's GPU sections on the CPU, exactly as the WGSL kernel does (see the module
@@ -95,13 +95,13 @@ impl<'a> GpuLayoutTracer<'a> {
     /// `record` and `best_record`): the shader's `precedes_at_tie`.
     #[inline(never)]
     fn precedes_at_tie(&self, (g, record): (u32, u32), (best, best_record): (u32, u32)) -> bool {
-        if !self.split_references {
-            return record < best_record;
-        }
-        let bits = |g: u32| {
-            self.gpu_triangles.get(g as usize).map(|t| PackedTriangle { vertices: t.vertices }.coordinate_bits())
+        let key = |g: u32, record: u32| {
+            TieKey::of(self.split_references, record, || {
+                let triangle = self.gpu_triangles.get(g as usize);
+                triangle.map_or([u32::MAX; 9], |t| PackedTriangle { vertices: t.vertices }.coordinate_bits())
+            })
         };
-        bits(g) < bits(best)
+        key(g, record) < key(best, best_record)
     }
 
     /// The record the WGSL kernel writes for `ray` (the closest hit, or for `any_hit` the first hit found), with
