@@ -108,20 +108,30 @@ mod peer {
     /// One timed pass of the batch calls: streams, or 8-ray packets when `coherent`; the hits found.
     #[inline(never)]
     fn batch_pass(tracer: &bvhc::loader::Tracer<'_>, rays: &[Ray], closest: bool, coherent: bool) -> usize {
+        // The output buffers are allocated once and reused, as a renderer would: a fresh allocation each pass
+        // timed its page faults.
+        thread_local! {
+            static HITS: std::cell::RefCell<Vec<Option<bvhc::loader::Hit>>> = const { std::cell::RefCell::new(Vec::new()) };
+            static OCCLUDED: std::cell::RefCell<Vec<bool>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
         if closest {
-            let mut hits = vec![None; rays.len()];
-            match coherent {
-                true => tracer.closest_hits_coherent(rays, &mut hits),
-                false => tracer.closest_hits(rays, &mut hits),
-            }
-            hits.iter().filter(|h| h.is_some()).count()
+            HITS.with_borrow_mut(|hits| {
+                hits.resize(rays.len(), None);
+                match coherent {
+                    true => tracer.closest_hits_coherent(rays, hits),
+                    false => tracer.closest_hits(rays, hits),
+                }
+                hits.iter().filter(|h| h.is_some()).count()
+            })
         } else {
-            let mut occluded = vec![false; rays.len()];
-            match coherent {
-                true => tracer.any_hits_coherent(rays, &mut occluded),
-                false => tracer.any_hits(rays, &mut occluded),
-            }
-            occluded.iter().filter(|&&o| o).count()
+            OCCLUDED.with_borrow_mut(|occluded| {
+                occluded.resize(rays.len(), false);
+                match coherent {
+                    true => tracer.any_hits_coherent(rays, occluded),
+                    false => tracer.any_hits(rays, occluded),
+                }
+                occluded.iter().filter(|&&o| o).count()
+            })
         }
     }
 
@@ -379,6 +389,9 @@ mod peer {
         let native = Embree::with_isa(triangles, false, None);
         let mut hits = vec![None; rays.len()];
         let mut ts = vec![None; rays.len()];
+        // The hit records of the packet calls, allocated once as a renderer would (a fresh allocation a pass
+        // timed its page faults, a third of the pass on this VM).
+        let found = std::cell::RefCell::new(vec![None; rays.len()]);
         type Pass<'p> = Box<dyn Fn(&mut [Option<f32>]) + 'p>;
         let passes: [(bool, Pass<'_>); 5] = [
             (
@@ -392,9 +405,9 @@ mod peer {
             (
                 false,
                 Box::new(|out: &mut [Option<f32>]| {
-                    let mut found = vec![None; rays.len()];
+                    let mut found = found.borrow_mut();
                     tracer.closest_hits_coherent(rays, &mut found);
-                    for (slot, hit) in out.iter_mut().zip(found) {
+                    for (slot, hit) in out.iter_mut().zip(found.iter()) {
                         *slot = hit.map(|h| h.t);
                     }
                 }),
