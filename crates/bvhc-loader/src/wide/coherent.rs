@@ -27,11 +27,11 @@ use crate::ray::watertight::{
     hits, ill_conditioned, outside, sheared,
 };
 use crate::simd::{Isa, LaneMask, Lanes};
-use crate::wide::frustum::{Frustum, RayLanes, greatest};
 use crate::wide::packets::closest_in_packet;
 use crate::wide::walk::{STACK_LEN, Sections};
 
-pub(crate) use crate::wide::frustum::PACKET_RAYS;
+/// Rays in one packet.
+pub(crate) const PACKET_RAYS: usize = 8;
 
 /// A stack entry: a child reference, the rays that enter it, and each ray's entry distance.
 #[derive(Clone, Copy)]
@@ -39,6 +39,20 @@ struct Entry {
     child: u32,
     rays: u8,
     t_near: [f32; PACKET_RAYS],
+}
+
+/// The per-lane ray data of a packet, structure of arrays.
+struct RayLanes {
+    origin: [[f32; PACKET_RAYS]; 3],
+    inverse_direction: [[f32; PACKET_RAYS]; 3],
+    exit_inverse: [[f32; PACKET_RAYS]; 3],
+    /// Per axis and lane: -1 where the ray's direction has its sign bit set (it enters through `max`), else 1.
+    sign: [[f32; PACKET_RAYS]; 3],
+    t_min: [f32; PACKET_RAYS],
+    /// Woop et al.'s shear per lane, and whether every ray of the packet has the same axes `[kx, ky, kz]`
+    /// (those of the first ray), so that a triangle can be tested against all of them in lanes.
+    shear: [[f32; PACKET_RAYS]; 3],
+    shared_axes: Option<[usize; 3]>,
 }
 
 /// Each ray's search: its closest hit so far (any hit, for any-hit packets) and the distance limit.
@@ -118,8 +132,6 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
     }
     // Rays still looking: all of them for closest hits; for any hit, those without a hit yet.
     let mut pending = root.rays;
-    // With directions of one octant, the wide nodes are culled by the packet's frustum.
-    let frustum = Frustum::around(isa, &lanes, root.rays);
     let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_LEN];
     let mut stack_len = 0usize;
     let mut visits_left = sections.nodes.len();
@@ -146,35 +158,29 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
                 for t in &mut t_far {
                     *t *= CULL_PADDING;
                 }
+                let leader = active.trailing_zeros() as usize & (PACKET_RAYS - 1);
+                // The hit slots, nearest first for the leader (the first active ray), ties in slot order.
                 let mut order = [Entry { child: 0, rays: 0, t_near: [0.0; PACKET_RAYS] }; WIDE];
                 let mut n = 0;
-                match &frustum {
-                    Some(frustum) => n = frustum_children(isa, node, frustum, &lanes, (&t_far, active), &mut order),
-                    None => {
-                        let leader = active.trailing_zeros() as usize & (PACKET_RAYS - 1);
-                        // The hit slots, nearest first for the leader (the first active ray), ties in slot order.
-                        for slot in 0..WIDE {
-                            let child = node.child[slot];
-                            if child == EMPTY_SLOT {
-                                break;
-                            }
-                            let (hit, t_near) = slot_test(isa, node, slot, &lanes, &t_far);
-                            let hit = hit & active;
-                            if hit == 0 {
-                                continue;
-                            }
-                            let entry = Entry { child, rays: hit, t_near };
-                            let key =
-                                |e: &Entry| if e.rays & (1 << leader) != 0 { e.t_near[leader] } else { f32::INFINITY };
-                            let mut at = n;
-                            while at > 0 && key(&order[at - 1]) > key(&entry) {
-                                order[at] = order[at - 1];
-                                at -= 1;
-                            }
-                            order[at] = entry;
-                            n += 1;
-                        }
+                for slot in 0..WIDE {
+                    let child = node.child[slot];
+                    if child == EMPTY_SLOT {
+                        break;
                     }
+                    let (hit, t_near) = slot_test(isa, node, slot, &lanes, &t_far);
+                    let hit = hit & active;
+                    if hit == 0 {
+                        continue;
+                    }
+                    let entry = Entry { child, rays: hit, t_near };
+                    let key = |e: &Entry| if e.rays & (1 << leader) != 0 { e.t_near[leader] } else { f32::INFINITY };
+                    let mut at = n;
+                    while at > 0 && key(&order[at - 1]) > key(&entry) {
+                        order[at] = order[at - 1];
+                        at -= 1;
+                    }
+                    order[at] = entry;
+                    n += 1;
                 }
                 if n > 0 {
                     for entry in order[1..n].iter().rev() {
@@ -219,51 +225,6 @@ fn pop(
         }
     }
     None
-}
-
-/// The slots of `node` the `active` rays' frustum enters, in `order` nearest first by the frustum's entry
-/// distance (ties in slot order); returns how many. An inner child takes every active ray, each with the
-/// frustum's entry distance (a lower bound of its own); a leaf takes the rays that enter its box by their own
-/// slab test (`slot_test` against `t_far`), with their own entry distances.
-#[inline(always)]
-fn frustum_children<I: Isa>(
-    isa: I,
-    node: &WideNode8,
-    frustum: &Frustum,
-    lanes: &RayLanes,
-    (t_far, active): (&[f32; PACKET_RAYS], u8),
-    order: &mut [Entry; WIDE],
-) -> usize {
-    let packet_far = greatest(isa, t_far, active);
-    let (mask, t_near) = frustum.test(isa, node, packet_far);
-    let mut keys = [0f32; WIDE];
-    let mut n = 0;
-    let mut slots = mask;
-    while slots != 0 {
-        let slot = slots.trailing_zeros() as usize & (WIDE - 1);
-        slots &= slots - 1;
-        let child = node.child[slot];
-        let entry = if child & LEAF_BIT != 0 {
-            let (hit, near) = slot_test(isa, node, slot, lanes, t_far);
-            if hit & active == 0 {
-                continue;
-            }
-            Entry { child, rays: hit & active, t_near: near }
-        } else {
-            Entry { child, rays: active, t_near: [t_near[slot]; PACKET_RAYS] }
-        };
-        let key = t_near[slot];
-        let mut at = n;
-        while at > 0 && keys[at - 1] > key {
-            order[at] = order[at - 1];
-            keys[at] = keys[at - 1];
-            at -= 1;
-        }
-        order[at] = entry;
-        keys[at] = key;
-        n += 1;
-    }
-    n
 }
 
 /// Slot `slot` of `node` against every lane: (bit mask of the lanes whose ray enters the box within

@@ -9,7 +9,6 @@
 
 pub(crate) mod coherent;
 pub(crate) mod encode;
-pub(crate) mod frustum;
 pub(crate) mod packets;
 pub(crate) mod walk;
 
