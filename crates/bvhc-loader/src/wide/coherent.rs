@@ -274,6 +274,10 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
     let origin = [isa.f8(&lanes.origin[kx]), isa.f8(&lanes.origin[ky]), isa.f8(&lanes.origin[kz])];
     let (sx, sy, sz) = (isa.f8(&lanes.shear[0]), isa.f8(&lanes.shear[1]), isa.f8(&lanes.shear[2]));
     let (t_min, zero, one) = (isa.f8(&lanes.t_min), isa.f8_splat(0.0), isa.f8_splat(1.0));
+    // Each ray's `t_max` kept in lanes and narrowed in lanes as hits are taken, not reloaded from `found` for
+    // each triangle: a vector load of what the hits just stored lane by lane cannot be forwarded from the
+    // stores and waits for them.
+    let mut t_max = isa.f8(&found.t_max);
     for (p, packet) in packets.iter().enumerate() {
         for tri in 0..packet.used_lanes() {
             let r = RelativeTriangle {
@@ -286,7 +290,7 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
             let det = determinant(e);
             let t = distance(e, &r, sz, det);
             let outside = outside(e, zero);
-            let valid = hits(outside, det, t, zero, t_min, isa.f8(&found.t_max));
+            let valid = hits(outside, det, t, zero, t_min, t_max);
             let inside = det.is_number().and_not(outside);
             let mut redo_rays = has_zero_edge(e, zero).bits() as u8 & active;
             if inside.bits() as u8 & active != 0 {
@@ -297,6 +301,10 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
             let valid_rays = valid.bits() as u8 & active & !redo_rays;
             let address = lane_address(first + p, tri);
             if valid_rays != 0 {
+                // A taken hit sets its ray's `t_max` to its `t`; a valid one not taken is a tie lost at that very
+                // `t`. So the lanes' minimum with the valid `t`s is what `found` now holds in every active lane
+                // that no redo touches (the other lanes' tests are masked off).
+                t_max = t_max.min_or(I::F8::select(valid, t, isa.f8_splat(f32::INFINITY)));
                 let (u, v) = barycentrics(e, det, one);
                 let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
                 let mut rays = valid_rays;
@@ -320,6 +328,9 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
                     found.take(l, address, hit);
                     hit_rays |= 1 << l;
                 }
+            }
+            if redo_rays != 0 {
+                t_max = isa.f8(&found.t_max);
             }
         }
         if Q::FIRST_HIT_ENDS {
