@@ -101,11 +101,33 @@ pub struct PreparedRay {
     sz: f32,
 }
 
+/// The permuted axes `[kx, ky, kz]` of Woop et al.'s shear for `direction` (spec 11.1): `kz` the axis of the
+/// largest magnitude (the first of equal ones), `kx`, `ky` the next two in cyclic order, swapped when the
+/// direction along `kz` is negative (so the triangle's winding is kept).
+#[inline(always)]
+pub(crate) fn shear_axes(direction: [f32; 3]) -> [usize; 3] {
+    let abs = direction.map(f32::abs);
+    let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
+        0
+    } else if abs[1] >= abs[2] {
+        1
+    } else {
+        2
+    };
+    let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    if direction[kz] < 0.0 {
+        std::mem::swap(&mut kx, &mut ky);
+    }
+    [kx, ky, kz]
+}
+
 impl PreparedRay {
     /// Precomputes the reciprocal direction and the shear of `ray`.
     #[inline(always)]
     pub fn new(ray: &Ray) -> PreparedRay {
         let d = ray.direction;
+        // `shear_axes`, written out: calling it (array or tuple) cost 1.7% more instructions a ray through the
+        // wide kernel (callgrind, kitchen, 852.7 -> 866.8).
         let abs = d.map(f32::abs);
         let kz = if abs[0] >= abs[1] && abs[0] >= abs[2] {
             0
@@ -235,5 +257,27 @@ impl PreparedRay {
         }
         let (u, v) = barycentrics(e, det, 1.0);
         Some(TriangleHit { t, u, v })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{PreparedRay, Ray, shear_axes};
+
+    /// `shear_axes` (the coherent packets' set-up) and `PreparedRay::new` (which writes the same choice out)
+    /// choose the same axes: every direction whose components are drawn from values with equal magnitudes,
+    /// signed zeros and both signs, so every tie and swap is met.
+    #[test]
+    fn shear_axes_match_the_prepared_ray() {
+        let values = [0.0f32, -0.0, 1.0, -1.0, 2.0, -2.0, 0.5, -0.5];
+        for &x in &values {
+            for &y in &values {
+                for &z in &values {
+                    let direction = [x, y, z];
+                    let prepared = PreparedRay::new(&Ray::new([0.0; 3], direction));
+                    assert_eq!(shear_axes(direction), prepared.shear().0, "{direction:?}");
+                }
+            }
+        }
     }
 }

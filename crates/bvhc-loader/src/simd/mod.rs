@@ -77,6 +77,17 @@ pub(crate) trait Isa: Copy {
     /// left out of the mask (they never hit a finite ray, but a NaN origin makes every comparison fail and so
     /// every slot look hit).
     fn box_test(self, node: &WideNode8, ray: &SlabRay<'_>, t_far: f32) -> (u8, [f32; WIDE]);
+    /// The transpose of eight rows of eight (`out[j][i] == rows[i][j]`): eight records turned into eight
+    /// lanes of each field. Moves only, so the same bits on every instruction set.
+    fn transpose8(self, rows: &[[f32; 8]; 8]) -> [[f32; 8]; 8] {
+        let mut out = [[0f32; 8]; 8];
+        for (i, row) in rows.iter().enumerate() {
+            for (j, &value) in row.iter().enumerate() {
+                out[j][i] = value;
+            }
+        }
+        out
+    }
 }
 
 /// The portable path: plain Rust on any machine.
