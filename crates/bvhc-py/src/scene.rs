@@ -98,7 +98,7 @@ impl Scene {
     /// Closest hits of the rays, as a dict of arrays (see the package's docs).
     #[allow(clippy::too_many_arguments)] // the rays, then the filter's four
     #[pyo3(signature = (origins, directions, t_min, t_max, threads=None, cutout=None, cutout_primitives=None,
-        filter=None, filter_scope="every"))]
+        filter=None, filter_scope="every", coherent=false))]
     fn closest_hits<'py>(
         &self,
         py: Python<'py>,
@@ -111,13 +111,14 @@ impl Scene {
         cutout_primitives: Option<Bound<'py, PyAny>>,
         filter: Option<Bound<'py, PyAny>>,
         filter_scope: &str,
+        coherent: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
         let rays = arguments.rays()?;
         let filter = FilterArgs::extract(cutout, cutout_primitives, filter, filter_scope)?;
         let pool = pool(threads)?;
         let columns = with_view(py, &self.bytes, &self.path, |view| {
-            crate::tracing::closest(py, view, rays, filter.as_ref(), &pool)
+            crate::tracing::closest(py, view, rays, filter.as_ref(), (&pool, order(coherent)))
         })?;
         columns.into_dict(py)
     }
@@ -125,7 +126,7 @@ impl Scene {
     /// Whether each ray hits anything within its interval, as a bool array.
     #[allow(clippy::too_many_arguments)] // the rays, then the filter's four
     #[pyo3(signature = (origins, directions, t_min, t_max, threads=None, cutout=None, cutout_primitives=None,
-        filter=None, filter_scope="every"))]
+        filter=None, filter_scope="every", coherent=false))]
     fn any_hits<'py>(
         &self,
         py: Python<'py>,
@@ -138,13 +139,15 @@ impl Scene {
         cutout_primitives: Option<Bound<'py, PyAny>>,
         filter: Option<Bound<'py, PyAny>>,
         filter_scope: &str,
+        coherent: bool,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
         let rays = arguments.rays()?;
         let filter = FilterArgs::extract(cutout, cutout_primitives, filter, filter_scope)?;
         let pool = pool(threads)?;
-        let occluded =
-            with_view(py, &self.bytes, &self.path, |view| crate::tracing::any(py, view, rays, filter.as_ref(), &pool))?;
+        let occluded = with_view(py, &self.bytes, &self.path, |view| {
+            crate::tracing::any(py, view, rays, filter.as_ref(), (&pool, order(coherent)))
+        })?;
         Ok(occluded.into_pyarray(py))
     }
 
@@ -324,4 +327,9 @@ pub fn verify(py: Python<'_>, path: std::path::PathBuf) -> PyResult<String> {
         view.triangles().len(),
         bvhc::loader::Rule::ALL.len()
     ))
+}
+
+/// The batch order a `coherent` keyword asks for.
+fn order(coherent: bool) -> bvhc::loader::Order {
+    if coherent { bvhc::loader::Order::Coherent } else { bvhc::loader::Order::Stream }
 }

@@ -5,7 +5,7 @@
 use bvhc::loader::Trace;
 use std::cell::{Cell, RefCell};
 
-use bvhc::loader::{BatchRayError, BvhView, Crossings, Hit, Ray, Tracer};
+use bvhc::loader::{BatchRayError, BvhView, Crossings, Hit, Order, Ray, Tracer};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
@@ -52,22 +52,23 @@ fn with_callback<'py, R>(
     }
 }
 
-/// The closest hits of `rays`, as columns.
+/// The closest hits of `rays`, as columns; traced in packets of 8 consecutive rays when `order` is
+/// [`Order::Coherent`] (the same hits; a callable filter traces one ray at a time either way).
 pub fn closest(
     py: Python<'_>,
     view: &BvhView<'_>,
     rays: RayArrays<'_>,
     filter: Option<&FilterArgs<'_>>,
-    pool: &Option<rayon::ThreadPool>,
+    (pool, order): (&Option<rayon::ThreadPool>, Order),
 ) -> PyResult<HitColumns> {
     let tracer = view.tracer().trusting_rays();
     let traced = match filter {
-        None => py.detach(|| on_pool(pool, || HitColumns::traced(rays, &|r, h| tracer.closest_hits(r, h)))),
+        None => py.detach(|| on_pool(pool, || HitColumns::traced(rays, &|r, h| closest_hits(&tracer, r, h, order)))),
         Some(args) => match &args.callback {
             None => {
                 let cutouts = args.cutouts(view)?;
                 let filtered = tracer.filtered(&cutouts, args.scope);
-                py.detach(|| on_pool(pool, || HitColumns::traced(rays, &|r, h| filtered.closest_hits(r, h))))
+                py.detach(|| on_pool(pool, || HitColumns::traced(rays, &|r, h| closest_hits(&filtered, r, h, order))))
             }
             Some(callback) => with_callback(view, args, callback, |filter| {
                 let filtered = tracer.filtered(filter, args.scope);
@@ -81,22 +82,22 @@ pub fn closest(
     traced.map_err(|e| rays.error(&e))
 }
 
-/// Whether each ray of `rays` hits anything (that the filter accepts).
+/// Whether each ray of `rays` hits anything (that the filter accepts); `order` as for [`closest`].
 pub fn any(
     py: Python<'_>,
     view: &BvhView<'_>,
     rays: RayArrays<'_>,
     filter: Option<&FilterArgs<'_>>,
-    pool: &Option<rayon::ThreadPool>,
+    (pool, order): (&Option<rayon::ThreadPool>, Order),
 ) -> PyResult<Vec<bool>> {
     let tracer = view.tracer().trusting_rays();
     let traced = match filter {
-        None => py.detach(|| on_pool(pool, || any_in_chunks(rays, &|r, o| tracer.any_hits(r, o)))),
+        None => py.detach(|| on_pool(pool, || any_in_chunks(rays, &|r, o| any_hits(&tracer, r, o, order)))),
         Some(args) => match &args.callback {
             None => {
                 let cutouts = args.cutouts(view)?;
                 let filtered = tracer.filtered(&cutouts, args.scope);
-                py.detach(|| on_pool(pool, || any_in_chunks(rays, &|r, o| filtered.any_hits(r, o))))
+                py.detach(|| on_pool(pool, || any_in_chunks(rays, &|r, o| any_hits(&filtered, r, o, order))))
             }
             Some(callback) => with_callback(view, args, callback, |filter| {
                 let filtered = tracer.filtered(filter, args.scope);
@@ -108,6 +109,22 @@ pub fn any(
         },
     };
     traced.map_err(|e| rays.error(&e))
+}
+
+/// `tracer`'s closest hits of a chunk, as a stream or in coherent packets.
+fn closest_hits(tracer: &impl Trace, rays: &[Ray], hits: &mut [Option<Hit>], order: Order) {
+    match order {
+        Order::Coherent => tracer.closest_hits_coherent(rays, hits),
+        Order::Stream => tracer.closest_hits(rays, hits),
+    }
+}
+
+/// `tracer`'s any-hit answers of a chunk, as a stream or in coherent packets.
+fn any_hits(tracer: &impl Trace, rays: &[Ray], occluded: &mut [bool], order: Order) {
+    match order {
+        Order::Coherent => tracer.any_hits_coherent(rays, occluded),
+        Order::Stream => tracer.any_hits(rays, occluded),
+    }
 }
 
 /// `trace` over chunks of `rays` on the pool, into one flag a ray.

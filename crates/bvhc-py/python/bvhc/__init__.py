@@ -312,6 +312,7 @@ class Scene:
         cutout_primitives: Optional[Any] = None,
         filter: Optional[Callable[..., bool]] = None,
         filter_scope: str = "every",
+        coherent: bool = False,
     ) -> Dict[str, np.ndarray]:
         """The closest hit of each ray: ``origins`` and ``directions`` are ``(n, 3)`` float32 or float64 arrays
         (C-ordered or strided, read in place; float64 is rounded to float32), ``t_min`` and ``t_max`` numbers or
@@ -332,9 +333,13 @@ class Scene:
         and an exception it raises is raised here. ``filter_scope`` is ``"every"`` (every candidate is asked) or
         ``"not_opaque"`` (only candidates on triangles the file marks not opaque, glTF ``MASK``/``BLEND``
         materials; :attr:`triangle_flags`).
+
+        ``coherent=True`` says the rays come in the order of neighbouring pixels (camera or shadow rays of an
+        image, row by row): each 8 consecutive rays are traced together as a packet, faster on such rays and
+        with the same hits as without (a callable ``filter`` traces one ray at a time either way).
         """
         return self._native.closest_hits(
-            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope
+            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope, coherent
         )
 
     def any_hits(
@@ -349,11 +354,12 @@ class Scene:
         cutout_primitives: Optional[Any] = None,
         filter: Optional[Callable[..., bool]] = None,
         filter_scope: str = "every",
+        coherent: bool = False,
     ) -> np.ndarray:
         """Whether each ray hits anything in ``[t_min, t_max]`` (that the filters keep): a bool array. Arguments
         as :meth:`closest_hits`."""
         return self._native.any_hits(
-            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope
+            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope, coherent
         )
 
     def all_hits(

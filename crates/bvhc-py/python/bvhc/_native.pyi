@@ -51,6 +51,7 @@ class Scene:
         cutout_primitives: Optional[Any] = None,
         filter: Optional[Callable[..., bool]] = None,
         filter_scope: str = "every",
+        coherent: bool = False,
     ) -> Dict[str, npt.NDArray[Any]]: ...
     def any_hits(
         self,
@@ -63,6 +64,7 @@ class Scene:
         cutout_primitives: Optional[Any] = None,
         filter: Optional[Callable[..., bool]] = None,
         filter_scope: str = "every",
+        coherent: bool = False,
     ) -> npt.NDArray[np.bool_]: ...
     def all_hits(
         self,
