@@ -125,8 +125,8 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
     found.t_max = t_max;
     let direction = [d0, d1, d2];
     let one = isa.f8_splat(1.0);
-    for axis in 0..3 {
-        let d = isa.f8(&direction[axis]);
+    for (axis, lanes_d) in direction.iter().enumerate() {
+        let d = isa.f8(lanes_d);
         let inverse = one.div(d);
         lanes.inverse_direction[axis] = inverse.to_array();
         lanes.exit_inverse[axis] = inverse.mul(isa.f8_splat(EXIT_PADDING)).to_array();
