@@ -37,6 +37,10 @@ mod rays;
 #[path = "common/embree.rs"]
 mod embree;
 
+#[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+#[path = "common/tinybvh_kernel.rs"]
+mod tinybvh_kernel;
+
 fn main() {
     if !harness::benchmarking("peer") {
         return;
@@ -69,6 +73,9 @@ mod peer {
     enum Contender<'a> {
         Bvhc(Tracer<'a>),
         Embree(Embree),
+        /// tinybvh's `BVH8_CPU` (closest hits only).
+        #[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+        Tinybvh(crate::tinybvh_kernel::Bvh8Cpu),
     }
 
     impl Contender<'_> {
@@ -84,6 +91,10 @@ mod peer {
                     Answers::Closest(rays.iter().map(|r| e.closest(r).map(|h| h.0)).collect())
                 }
                 (Contender::Embree(e), false) => Answers::Any(rays.iter().map(|r| e.any(r)).collect()),
+                #[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+                (Contender::Tinybvh(b), true) => Answers::Closest(rays.iter().map(|r| b.closest(r)).collect()),
+                #[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+                (Contender::Tinybvh(_), false) => unreachable!("tinybvh runs closest hits only"),
             }
         }
     }
@@ -102,6 +113,10 @@ mod peer {
             (Contender::Bvhc(t), false) => rays.iter().filter(|r| t.any_hit(r)).count(),
             (Contender::Embree(e), true) => rays.iter().filter(|r| e.closest(r).is_some()).count(),
             (Contender::Embree(e), false) => rays.iter().filter(|r| e.any(r)).count(),
+            #[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+            (Contender::Tinybvh(b), true) => rays.iter().filter(|r| b.closest(r).is_some()).count(),
+            #[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+            (Contender::Tinybvh(_), false) => unreachable!("tinybvh runs closest hits only"),
         }
     }
 
@@ -217,6 +232,7 @@ mod peer {
             .and_then(|v| v.split_once('x').and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?))))
             .unwrap_or((1024usize, 768usize));
         let mut coherent_rows = Vec::new();
+        let mut tinybvh_rows = Vec::new();
         if only.is_none() {
             println!(
                 "{} against bvhc, one thread, Mrays/s: medians of {rounds} interleaved rounds in this run; {} \
@@ -250,8 +266,12 @@ mod peer {
                 Some("embree-robust") => {
                     vec![("embree robust", Contender::Embree(Embree::with_isa(&triangles, true, Some("avx2"))))]
                 }
+                #[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+                Some("tinybvh") => {
+                    vec![("tinybvh", Contender::Tinybvh(crate::tinybvh_kernel::Bvh8Cpu::new(&triangles)))]
+                }
                 Some(other) => {
-                    panic!("BVHC_PEER_ONLY={other}: bvhc, bvhc-checked, ray-check, embree or embree-robust")
+                    panic!("BVHC_PEER_ONLY={other}: bvhc, bvhc-checked, ray-check, embree, embree-robust or tinybvh")
                 }
                 // bvhc's kernel without the ray check, as Embree runs without one (`ray-check` measures it).
                 None => vec![
@@ -297,7 +317,10 @@ mod peer {
                         );
                         continue;
                     }
-                    if let Some(_contender) = &only {
+                    if let Some(contender) = &only {
+                        if contender == "tinybvh" && !closest {
+                            continue; // closest hits only
+                        }
                         let wanted_set = std::env::var("BVHC_PEER_SET").unwrap_or_else(|_| "incoherent".into());
                         let wanted_query = std::env::var("BVHC_PEER_QUERY").unwrap_or_else(|_| "closest".into());
                         if *set == wanted_set && query == wanted_query {
@@ -359,6 +382,9 @@ mod peer {
             if only.is_none() {
                 coherent_rows.push(coherent_row(name, &view, &triangles, &sets[1].1, rounds));
             }
+            if only.is_none() {
+                tinybvh_rows.extend(second_peer_rows(name, &contenders, &triangles, &sets, rounds));
+            }
         }
         if only.is_none() {
             println!(
@@ -373,6 +399,66 @@ mod peer {
                 println!("{row}");
             }
         }
+        if !tinybvh_rows.is_empty() {
+            println!("\nA second peer, closest hits, Mrays/s, medians of {rounds} interleaved rounds:\n");
+            println!(
+                "| scene | rays | bvhc | Embree AVX2 | tinybvh BVH8_CPU | bvhc / tinybvh | tinybvh / Embree AVX2 | answers unlike bvhc |"
+            );
+            println!("|---|---|---|---|---|---|---|---|");
+            for row in tinybvh_rows {
+                println!("{row}");
+            }
+        } else if only.is_none() {
+            println!(
+                "\n(tinybvh's BVH8_CPU as a second peer: `RUSTFLAGS=\"-C target-feature=+avx2,+fma\" cargo bench --bench \
+                 peer --features embree4,tinybvh`)"
+            );
+        }
+    }
+
+    /// The second peer's rows of one scene, closest hits on both ray sets: bvhc (`contenders[0]`), Embree AVX2
+    /// (`contenders[1]`) and tinybvh's `BVH8_CPU` in turn, and the rays tinybvh answers unlike bvhc.
+    #[cfg(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma"))]
+    fn second_peer_rows(
+        name: &str,
+        contenders: &[(&str, Contender<'_>)],
+        triangles: &[[[f32; 3]; 3]],
+        sets: &[(&str, Vec<Ray>)],
+        rounds: usize,
+    ) -> Vec<String> {
+        let tinybvh = Contender::Tinybvh(crate::tinybvh_kernel::Bvh8Cpu::new(triangles));
+        let trio = [&contenders[0].1, &contenders[1].1, &tinybvh];
+        let mut rows = Vec::new();
+        for (set, rays) in sets {
+            let unlike = disagreements(&trio[0].answers(rays, true), &tinybvh.answers(rays, true));
+            let mut samples = vec![Vec::new(); trio.len()];
+            for _ in 0..rounds {
+                for (c, contender) in trio.iter().enumerate() {
+                    let start = Instant::now();
+                    std::hint::black_box(measured_pass(contender, rays, true));
+                    samples[c].push(rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
+                }
+            }
+            let s: Vec<f64> = samples.into_iter().map(median).collect();
+            let ratios = (s[0] / s[2], s[2] / s[1]);
+            rows.push(format!(
+                "| {name} | {set} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {unlike} |",
+                s[0], s[1], s[2], ratios.0, ratios.1
+            ));
+        }
+        rows
+    }
+
+    /// Without tinybvh's kernel in this build (the feature, or AVX2 and FMA, missing), no rows.
+    #[cfg(not(all(feature = "tinybvh", target_feature = "avx2", target_feature = "fma")))]
+    fn second_peer_rows(
+        _: &str,
+        _: &[(&str, Contender<'_>)],
+        _: &[[[f32; 3]; 3]],
+        _: &[(&str, Vec<Ray>)],
+        _: usize,
+    ) -> Vec<String> {
+        Vec::new()
     }
 
     /// The coherent table's row of one scene; asserts that every contender finds the same hits (`t` within 1e-4,

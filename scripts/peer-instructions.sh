@@ -8,19 +8,23 @@ cd "$(dirname "$0")/.."
 scenes="${1:-kitchen,engine}"
 rays="${2:-100000}"
 feature="${BVHC_PEER_FEATURE:-embree4}"
-# `BVHC_PEER_CONTENDERS=bvhc` counts bvhc alone (a before/after gate for a loader change).
+# `BVHC_PEER_CONTENDERS=bvhc` counts bvhc alone (a before/after gate for a loader change); `tinybvh` (closest hits
+# only) needs the benchmark built with it, passed as `BVHC_PEER_BINARY` (docs/kernel-peer.md, "A second peer").
 contenders="${BVHC_PEER_CONTENDERS:-bvhc embree}"
-binary=$(cargo bench --bench peer --features "$feature" --no-run --message-format=json 2>/dev/null \
+binary=${BVHC_PEER_BINARY:-}
+[ -n "$binary" ] || binary=$(cargo bench --bench peer --features "$feature" --no-run --message-format=json 2>/dev/null \
   | python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and "peer" in m["executable"]][-1])')
 out=$(mktemp -d)
 echo "| scene | rays | query | contender | instructions a ray |"
 echo "|---|---|---|---|---|"
-for scene in ${scenes//,/ }; do
+IFS=',' read -ra scene_list <<< "$scenes"
+for scene in "${scene_list[@]}"; do
   # Convert once natively (callgrind would take minutes for it).
   BVHC_PEER_SCENES="$scene" BVHC_PEER_ONLY=bvhc BVHC_BENCH_RAYS=1 "$binary" --bench >/dev/null
   for set in incoherent primary; do
     for query in closest any; do
       for contender in $contenders; do
+        if [ "$contender" = tinybvh ] && [ "$query" = any ]; then continue; fi
         file="$out/$scene-$set-$query-$contender.out"
         BVHC_PEER_SCENES="$scene" BVHC_PEER_ONLY="$contender" BVHC_PEER_SET="$set" BVHC_PEER_QUERY="$query" \
           BVHC_BENCH_RAYS="$rays" BVHC_PEER_CAMERA=400x250 \
