@@ -8,11 +8,17 @@ cd "$(dirname "$0")/.."
 scenes="${1:-kitchen,engine}"
 rays="${2:-100000}"
 feature="${BVHC_PEER_FEATURE:-embree4}"
-# `BVHC_PEER_CONTENDERS=bvhc` counts bvhc alone (a before/after gate for a loader change); `tinybvh` (closest hits
-# only) needs the benchmark built with it, passed as `BVHC_PEER_BINARY` (docs/kernel-peer.md, "A second peer").
+# `BVHC_PEER_CONTENDERS=bvhc` counts bvhc alone (a before/after gate for a loader change). With
+# `BVHC_PEER_TINYBVH=1` the benchmark is built with tinybvh's BVH8_CPU as well (AVX2 and FMA for the whole build, in
+# target/tinybvh; docs/kernel-peer.md, "A second peer"), for `BVHC_PEER_CONTENDERS="bvhc tinybvh embree"`
+# (tinybvh: closest hits only).
 contenders="${BVHC_PEER_CONTENDERS:-bvhc embree}"
-binary=${BVHC_PEER_BINARY:-}
-[ -n "$binary" ] || binary=$(cargo bench --bench peer --features "$feature" --no-run --message-format=json 2>/dev/null \
+build=(cargo bench --bench peer --features "$feature" --no-run --message-format=json)
+if [ "${BVHC_PEER_TINYBVH:-}" = 1 ]; then
+  export CXX="$PWD/scripts/avx2-cxx.sh" RUSTFLAGS="-C target-feature=+avx2,+fma" CARGO_TARGET_DIR=target/tinybvh
+  build=(cargo bench --bench peer --features "$feature,tinybvh" --no-run --message-format=json)
+fi
+binary=$("${build[@]}" 2>/dev/null \
   | python3 -c 'import json,sys; print([m["executable"] for m in map(json.loads, sys.stdin) if m.get("executable") and "peer" in m["executable"]][-1])')
 out=$(mktemp -d)
 echo "| scene | rays | query | contender | instructions a ray |"
