@@ -25,7 +25,9 @@
 //! against the trusting one, single rays and batches, rounds interleaved: the check's cost; `BVHC_PEER_BATCH=1`
 //! makes the one-contender pass use the batch calls (streams; packets for `BVHC_PEER_SET=primary`).
 //! `BVHC_PEER_WRITE=DIR` writes each scene's conversion, Embree's triangles and the ray sets to `DIR` instead of
-//! timing, for the same comparison made from outside (`scripts/peer-outside.sh`).
+//! timing, for the same comparison made from outside (`scripts/peer-outside.sh`). Built with `--features tinybvh`
+//! for AVX2 and FMA (`docs/kernel-peer.md`, "A second peer"), a third table times tinybvh's `BVH8_CPU` beside
+//! bvhc and Embree AVX2 on closest hits, and `BVHC_PEER_ONLY=tinybvh` counts its instructions.
 
 #[path = "common/harness.rs"]
 mod harness;
@@ -410,8 +412,9 @@ mod peer {
             }
         } else if only.is_none() {
             println!(
-                "\n(tinybvh's BVH8_CPU as a second peer: `RUSTFLAGS=\"-C target-feature=+avx2,+fma\" cargo bench --bench \
-                 peer --features embree4,tinybvh`)"
+                "\n(tinybvh's BVH8_CPU as a second peer: `CXX=$PWD/scripts/avx2-cxx.sh RUSTFLAGS=\"-C \
+                 target-feature=+avx2,+fma\" CARGO_TARGET_DIR=target/tinybvh cargo bench --bench peer --features \
+                 embree4,tinybvh`)"
             );
         }
     }
