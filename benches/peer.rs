@@ -23,7 +23,8 @@
 //! also times that pass that many times (a quick A/B of one contender). bvhc runs without the ray check
 //! (`Tracer::trusting_rays`), as Embree does; `BVHC_PEER_ONLY=bvhc-checked` with it, and `BVHC_PEER_ONLY=ray-check` times the checking tracer
 //! against the trusting one, single rays and batches, rounds interleaved: the check's cost; `BVHC_PEER_BATCH=1`
-//! makes the one-contender pass use the batch calls (streams; packets for `BVHC_PEER_SET=primary`).
+//! makes the one-contender pass use the batch calls (streams; packets for `BVHC_PEER_SET=primary`), and
+//! `BVHC_PEER_TILES=1` lays the primary rays out in blocks of 4 pixels by 2 rows instead of rows.
 //! `BVHC_PEER_WRITE=DIR` writes each scene's conversion, Embree's triangles and the ray sets to `DIR` instead of
 //! timing, for the same comparison made from outside (`scripts/peer-outside.sh`). Built with `--features tinybvh`
 //! for AVX2 and FMA (`docs/kernel-peer.md`, "A second peer"), a third table times tinybvh's `BVH8_CPU` beside
@@ -61,6 +62,11 @@ mod peer {
 
     use crate::embree::{self, Embree, FlushToZero};
     use crate::{harness, rays};
+
+    /// The coherent table (`benches/peer/coherent.rs`).
+    #[path = "coherent.rs"]
+    mod coherent;
+    use coherent::{coherent_row, tile_order};
 
     /// The seed of the incoherent set (not the other benchmarks' `RAY_SEED`).
     const UNIFORM_SEED: u64 = 4_404;
@@ -286,7 +292,13 @@ mod peer {
             };
             let sets = [
                 ("incoherent", rays::uniform_rays(&root, ray_count, UNIFORM_SEED)),
-                ("primary", rays::camera_rays(&root, camera.0, camera.1)),
+                ("primary", {
+                    let rays = rays::camera_rays(&root, camera.0, camera.1);
+                    match std::env::var_os("BVHC_PEER_TILES").is_some() && only.is_some() {
+                        true => tile_order(camera).into_iter().map(|i| rays[i]).collect(),
+                        false => rays,
+                    }
+                }),
             ];
             if let Some(dir) = std::env::var_os("BVHC_PEER_WRITE") {
                 write_inputs(std::path::Path::new(&dir), name, &view, &triangles, &sets);
@@ -382,7 +394,7 @@ mod peer {
                 }
             }
             if only.is_none() {
-                coherent_rows.push(coherent_row(name, &view, &triangles, &sets[1].1, rounds));
+                coherent_rows.push(coherent_row(name, &view, &triangles, (&sets[1].1, camera), rounds));
             }
             if only.is_none() {
                 tinybvh_rows.extend(second_peer_rows(name, &contenders, &triangles, &sets, rounds));
@@ -390,13 +402,13 @@ mod peer {
         }
         if only.is_none() {
             println!(
-                "\nCoherent primary rays ({}x{}, rows in order), closest hit, Mrays/s, medians of {rounds} interleaved rounds:\n",
+                "\nCoherent primary rays ({}x{}, in rows and in 4x2 tiles), closest hit, Mrays/s, medians of {rounds} interleaved rounds:\n",
                 camera.0, camera.1
             );
             println!(
-                "| scene | bvhc single rays | bvhc 8-ray packets | Embree AVX2 rtcIntersect8 | Embree AVX2 rtcIntersect16 | Embree native rtcIntersect16 | packets / best Embree |"
+                "| scene | bvhc single rays | bvhc 8-ray packets | bvhc packets, 4x2 tiles | Embree AVX2 rtcIntersect8 | rtcIntersect8, 4x2 tiles | Embree AVX2 rtcIntersect16 | Embree native rtcIntersect16 | packets / best Embree | tiles / best Embree |"
             );
-            println!("|---|---|---|---|---|---|---|");
+            println!("|---|---|---|---|---|---|---|---|---|---|");
             for row in coherent_rows {
                 println!("{row}");
             }
@@ -462,91 +474,5 @@ mod peer {
         _: usize,
     ) -> Vec<String> {
         Vec::new()
-    }
-
-    /// The coherent table's row of one scene; asserts that every contender finds the same hits (`t` within 1e-4,
-    /// or a miss) on all but a few rays.
-    fn coherent_row(
-        name: &str,
-        view: &bvhc::loader::BvhView<'_>,
-        triangles: &[[[f32; 3]; 3]],
-        rays: &[Ray],
-        rounds: usize,
-    ) -> String {
-        let tracer = view.tracer();
-        let avx2 = Embree::with_isa(triangles, false, Some("avx2"));
-        let native = Embree::with_isa(triangles, false, None);
-        let mut hits = vec![None; rays.len()];
-        let mut ts = vec![None; rays.len()];
-        // The hit records of the packet calls, allocated once as a renderer would (a fresh allocation a pass
-        // timed its page faults, a third of the pass on this VM).
-        let found = std::cell::RefCell::new(vec![None; rays.len()]);
-        type Pass<'p> = Box<dyn Fn(&mut [Option<f32>]) + 'p>;
-        let passes: [(bool, Pass<'_>); 5] = [
-            (
-                false,
-                Box::new(|out: &mut [Option<f32>]| {
-                    for (slot, ray) in out.iter_mut().zip(rays) {
-                        *slot = tracer.closest_hit(ray).map(|h| h.t);
-                    }
-                }),
-            ),
-            (
-                false,
-                Box::new(|out: &mut [Option<f32>]| {
-                    let mut found = found.borrow_mut();
-                    tracer.closest_hits_coherent(rays, &mut found);
-                    for (slot, hit) in out.iter_mut().zip(found.iter()) {
-                        *slot = hit.map(|h| h.t);
-                    }
-                }),
-            ),
-            (
-                true,
-                Box::new(|out: &mut [Option<f32>]| {
-                    rays.chunks(8).zip(out.chunks_mut(8)).for_each(|(r, o)| avx2.closest8_into(r, o))
-                }),
-            ),
-            (
-                true,
-                Box::new(|out: &mut [Option<f32>]| {
-                    rays.chunks(16).zip(out.chunks_mut(16)).for_each(|(r, o)| avx2.closest16_into(r, o))
-                }),
-            ),
-            (
-                true,
-                Box::new(|out: &mut [Option<f32>]| {
-                    rays.chunks(16).zip(out.chunks_mut(16)).for_each(|(r, o)| native.closest16_into(r, o))
-                }),
-            ),
-        ];
-        let mut samples = vec![Vec::new(); passes.len()];
-        let mut unlike = 0;
-        for round in 0..rounds {
-            for (p, (is_embree, pass)) in passes.iter().enumerate() {
-                let out = if p == 0 { &mut hits } else { &mut ts };
-                let start = Instant::now();
-                {
-                    let _ftz = is_embree.then(FlushToZero::set);
-                    pass(out);
-                }
-                samples[p].push(rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
-                if round == 0 && p > 0 {
-                    unlike = unlike.max(disagreements(&Answers::Closest(hits.clone()), &Answers::Closest(ts.clone())));
-                }
-            }
-        }
-        assert!(unlike * 1000 <= rays.len(), "{name}: {unlike} coherent answers unlike single rays");
-        let speeds: Vec<f64> = samples.into_iter().map(median).collect();
-        let best_embree = speeds[2..].iter().copied().fold(0.0, f64::max);
-        format!(
-            "| {name} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
-            speeds[0],
-            speeds[1],
-            speeds[2],
-            speeds[3],
-            speeds[4],
-            speeds[1] / best_embree
-        )
     }
 }
