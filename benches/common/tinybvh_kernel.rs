@@ -41,7 +41,7 @@ impl Bvh8Cpu {
         let d = ray.direction;
         let length = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         let dir = d.map(|c| c / length);
-        let reciprocal = |c: f32| match c > 1e-12 || c < -1e-12 {
+        let reciprocal = |c: f32| match c.abs() > 1e-12 {
             true => 1.0 / c,
             false => tinybvh_rs::INFINITE.copysign(if c >= 0.0 { 1.0 } else { -1.0 }),
         };
