@@ -16,6 +16,7 @@ mod example_alpha;
 mod example_ao;
 mod fetch_scenes;
 mod reencode;
+mod refit;
 mod filters;
 mod convert;
 mod convert_instances;

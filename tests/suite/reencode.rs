@@ -36,7 +36,7 @@ fn converted_with(dir: &std::path::Path, overrides: Overrides) -> BvhFile {
 }
 
 /// Every node of every layout re-encoded from the geometry beneath it, children before parents.
-fn reencode_everything(file: &mut BvhFile) {
+pub fn reencode_everything(file: &mut BvhFile) {
     let mut edit = file.edit().unwrap();
     let triangles: Vec<PackedTriangle> = edit.triangles.to_vec();
     // Binary: children follow their parent, so reverse order sees children first.

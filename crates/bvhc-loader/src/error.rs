@@ -251,6 +251,9 @@ pub enum Error {
     },
     /// The data handed to the writer cannot be stored (too many elements for u32 indices, and similar).
     Unwritable(String),
+    /// A refit the file cannot take ([`crate::BvhFile::refit_triangles`]): the file's kind, the positions' count,
+    /// a coordinate (naming the record), a box the GPU layout cannot encode (naming the node).
+    Refit(String),
 }
 
 impl fmt::Display for Error {
@@ -272,6 +275,7 @@ impl fmt::Display for Error {
                 write!(f, "out of memory: {what} needs {bytes} bytes, which the system refused")
             }
             Error::Unwritable(why) => write!(f, "cannot write .bvh file: {why}"),
+            Error::Refit(why) => write!(f, "cannot refit .bvh file: {why}"),
         }
     }
 }

@@ -5,6 +5,7 @@
 pub(crate) mod device;
 pub(crate) mod encode;
 pub(crate) mod model;
+pub(crate) mod refit;
 pub mod shader;
 
 #[cfg(feature = "wgpu")]

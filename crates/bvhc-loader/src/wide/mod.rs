@@ -10,6 +10,7 @@
 pub(crate) mod coherent;
 pub(crate) mod encode;
 pub(crate) mod packets;
+pub(crate) mod refit;
 pub(crate) mod walk;
 
 use crate::error::Violation;

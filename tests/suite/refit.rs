@@ -1,0 +1,161 @@
+//! Refitting an owned file to moved triangles (`BvhFile::refit_triangles`): the file's own positions give its
+//! bytes back; moved positions give, layout by layout, what an independent re-encoding of the same tree gives
+//! (`reencode::reencode_everything`, written in the test from the format's rules), hits equal to a brute force
+//! over the moved triangles on every kernel, and a file that verifies once rewritten; what a refit cannot take is
+//! refused with the file unchanged.
+
+use bvhc::loader::format::{PackedTriangle, SectionKind};
+use bvhc::loader::{BvhFile, Error};
+use bvhc::options::{Overrides, Preset};
+
+use crate::common::{assert_matches_brute_force, every_kernel, random_rays};
+use crate::reencode::reencode_everything;
+
+type Triangle = [[f32; 3]; 3];
+
+/// The teapot converted with the wide and GPU layouts, with or without split references.
+fn teapot(dir: &std::path::Path, splits: bool) -> BvhFile {
+    let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let output = dir.join(if splits { "split.bvh" } else { "teapot.bvh" });
+    let overrides = Overrides { splits: Some(splits), gpu_layout: Some(true), ..Overrides::default() };
+    bvhc::Conversion::new(teapot, &output).preset(Preset::Balanced).overrides(overrides).run().unwrap();
+    BvhFile::read(&output).unwrap()
+}
+
+fn positions(file: &BvhFile) -> Vec<Triangle> {
+    file.view().triangles().iter().map(|t| t.vertices).collect()
+}
+
+/// A smooth deformation: a bend about the y axis growing with height, and a twist.
+fn bent(positions: &[Triangle]) -> Vec<Triangle> {
+    let bend = |[x, y, z]: [f32; 3]| {
+        let a = 0.15 * y;
+        [x * a.cos() - z * a.sin() + 0.3 * y * y, y * 1.1, x * a.sin() + z * a.cos()]
+    };
+    positions.iter().map(|t| t.map(bend)).collect()
+}
+
+/// Word-by-word equality of two files' sections but the metadata, but for the sign of a zero bound (unions meet
+/// +0 and -0 in another order than the converter's).
+fn assert_same_sections(a: &BvhFile, b: &BvhFile, what: &str) {
+    let same_but_zero_signs = |(x, y): (&[u8], &[u8])| {
+        x == y
+            || (x[..3] == y[..3]
+                && (x[3] | 0x80) == (y[3] | 0x80)
+                && u32::from_le_bytes(x.try_into().unwrap()) & 0x7FFF_FFFF == 0)
+    };
+    for section in a.view().sections().filter(|s| s.kind.is_some_and(|k| !matches!(k, SectionKind::Metadata))) {
+        let range = section.entry.section_byte_offset as usize
+            ..(section.entry.section_byte_offset + section.entry.section_byte_len) as usize;
+        let (x, y) = (&a.as_bytes()[range.clone()], &b.as_bytes()[range]);
+        let first = x.chunks(4).zip(y.chunks(4)).position(|words| !same_but_zero_signs(words));
+        assert_eq!(first, None, "{what}: {:?} differs at word {first:?}", section.kind);
+    }
+}
+
+#[test]
+fn a_refit_to_the_files_own_positions_gives_its_bytes_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = teapot(dir.path(), false);
+    let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    // Scramble every box first, so that the refit, not the old bytes, makes the result.
+    {
+        let mut edit = file.edit().unwrap();
+        edit.nodes.iter_mut().for_each(|n| (n.min, n.max) = ([0.0; 3], [0.0; 3]));
+        edit.gpu_nodes.as_deref_mut().unwrap().iter_mut().for_each(|n| n.quantized_max = [[0; 8]; 3]);
+    }
+    file.refit_triangles(&positions(&original)).unwrap();
+    assert_same_sections(&file, &original, "refit to its own positions");
+    file.view().verify().unwrap();
+}
+
+#[test]
+fn a_refit_to_moved_triangles_equals_a_re_encoding_and_traces_them_on_every_kernel() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = teapot(dir.path(), false);
+    let moved = bent(&positions(&original));
+    let mut refit = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    refit.refit_triangles(&moved).unwrap();
+    // The same tree re-encoded by the test's own reading of the format's rules.
+    let mut expected = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    {
+        let mut edit = expected.edit().unwrap();
+        for (record, vertices) in edit.triangles.iter_mut().zip(&moved) {
+            *record = PackedTriangle { vertices: *vertices };
+        }
+        let packets = edit.triangle_packets.as_deref_mut().unwrap();
+        for packet in packets.iter_mut() {
+            for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
+                let t = moved[packet.triangle_index[lane] as usize];
+                (0..3).for_each(|v| (0..3).for_each(|a| packet.vertices[v][a][lane] = t[v][a]));
+            }
+        }
+        for gpu_triangle in edit.gpu_triangles.as_deref_mut().unwrap() {
+            gpu_triangle.vertices = moved[gpu_triangle.triangle_index as usize];
+        }
+    }
+    reencode_everything(&mut expected);
+    assert_eq!(refit.as_bytes(), expected.as_bytes(), "the refit and the test's re-encoding");
+    assert_ne!(refit.as_bytes(), original.as_bytes());
+    // Every layout holds its geometry (the rules on boxes and lanes), and the stated costs are stale until the
+    // file is rewritten.
+    let stale = refit.view().verify().expect_err("the metadata's costs describe the old positions");
+    assert!(stale.to_string().contains("cost"), "{stale}");
+    let shipped = refit.rewritten().unwrap();
+    shipped.view().verify().unwrap();
+    // The hits are the moved triangles', on the binary kernel and the wide one on every path.
+    let box_min = moved.iter().flatten().fold([f32::INFINITY; 3], |m, v| std::array::from_fn(|a| m[a].min(v[a])));
+    let box_max = moved.iter().flatten().fold([f32::NEG_INFINITY; 3], |m, v| std::array::from_fn(|a| m[a].max(v[a])));
+    let extent = (0..3).map(|a| box_max[a] - box_min[a]).fold(0.0, f32::max);
+    let centre: [f32; 3] = std::array::from_fn(|a| 0.5 * (box_min[a] + box_max[a]));
+    let rays: Vec<_> = random_rays(77, 2000, extent)
+        .into_iter()
+        .map(|mut r| {
+            r.origin = std::array::from_fn(|a| r.origin[a] + centre[a]);
+            r
+        })
+        .collect();
+    let ids: Vec<u32> = (0..moved.len() as u32).collect();
+    for file in [&refit, &shipped] {
+        let view = file.view();
+        for tracer in every_kernel(&view) {
+            let hits = assert_matches_brute_force(&tracer, &moved, &rays, &ids);
+            assert!(hits > 100, "{hits} of {} rays hit the bent teapot", rays.len());
+        }
+    }
+}
+
+#[test]
+fn what_a_refit_cannot_take_is_refused_with_the_file_unchanged() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut file = teapot(dir.path(), false);
+    let before = file.as_bytes().to_vec();
+    let good = positions(&file);
+    let refused = |file: &mut BvhFile, positions: &[Triangle]| match file.refit_triangles(positions) {
+        Err(Error::Refit(why)) => why,
+        other => panic!("refused as a refit error, got {other:?}"),
+    };
+    let why = refused(&mut file, &good[1..]);
+    assert!(why.contains(&format!("{} positions for {} triangle records", good.len() - 1, good.len())), "{why}");
+    let mut nan = good.clone();
+    nan[17][2][1] = f32::NAN;
+    assert!(refused(&mut file, &nan).contains("triangle record 17"));
+    let mut infinite = good.clone();
+    infinite[3][0][0] = f32::INFINITY;
+    assert!(refused(&mut file, &infinite).contains("triangle record 3"));
+    assert_eq!(file.as_bytes(), &before[..], "a refused refit leaves the file as it was");
+    // Split references (the golden file of section 12's fourth dump): a leaf's box holds a clipped piece of a
+    // triangle, not the triangle.
+    let golden = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden");
+    let mut split = BvhFile::read(golden.join("split-v1.1.bvh")).unwrap();
+    assert!(split.view().has_split_references());
+    let split_positions = positions(&split);
+    assert!(refused(&mut split, &split_positions).contains("split references"));
+    // Two levels (the golden two-level file): the meshes are placed by instances.
+    let mut two_level = BvhFile::read(golden.join("instances-v1.3.bvh")).unwrap();
+    assert!(two_level.view().two_level().is_some());
+    let two_level_positions = positions(&two_level);
+    assert!(refused(&mut two_level, &two_level_positions).contains("two-level"));
+    let error = file.refit_triangles(&good[..3]).unwrap_err();
+    assert!(error.to_string().starts_with("cannot refit .bvh file: "), "{error}");
+}
