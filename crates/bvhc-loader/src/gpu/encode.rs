@@ -31,14 +31,15 @@ fn grid_origin(min: f32) -> f32 {
     }
 }
 
-/// The bytes of one axis for every box in `boxes` on the grid (`origin`, `exponent`), or `None` when some bound
-/// cannot be enclosed by a usable decoded value on this grid (a coarser one is then needed).
-fn quantize_axis(boxes: &[Bounds], axis: usize, origin: f32, exponent: u8) -> Option<Vec<(u8, u8)>> {
+/// The bytes of one axis for every box in `boxes` (at most [`GPU_WIDE`]; slot `k` of the result for box `k`, the
+/// rest zero) on the grid (`origin`, `exponent`), or `None` when some bound cannot be enclosed by a usable decoded
+/// value on this grid (a coarser one is then needed). No allocation: a refit encodes every node of a file.
+fn quantize_axis(boxes: &[Bounds], axis: usize, origin: f32, exponent: u8) -> Option<[(u8, u8); GPU_WIDE]> {
     let step = f64::from(f32::from_bits(u32::from(exponent) << 23));
     let value = |q: u8| decode(origin, exponent, q);
-    boxes
-        .iter()
-        .map(|b| {
+    let mut bytes = [(0u8, 0u8); GPU_WIDE];
+    for (slot, b) in bytes.iter_mut().zip(boxes) {
+        *slot = {
             let (lo, hi) = (b.0[axis], b.1[axis]);
             // Estimates in f64, then corrected on the exact f32 decode.
             let guess = |v: f32| ((f64::from(v) - f64::from(origin)) / step).clamp(0.0, 255.0);
@@ -51,15 +52,19 @@ fn quantize_axis(boxes: &[Bounds], axis: usize, origin: f32, exponent: u8) -> Op
                 q_hi += 1;
             }
             let fits = value(q_lo) <= lo && usable(value(q_lo)) && value(q_hi) >= hi && usable(value(q_hi));
-            fits.then_some((q_lo, q_hi))
-        })
-        .collect()
+            fits.then_some((q_lo, q_hi))?
+        };
+    }
+    Some(bytes)
 }
 
 /// A node whose slots `0..boxes.len()` hold `boxes` (at most 8, each `(min, max)`), quantized; the other fields
 /// are left for the caller. `None` when a coordinate is too large for any grid to enclose with finite values
-/// (magnitudes near `f32::MAX`).
+/// (magnitudes near `f32::MAX`), or for more than 8 boxes.
 pub fn quantize_node(boxes: &[Bounds]) -> Option<GpuNode> {
+    if boxes.len() > GPU_WIDE {
+        return None;
+    }
     let mut node = GpuNode::EMPTY;
     for axis in 0..3 {
         let lo = boxes.iter().map(|b| b.0[axis]).fold(f32::INFINITY, f32::min);
@@ -78,7 +83,7 @@ pub fn quantize_node(boxes: &[Bounds]) -> Option<GpuNode> {
         let (exponent, bytes) = fitted?;
         node.origin[axis] = origin;
         node.exponents[axis] = exponent;
-        for (slot, (q_lo, q_hi)) in bytes.into_iter().enumerate() {
+        for (slot, (q_lo, q_hi)) in bytes.into_iter().enumerate().take(boxes.len()) {
             node.quantized_min[axis][slot] = q_lo;
             node.quantized_max[axis][slot] = q_hi;
         }
@@ -91,8 +96,13 @@ impl GpuNode {
     /// [`quantize_node`] over the occupied slots in slot order; the children, masks and bases stay. Empty slots
     /// get zero bytes. `false`, with the node unchanged, when a coordinate is too large for a finite grid.
     pub fn encode_slot_boxes(&mut self, boxes: &[Option<Bounds>; GPU_WIDE]) -> bool {
-        let occupied: Vec<Bounds> = boxes.iter().flatten().copied().collect();
-        let Some(quantized) = quantize_node(&occupied) else { return false };
+        let mut occupied = [([0.0; 3], [0.0; 3]); GPU_WIDE];
+        let mut count = 0;
+        for (slot, bounds) in occupied.iter_mut().zip(boxes.iter().flatten()) {
+            *slot = *bounds;
+            count += 1;
+        }
+        let Some(quantized) = quantize_node(&occupied[..count]) else { return false };
         self.origin = quantized.origin;
         self.exponents = quantized.exponents;
         self.quantized_min = [[0; GPU_WIDE]; 3];
