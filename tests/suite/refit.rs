@@ -4,7 +4,7 @@
 //! over the moved triangles on every kernel, and a file that verifies once rewritten; what a refit cannot take is
 //! refused with the file unchanged.
 
-use bvhc::loader::format::{PackedTriangle, SectionKind};
+use bvhc::loader::format::{PackedTriangle, SectionKind, WIDE};
 use bvhc::loader::{BvhFile, Error};
 use bvhc::options::{Overrides, Preset};
 
@@ -58,12 +58,27 @@ fn a_refit_to_the_files_own_positions_gives_its_bytes_back() {
     let dir = tempfile::tempdir().unwrap();
     let original = teapot(dir.path(), false);
     let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
-    // Scramble every box first, so that the refit, not the old bytes, makes the result.
+    // Scramble every box, packet lane and GPU triangle first, so that each layout's refit, not the old bytes,
+    // makes the result.
     {
         let mut edit = file.edit().unwrap();
         edit.nodes.iter_mut().for_each(|n| (n.min, n.max) = ([0.0; 3], [0.0; 3]));
+        for node in edit.wide_nodes.as_deref_mut().unwrap() {
+            for slot in 0..WIDE {
+                if node.slot(slot).is_some() {
+                    node.set_slot_box(slot, ([0.0; 3], [1.0; 3]));
+                }
+            }
+        }
+        for packet in edit.triangle_packets.as_deref_mut().unwrap() {
+            for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
+                packet.vertices[1][2][lane] += 1.0;
+            }
+        }
         edit.gpu_nodes.as_deref_mut().unwrap().iter_mut().for_each(|n| n.quantized_max = [[0; 8]; 3]);
+        edit.gpu_triangles.as_deref_mut().unwrap().iter_mut().for_each(|t| t.vertices[0][0] += 1.0);
     }
+    assert_ne!(file.as_bytes(), original.as_bytes());
     file.refit_triangles(&positions(&original)).unwrap();
     assert_same_sections(&file, &original, "refit to its own positions");
     file.view().verify().unwrap();

@@ -52,7 +52,9 @@
 //! types, checksums and costs), [`ray`] (the ray, the box and triangle tests, hits, spawning, instance boxes),
 //! [`tracer`] and [`filter`] (the tracers, batch sizes, hit filters), [`wide`] (the 8-wide kernel over
 //! in-memory arrays), [`gpu`] (the WGSL kernel, its CPU model, the wgpu tracer), [`verify`] (single rules) and,
-//! with the `write` feature, `write` (the writer, atomic outputs).
+//! with the `write` feature, `write` (the writer, atomic outputs). An owned [`BvhFile`] can be edited in place
+//! (`BvhFile::edit`) and refit to moved triangles ([`BvhFile::refit_triangles`], each layout's refit beside its
+//! walk and encoder).
 //!
 //! Rays: a [`Tracer`] checks every ray against the ray contract ([`Ray::check`]: finite origin and direction,
 //! the direction not below `2^-64`, `0 <= t_min <= t_max`) and panics naming the rule and the ray, since such a
@@ -65,6 +67,7 @@ pub mod format;
 pub mod gpu;
 mod instances;
 mod open;
+mod refit;
 pub mod ray;
 mod simd;
 mod source;

@@ -1,20 +1,7 @@
 //! The binary layout's refit: every node's box recomputed from the triangle records beneath it, children before
 //! parents, keeping the tree's shape (which node holds which records).
 
-use crate::format::{Bounds, PackedNode, PackedTriangle};
-
-/// The empty box, the identity of [`union`].
-pub(crate) const EMPTY: Bounds = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-
-/// The smallest box holding `a` and `b`.
-pub(crate) fn union(a: Bounds, b: Bounds) -> Bounds {
-    (std::array::from_fn(|i| a.0[i].min(b.0[i])), std::array::from_fn(|i| a.1[i].max(b.1[i])))
-}
-
-/// The bounding box of a triangle record.
-pub(crate) fn triangle_box(triangle: &PackedTriangle) -> Bounds {
-    triangle.vertices.iter().fold(EMPTY, |b, v| union(b, (*v, *v)))
-}
+use crate::format::{EMPTY_BOUNDS, PackedNode, PackedTriangle, triangle_bounds, union_bounds};
 
 /// Recomputes every node's box of `nodes` (a verified file's binary tree over `triangles`, children after their
 /// parent, V16-V18) bottom up: a leaf's box the union of its records' bounds, an inner node's the union of its
@@ -26,10 +13,10 @@ pub(crate) fn refit_binary(nodes: &mut [PackedNode], triangles: &[PackedTriangle
         let (first, count) = (node.index as usize, node.count as usize);
         let bounds = if node.is_leaf() {
             let records = triangles.get(first..first.saturating_add(count)).unwrap_or(&[]);
-            records.iter().fold(EMPTY, |b, t| union(b, triangle_box(t)))
+            records.iter().fold(EMPTY_BOUNDS, |b, t| union_bounds(b, triangle_bounds(&t.vertices)))
         } else {
-            let child = |c: usize| nodes.get(c).map_or(EMPTY, |n| (n.min, n.max));
-            union(child(first), child(first.saturating_add(1)))
+            let child = |c: usize| nodes.get(c).map_or(EMPTY_BOUNDS, |n| (n.min, n.max));
+            union_bounds(child(first), child(first.saturating_add(1)))
         };
         (nodes[i].min, nodes[i].max) = bounds;
     }

@@ -112,6 +112,22 @@ pub use crate::format::sections::SectionKind;
 /// An axis-aligned box as the encoders take it: `(min, max)`.
 pub type Bounds = ([f32; 3], [f32; 3]);
 
+/// The empty box, the identity of [`union_bounds`].
+pub(crate) const EMPTY_BOUNDS: Bounds = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+
+/// The smallest box holding `a` and `b`.
+pub(crate) fn union_bounds(a: Bounds, b: Bounds) -> Bounds {
+    (std::array::from_fn(|k| a.0[k].min(b.0[k])), std::array::from_fn(|k| a.1[k].max(b.1[k])))
+}
+
+/// The bounding box of a triangle's three vertices.
+pub(crate) fn triangle_bounds(v: &[[f32; 3]; 3]) -> Bounds {
+    (
+        std::array::from_fn(|a| v[0][a].min(v[1][a]).min(v[2][a])),
+        std::array::from_fn(|a| v[0][a].max(v[1][a]).max(v[2][a])),
+    )
+}
+
 /// A node of the binary BVH: an axis-aligned box and one index and one count.
 ///
 /// * inner node: `count == 0`; its children are nodes `index` and `index + 1`, both after the node itself

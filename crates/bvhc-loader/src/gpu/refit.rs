@@ -2,9 +2,10 @@
 //! node's grid and quantized slot boxes encoded again bottom up from the exact boxes beneath each slot, keeping
 //! the tree's shape.
 
-use crate::binary::refit::{EMPTY, union};
 use crate::error::Error;
-use crate::format::{Bounds, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, PackedTriangle};
+use crate::format::{
+    Bounds, EMPTY_BOUNDS, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, PackedTriangle, triangle_bounds, union_bounds,
+};
 
 /// Rewrites `gpu_triangles` from `triangles` (each one's `triangle_index` record) and every node of `nodes` (a
 /// verified file's GPU tree, breadth first, so children after parents) bottom up: each slot's exact box (an inner
@@ -21,19 +22,20 @@ pub(crate) fn refit_gpu(
             gpu_triangle.vertices = record.vertices;
         }
     }
-    let corners = |t: &GpuTriangle| t.vertices.iter().fold(EMPTY, |b, v| union(b, (*v, *v)));
     // The exact content of each node (the union of its slots' exact boxes), children first.
-    let mut content = vec![EMPTY; nodes.len()];
+    let mut content = vec![EMPTY_BOUNDS; nodes.len()];
     for i in (0..nodes.len()).rev() {
         let boxes: [Option<Bounds>; GPU_WIDE] = std::array::from_fn(|slot| match nodes[i].slot(slot) {
-            GpuSlot::Inner(child) => Some(content.get(child as usize).copied().unwrap_or(EMPTY)),
+            GpuSlot::Inner(child) => Some(content.get(child as usize).copied().unwrap_or(EMPTY_BOUNDS)),
             GpuSlot::Leaf { first, count } => {
                 let leaf = gpu_triangles.get(first as usize..(first as usize).saturating_add(count as usize));
-                Some(leaf.unwrap_or(&[]).iter().fold(EMPTY, |b, t| union(b, corners(t))))
+                Some(
+                    leaf.unwrap_or(&[]).iter().fold(EMPTY_BOUNDS, |b, t| union_bounds(b, triangle_bounds(&t.vertices))),
+                )
             }
             _ => None,
         });
-        content[i] = boxes.iter().flatten().fold(EMPTY, |b, s| union(b, *s));
+        content[i] = boxes.iter().flatten().fold(EMPTY_BOUNDS, |b, s| union_bounds(b, *s));
         if !nodes[i].encode_slot_boxes(&boxes) {
             return Err(Error::Refit(format!("GPU node {i}: a box too large for the layout's 8-bit grid")));
         }

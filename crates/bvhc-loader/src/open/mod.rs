@@ -3,7 +3,6 @@
 
 pub(crate) mod edit;
 pub(crate) mod file;
-pub(crate) mod refit;
 pub(crate) mod sections;
 pub(crate) mod structure;
 #[cfg(feature = "write")]

@@ -7,7 +7,10 @@
 //! per GPU node, a bit per triangle record.
 
 use crate::error::{Rule, Violation, violation};
-use crate::format::{GPU_MAX_DEPTH, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, PackedTriangle, SectionKind, inner_meta};
+use crate::format::{
+    EMPTY_BOUNDS, GPU_MAX_DEPTH, GPU_WIDE, GpuNode, GpuSlot, GpuTriangle, PackedTriangle, SectionKind, inner_meta,
+    triangle_bounds, union_bounds,
+};
 use crate::open::sections::GpuSections;
 use crate::verify::references::{leaf_may_hold, verify_coverage};
 
@@ -138,9 +141,9 @@ fn check_boxes(gpu: &GpuSections<'_>, split_references: bool) -> Result<(), Viol
             }
         }
     }
-    let mut content: Vec<Box3> = vec![EMPTY; gpu.nodes.len()];
+    let mut content: Vec<Box3> = vec![EMPTY_BOUNDS; gpu.nodes.len()];
     for (i, node) in gpu.nodes.iter().enumerate().rev() {
-        let mut node_content = EMPTY;
+        let mut node_content = EMPTY_BOUNDS;
         for slot in 0..GPU_WIDE {
             let slot_content = match node.slot(slot) {
                 GpuSlot::Inner(child) => {
@@ -161,37 +164,24 @@ fn check_boxes(gpu: &GpuSections<'_>, split_references: bool) -> Result<(), Viol
                 }
                 GpuSlot::Leaf { first, count } => {
                     let clip = node.slot_box(slot);
-                    gpu.triangles[first as usize..(first + count) as usize].iter().fold(EMPTY, |b, t| {
-                        let bounds = bounds_of(&t.vertices);
-                        union(b, if split_references { clipped(bounds, clip) } else { bounds })
+                    gpu.triangles[first as usize..(first + count) as usize].iter().fold(EMPTY_BOUNDS, |b, t| {
+                        let bounds = triangle_bounds(&t.vertices);
+                        union_bounds(b, if split_references { clipped(bounds, clip) } else { bounds })
                     })
                 }
-                _ => EMPTY,
+                _ => EMPTY_BOUNDS,
             };
-            node_content = union(node_content, slot_content);
+            node_content = union_bounds(node_content, slot_content);
         }
         content[i] = node_content;
     }
     Ok(())
 }
 
-const EMPTY: Box3 = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-
-fn bounds_of(v: &[[f32; 3]; 3]) -> Box3 {
-    (
-        std::array::from_fn(|a| v[0][a].min(v[1][a]).min(v[2][a])),
-        std::array::from_fn(|a| v[0][a].max(v[1][a]).max(v[2][a])),
-    )
-}
-
-fn union(a: Box3, b: Box3) -> Box3 {
-    (std::array::from_fn(|k| a.0[k].min(b.0[k])), std::array::from_fn(|k| a.1[k].max(b.1[k])))
-}
-
-/// `a` inside `clip`, or [`EMPTY`] where they do not overlap.
+/// `a` inside `clip`, or [`EMPTY_BOUNDS`] where they do not overlap.
 fn clipped(a: Box3, clip: Box3) -> Box3 {
     let b: Box3 = (std::array::from_fn(|k| a.0[k].max(clip.0[k])), std::array::from_fn(|k| a.1[k].min(clip.1[k])));
-    if (0..3).all(|k| b.0[k] <= b.1[k]) { b } else { EMPTY }
+    if (0..3).all(|k| b.0[k] <= b.1[k]) { b } else { EMPTY_BOUNDS }
 }
 
 /// V49: every GPU triangle names a record and repeats its vertices bit for bit; every record is named (exactly
