@@ -5,7 +5,7 @@
 //! refused with the file unchanged.
 
 use bvhc::loader::format::{PackedTriangle, SectionKind, WIDE};
-use bvhc::loader::{BvhFile, Error};
+use bvhc::loader::{BvhFile, Error, RebuildPolicy, RefitPositions};
 use bvhc::options::{Overrides, Preset};
 
 use crate::common::{assert_matches_brute_force, every_kernel, random_rays};
@@ -53,6 +53,30 @@ fn assert_same_sections(a: &BvhFile, b: &BvhFile, what: &str) {
     }
 }
 
+/// `original` with its records, packet lanes and GPU triangles moved to `moved` and every box re-encoded by the
+/// test's own reading of the format's rules (`reencode::reencode_everything`).
+fn reencoded(original: &BvhFile, moved: &[Triangle]) -> BvhFile {
+    let mut expected = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    {
+        let mut edit = expected.edit().unwrap();
+        for (record, vertices) in edit.triangles.iter_mut().zip(moved) {
+            *record = PackedTriangle { vertices: *vertices };
+        }
+        let packets = edit.triangle_packets.as_deref_mut().unwrap();
+        for packet in packets.iter_mut() {
+            for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
+                let t = moved[packet.triangle_index[lane] as usize];
+                (0..3).for_each(|v| (0..3).for_each(|a| packet.vertices[v][a][lane] = t[v][a]));
+            }
+        }
+        for gpu_triangle in edit.gpu_triangles.as_deref_mut().unwrap() {
+            gpu_triangle.vertices = moved[gpu_triangle.triangle_index as usize];
+        }
+    }
+    reencode_everything(&mut expected);
+    expected
+}
+
 #[test]
 fn a_refit_to_the_files_own_positions_gives_its_bytes_back() {
     let dir = tempfile::tempdir().unwrap();
@@ -92,24 +116,7 @@ fn a_refit_to_moved_triangles_equals_a_re_encoding_and_traces_them_on_every_kern
     let mut refit = BvhFile::from_bytes(original.as_bytes()).unwrap();
     refit.refit_triangles(&moved).unwrap();
     // The same tree re-encoded by the test's own reading of the format's rules.
-    let mut expected = BvhFile::from_bytes(original.as_bytes()).unwrap();
-    {
-        let mut edit = expected.edit().unwrap();
-        for (record, vertices) in edit.triangles.iter_mut().zip(&moved) {
-            *record = PackedTriangle { vertices: *vertices };
-        }
-        let packets = edit.triangle_packets.as_deref_mut().unwrap();
-        for packet in packets.iter_mut() {
-            for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
-                let t = moved[packet.triangle_index[lane] as usize];
-                (0..3).for_each(|v| (0..3).for_each(|a| packet.vertices[v][a][lane] = t[v][a]));
-            }
-        }
-        for gpu_triangle in edit.gpu_triangles.as_deref_mut().unwrap() {
-            gpu_triangle.vertices = moved[gpu_triangle.triangle_index as usize];
-        }
-    }
-    reencode_everything(&mut expected);
+    let expected = reencoded(&original, &moved);
     assert_eq!(refit.as_bytes(), expected.as_bytes(), "the refit and the test's re-encoding");
     assert_ne!(refit.as_bytes(), original.as_bytes());
     // Every layout holds its geometry (the rules on boxes and lanes), and the stated costs are stale until the
@@ -173,4 +180,129 @@ fn what_a_refit_cannot_take_is_refused_with_the_file_unchanged() {
     assert!(refused(&mut two_level, &two_level_positions).contains("two-level"));
     let error = file.refit_triangles(&good[..3]).unwrap_err();
     assert!(error.to_string().starts_with("cannot refit .bvh file: "), "{error}");
+}
+
+/// A wavy grid of `2 * n * n` triangles as an OBJ (vertices in rows), for files large enough that a refit
+/// spreads its passes over threads.
+fn grid_obj(dir: &std::path::Path, n: usize) -> (std::path::PathBuf, Vec<[f32; 3]>) {
+    let mut vertices = Vec::with_capacity((n + 1) * (n + 1));
+    for i in 0..=n {
+        for j in 0..=n {
+            let (x, z) = (i as f32 / n as f32, j as f32 / n as f32);
+            vertices.push([x, 0.05 * (9.0 * x).sin() * (7.0 * z).cos(), z]);
+        }
+    }
+    let mut text = String::new();
+    for v in &vertices {
+        text.push_str(&format!("v {} {} {}\n", v[0], v[1], v[2]));
+    }
+    for i in 0..n {
+        for j in 0..n {
+            let a = i * (n + 1) + j + 1;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            text.push_str(&format!("f {a} {c} {b}\nf {b} {c} {d}\n"));
+        }
+    }
+    let path = dir.join("grid.obj");
+    std::fs::write(&path, text).unwrap();
+    (path, vertices)
+}
+
+/// The grid bent about its middle: a vertex function, so per-vertex and per-record positions agree.
+fn bend_vertex([x, y, z]: [f32; 3]) -> [f32; 3] {
+    let a = 0.8 * (x - 0.5);
+    [0.5 + (x - 0.5) * a.cos() - y * a.sin(), (x - 0.5) * a.sin() + y * a.cos() + 0.3 * z * z, z]
+}
+
+#[test]
+fn a_refit_gives_the_same_bytes_on_any_thread_count_per_record_or_per_source_vertex() {
+    let dir = tempfile::tempdir().unwrap();
+    let (obj, vertices) = grid_obj(dir.path(), 300);
+    let output = dir.path().join("grid.bvh");
+    let overrides = Overrides { splits: Some(false), gpu_layout: Some(true), ..Overrides::default() };
+    bvhc::Conversion::new(&obj, &output).preset(Preset::Fast).overrides(overrides).run().unwrap();
+    let original = BvhFile::read(&output).unwrap();
+    let moved: Vec<Triangle> = positions(&original).iter().map(|t| t.map(bend_vertex)).collect();
+    let mut one = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    let report = one.refit(RefitPositions::Triangles(&moved), 1).unwrap();
+    assert!(one.as_bytes() == reencoded(&original, &moved).as_bytes(), "one thread against the re-encoding");
+    for threads in [0, 2, 3, 8] {
+        let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
+        let again = file.refit(RefitPositions::Triangles(&moved), threads).unwrap();
+        assert!(file.as_bytes() == one.as_bytes(), "{threads} threads: other bytes");
+        assert_eq!(again.wide_cost, report.wide_cost, "{threads} threads");
+        // The binary cost is summed per chunk of nodes: the same within rounding.
+        let (a, b) = (again.cost.unwrap(), report.cost.unwrap());
+        assert!((a - b).abs() <= 1e-12 * b, "{threads} threads: {a} vs {b}");
+    }
+    // The same move given per source vertex (the OBJ's `v` records, one source range).
+    let bent_vertices: Vec<[f32; 3]> = vertices.iter().map(|&v| bend_vertex(v)).collect();
+    for threads in [1, 2] {
+        let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
+        file.refit(RefitPositions::SourceVertices(&[Some(&bent_vertices)]), threads).unwrap();
+        assert!(file.as_bytes() == one.as_bytes(), "per source vertex, {threads} threads: other bytes");
+        // `None` leaves the range where it is.
+        file.refit(RefitPositions::SourceVertices(&[None]), threads).unwrap();
+        assert!(file.as_bytes() == one.as_bytes(), "a range left as it is: other bytes");
+    }
+    one.view().verify().expect_err("stale costs until rewritten");
+    one.rewritten().unwrap().view().verify().unwrap();
+}
+
+#[test]
+fn the_report_compares_the_refit_trees_cost_with_the_files_own() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = teapot(dir.path(), false);
+    let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    let own = file.refit_triangles(&positions(&original)).unwrap();
+    assert!((own.cost_ratio() - 1.0).abs() < 1e-9, "{own:?}");
+    assert!(own.wide_cost.is_some() && own.cost.is_some(), "{own:?}");
+    assert!(!RebuildPolicy::DEFAULT.should_rebuild(&own));
+    // Every vertex thrown about by a hash of its position (so shared corners stay shared): the tree's boxes
+    // grow and overlap, the cost ratio grows, and a policy reads it.
+    let throw = |[x, y, z]: [f32; 3]| {
+        let h = (x.to_bits() ^ y.to_bits().rotate_left(11) ^ z.to_bits().rotate_left(22)).wrapping_mul(0x9E37_79B9);
+        let offset = |k: u32| ((h.rotate_left(k) & 0xFFFF) as f32 / 65535.0 - 0.5) * 3.0;
+        [x + offset(0), y + offset(10), z + offset(20)]
+    };
+    let sheared: Vec<Triangle> = positions(&original).iter().map(|t| t.map(throw)).collect();
+    let report = file.refit_triangles(&sheared).unwrap();
+    assert!(report.cost_ratio() > 1.5, "{report:?}");
+    assert!(RebuildPolicy::DEFAULT.should_rebuild(&report));
+    assert!(!RebuildPolicy { max_cost_ratio: report.cost_ratio() }.should_rebuild(&report));
+    // The rewritten file states the refit tree's costs: a refit to its own positions then reads 1.
+    let mut shipped = file.rewritten().unwrap();
+    let again = shipped.refit_triangles(&sheared).unwrap();
+    assert!((again.cost_ratio() - 1.0).abs() < 1e-9, "{again:?}");
+}
+
+#[test]
+fn positions_per_source_vertex_that_do_not_fit_are_refused_naming_what() {
+    let dir = tempfile::tempdir().unwrap();
+    let (obj, vertices) = grid_obj(dir.path(), 4);
+    let output = dir.path().join("small.bvh");
+    let overrides = Overrides { splits: Some(false), ..Overrides::default() };
+    bvhc::Conversion::new(&obj, &output).overrides(overrides).run().unwrap();
+    let mut file = BvhFile::read(&output).unwrap();
+    let before = file.as_bytes().to_vec();
+    let refused = |file: &mut BvhFile, positions: RefitPositions<'_>| match file.refit(positions, 2) {
+        Err(Error::Refit(why)) => why,
+        other => panic!("refused as a refit error, got {other:?}"),
+    };
+    let why = refused(&mut file, RefitPositions::SourceVertices(&[]));
+    assert!(why.contains("positions for 0 source ranges, but the file has 1"), "{why}");
+    let why = refused(&mut file, RefitPositions::SourceVertices(&[Some(&vertices[..10])]));
+    assert!(why.contains("source range 0") && why.contains("10 positions were given"), "{why}");
+    let mut nan = vertices.clone();
+    nan[7][1] = f32::NAN;
+    let why = refused(&mut file, RefitPositions::SourceVertices(&[Some(&nan)]));
+    assert!(why.contains("source range 0, vertex 7"), "{why}");
+    assert_eq!(file.as_bytes(), &before[..], "a refused refit leaves the file as it was");
+    // A file written without source vertices cannot take them.
+    let bare = dir.path().join("bare.bvh");
+    let overrides = Overrides { splits: Some(false), write_source_vertices: Some(false), ..Overrides::default() };
+    bvhc::Conversion::new(&obj, &bare).overrides(overrides).run().unwrap();
+    let mut bare = BvhFile::read(&bare).unwrap();
+    let why = refused(&mut bare, RefitPositions::SourceVertices(&[Some(&vertices)]));
+    assert!(why.contains("source_vertices section"), "{why}");
 }

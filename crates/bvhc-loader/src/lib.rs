@@ -67,6 +67,7 @@ pub mod format;
 pub mod gpu;
 mod instances;
 mod open;
+mod parallel;
 mod refit;
 pub mod ray;
 mod simd;
@@ -90,6 +91,7 @@ pub use ray::check_rays;
 pub use ray::{
     BatchRayError, ForeignHit, Hit, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,
 };
+pub use refit::{RebuildPolicy, RefitPositions, RefitReport};
 pub use simd::KernelPath;
 pub use source::corners::SourceCorners;
 pub use source::identity::TriangleIdentities;

@@ -31,23 +31,41 @@ fn grid_origin(min: f32) -> f32 {
     }
 }
 
+/// `ceil(log2(x))` of a positive, finite `x`, exactly: the binary exponent, plus one unless `x` is a power of two.
+fn ceil_log2(x: f64) -> i32 {
+    let bits = x.to_bits();
+    let (biased, fraction) = (((bits >> 52) & 0x7ff) as i32, bits & ((1 << 52) - 1));
+    if biased == 0 {
+        // Subnormal: 2^-1074 times the fraction (which a difference of f32 values divided by 255 never is).
+        return -1074 + (64 - (fraction.max(1) - 1).leading_zeros()) as i32;
+    }
+    biased - 1023 + i32::from(fraction != 0)
+}
+
 /// The bytes of one axis for every box in `boxes` (at most [`GPU_WIDE`]; slot `k` of the result for box `k`, the
 /// rest zero) on the grid (`origin`, `exponent`), or `None` when some bound cannot be enclosed by a usable decoded
 /// value on this grid (a coarser one is then needed). No allocation: a refit encodes every node of a file.
 fn quantize_axis(boxes: &[Bounds], axis: usize, origin: f32, exponent: u8) -> Option<[(u8, u8); GPU_WIDE]> {
-    let step = f64::from(f32::from_bits(u32::from(exponent) << 23));
+    // The step is a power of two from 2^-126 to 2^127, so multiplying by its reciprocal (also exact in f64)
+    // gives the quotient bit for bit, without a division per bound.
+    let inverse_step = 1.0 / f64::from(f32::from_bits(u32::from(exponent) << 23));
     let value = |q: u8| decode(origin, exponent, q);
     let mut bytes = [(0u8, 0u8); GPU_WIDE];
     for (slot, b) in bytes.iter_mut().zip(boxes) {
         *slot = {
             let (lo, hi) = (b.0[axis], b.1[axis]);
             // Estimates in f64, then corrected on the exact f32 decode.
-            let guess = |v: f32| ((f64::from(v) - f64::from(origin)) / step).clamp(0.0, 255.0);
-            let mut q_lo = guess(lo).floor() as u8;
+            let guess = |v: f32| ((f64::from(v) - f64::from(origin)) * inverse_step).clamp(0.0, 255.0);
+            // Truncation is the floor here (the guesses are 0 to 255, or NaN, which gives 0 either way).
+            let mut q_lo = guess(lo) as u8;
             while q_lo > 0 && !(value(q_lo) <= lo && usable(value(q_lo))) {
                 q_lo -= 1;
             }
-            let mut q_hi = guess(hi).ceil() as u8;
+            let mut q_hi = {
+                let g = guess(hi);
+                let below = g as u8;
+                if f64::from(below) < g { below + 1 } else { below }
+            };
             while q_hi < 255 && !(value(q_hi) >= hi && usable(value(q_hi))) {
                 q_hi += 1;
             }
@@ -70,9 +88,11 @@ pub fn quantize_node(boxes: &[Bounds]) -> Option<GpuNode> {
         let lo = boxes.iter().map(|b| b.0[axis]).fold(f32::INFINITY, f32::min);
         let hi = boxes.iter().map(|b| b.1[axis]).fold(f32::NEG_INFINITY, f32::max);
         let origin = grid_origin(lo);
-        // The smallest step with 255 steps reaching `hi`, then coarser while some bound does not fit.
+        // The smallest power-of-two step with 255 steps reaching `hi` (the exact `ceil(log2(extent))`, read
+        // from the bits rather than computed by `log2`, so every platform starts alike), then coarser while some
+        // bound does not fit.
         let extent = (f64::from(hi) - f64::from(origin)).max(0.0) / 255.0;
-        let first = if extent > 0.0 { extent.log2().ceil() as i32 + EXPONENT_BIAS } else { 1 };
+        let first = if extent > 0.0 { ceil_log2(extent) + EXPONENT_BIAS } else { 1 };
         let fitted = (first.clamp(1, 254)..=254).find_map(|e| {
             let exponent = e as u8;
             (decode(origin, exponent, 255) >= hi)
@@ -120,6 +140,20 @@ impl GpuNode {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ceil_log2_is_exact_at_and_beside_powers_of_two() {
+        for e in -1074..=1023 {
+            let x = if e < -1022 { f64::from_bits(1 << (e + 1074)) } else { f64::from_bits(((e + 1023) as u64) << 52) };
+            assert_eq!(ceil_log2(x), e, "2^{e}");
+            if e > -1074 && e < 1023 {
+                assert_eq!(ceil_log2(f64::from_bits(x.to_bits() + 1)), e + 1, "just above 2^{e}");
+            }
+        }
+        for x in [3.0, 255.0, 1e-30, 7.5e12, 0.3] {
+            assert_eq!(ceil_log2(x), x.log2().ceil() as i32, "{x}");
+        }
+    }
 
     fn aabb(min: [f32; 3], max: [f32; 3]) -> Bounds {
         (min, max)

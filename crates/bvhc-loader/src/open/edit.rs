@@ -11,9 +11,10 @@ use crate::error::Error;
 use crate::format::checksum::{HEADER_CHECKSUM_BYTE_OFFSET, header_checksum, section_checksum};
 use crate::format::{
     GpuNode, GpuTriangle, HEADER_BYTE_LEN, InstanceRecord, PackedNode, PackedTriangle, SectionEntry, SectionKind,
-    TrianglePacket4, WideNode8,
+    SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
 };
 use crate::open::file::BvhFile;
+use crate::parallel::Workers;
 
 /// The sections of a [`BvhFile`] that an edit may rewrite, as typed mutable slices (`None`: the file has no such
 /// section). Dropping it recomputes their checksums and the header's.
@@ -36,12 +37,23 @@ pub struct SectionsMut<'a> {
     pub top_nodes: Option<&'a mut [PackedNode]>,
     /// The `top_wide_nodes` section of a two-level file.
     pub top_wide_nodes: Option<&'a mut [WideNode8]>,
+    /// The `triangle_ids` section, read only (an edit keeps the records' identities).
+    pub triangle_ids: Option<&'a [u32]>,
+    /// The `source_table` section, read only.
+    pub source_table: Option<&'a [SourceRange]>,
+    /// The `source_vertices` section, read only.
+    pub source_vertices: Option<&'a [SourceVertexIndices]>,
     /// The header and the section table, where the checksums go.
     table: &'a mut [u8],
     /// The section table's stride and, per editable section, its table index.
     stride: usize,
     entries: Vec<(usize, SectionKind)>,
+    /// Whether the checksums were written already ([`SectionsMut::finish`]).
+    finished: bool,
 }
+
+/// The kinds an edit hands out read only, beside the editable ones.
+const READ_ONLY: [SectionKind; 3] = [SectionKind::TriangleIds, SectionKind::SourceTable, SectionKind::SourceVertices];
 
 /// The kinds an edit hands out.
 const EDITABLE: [SectionKind; 9] = [
@@ -63,8 +75,8 @@ impl BvhFile {
     pub fn edit(&mut self) -> Result<SectionsMut<'_>, Error> {
         let view = self.view();
         let header = *view.header();
-        let mut editable: Vec<_> =
-            view.sections().filter(|s| s.kind.is_some_and(|k| EDITABLE.contains(&k))).collect::<Vec<_>>();
+        let handed_out = |k: SectionKind| EDITABLE.contains(&k) || READ_ONLY.contains(&k);
+        let mut editable: Vec<_> = view.sections().filter(|s| s.kind.is_some_and(handed_out)).collect::<Vec<_>>();
         editable.sort_by_key(|s| s.entry.section_byte_offset);
         let stride = header.section_entry_byte_len as usize;
         let table_len = HEADER_BYTE_LEN + header.section_count as usize * stride;
@@ -73,6 +85,7 @@ impl BvhFile {
         let (table, mut rest) = bytes.split_at_mut(table_len.min(bytes.len()));
         let mut consumed = table.len();
         let mut sections: [Option<&mut [u8]>; EDITABLE.len()] = Default::default();
+        let mut read_only: [Option<&[u8]>; READ_ONLY.len()] = Default::default();
         let mut entries = Vec::with_capacity(editable.len());
         for info in &editable {
             let kind = info.kind.unwrap_or(SectionKind::Nodes);
@@ -85,6 +98,11 @@ impl BvhFile {
             let (section, tail) = tail[gap..].split_at_mut(len);
             rest = tail;
             consumed = offset + len;
+            if let Some(slot) = READ_ONLY.iter().position(|&k| k == kind) {
+                let section: &[u8] = section;
+                read_only[slot] = Some(section);
+                continue;
+            }
             let slot = EDITABLE.iter().position(|&k| k == kind).unwrap_or(0);
             sections[slot] = Some(section);
             entries.push((info.table_index, kind));
@@ -97,6 +115,13 @@ impl BvhFile {
                 .transpose()
                 .map_err(|e| Error::Unwritable(format!("editing the file: a section cannot be typed: {e}")))
         }
+        fn typed_ref<T: bytemuck::Pod>(bytes: Option<&[u8]>) -> Result<Option<&[T]>, Error> {
+            bytes
+                .map(|b| bytemuck::try_cast_slice(b))
+                .transpose()
+                .map_err(|e| Error::Unwritable(format!("editing the file: a section cannot be typed: {e}")))
+        }
+        let [triangle_ids, source_table, source_vertices] = read_only;
         let nodes = typed(Some(nodes.ok_or_else(|| bad("no nodes section".to_string()))?))?;
         let triangles = typed(Some(triangles.ok_or_else(|| bad("no triangles section".to_string()))?))?;
         Ok(SectionsMut {
@@ -109,9 +134,13 @@ impl BvhFile {
             instances: typed(instances)?,
             top_nodes: typed(top_nodes)?,
             top_wide_nodes: typed(top_wide)?,
+            triangle_ids: typed_ref(triangle_ids)?,
+            source_table: typed_ref(source_table)?,
+            source_vertices: typed_ref(source_vertices)?,
             table,
             stride,
             entries,
+            finished: false,
         })
     }
 }
@@ -137,14 +166,43 @@ impl SectionsMut<'_> {
     }
 }
 
-impl Drop for SectionsMut<'_> {
+impl SectionsMut<'_> {
+    /// Ends the edit: the checksums recomputed now, the sections spread over `workers`' threads (what dropping
+    /// the edit does on one thread).
+    pub(crate) fn finish(mut self, workers: Workers) {
+        self.write_checksums(workers);
+        self.finished = true;
+    }
+
     /// Writes each editable section's checksum into its table entry, then the header's checksum.
-    fn drop(&mut self) {
+    fn write_checksums(&mut self, workers: Workers) {
+        // The sections dealt to the threads largest first, each to the least loaded.
+        let mut order: Vec<usize> = (0..self.entries.len()).collect();
+        order.sort_by_key(|&k| std::cmp::Reverse(self.bytes_of(self.entries[k].1).len()));
+        // Below a few MiB in all, one thread hashes faster than two start.
+        let total: usize = self.entries.iter().map(|&(_, kind)| self.bytes_of(kind).len()).sum();
+        let threads = if total < 1 << 23 { 1 } else { workers.count().min(order.len()).max(1) };
+        let mut shares: Vec<(usize, Vec<usize>)> = vec![(0, Vec::new()); threads];
+        for k in order {
+            let lightest = shares.iter_mut().min_by_key(|(load, _)| *load);
+            if let Some((load, share)) = lightest {
+                *load += self.bytes_of(self.entries[k].1).len();
+                share.push(k);
+            }
+        }
+        let this: &SectionsMut<'_> = self;
+        let tasks: Vec<_> = shares
+            .iter()
+            .map(|(_, share)| {
+                move || {
+                    share.iter().map(|&k| (k, section_checksum(this.bytes_of(this.entries[k].1)))).collect::<Vec<_>>()
+                }
+            })
+            .collect();
+        let checksums = workers.run(tasks).concat();
         let field = std::mem::offset_of!(SectionEntry, section_checksum);
-        for index in 0..self.entries.len() {
-            let (table_index, kind) = self.entries[index];
-            let checksum = section_checksum(self.bytes_of(kind));
-            let at = HEADER_BYTE_LEN + table_index * self.stride + field;
+        for (k, checksum) in checksums {
+            let at = HEADER_BYTE_LEN + self.entries[k].0 * self.stride + field;
             if let Some(slot) = self.table.get_mut(at..at + 8) {
                 slot.copy_from_slice(&checksum.to_le_bytes());
             }
@@ -152,6 +210,15 @@ impl Drop for SectionsMut<'_> {
         let checksum = header_checksum(self.table);
         if let Some(slot) = self.table.get_mut(HEADER_CHECKSUM_BYTE_OFFSET..HEADER_CHECKSUM_BYTE_OFFSET + 8) {
             slot.copy_from_slice(&checksum.to_le_bytes());
+        }
+    }
+}
+
+impl Drop for SectionsMut<'_> {
+    /// Writes the checksums ([`SectionsMut::finish`] on one thread) unless `finish` did.
+    fn drop(&mut self) {
+        if !self.finished {
+            self.write_checksums(Workers::new(1));
         }
     }
 }

@@ -3,43 +3,87 @@
 //! keeping the tree's shape.
 
 use crate::format::{
-    Bounds, EMPTY_BOUNDS, LEAF_BIT, PACKET_LANES, PackedTriangle, TrianglePacket4, UNUSED_LANE, WIDE, WideNode8,
-    triangle_bounds, union_bounds,
+    Bounds, EMPTY_BOUNDS, EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedTriangle, TrianglePacket4, UNUSED_LANE, WIDE,
+    WideNode8, union_bounds,
 };
+use crate::parallel::Workers;
+
+/// Packets, or nodes, a thread takes at least in a parallel pass.
+const MIN_CHUNK: usize = 1 << 15;
 
 /// Rewrites `packets`' used lanes from `triangles` (each lane's `triangle_index` record) and every slot box of
 /// `nodes` (a verified file's wide tree, children after parents, V29-V30) bottom up, as the converter's packing
-/// computes them. Indices out of range (a file that does not verify) leave lanes as they are and boxes empty
-/// rather than panic.
-pub(crate) fn refit_wide(nodes: &mut [WideNode8], packets: &mut [TrianglePacket4], triangles: &[PackedTriangle]) {
-    for packet in packets.iter_mut() {
-        for lane in 0..PACKET_LANES {
-            let index = packet.triangle_index[lane];
-            let Some(triangle) = triangles.get(index as usize).filter(|_| index != UNUSED_LANE) else { continue };
-            for (vertex, corner) in triangle.vertices.iter().enumerate() {
-                for (axis, &coordinate) in corner.iter().enumerate() {
-                    packet.vertices[vertex][axis][lane] = coordinate;
+/// computes them: the lanes, then the leaf slots, in parallel over chunks, then the inner slots in reverse node
+/// order. Indices out of range (a file that does not verify) leave lanes as they are and boxes empty rather than
+/// panic.
+pub(crate) fn refit_wide(
+    nodes: &mut [WideNode8],
+    packets: &mut [TrianglePacket4],
+    triangles: &[PackedTriangle],
+    workers: Workers,
+) {
+    workers.for_chunks(packets, MIN_CHUNK, |_, chunk| chunk.iter_mut().for_each(|p| write_lanes(p, triangles)));
+    let packets: &[TrianglePacket4] = packets;
+    workers.for_chunks(nodes, MIN_CHUNK / 4, |_, chunk| {
+        for node in chunk {
+            for slot in 0..WIDE {
+                let child = node.child[slot];
+                if child == EMPTY_SLOT || child & LEAF_BIT == 0 {
+                    continue;
                 }
+                let (first, count) = WideNode8::leaf_packets(child);
+                let leaf = packets.get(first as usize..(first as usize).saturating_add(count as usize));
+                let bounds = leaf.unwrap_or(&[]).iter().fold(EMPTY_BOUNDS, |b, p| union_bounds(b, packet_bounds(p)));
+                node.set_slot_box(slot, bounds);
             }
         }
-    }
-    let node_box =
-        |node: &WideNode8| (0..WIDE).filter_map(|s| node.slot(s)).fold(EMPTY_BOUNDS, |b, (sb, _)| union_bounds(b, sb));
+    });
+    // Empty slots hold the empty box `+inf..-inf` (V29), so a node's box is the union of all eight.
+    let node_box = |node: &WideNode8| -> Bounds {
+        let lowest = |axis: &[f32; WIDE]| axis.iter().fold(f32::INFINITY, |m, &v| m.min(v));
+        let highest = |axis: &[f32; WIDE]| axis.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
+        (node.min.each_ref().map(lowest), node.max.each_ref().map(highest))
+    };
     for i in (0..nodes.len()).rev() {
         for slot in 0..WIDE {
-            let Some((_, child)) = nodes[i].slot(slot) else { continue };
-            let bounds: Bounds = if child & LEAF_BIT == 0 {
-                nodes.get(child as usize).map_or(EMPTY_BOUNDS, node_box)
-            } else {
-                let (first, count) = WideNode8::leaf_packets(child);
-                let leaf = packets.get(first as usize..(first as usize).saturating_add(count as usize)).unwrap_or(&[]);
-                leaf.iter()
-                    .flat_map(|p| p.triangle_index.iter())
-                    .filter(|&&index| index != UNUSED_LANE)
-                    .filter_map(|&index| triangles.get(index as usize))
-                    .fold(EMPTY_BOUNDS, |b, t| union_bounds(b, triangle_bounds(&t.vertices)))
-            };
+            let child = nodes[i].child[slot];
+            if child == EMPTY_SLOT || child & LEAF_BIT != 0 {
+                continue;
+            }
+            let bounds = nodes.get(child as usize).map_or(EMPTY_BOUNDS, node_box);
             nodes[i].set_slot_box(slot, bounds);
         }
     }
+}
+
+/// Copies each used lane's vertices from the record it names (a lane naming no record keeps its vertices).
+fn write_lanes(packet: &mut TrianglePacket4, triangles: &[PackedTriangle]) {
+    for lane in 0..PACKET_LANES {
+        let index = packet.triangle_index[lane];
+        let Some(triangle) = triangles.get(index as usize).filter(|_| index != UNUSED_LANE) else { continue };
+        for (vertex, corner) in triangle.vertices.iter().enumerate() {
+            for (axis, &coordinate) in corner.iter().enumerate() {
+                packet.vertices[vertex][axis][lane] = coordinate;
+            }
+        }
+    }
+}
+
+/// The box of a packet's used lanes: unused lanes hold NaN coordinates (`UNUSED_LANE_COORDINATE_BITS`), which
+/// `f32::min` and `f32::max` pass over, so all four lanes are folded alike (and vectorize).
+fn packet_bounds(packet: &TrianglePacket4) -> Bounds {
+    let mut lowest = [[f32::INFINITY; PACKET_LANES]; 3];
+    let mut highest = [[f32::NEG_INFINITY; PACKET_LANES]; 3];
+    for vertex in &packet.vertices {
+        for axis in 0..3 {
+            for lane in 0..PACKET_LANES {
+                lowest[axis][lane] = lowest[axis][lane].min(vertex[axis][lane]);
+                highest[axis][lane] = highest[axis][lane].max(vertex[axis][lane]);
+            }
+        }
+    }
+    (
+        lowest.map(|l| l.into_iter().fold(f32::INFINITY, f32::min)),
+        highest.map(|h| h.into_iter().fold(f32::NEG_INFINITY, f32::max)),
+    )
 }

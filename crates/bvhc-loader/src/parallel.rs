@@ -1,0 +1,112 @@
+//! Scoped worker threads for the loader's data-parallel passes (the refit's): no pool and no dependency, the
+//! threads live for one pass (`std::thread::scope`), and a task whose thread the system refuses to start runs
+//! on the calling thread instead, so a pass never fails for want of threads and gives the same result on any
+//! count.
+
+use std::panic::resume_unwind;
+use std::sync::{Mutex, PoisonError};
+
+/// How many threads a pass may use (at least one: the caller's).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Workers {
+    count: usize,
+}
+
+impl Workers {
+    /// `threads` threads, the caller's included (0 counts as 1).
+    pub(crate) fn new(threads: usize) -> Workers {
+        Workers { count: threads.max(1) }
+    }
+
+    /// The number of threads allowed.
+    pub(crate) fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Runs every task once, the first on the calling thread and each other on a thread of its own (callers pass
+    /// at most [`Workers::count`] tasks), and returns their results in order.
+    pub(crate) fn run<R: Send, F: FnOnce() -> R + Send>(&self, tasks: Vec<F>) -> Vec<R> {
+        if self.count < 2 || tasks.len() < 2 {
+            return tasks.into_iter().map(|task| task()).collect();
+        }
+        let slots: Vec<Mutex<Option<F>>> = tasks.into_iter().map(|task| Mutex::new(Some(task))).collect();
+        let take = |k: usize| slots[k].lock().unwrap_or_else(PoisonError::into_inner).take();
+        std::thread::scope(|scope| {
+            let take = &take;
+            let handles: Vec<_> = (1..slots.len())
+                .map(|k| std::thread::Builder::new().spawn_scoped(scope, move || take(k).map(|task| task())).ok())
+                .collect();
+            let mut results = Vec::with_capacity(slots.len());
+            results.push(take(0).map(|task| task()));
+            for (k, handle) in (1..).zip(handles) {
+                results.push(match handle {
+                    // A task panics only where its code does; the panic goes on in the caller.
+                    Some(handle) => handle.join().unwrap_or_else(|panic| resume_unwind(panic)),
+                    // The thread was refused (and the task not taken): run it here.
+                    None => take(k).map(|task| task()),
+                });
+            }
+            // Each slot is taken exactly once, so every result is there.
+            results.into_iter().flatten().collect()
+        })
+    }
+
+    /// Calls `work(first_index, chunk)` on consecutive chunks of `items` that together cover it once, each chunk
+    /// on its own thread, with no more chunks than threads and none shorter than `min_chunk` items (so a small
+    /// pass stays on the calling thread). Returns the results in chunk order.
+    pub(crate) fn for_chunks<T: Send, R: Send>(
+        &self,
+        items: &mut [T],
+        min_chunk: usize,
+        work: impl Fn(usize, &mut [T]) -> R + Sync,
+    ) -> Vec<R> {
+        let chunk_count = self.count.min(items.len() / min_chunk.max(1)).max(1);
+        if chunk_count == 1 {
+            return vec![work(0, items)];
+        }
+        let chunk_len = items.len().div_ceil(chunk_count);
+        let work = &work;
+        let tasks: Vec<_> =
+            items.chunks_mut(chunk_len).enumerate().map(|(k, chunk)| move || work(k * chunk_len, chunk)).collect();
+        self.run(tasks)
+    }
+
+    /// Calls `work(first_index, chunk)` on consecutive chunks of `items`, as [`Workers::for_chunks`] does for
+    /// a slice it may write.
+    pub(crate) fn map_chunks<T: Sync, R: Send>(
+        &self,
+        items: &[T],
+        min_chunk: usize,
+        work: impl Fn(usize, &[T]) -> R + Sync,
+    ) -> Vec<R> {
+        let chunk_count = self.count.min(items.len() / min_chunk.max(1)).max(1);
+        let chunk_len = items.len().div_ceil(chunk_count).max(1);
+        let work = &work;
+        let tasks: Vec<_> =
+            items.chunks(chunk_len).enumerate().map(|(k, chunk)| move || work(k * chunk_len, chunk)).collect();
+        self.run(tasks)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_cover_the_items_once_on_any_thread_count() {
+        for threads in [0, 1, 2, 3, 8] {
+            let mut items: Vec<usize> = vec![0; 1001];
+            let starts = Workers::new(threads).for_chunks(&mut items, 100, |first, chunk| {
+                for (k, item) in chunk.iter_mut().enumerate() {
+                    *item += first + k;
+                }
+                first
+            });
+            assert!(items.iter().enumerate().all(|(k, &item)| item == k), "{threads} threads");
+            assert_eq!(starts[0], 0);
+            assert!(starts.len() <= threads.max(1) && starts.windows(2).all(|w| w[0] < w[1]));
+        }
+        let sums = Workers::new(2).map_chunks(&[1, 2, 3, 4, 5], 2, |_, chunk| chunk.iter().sum::<i32>());
+        assert_eq!(sums, vec![6, 9]);
+    }
+}

@@ -1,0 +1,74 @@
+//! Refitting an owned file to moved triangles ([`BvhFile::refit`]): the triangle records take the new positions
+//! (per record, or per source vertex of each primitive, [`RefitPositions`]), and every layout the file has
+//! recomputes its boxes bottom up over the same tree (`binary::refit`, `wide::refit`, `gpu::refit`), as skinned or
+//! morphed meshes need each frame: the tree's shape, its order and every other section stay, so a refit to the
+//! file's own positions gives its bytes back (but for the sign of a zero bound), and the hits of a refit file are
+//! those of its new triangles. The refit tree's costs come back beside the file's own ([`RefitReport`]), for a
+//! [`RebuildPolicy`] to decide when to convert again.
+
+mod positions;
+mod report;
+
+pub use positions::RefitPositions;
+pub use report::{RebuildPolicy, RefitReport};
+
+use crate::binary::refit::refit_binary;
+use crate::error::Error;
+use crate::gpu::refit::refit_gpu;
+use crate::open::file::BvhFile;
+use crate::parallel::Workers;
+use crate::wide::refit::refit_wide;
+use positions::MovedRecords;
+
+impl BvhFile {
+    /// Moves the triangle records to `positions` and refits the file's layouts to them, on up to `threads`
+    /// threads (the caller's included; 0 counts as 1): the binary nodes' boxes, the wide slots' boxes and packet
+    /// lanes, the GPU nodes' quantized boxes and triangles, each bottom up over the file's own tree, with the
+    /// checksums recomputed ([`BvhFile::edit`]). The result is the same for any thread count. Returns the refit
+    /// tree's costs beside those the file was converted with ([`RefitReport`]). The metadata's costs then still
+    /// describe the converted pose: a file that must pass `verify` (one to ship) is `BvhFile::rewritten`
+    /// (feature `write`), which recomputes them.
+    ///
+    /// Refused, with the file unchanged: a two-level file (its meshes are placed by instances, whose top tree a
+    /// refit of the meshes would leave stale), a file with split references (its leaves hold clipped pieces of
+    /// triangles, whose boxes are not the triangles' own; convert with `--no-splits` for meshes meant to deform),
+    /// positions that do not fit the file (a count other than the records' or the source ranges', a source
+    /// vertex index past its range's positions, a file without source vertices for
+    /// [`RefitPositions::SourceVertices`]) or a coordinate that is not finite, each naming the record, range or
+    /// vertex. An error from the GPU layout (a box too large for its grid) leaves the file partly refit: refit a
+    /// copy where that may happen.
+    pub fn refit(&mut self, positions: RefitPositions<'_>, threads: usize) -> Result<RefitReport, Error> {
+        let view = self.view();
+        if view.two_level().is_some() {
+            return Err(Error::Refit(
+                "a two-level file's meshes are placed by instances; refit is for one-level files".into(),
+            ));
+        }
+        if view.has_split_references() {
+            return Err(Error::Refit(
+                "the file has split references (leaves of clipped triangle pieces); convert with --no-splits".into(),
+            ));
+        }
+        MovedRecords::new(positions, view.source_table(), view.triangle_ids(), view.source_vertices())?
+            .check(view.triangles().len())?;
+        let workers = Workers::new(threads);
+        let mut edit = self.edit()?;
+        MovedRecords::new(positions, edit.source_table, edit.triangle_ids, edit.source_vertices)?
+            .write(edit.triangles, workers);
+        let triangles = &*edit.triangles;
+        refit_binary(edit.nodes, triangles, workers);
+        if let (Some(nodes), Some(packets)) = (edit.wide_nodes.as_deref_mut(), edit.triangle_packets.as_deref_mut()) {
+            refit_wide(nodes, packets, triangles, workers);
+        }
+        if let (Some(nodes), Some(gpu_triangles)) = (edit.gpu_nodes.as_deref_mut(), edit.gpu_triangles.as_deref_mut()) {
+            refit_gpu(nodes, gpu_triangles, triangles, workers)?;
+        }
+        edit.finish(workers);
+        Ok(RefitReport::of(&self.view(), workers))
+    }
+
+    /// [`BvhFile::refit`] to one triangle a record (`v0`, `v1`, `v2` in record order), on one thread.
+    pub fn refit_triangles(&mut self, positions: &[[[f32; 3]; 3]]) -> Result<RefitReport, Error> {
+        self.refit(RefitPositions::Triangles(positions), 1)
+    }
+}

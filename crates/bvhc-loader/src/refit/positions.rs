@@ -1,0 +1,148 @@
+//! The new positions a refit takes ([`RefitPositions`]): checked against the file before anything is written,
+//! then written into the triangle records, in parallel over chunks of records.
+
+use crate::error::Error;
+use crate::format::{PackedTriangle, SourceRange, SourceVertexIndices};
+use crate::parallel::Workers;
+
+/// Records a thread writes at least.
+const MIN_CHUNK: usize = 1 << 16;
+
+/// Where a refit's triangles move to, in the file's space (the space of its triangle records: for a glTF scene
+/// the world space after each node's transform, which is what skinning produces).
+#[derive(Clone, Copy, Debug)]
+pub enum RefitPositions<'a> {
+    /// One triangle a record, in record order (`v0`, `v1`, `v2` as [`BvhView::triangles`] holds them).
+    Triangles(&'a [[[f32; 3]; 3]]),
+    /// Per source range (the ranges of [`BvhView::source_table`], in order), the positions of its primitive's
+    /// vertices indexed as the source primitive indexes them (the indices of the `source_vertices` section,
+    /// [`BvhView::source_corners`]), or `None` to leave that range's records where they are. What a skinning or
+    /// morphing pass produces for each mesh primitive. Needs a file written with source vertices (bvhc's
+    /// default).
+    SourceVertices(&'a [Option<&'a [[f32; 3]]>]),
+}
+
+/// How each record finds its new vertices: the positions with the sections that map source vertices to records.
+pub(crate) enum MovedRecords<'a> {
+    Triangles(&'a [[[f32; 3]; 3]]),
+    SourceVertices {
+        positions: &'a [Option<&'a [[f32; 3]]>],
+        ranges: &'a [SourceRange],
+        ids: &'a [u32],
+        corners: &'a [SourceVertexIndices],
+    },
+}
+
+impl<'a> MovedRecords<'a> {
+    /// `positions` read through the file's `source_table`, `triangle_ids` and `source_vertices` sections (`None`
+    /// for a section the file lacks, which positions per source vertex refuse).
+    pub(crate) fn new(
+        positions: RefitPositions<'a>,
+        ranges: Option<&'a [SourceRange]>,
+        ids: Option<&'a [u32]>,
+        corners: Option<&'a [SourceVertexIndices]>,
+    ) -> Result<MovedRecords<'a>, Error> {
+        match positions {
+            RefitPositions::Triangles(triangles) => Ok(MovedRecords::Triangles(triangles)),
+            RefitPositions::SourceVertices(positions) => match (ranges, ids, corners) {
+                (Some(ranges), Some(ids), Some(corners)) => {
+                    Ok(MovedRecords::SourceVertices { positions, ranges, ids, corners })
+                }
+                _ => Err(Error::Refit(
+                    "positions per source vertex need the file's source_vertices section (convert without \
+                     --no-source-vertices)"
+                        .into(),
+                )),
+            },
+        }
+    }
+
+    /// Checks the positions against the file's `record_count` records (counts, finite coordinates, source
+    /// vertex indices in range), naming the record, range or vertex at fault.
+    pub(crate) fn check(&self, record_count: usize) -> Result<(), Error> {
+        match self {
+            MovedRecords::Triangles(triangles) => {
+                if triangles.len() != record_count {
+                    let count = triangles.len();
+                    return Err(Error::Refit(format!("{count} positions for {record_count} triangle records")));
+                }
+                if !all_finite(triangles.as_flattened().as_flattened()) {
+                    let record = triangles.iter().position(|t| !all_finite(t.as_flattened())).unwrap_or(0);
+                    return Err(Error::Refit(format!("triangle record {record}: a coordinate that is not finite")));
+                }
+            }
+            MovedRecords::SourceVertices { positions, ranges, .. } => {
+                if positions.len() != ranges.len() {
+                    let (given, count) = (positions.len(), ranges.len());
+                    return Err(Error::Refit(format!("positions for {given} source ranges, but the file has {count}")));
+                }
+                for (range, vertices) in positions.iter().enumerate() {
+                    let Some(vertices) = vertices.filter(|v| !all_finite(v.as_flattened())) else { continue };
+                    if let Some(vertex) = vertices.iter().position(|v| !all_finite(v)) {
+                        return Err(Error::Refit(format!(
+                            "source range {range}, vertex {vertex}: a coordinate that is not finite"
+                        )));
+                    }
+                }
+                for record in 0..record_count {
+                    if let Err(why) = self.record(record) {
+                        return Err(Error::Refit(format!("triangle record {record}: {why}")));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The new vertices of `record`, `None` where the record stays; an error saying why a record cannot move.
+    fn record(&self, record: usize) -> Result<Option<[[f32; 3]; 3]>, String> {
+        match self {
+            MovedRecords::Triangles(triangles) => Ok(triangles.get(record).copied()),
+            MovedRecords::SourceVertices { positions, ranges, ids, corners } => {
+                let id = ids.get(record).copied().ok_or("no source id")?;
+                let range = ranges.partition_point(|r| r.first_source_triangle <= id).checked_sub(1);
+                let range = range
+                    .filter(|&r| id - ranges[r].first_source_triangle < ranges[r].source_triangle_count)
+                    .ok_or_else(|| format!("source id {id} lies in no source range"))?;
+                let Some(vertices) = positions[range] else { return Ok(None) };
+                let indices = corners.get(record).ok_or("no source vertices")?.indices;
+                let vertex = |k: usize| {
+                    vertices.get(indices[k] as usize).copied().ok_or_else(|| {
+                        format!(
+                            "source vertex {} of source range {range}, but {} positions were given for it",
+                            indices[k],
+                            vertices.len()
+                        )
+                    })
+                };
+                Ok(Some([vertex(0)?, vertex(1)?, vertex(2)?]))
+            }
+        }
+    }
+
+    /// Writes the new vertices into `records` (all of the file's, in order), on `workers`' threads.
+    pub(crate) fn write(&self, records: &mut [PackedTriangle], workers: Workers) {
+        workers.for_chunks(records, MIN_CHUNK, |first, chunk| match self {
+            MovedRecords::Triangles(triangles) => {
+                for (record, vertices) in chunk.iter_mut().zip(&triangles[first..]) {
+                    record.vertices = *vertices;
+                }
+            }
+            MovedRecords::SourceVertices { .. } => {
+                for (k, record) in chunk.iter_mut().enumerate() {
+                    // Checked before: every record has its vertices (or stays).
+                    if let Ok(Some(vertices)) = self.record(first + k) {
+                        record.vertices = vertices;
+                    }
+                }
+            }
+        });
+    }
+}
+
+/// Whether every coordinate is finite: its exponent bits not all set (a fold without an early exit, which
+/// vectorizes: a refit checks every coordinate of a file's worth of positions before writing any).
+fn all_finite(coordinates: &[f32]) -> bool {
+    const EXPONENT: u32 = 0x7f80_0000;
+    !coordinates.iter().fold(false, |bad, c| bad | (c.to_bits() & EXPONENT == EXPONENT))
+}

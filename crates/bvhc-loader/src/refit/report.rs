@@ -1,0 +1,107 @@
+//! What a refit tells its caller: the refit tree's costs against the costs the file was optimized to
+//! ([`RefitReport`]), and when to convert again ([`RebuildPolicy`]). A refit keeps the tree's shape, so as the
+//! triangles move away from the pose the tree was built for, its boxes grow and overlap and rays visit more of
+//! them; the usual test of that decay compares the refit tree's SAH cost with the original's and rebuilds past a
+//! ratio (Lauterbach, Yoon, Tuft, Manocha, "RT-DEFORM: Interactive Ray Tracing of Dynamic Scenes using BVHs",
+//! IEEE Symposium on Interactive Ray Tracing 2006, section 4.2). The costs are the format's (5.6 for the binary
+//! tree, 6.1 for the wide tree), each normalized by its root's area, so a scene that only grows or moves keeps its
+//! ratio at 1.
+
+use crate::format::PackedNode;
+use crate::format::cost::{BinaryCost, box_area};
+use crate::open::view::BvhView;
+use crate::parallel::Workers;
+use crate::verify::costs::stated_costs;
+use crate::verify::metadata::parsed_metadata;
+
+/// A refit tree's costs beside the costs the file's metadata states (those of the tree at the pose it was
+/// converted at, which a refit leaves in the metadata). A cost the file does not state (no metadata, or no wide
+/// sections) is `None` on both sides.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefitReport {
+    /// The binary tree's SAH cost now (section 5.6, under the metadata's `c_t` and `c_i`).
+    pub cost: Option<f64>,
+    /// The binary tree's SAH cost the metadata states (`cost.sah_cost`).
+    pub file_cost: Option<f64>,
+    /// The wide tree's cost now (section 6.1, under the metadata's `node_visit` and `packet_test`): the cost of
+    /// the tree the CPU kernel walks.
+    pub wide_cost: Option<f64>,
+    /// The wide tree's cost the metadata states (`wide.cost`).
+    pub file_wide_cost: Option<f64>,
+}
+
+impl RefitReport {
+    /// The costs of `view` (just refit) beside its metadata's, the binary tree's summed on `workers`' threads.
+    pub(crate) fn of(view: &BvhView<'_>, workers: Workers) -> RefitReport {
+        let mut report = RefitReport { cost: None, file_cost: None, wide_cost: None, file_wide_cost: None };
+        let Ok(Some(metadata)) = parsed_metadata(view) else { return report };
+        for stated in stated_costs(view, &metadata, |c_t, c_i| binary_cost_in_chunks(view.nodes(), c_t, c_i, workers)) {
+            match stated.name {
+                "cost.sah_cost" => {
+                    (report.cost, report.file_cost) = (Some(stated.computed), Some(stated.stated.value()))
+                }
+                "wide.cost" => {
+                    (report.wide_cost, report.file_wide_cost) = (Some(stated.computed), Some(stated.stated.value()))
+                }
+                _ => {}
+            }
+        }
+        report
+    }
+
+    /// How much costlier the refit tree is than the file's own: the wide tree's cost over the stated one where
+    /// the file has both (the tree the CPU kernel walks), else the binary tree's; 1 when neither is stated (no
+    /// metadata to compare with) or the stated cost is 0.
+    pub fn cost_ratio(&self) -> f64 {
+        let ratio = |now: Option<f64>, then: Option<f64>| match (now, then) {
+            (Some(now), Some(then)) if then > 0.0 => Some(now / then),
+            _ => None,
+        };
+        ratio(self.wide_cost, self.file_wide_cost).or(ratio(self.cost, self.file_cost)).unwrap_or(1.0)
+    }
+}
+
+/// [`crate::format::cost::binary_cost`] summed per chunk of nodes on `workers`' threads, then over the chunks:
+/// the same sums in another order, so equal to the spec's running sum within rounding (far inside V37's
+/// tolerance), not bit for bit.
+fn binary_cost_in_chunks(nodes: &[PackedNode], c_t: f64, c_i: f64, workers: Workers) -> BinaryCost {
+    let root_area = nodes.first().map_or(0.0, |root| box_area(&root.min, &root.max));
+    if root_area <= 0.0 {
+        return BinaryCost { sah_cost: 0.0, inner_area_ratio: 0.0, leaf_area_ratio: 0.0 };
+    }
+    let sums = workers.map_chunks(nodes, 1 << 17, |_, chunk| {
+        chunk.iter().fold((0.0f64, 0.0f64), |(inner, leaf), node| {
+            let area = box_area(&node.min, &node.max);
+            if node.is_leaf() { (inner, leaf + area * f64::from(node.count)) } else { (inner + area, leaf) }
+        })
+    });
+    let (inner, leaf) = sums.iter().fold((0.0, 0.0), |(i, l), &(ci, cl)| (i + ci, l + cl));
+    let (inner_area_ratio, leaf_area_ratio) = (inner / root_area, leaf / root_area);
+    BinaryCost { sah_cost: c_t * inner_area_ratio + c_i * leaf_area_ratio, inner_area_ratio, leaf_area_ratio }
+}
+
+/// When a refit tree has decayed enough that converting the posed geometry again pays: past a cost ratio
+/// ([`RefitReport::cost_ratio`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RebuildPolicy {
+    /// Rebuild when the refit tree's cost exceeds the file's by this factor.
+    pub max_cost_ratio: f64,
+}
+
+impl RebuildPolicy {
+    /// Rebuild past a cost ratio of 1.5: the bend benchmark (`cargo bench --bench refit`, `docs/loader.md`)
+    /// measures rays/s after a refit falling roughly as the inverse of the ratio, so at 1.5 a fresh tree
+    /// traces about a third faster.
+    pub const DEFAULT: RebuildPolicy = RebuildPolicy { max_cost_ratio: 1.5 };
+
+    /// Whether the tree `report` describes should be rebuilt.
+    pub fn should_rebuild(&self, report: &RefitReport) -> bool {
+        report.cost_ratio() > self.max_cost_ratio
+    }
+}
+
+impl Default for RebuildPolicy {
+    fn default() -> RebuildPolicy {
+        RebuildPolicy::DEFAULT
+    }
+}
