@@ -5,7 +5,7 @@
 //! (initial trees, split references), [`optimize`] (reinsertion), [`layout`] (leaf merging, the wide collapse),
 //! [`pack`] (the file's arrays), [`instancing`] (two-level scenes: the top tree, the sections), [`convert`] (the pipeline, metadata, the build-script API), with [`options`]
 //! (presets and overrides, resolved in one place). Shared below them: [`geometry`] (boxes, clipping), [`cost`]
-//! (the one SAH definition), [`build_tree`] (the flat binary tree); [`epo`] measures trees for the evaluation, [`inspect`] reports a file as `bvhc info` does.
+//! (the one SAH definition), [`build_tree`] (the flat binary tree); [`epo`] measures trees for the evaluation, [`inspect`] reports a file as `bvhc info` does, [`posed`] gives a file's records the positions of a re-exported asset (`bvhc refit`).
 #![forbid(unsafe_code)]
 
 /// The Rust snippets of the README and of the docs about the loader, compiled by `cargo test` (doctests) so
@@ -32,9 +32,10 @@ pub mod instancing;
 // Options and the pipeline over the stages.
 pub mod options;
 pub mod convert;
-// Tree quality for the evaluation; what `bvhc info` reports of a file.
+// Tree quality for the evaluation; what `bvhc info` reports of a file; a moved asset's positions for a refit.
 pub mod epo;
 pub mod inspect;
+pub mod posed;
 
 pub use convert::{Conversion, ConversionOutcome};
 pub use options::Preset;

@@ -18,7 +18,7 @@ use super::camera::{Camera, parse_camera};
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true,
     after_help = "Examples:\n  bvhc scene.gltf -o scene.bvh\n  bvhc scan.ply.gz -o scan.bvh --preset max-quality --json\n  \
-bvhc options --preset max-quality --no-splits\n  bvhc verify scene.bvh\n  bvhc info scene.bvh --json\n  bvhc render scene.bvh -o scene.png --width 1024 --height 768\n\n\
+bvhc options --preset max-quality --no-splits\n  bvhc refit character.bvh --positions posed.glb -o posed.bvh\n  bvhc verify scene.bvh\n  bvhc info scene.bvh --json\n  bvhc render scene.bvh -o scene.png --width 1024 --height 768\n\n\
 Exit codes: 0 success (also when the output is up to date), 1 invalid input, 2 usage error,\n\
 3 a file cannot be read or written, 4 internal error."
 )]
@@ -56,6 +56,32 @@ pub enum Command {
     Trace(TraceArgs),
     /// Print the options a conversion would use (a preset and flags, resolved) as JSON, without converting.
     Options(OptionsArgs),
+    /// Refit a converted file to a moved pose of its asset (the same asset exported again with moved vertices)
+    /// instead of converting it again: the same tree, new boxes, the costs recomputed; written atomically.
+    Refit(RefitArgs),
+}
+
+/// `bvhc refit`'s arguments.
+#[derive(Debug, Args)]
+pub struct RefitArgs {
+    /// The .bvh file to refit: one-level, without split references (converted with `--no-splits`).
+    pub file: PathBuf,
+    /// The moved asset: the file's input exported again with the same topology (.gltf, .glb, .obj, .ply,
+    /// .obj.gz or .ply.gz).
+    #[arg(long, value_name = "MESH")]
+    pub positions: PathBuf,
+    /// The refit .bvh file to write (atomically; may be FILE itself).
+    #[arg(short, long, value_name = "OUTPUT.bvh")]
+    pub output: PathBuf,
+    /// Say that converting anew would pay once the refit tree's cost exceeds the converted one's by this factor.
+    #[arg(long, value_name = "RATIO", default_value_t = bvhc::loader::RebuildPolicy::DEFAULT.max_cost_ratio)]
+    pub max_cost_ratio: f64,
+    /// Print nothing but errors.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Print a JSON report on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `bvhc trace`'s arguments (record layouts: `format-spec/rays-and-hits.md`).

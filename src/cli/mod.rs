@@ -12,6 +12,7 @@ mod info;
 mod legend;
 mod options;
 mod output;
+mod refit;
 mod render;
 mod signals;
 mod trace;
@@ -69,6 +70,7 @@ pub fn run() -> ExitCode {
     let output = match &cli.command {
         Some(Command::Render(args)) => Some(args.output.clone()),
         Some(Command::Trace(args)) => args.output.clone(),
+        Some(Command::Refit(args)) => Some(args.output.clone()),
         Some(_) => None,
         None => cli.convert.output.clone(),
     };
@@ -81,6 +83,7 @@ pub fn run() -> ExitCode {
         Some(Command::Render(args)) => render::render(&args),
         Some(Command::Trace(args)) => trace::trace(&args),
         Some(Command::Options(args)) => options::options(&args),
+        Some(Command::Refit(args)) => refit::refit(&args, cli.threads),
         None => convert::convert(&cli.convert),
     };
     exit.into()

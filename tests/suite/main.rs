@@ -6,6 +6,7 @@ mod c_library;
 mod capi;
 mod cli;
 mod cli_hardening;
+mod cli_refit;
 mod clusters;
 mod common;
 mod compat;

@@ -1,0 +1,96 @@
+//! `bvhc refit FILE --positions MESH -o OUTPUT`: a converted file refit to a moved pose of its asset
+//! ([`bvhc::posed::record_positions`], [`bvhc::loader::BvhFile::refit`]), its costs recomputed
+//! (`BvhFile::rewritten`, so that `bvhc verify` passes) and written atomically.
+
+use std::time::Instant;
+
+use bvhc::import::{ErrorKind, ImportLimits};
+use bvhc::loader::{RebuildPolicy, RefitPositions};
+use bvhc::posed::{PosedError, record_positions};
+
+use super::args::RefitArgs;
+use super::info::read_verified;
+use super::output::{outln, print};
+use super::{Exit, fail, loader_exit};
+
+/// Runs the refit; prints a summary (or JSON) on stdout unless `--quiet`.
+pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
+    if !(args.max_cost_ratio >= 1.0 && args.max_cost_ratio.is_finite()) {
+        return fail(Exit::Usage, format!("--max-cost-ratio {}: a finite ratio of at least 1", args.max_cost_ratio));
+    }
+    let file = match read_verified(&args.file) {
+        Ok(file) => file,
+        Err(exit) => return exit,
+    };
+    let positions = match record_positions(&file.view(), &args.positions, &ImportLimits::default()) {
+        Ok(positions) => positions,
+        Err(PosedError::Import(error)) => {
+            let exit = if error.kind == ErrorKind::Unreadable { Exit::Io } else { Exit::InvalidInput };
+            return fail(exit, error);
+        }
+        Err(error) => {
+            return fail(Exit::InvalidInput, format!("{}: {error}", args.positions.display()));
+        }
+    };
+    let threads = threads.map_or_else(|| std::thread::available_parallelism().map_or(1, usize::from), usize::from);
+    let mut refit = file;
+    let start = Instant::now();
+    let report = match refit.refit(RefitPositions::Triangles(&positions), threads) {
+        Ok(report) => report,
+        Err(error) => return fail(loader_exit(&error), format!("{}: {error}", args.file.display())),
+    };
+    let refit_ms = start.elapsed().as_secs_f64() * 1e3;
+    let shipped = match refit.rewritten() {
+        Ok(shipped) => shipped,
+        Err(error) => return fail(loader_exit(&error), format!("{}: {error}", args.output.display())),
+    };
+    if let Err(error) = bvhc::loader::write::write_atomic(&args.output, shipped.as_bytes()) {
+        return fail(Exit::Io, error);
+    }
+    let rebuild = RebuildPolicy { max_cost_ratio: args.max_cost_ratio }.should_rebuild(&report);
+    let mut out = String::new();
+    if args.json {
+        let json = serde_json::json!({
+            "output": args.output,
+            "triangle_records": positions.len(),
+            "refit_ms": refit_ms,
+            "threads": threads,
+            "cost": report.cost,
+            "file_cost": report.file_cost,
+            "wide_cost": report.wide_cost,
+            "file_wide_cost": report.file_wide_cost,
+            "cost_ratio": report.cost_ratio(),
+            "rebuild_recommended": rebuild,
+        });
+        outln!(out, "{json:#}");
+    } else if !args.quiet {
+        outln!(
+            out,
+            "{}: {} triangle records refit to {} in {refit_ms:.1} ms on {threads} threads",
+            args.output.display(),
+            positions.len(),
+            args.positions.display()
+        );
+        let costs = |now: Option<f64>, then: Option<f64>| match (now, then) {
+            (Some(now), Some(then)) => format!("{then:.3} -> {now:.3}"),
+            _ => "not stated".to_string(),
+        };
+        outln!(
+            out,
+            "cost ratio {:.3} (SAH cost {}, wide cost {})",
+            report.cost_ratio(),
+            costs(report.cost, report.file_cost),
+            costs(report.wide_cost, report.file_wide_cost)
+        );
+        if rebuild {
+            outln!(
+                out,
+                "note: the refit tree costs more than {} times the converted one's; converting {} anew would trace \
+                 faster",
+                args.max_cost_ratio,
+                args.positions.display()
+            );
+        }
+    }
+    print(&out, Exit::Success)
+}
