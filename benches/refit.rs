@@ -3,11 +3,16 @@
 //! vertical axis growing with height, as a skinned limb moves), then refit in place. Prints two Markdown tables:
 //!
 //! 1. Speed: ms a refit (median of `BVHC_REFIT_RUNS`, 7) on 1 and 2 threads, of a file with the binary and wide
-//!    layouts (bvhc's default) and of one with the GPU layout too, beside the conversion of the bent geometry.
+//!    layouts (bvhc's default) and of one with the GPU layout too, beside the conversion of the bent geometry;
+//!    with `--features embree4` (or `embree`) beside Embree's update of the same deformation on 1 and 2 threads:
+//!    its refit (`RTC_BUILD_QUALITY_REFIT`) and its fastest rebuild (`RTC_BUILD_QUALITY_LOW`, dynamic scene).
 //! 2. Decay (`BVHC_REFIT_CURVE`, default on; `0` skips it): at several bend amounts, the refit tree's cost ratio
 //!    ([`bvhc::loader::RefitReport::cost_ratio`], what a [`bvhc::loader::RebuildPolicy`] reads) and closest-hit
 //!    rays/s of the refit file against a fresh conversion of the bent geometry (uniform rays through the scene's
 //!    box and a camera's primary rays, one thread, median of 5).
+//!
+//! 3. Instances: ms to move every instance (and 1 in 100) of a generated two-level file of 10,000 instances
+//!    (`BvhFile::move_instances`: records, world boxes, both top trees, checksums).
 //!
 //! `cargo bench --bench refit`; `BVHC_REFIT_SCENES=dragon,bunny` picks scenes.
 
@@ -15,6 +20,9 @@
 mod harness;
 #[path = "common/rays.rs"]
 mod rays;
+#[cfg(any(feature = "embree", feature = "embree4"))]
+#[path = "common/embree.rs"]
+mod embree;
 
 use bvhc::import::Instancing;
 use bvhc::loader::{BvhFile, RefitPositions};
@@ -88,6 +96,110 @@ fn refit_ms(file: &BvhFile, moved: &[[[f32; 3]; 3]], threads: usize, runs: usize
     time.as_secs_f64() * 1e3
 }
 
+/// Embree's refit and LOW rebuild of `positions` moved to `moved`, ms on 1 and 2 threads, as two table cells.
+#[cfg(any(feature = "embree", feature = "embree4"))]
+fn embree_columns(positions: &[[[f32; 3]; 3]], moved: &[[[f32; 3]; 3]], runs: usize) -> String {
+    use embree::deformable::{Deformable, Update};
+    let ms = |update: Update, threads: usize| {
+        let mut scene = Deformable::new(positions, update, threads);
+        harness::median_time(runs, || scene.update(moved)).as_secs_f64() * 1e3
+    };
+    format!(
+        "{:.2} / {:.2} | {:.2} / {:.2}",
+        ms(Update::Refit, 1),
+        ms(Update::Refit, 2),
+        ms(Update::LowRebuild, 1),
+        ms(Update::LowRebuild, 2)
+    )
+}
+
+#[cfg(not(any(feature = "embree", feature = "embree4")))]
+fn embree_columns(_: &[[[f32; 3]; 3]], _: &[[[f32; 3]; 3]], _: usize) -> String {
+    "(--features embree4) | (--features embree4)".to_string()
+}
+
+/// A glTF of a small grid mesh placed `count` times by nodes on a square lattice, for the instances table.
+fn lattice_gltf(dir: &Path, count: usize) -> std::path::PathBuf {
+    let n = 6;
+    let mut positions: Vec<f32> = Vec::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            let (x, z) = (i as f32 / n as f32, j as f32 / n as f32);
+            positions.extend([x, 0.2 * (6.0 * x).sin() * z, z]);
+        }
+    }
+    let mut indices: Vec<u16> = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let a = (i * (n + 1) + j) as u16;
+            indices.extend([a, a + n as u16 + 1, a + 1, a + 1, a + n as u16 + 1, a + n as u16 + 2]);
+        }
+    }
+    let mut bin: Vec<u8> = positions.iter().flat_map(|c| c.to_le_bytes()).collect();
+    let index_offset = bin.len();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let side = (count as f64).sqrt().ceil() as usize;
+    let nodes: Vec<String> = (0..count)
+        .map(|k| format!(r#"{{"mesh":0,"translation":[{},0,{}]}}"#, 1.5 * (k % side) as f32, 1.5 * (k / side) as f32))
+        .collect();
+    let roots: Vec<String> = (0..count).map(|k| k.to_string()).collect();
+    let gltf = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[{}]}}],"nodes":[{}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "buffers":[{{"uri":"lattice.bin","byteLength":{}}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{index_offset}}},{{"buffer":0,"byteOffset":{index_offset},"byteLength":{}}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":{},"type":"VEC3","min":[0,-0.2,0],"max":[1,0.2,1]}},
+        {{"bufferView":1,"componentType":5123,"count":{},"type":"SCALAR"}}]}}"#,
+        roots.join(","),
+        nodes.join(","),
+        bin.len(),
+        indices.len() * 2,
+        positions.len() / 3,
+        indices.len()
+    );
+    std::fs::write(dir.join("lattice.bin"), bin).expect("the lattice buffer is written");
+    let path = dir.join("lattice.gltf");
+    std::fs::write(&path, gltf).expect("the lattice glTF is written");
+    path
+}
+
+/// The instances table: every instance (and 1 in 100) turned about its own place, ms a move.
+fn instances_table(dir: &Path, runs: usize) {
+    let count = 10_000;
+    let input = lattice_gltf(dir, count);
+    let output = dir.join("lattice.bvh");
+    let overrides = Overrides { instancing: Some(Instancing::Always), ..Overrides::default() };
+    bvhc::Conversion::new(&input, &output).overrides(overrides).run().expect("the lattice converts");
+    let file = BvhFile::read(&output).expect("the lattice reads back");
+    let instances: Vec<[[f32; 4]; 3]> =
+        file.view().two_level().expect("two-level").instances.iter().map(|i| i.object_to_world).collect();
+    let turned = |k: usize, m: &[[f32; 4]; 3]| {
+        let (s, c) = (0.3 + 0.001 * k as f32).sin_cos();
+        let mut turned = *m;
+        turned[0][0] = c;
+        turned[0][2] = s;
+        turned[2][0] = -s;
+        turned[2][2] = c;
+        turned
+    };
+    let every: Vec<(u32, [[f32; 4]; 3])> =
+        instances.iter().enumerate().map(|(k, m)| (k as u32, turned(k, m))).collect();
+    let some: Vec<(u32, [[f32; 4]; 3])> = every.iter().copied().step_by(100).collect();
+    let mut moving = BvhFile::from_bytes(file.as_bytes()).expect("a copy");
+    let all_ms = harness::median_time(runs, || moving.move_instances(&every).expect("the instances move"));
+    let some_ms = harness::median_time(runs, || moving.move_instances(&some).expect("the instances move"));
+    println!(
+        "\nInstances: a two-level file of {count} instances of a 72-triangle mesh, ms a move (median of {runs}):\n"
+    );
+    println!("| instances moved | ms |");
+    println!("|---|---|");
+    println!("| {} (all) | {:.3} |", every.len(), all_ms.as_secs_f64() * 1e3);
+    println!("| {} (1 in 100) | {:.3} |", some.len(), some_ms.as_secs_f64() * 1e3);
+}
+
 /// Closest-hit Mrays/s of `file` over `rays` (one thread, median of 5).
 fn speed(file: &BvhFile, rays: &[bvhc::loader::Ray]) -> f64 {
     harness::batch_speed(rays, &file.view().tracer(), true, false, 5)
@@ -103,9 +215,10 @@ fn main() {
     let scenes = harness::scenes(&SCENES, Some("BVHC_REFIT_SCENES"));
     println!("Refit of the bent scene, ms (median of {runs}); conversion of the bent geometry from scratch, ms:\n");
     println!(
-        "| scene | triangle records | 1 thread | 2 threads | with GPU layout, 1 thread | 2 threads | conversion |"
+        "| scene | triangle records | 1 thread | 2 threads | with GPU layout, 1 thread | 2 threads | conversion | \
+         Embree refit, 1 / 2 threads | Embree LOW rebuild, 1 / 2 threads |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     let mut decay_rows = Vec::new();
     for (name, path) in &scenes {
         let (file, _) = convert(path, &dir.path().join(format!("{name}.bvh")), false);
@@ -118,12 +231,13 @@ fn main() {
         write_obj(&obj, &moved);
         let (_, conversion) = convert(&obj, &dir.path().join(format!("{name}-bent.bvh")), false);
         println!(
-            "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {conversion:.0} |",
+            "| {name} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {conversion:.0} | {} |",
             positions.len(),
             refit_ms(&file, &moved, 1, runs),
             refit_ms(&file, &moved, 2, runs),
             refit_ms(&gpu_file, &gpu_moved, 1, runs),
             refit_ms(&gpu_file, &gpu_moved, 2, runs),
+            embree_columns(&positions, &moved, runs),
         );
         if !curve {
             continue;
@@ -149,6 +263,7 @@ fn main() {
             ));
         }
     }
+    instances_table(dir.path(), runs);
     if curve {
         println!("\nDecay: the refit tree's cost ratio and closest-hit Mrays/s, refit / fresh conversion:\n");
         println!("| scene | bend, radians | cost ratio | uniform rays | camera rays |");

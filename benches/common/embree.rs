@@ -616,3 +616,6 @@ pub fn quality() -> c_uint {
 pub fn max_isa() -> String {
     std::env::var("BVHC_EMBREE_ISA").unwrap_or_else(|_| "avx2".to_string())
 }
+
+#[path = "embree_deformable.rs"]
+pub mod deformable;

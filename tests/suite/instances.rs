@@ -86,7 +86,7 @@ pub fn affine(m: [[f32; 3]; 3], t: [f32; 3]) -> Affine3x4 {
     std::array::from_fn(|i| [m[i][0], m[i][1], m[i][2], t[i]])
 }
 
-fn rotation_z(degrees: f32) -> [[f32; 3]; 3] {
+pub fn rotation_z(degrees: f32) -> [[f32; 3]; 3] {
     let (s, c) = degrees.to_radians().sin_cos();
     [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
 }
@@ -217,7 +217,7 @@ pub fn oracle(placed: &[Placed], ray: &Ray) -> Expected {
 
 /// Rays aimed at interior points of placed triangles from nearby and from the world origin, and rays through
 /// the near part of the scene at random.
-fn test_rays(placed: &[Placed], count: usize, seed: u64) -> Vec<Ray> {
+pub fn test_rays(placed: &[Placed], count: usize, seed: u64) -> Vec<Ray> {
     let mut rng = rng(seed);
     let mut rays = random_rays(seed + 1, count / 4, 5.0);
     while rays.len() < count {
@@ -243,7 +243,12 @@ fn test_rays(placed: &[Placed], count: usize, seed: u64) -> Vec<Ray> {
 
 /// Checks `tracer` against the oracle on `rays`; returns (hits checked, ambiguous rays, largest `t` error
 /// relative to `t + |origin| / |direction|`).
-fn check_against_oracle(tracer: &Tracer<'_>, file: &BvhFile, placed: &[Placed], rays: &[Ray]) -> (usize, usize, f64) {
+pub fn check_against_oracle(
+    tracer: &Tracer<'_>,
+    file: &BvhFile,
+    placed: &[Placed],
+    rays: &[Ray],
+) -> (usize, usize, f64) {
     let view = file.view();
     let (mut checked, mut ambiguous, mut worst) = (0, 0, 0.0f64);
     for (r, ray) in rays.iter().enumerate() {

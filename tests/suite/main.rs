@@ -40,6 +40,7 @@ mod instances_exact;
 mod lean;
 mod memory_budget;
 mod metadata_schema;
+mod move_instances;
 mod mutation;
 mod needles;
 mod optimize;

@@ -10,8 +10,8 @@
 use crate::error::Error;
 use crate::format::checksum::{HEADER_CHECKSUM_BYTE_OFFSET, header_checksum, section_checksum};
 use crate::format::{
-    GpuNode, GpuTriangle, HEADER_BYTE_LEN, InstanceRecord, PackedNode, PackedTriangle, SectionEntry, SectionKind,
-    SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
+    GpuNode, GpuTriangle, HEADER_BYTE_LEN, InstanceRecord, MeshRecord, PackedNode, PackedTriangle, SectionEntry,
+    SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
 };
 use crate::open::file::BvhFile;
 use crate::parallel::Workers;
@@ -43,6 +43,8 @@ pub struct SectionsMut<'a> {
     pub source_table: Option<&'a [SourceRange]>,
     /// The `source_vertices` section, read only.
     pub source_vertices: Option<&'a [SourceVertexIndices]>,
+    /// The `meshes` section of a two-level file, read only.
+    pub meshes: Option<&'a [MeshRecord]>,
     /// The header and the section table, where the checksums go.
     table: &'a mut [u8],
     /// The section table's stride and, per editable section, its table index.
@@ -53,7 +55,8 @@ pub struct SectionsMut<'a> {
 }
 
 /// The kinds an edit hands out read only, beside the editable ones.
-const READ_ONLY: [SectionKind; 3] = [SectionKind::TriangleIds, SectionKind::SourceTable, SectionKind::SourceVertices];
+const READ_ONLY: [SectionKind; 4] =
+    [SectionKind::TriangleIds, SectionKind::SourceTable, SectionKind::SourceVertices, SectionKind::Meshes];
 
 /// The kinds an edit hands out.
 const EDITABLE: [SectionKind; 9] = [
@@ -121,7 +124,7 @@ impl BvhFile {
                 .transpose()
                 .map_err(|e| Error::Unwritable(format!("editing the file: a section cannot be typed: {e}")))
         }
-        let [triangle_ids, source_table, source_vertices] = read_only;
+        let [triangle_ids, source_table, source_vertices, meshes] = read_only;
         let nodes = typed(Some(nodes.ok_or_else(|| bad("no nodes section".to_string()))?))?;
         let triangles = typed(Some(triangles.ok_or_else(|| bad("no triangles section".to_string()))?))?;
         Ok(SectionsMut {
@@ -137,6 +140,7 @@ impl BvhFile {
             triangle_ids: typed_ref(triangle_ids)?,
             source_table: typed_ref(source_table)?,
             source_vertices: typed_ref(source_vertices)?,
+            meshes: typed_ref(meshes)?,
             table,
             stride,
             entries,

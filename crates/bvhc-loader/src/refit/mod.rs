@@ -6,6 +6,7 @@
 //! those of its new triangles. The refit tree's costs come back beside the file's own ([`RefitReport`]), for a
 //! [`RebuildPolicy`] to decide when to convert again.
 
+mod instances;
 mod positions;
 mod report;
 
@@ -41,7 +42,9 @@ impl BvhFile {
         let view = self.view();
         if view.two_level().is_some() {
             return Err(Error::Refit(
-                "a two-level file's meshes are placed by instances; refit is for one-level files".into(),
+                "a two-level file's meshes are placed by instances; refit is for one-level files (move instances \
+                 with move_instances)"
+                    .into(),
             ));
         }
         if view.has_split_references() {

@@ -38,12 +38,6 @@ pub(crate) fn refit_wide(
             }
         }
     });
-    // Empty slots hold the empty box `+inf..-inf` (V29), so a node's box is the union of all eight.
-    let node_box = |node: &WideNode8| -> Bounds {
-        let lowest = |axis: &[f32; WIDE]| axis.iter().fold(f32::INFINITY, |m, &v| m.min(v));
-        let highest = |axis: &[f32; WIDE]| axis.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
-        (node.min.each_ref().map(lowest), node.max.each_ref().map(highest))
-    };
     for i in (0..nodes.len()).rev() {
         for slot in 0..WIDE {
             let child = nodes[i].child[slot];
@@ -86,4 +80,12 @@ fn packet_bounds(packet: &TrianglePacket4) -> Bounds {
         lowest.map(|l| l.into_iter().fold(f32::INFINITY, f32::min)),
         highest.map(|h| h.into_iter().fold(f32::NEG_INFINITY, f32::max)),
     )
+}
+
+/// A wide node's box: the union of its eight slots' boxes (empty slots hold the empty box `+inf..-inf`, V29, so
+/// all eight are folded alike).
+pub(crate) fn node_box(node: &WideNode8) -> Bounds {
+    let lowest = |axis: &[f32; WIDE]| axis.iter().fold(f32::INFINITY, |m, &v| m.min(v));
+    let highest = |axis: &[f32; WIDE]| axis.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
+    (node.min.each_ref().map(lowest), node.max.each_ref().map(highest))
 }

@@ -1,0 +1,90 @@
+//! Moving instances of a two-level file (`BvhFile::move_instances`): the moved file holds the instance records
+//! the writer gives the new placements, verifies, and traces them as the f64 oracle over the flattened scene
+//! says, on every kernel, with or without the wide sections; moving instances to where they stand gives the
+//! file's bytes back; what cannot be placed is refused naming the instance, with the file unchanged.
+
+use bvhc::loader::format::{Affine3x4, SectionKind};
+use bvhc::loader::{BvhFile, Error};
+
+use crate::common::{every_kernel, random_triangles};
+use crate::instances::{
+    affine, check_against_oracle, flatten, rotation_z, test_meshes, test_placements, test_rays, two_level,
+    write_two_level,
+};
+
+/// The bytes of section `kind`.
+fn section(file: &BvhFile, kind: SectionKind) -> Vec<u8> {
+    let info = file.view().sections().find(|s| s.kind == Some(kind)).expect("the section");
+    let start = info.entry.section_byte_offset as usize;
+    file.as_bytes()[start..start + info.entry.section_byte_len as usize].to_vec()
+}
+
+#[test]
+fn moved_instances_trace_where_they_now_stand_on_every_kernel() {
+    let placements = test_placements();
+    // Some instances moved: turned, carried away, mirrored the other way, scaled; the others stay.
+    let mut moved = placements.clone();
+    let moves: Vec<(u32, Affine3x4)> = vec![
+        (1, affine(rotation_z(45.0), [0.8, -0.6, 0.4])),
+        (3, affine([[-1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 1.0]], [-2.0, 1.5, 0.0])),
+        (0, affine([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]], [6.0, 0.0, 1.0])),
+        (7, affine(rotation_z(-20.0), [3.0, 3.0, 3.0])),
+    ];
+    for &(index, object_to_world) in &moves {
+        moved[index as usize].object_to_world = object_to_world;
+    }
+    for wide in [false, true] {
+        let (scene, sources) = two_level(&test_meshes(), &placements, wide);
+        let mut file = write_two_level(&scene, &sources).unwrap();
+        file.move_instances(&moves).unwrap();
+        file.view().verify().unwrap();
+        // The records the writer gives the new placements.
+        let (target, _) = two_level(&test_meshes(), &moved, wide);
+        let expected = write_two_level(&target, &sources).unwrap();
+        assert_eq!(section(&file, SectionKind::Instances), section(&expected, SectionKind::Instances));
+        let placed = flatten(&target);
+        let rays = test_rays(&placed, 3000, 91);
+        for tracer in every_kernel(&file.view()) {
+            let (checked, ambiguous, _) = check_against_oracle(&tracer, &file, &placed, &rays);
+            eprintln!("wide {wide} {:?}: {checked} checked, {ambiguous} ambiguous", tracer.kernel());
+            assert!(checked > 1500 && ambiguous < rays.len() / 20, "{checked} checked, {ambiguous} ambiguous");
+        }
+    }
+}
+
+#[test]
+fn moving_instances_to_where_they_stand_gives_the_bytes_back() {
+    let (scene, sources) = two_level(&test_meshes(), &test_placements(), true);
+    let original = write_two_level(&scene, &sources).unwrap();
+    let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    let all: Vec<(u32, Affine3x4)> =
+        test_placements().iter().enumerate().map(|(k, p)| (k as u32, p.object_to_world)).collect();
+    file.move_instances(&all).unwrap();
+    assert!(file.as_bytes() == original.as_bytes(), "the same bytes");
+    file.move_instances(&[]).unwrap();
+    assert!(file.as_bytes() == original.as_bytes(), "no move, the same bytes");
+}
+
+#[test]
+fn what_cannot_be_placed_is_refused_naming_the_instance() {
+    let (scene, sources) = two_level(&test_meshes(), &test_placements(), true);
+    let mut file = write_two_level(&scene, &sources).unwrap();
+    let before = file.as_bytes().to_vec();
+    let identity = affine([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [0.0; 3]);
+    let refused = |file: &mut BvhFile, moves: &[(u32, Affine3x4)]| match file.move_instances(moves) {
+        Err(Error::Refit(why)) => why,
+        other => panic!("refused as a refit error, got {other:?}"),
+    };
+    assert!(refused(&mut file, &[(0, identity), (8, identity)]).contains("instance 8: the file has 8 instances"));
+    let singular = affine([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [0.0; 3]);
+    assert!(refused(&mut file, &[(2, singular)]).contains("instance 2: the transform"));
+    let mut not_finite = identity;
+    not_finite[1][3] = f32::NAN;
+    assert!(refused(&mut file, &[(5, not_finite)]).contains("instance 5"));
+    let huge = affine([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [f32::MAX, 0.0, 0.0]);
+    assert!(refused(&mut file, &[(4, huge)]).contains("instance 4: its world box does not fit f32"));
+    assert_eq!(file.as_bytes(), &before[..], "a refused move leaves the file as it was");
+    // A one-level file has no instances.
+    let mut one_level = crate::common::write_wide_file(&random_triangles(3, 20, 1.0), 2);
+    assert!(refused(&mut one_level, &[(0, identity)]).contains("one-level"));
+}
