@@ -73,6 +73,7 @@ fn the_header_declares_every_exported_function_and_nothing_else() {
     assert_eq!(size_of::<BvhcMesh>(), 8);
     assert_eq!(size_of::<bvhc_capi::BvhcCandidate>(), 56);
     assert_eq!(size_of::<bvhc_capi::BvhcSections>(), 56);
+    assert_eq!(size_of::<bvhc_capi::BvhcRefitReport>(), 40);
 }
 
 /// The static library beside the test binary (target/<profile>/libbvhc_capi.a), if built.
@@ -99,7 +100,7 @@ fn compile(dir: &Path, library: &Path, program: &str) -> Result<PathBuf, String>
 }
 
 /// The C program `program` built against the static library, or `None` after reporting the skip.
-fn c_program(dir: &Path, program: &str) -> Option<PathBuf> {
+pub(crate) fn c_program(dir: &Path, program: &str) -> Option<PathBuf> {
     let Some(library) = static_library() else {
         crate::skips::skipped(
             crate::skips::Needs::Build,

@@ -4,6 +4,7 @@ mod box_test;
 mod c_header;
 mod c_library;
 mod capi;
+mod capi_refit;
 mod cli;
 mod cli_hardening;
 mod cli_refit;

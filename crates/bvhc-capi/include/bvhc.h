@@ -23,8 +23,9 @@
  * - null pointers, indices out of range and hits that are not the file's are BVHC_ERROR_ARGUMENT, never
  *   crashes; no exception or panic crosses the boundary;
  * - batch calls read the caller's rays in place and write each result straight into the caller's arrays;
- * - a bvhc_file is immutable: any number of threads may trace through one at once; only bvhc_close must not
- *   race with them.
+ * - a bvhc_file changes only through the refit calls (bvhc_refit_triangles, bvhc_refit_source_vertices,
+ *   bvhc_move_instances); otherwise any number of threads may trace through one at once; only bvhc_close and
+ *   the refit calls must not race with them.
  * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices (bvhc_triangle_vertices);
  * bvhc_hit_source_corners names them in the source scene's own primitive (format-spec/bvh-1.md 5.9), to
  * interpolate its normals, texture coordinates or colours. bvhc_spawn_ray gives a secondary ray with t_min = 0
@@ -226,6 +227,28 @@ typedef struct bvhc_source_range {
 } bvhc_source_range;
 /* The range holding a source id: BVHC_ERROR_NOT_IN_FILE without a source table, BVHC_ERROR_ARGUMENT if none. */
 bvhc_status bvhc_source_range_of(const bvhc_file *file, uint32_t source_triangle_id, bvhc_source_range *out);
+
+/* Moving geometry (docs/loader.md, "Refit"). A refit keeps the file's tree and moves its records: per record
+ * (9 floats each, v0 v1 v2 as bvhc_triangle_vertices gives them) or per source vertex of each source range
+ * (positions[r]: 3 * vertex_counts[r] floats indexed as the source primitive indexes them, NULL to keep the
+ * range); one-level files without split references (convert with --no-splits); the same result on any number of
+ * threads (0 or 1: the calling thread). The report compares the refit tree's costs with the costs the file
+ * states (NaN where it states none): rebuild (convert again) once cost_ratio passes a threshold, 1.5 by default
+ * in bvhc. bvhc_move_instances places instances of a two-level file anew (3x4 row-major object-to-world maps,
+ * 12 floats each). bvhc_write writes the file atomically with its stated costs recomputed, so it verifies.
+ * Refusals are BVHC_ERROR_ARGUMENT with the file unchanged, naming the record, range, vertex or instance. The
+ * pointers of bvhc_get_sections stay valid (the arrays change in place). */
+typedef struct bvhc_refit_report {
+    double cost, file_cost;           /* the binary tree's SAH cost now, and the one the file states */
+    double wide_cost, file_wide_cost; /* the wide tree's cost now, and the one the file states */
+    double cost_ratio;                /* wide cost / stated where both exist, else the binary one's; 1 without */
+} bvhc_refit_report;
+bvhc_status bvhc_refit_triangles(bvhc_file *file, const float *positions, size_t triangle_count, unsigned threads,
+                                 bvhc_refit_report *report);
+bvhc_status bvhc_refit_source_vertices(bvhc_file *file, const float *const *positions, const size_t *vertex_counts,
+                                       size_t range_count, unsigned threads, bvhc_refit_report *report);
+bvhc_status bvhc_move_instances(bvhc_file *file, const uint32_t *instances, const float *transforms, size_t count);
+bvhc_status bvhc_write(const bvhc_file *file, const char *path);
 
 /* The file's arrays, for look-ups per candidate or per pixel without a call into the library: fill once with
  * bvhc_get_sections (the pointers stay valid until bvhc_close; NULL where the file has no such section), then

@@ -97,6 +97,8 @@ pub(crate) fn status_of(error: &bvhc_loader::Error) -> c_int {
     match error {
         bvhc_loader::Error::Io { .. } => BVHC_ERROR_IO,
         bvhc_loader::Error::OutOfMemory { .. } => BVHC_ERROR_MEMORY,
+        // Positions or transforms that do not fit the file, or a file a refit cannot take.
+        bvhc_loader::Error::Refit(_) => BVHC_ERROR_ARGUMENT,
         _ => BVHC_ERROR_INVALID,
     }
 }

@@ -2,15 +2,16 @@
 //! trace closest-hit and any-hit rays one at a time or in batches (with the same hit records as Rust), spawn
 //! secondary rays, run hit filters (alpha testing) on the triangles the file marks not opaque, go from a hit
 //! back to the source scene, and read what the file holds: bounds, records, the meshes and instances of a
-//! two-level file, the metadata.
+//! two-level file, the metadata; refit a file to moved triangles, move its instances, and write it back.
 //!
 //! Contract at the boundary: no Rust panic crosses it (every entry point runs under `catch_unwind` and reports
 //! `BVHC_ERROR_PANIC`); null pointers, indices out of range and hits that are not the file's are argument
 //! errors, never crashes; rays are checked against the ray contract (`BVHC_ERROR_RAY`, naming the ray and the
 //! rule) except by the `_unchecked` calls; the message of the last error is per thread and stays valid until
 //! the next failing call on it (`bvhc_last_error_message`, or copied with `bvhc_error_message`); every status
-//! has a name (`bvhc_status_name`). A `bvhc_file` is immutable once opened, so any number of threads may
-//! trace through one at the same time; only `bvhc_close` must not race with them.
+//! has a name (`bvhc_status_name`). A `bvhc_file` changes only through the refit calls (`bvhc_refit_triangles`,
+//! `bvhc_refit_source_vertices`, `bvhc_move_instances`); otherwise any number of threads may trace through one at
+//! the same time; only `bvhc_close` and the refit calls must not race with them.
 
 mod batch;
 mod boundary;
@@ -18,6 +19,7 @@ mod filtered;
 mod filtered_batch;
 mod open;
 mod records;
+mod refit;
 mod scene;
 mod sections;
 mod single;
@@ -41,6 +43,7 @@ pub use filtered_batch::{
 };
 pub use open::{bvhc_close, bvhc_open, bvhc_open_memory, bvhc_verify};
 pub use records::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};
+pub use refit::{BvhcRefitReport, bvhc_move_instances, bvhc_refit_source_vertices, bvhc_refit_triangles, bvhc_write};
 pub use scene::{
     bvhc_get_instance, bvhc_get_mesh, bvhc_instance_count, bvhc_mesh_count, bvhc_metadata_json, bvhc_scene_bounds,
     bvhc_source_id, bvhc_triangle_count, bvhc_triangle_vertices,

@@ -87,6 +87,7 @@ pub use open::file::MappedBvh;
 pub use open::sections::{GpuSections, TwoLevelSections, WideSections};
 pub use open::structure::SectionInfo;
 pub use open::view::BvhView;
+pub use open::view_mut::BvhViewMut;
 pub use ray::check_rays;
 pub use ray::{
     BatchRayError, ForeignHit, Hit, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,

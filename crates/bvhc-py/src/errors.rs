@@ -63,6 +63,8 @@ pub fn loader(error: &bvhc::loader::Error, message: String) -> PyErr {
     match error {
         bvhc::loader::Error::Io { .. } | bvhc::loader::Error::Unwritable(_) => IoError::new_err(message),
         bvhc::loader::Error::OutOfMemory { .. } => OutOfMemoryError::new_err(message),
+        // Positions or transforms that do not fit the file, or a file a refit cannot take.
+        bvhc::loader::Error::Refit(_) => InvalidInputError::new_err(message),
         _ => InvalidFileError::new_err(message),
     }
 }

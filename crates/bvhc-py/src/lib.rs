@@ -7,6 +7,7 @@ mod filters;
 mod hits;
 mod options;
 mod rays;
+mod refit;
 mod scene;
 mod tracing;
 

@@ -311,6 +311,37 @@ impl Scene {
             ],
         )
     }
+
+    /// Refits the file in place (opened writable) to `positions` (`(n, 3, 3)` float32, a record each) or
+    /// `source_vertices` (per source range, an `(m, 3)` float32 array or `None`), on `threads` threads; returns
+    /// the refit tree's costs beside the file's, the cost ratio and whether it passes `max_cost_ratio`.
+    #[pyo3(signature = (positions=None, source_vertices=None, threads=None, max_cost_ratio=1.5))]
+    fn refit<'py>(
+        &self,
+        py: Python<'py>,
+        positions: Option<numpy::PyReadonlyArrayDyn<'py, f32>>,
+        source_vertices: Option<Vec<Option<numpy::PyReadonlyArrayDyn<'py, f32>>>>,
+        threads: Option<usize>,
+        max_cost_ratio: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+        crate::refit::refit(py, &self.bytes, &self.path, positions, source_vertices, threads, max_cost_ratio)
+    }
+
+    /// Places `instances` (a two-level file's, opened writable) by `transforms` (`(k, 3, 4)` float32 rows).
+    fn move_instances(
+        &self,
+        py: Python<'_>,
+        instances: Vec<u32>,
+        transforms: numpy::PyReadonlyArrayDyn<'_, f32>,
+    ) -> PyResult<()> {
+        crate::refit::move_instances(py, &self.bytes, &self.path, instances, transforms)
+    }
+
+    /// Writes the file to `output` atomically, its stated costs recomputed (so a refit file verifies).
+    fn write(&self, py: Python<'_>, output: std::path::PathBuf) -> PyResult<()> {
+        crate::refit::write(py, &self.bytes, &self.path, output)
+    }
 }
 
 /// Reads and verifies the file at `path`: every rule; raises naming the file and the first broken rule.

@@ -587,3 +587,111 @@ def test_filter_errors_are_named(tmp_path):
         opened.closest_hits(origins, directions, filter=fails)
     with pytest.raises(ValueError, match="the filter's own error"):
         opened.all_hits(origins, directions, filter=fails)
+
+
+def obj_vertices(path):
+    return np.array(
+        [[float(c) for c in line.split()[1:4]] for line in path.read_text().splitlines() if line.startswith("v ")],
+        dtype=np.float32,
+    )
+
+
+def bend(vertices):
+    x, y, z = vertices[:, 0], vertices[:, 1], vertices[:, 2]
+    return np.stack([x + np.float32(0.2) * y * y, y, z + np.float32(0.1) * x * y], axis=1).astype(np.float32)
+
+
+def test_refit_in_place_equals_bvhc_refit_of_the_moved_asset(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    cli(TEAPOT, "--no-splits", "-o", bvh, "-q")
+    # The moved asset: every `v` line bent (floats written exactly), the faces untouched.
+    bent = bend(obj_vertices(TEAPOT))
+    lines, k = [], 0
+    for line in TEAPOT.read_text().splitlines():
+        if line.startswith("v "):
+            lines.append("v " + " ".join("%.9g" % c for c in bent[k]))
+            k += 1
+        else:
+            lines.append(line)
+    moved = tmp_path / "moved.obj"
+    moved.write_text("\n".join(lines) + "\n")
+    cli("refit", bvh, "--positions", moved, "-o", tmp_path / "cli.bvh")
+    scene = bvhc.open(bvh, writable=True)
+    before = np.array(scene.triangles)
+    report = scene.refit(source_vertices=[bent], threads=2)
+    assert report["cost_ratio"] > 1.0 and report["wide_cost"] is not None and not report["rebuild_recommended"]
+    scene.write(tmp_path / "py.bvh")
+    assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
+    assert "every rule" in bvhc.verify(tmp_path / "py.bvh")
+    assert bvh.read_bytes() == bvhc.open(bvh)._native.data.tobytes(), "the file on disk never changes"
+    # The views show the new records; per record, the same positions give the same bytes back.
+    records = np.array(scene.triangles)
+    assert not np.array_equal(records, before)
+    again = scene.refit(records, threads=1)
+    assert again["cost_ratio"] == report["cost_ratio"]
+    # Hits follow the records.
+    origins = np.array([[0.0, 1.0, 8.0]] * 3, dtype=np.float32) + np.array([[0, 0, 0], [0.5, 0, 0], [-0.5, 0.3, 0]])
+    directions = np.tile(np.array([[0.0, 0.0, -1.0]], dtype=np.float32), (3, 1))
+    hits = scene.closest_hits(origins, directions, np.zeros(3), np.full(3, np.inf))
+    moved_scene = bvhc.open(tmp_path / "cli.bvh")
+    expected = moved_scene.closest_hits(origins, directions, np.zeros(3), np.full(3, np.inf))
+    assert np.array_equal(hits["t"], expected["t"]) and np.array_equal(hits["triangle"], expected["triangle"])
+
+
+def test_refit_refuses_what_does_not_fit(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    cli(TEAPOT, "--no-splits", "-o", bvh, "-q")
+    with pytest.raises(bvhc.InvalidInputError, match="writable=True"):
+        bvhc.open(bvh).refit(np.zeros((1, 3, 3), dtype=np.float32))
+    for mmap in [True, False]:
+        scene = bvhc.open(bvh, writable=True, mmap=mmap)
+        records = np.array(scene.triangles)
+        with pytest.raises(bvhc.InvalidInputError, match="positions for"):
+            scene.refit(records[1:])
+        records[5, 1, 2] = np.nan
+        with pytest.raises(bvhc.InvalidInputError, match="triangle record 5"):
+            scene.refit(records)
+        with pytest.raises(bvhc.InvalidInputError, match="shape"):
+            scene.refit(np.zeros((4, 9), dtype=np.float32))
+        with pytest.raises(bvhc.InvalidInputError, match="vertex 0"):
+            scene.refit(source_vertices=[np.full((3000, 3), np.inf, dtype=np.float32)])
+        with pytest.raises(bvhc.InvalidInputError, match="one-level file has no instances"):
+            scene.move_instances([0], np.zeros((1, 3, 4), dtype=np.float32))
+        assert scene._native.data.tobytes() == bvh.read_bytes(), "a refused call changes nothing"
+
+
+def test_moved_instances_trace_where_they_stand(tmp_path):
+    # One mesh (two triangles) placed twice by glTF nodes, converted two-level.
+    positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float32)
+    indices = np.array([0, 1, 2, 0, 2, 3], dtype=np.uint16)
+    (tmp_path / "quad.bin").write_bytes(positions.tobytes() + indices.tobytes())
+    gltf = {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"mesh": 0, "translation": [3.0, 0.0, 0.0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{"uri": "quad.bin", "byteLength": 60}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"},
+        ],
+    }
+    (tmp_path / "quads.gltf").write_text(json.dumps(gltf))
+    bvh = tmp_path / "quads.bvh"
+    cli(tmp_path / "quads.gltf", "--instancing", "always", "-o", bvh, "-q")
+    scene = bvhc.open(bvh, writable=True)
+    assert scene.instances is not None and len(scene.instances) == 2
+    # Instance 1 carried from x = 3 to x = 10 and lifted by 2 in z.
+    transform = np.array([[[1, 0, 0, 10], [0, 1, 0, 0], [0, 0, 1, 2]]], dtype=np.float32)
+    scene.move_instances([1], transform)
+    assert scene.instances["object_to_world"][1].tolist() == transform[0].tolist()
+    scene.verify()
+    origins = np.array([[10.5, 0.5, 5.0], [3.5, 0.5, 5.0]], dtype=np.float32)
+    directions = np.array([[0, 0, -1], [0, 0, -1]], dtype=np.float32)
+    hits = scene.closest_hits(origins, directions, np.zeros(2), np.full(2, np.inf))
+    assert hits["instance"].tolist() == [1, bvhc.MISS]
+    assert hits["t"][0] == np.float32(3.0)
+    with pytest.raises(bvhc.InvalidInputError, match="instance 2"):
+        scene.move_instances([2], transform)

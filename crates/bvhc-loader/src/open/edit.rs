@@ -13,7 +13,8 @@ use crate::format::{
     GpuNode, GpuTriangle, HEADER_BYTE_LEN, InstanceRecord, MeshRecord, PackedNode, PackedTriangle, SectionEntry,
     SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
 };
-use crate::open::file::BvhFile;
+use crate::open::view::BvhView;
+use crate::open::view_mut::BvhViewMut;
 use crate::parallel::Workers;
 
 /// The sections of a [`BvhFile`] that an edit may rewrite, as typed mutable slices (`None`: the file has no such
@@ -71,12 +72,19 @@ const EDITABLE: [SectionKind; 9] = [
     SectionKind::TopWideNodes,
 ];
 
-impl BvhFile {
+impl BvhViewMut<'_> {
     /// The file's geometric sections for writing in place ([`SectionsMut`]); the checksums are recomputed when
     /// the returned value is dropped. An error only for a file whose sections overlap or are misaligned, which
-    /// opening refuses (rules V1-V10), so never for a `BvhFile`.
+    /// opening refuses (rules V1-V10), so never for an opened file.
     pub fn edit(&mut self) -> Result<SectionsMut<'_>, Error> {
-        let view = self.view();
+        SectionsMut::split(self.bytes_mut())
+    }
+}
+
+impl<'a> SectionsMut<'a> {
+    /// `bytes` (an opened file's, V1-V10 holding) split into the editable sections.
+    pub(crate) fn split(bytes: &'a mut [u8]) -> Result<SectionsMut<'a>, Error> {
+        let view = BvhView::open(bytes)?;
         let header = *view.header();
         let handed_out = |k: SectionKind| EDITABLE.contains(&k) || READ_ONLY.contains(&k);
         let mut editable: Vec<_> = view.sections().filter(|s| s.kind.is_some_and(handed_out)).collect::<Vec<_>>();
@@ -84,7 +92,6 @@ impl BvhFile {
         let stride = header.section_entry_byte_len as usize;
         let table_len = HEADER_BYTE_LEN + header.section_count as usize * stride;
         let bad = |why: String| Error::Unwritable(format!("editing the file: {why}"));
-        let bytes = self.bytes_mut();
         let (table, mut rest) = bytes.split_at_mut(table_len.min(bytes.len()));
         let mut consumed = table.len();
         let mut sections: [Option<&mut [u8]>; EDITABLE.len()] = Default::default();

@@ -8,3 +8,4 @@ pub(crate) mod structure;
 #[cfg(feature = "write")]
 pub(crate) mod uncached;
 pub(crate) mod view;
+pub(crate) mod view_mut;

@@ -1,4 +1,4 @@
-//! Moving instances of a two-level file ([`BvhFile::move_instances`]): each moved instance takes its new
+//! Moving instances of a two-level file in place ([`BvhViewMut::move_instances`]): each moved instance takes its new
 //! transform and the inverse the writer would store, its world box is recomputed as the writer computes it
 //! ([`instance_world_box`]: the mesh's root box mapped and padded, `format-spec/bvh-1.md` 5.12 and 11.3), and the
 //! top trees (binary and 8-wide) are refit bottom up over their own shape. The meshes and their trees do not
@@ -11,11 +11,11 @@ use crate::error::Error;
 use crate::format::{
     Affine3x4, Bounds, EMPTY_BOUNDS, EMPTY_SLOT, InstanceRecord, LEAF_BIT, PackedNode, WIDE, WideNode8, union_bounds,
 };
-use crate::open::file::BvhFile;
+use crate::open::view_mut::BvhViewMut;
 use crate::ray::transform::instance_world_box;
 use crate::wide::refit::node_box;
 
-impl BvhFile {
+impl BvhViewMut<'_> {
     /// Places the instances `moves` names anew: `(instance index, object_to_world)` pairs (one, some or all of
     /// the file's instances, in any order; a later pair for the same instance wins). Each moved instance keeps
     /// its mesh and provenance and takes the map, its inverse (computed in f64 as the writer computes it) and

@@ -1,4 +1,4 @@
-//! Refitting an owned file to moved triangles ([`BvhFile::refit`]): the triangle records take the new positions
+//! Refitting a file to moved triangles in place ([`BvhViewMut::refit`], [`BvhFile::refit`] for an owned one): the triangle records take the new positions
 //! (per record, or per source vertex of each primitive, [`RefitPositions`]), and every layout the file has
 //! recomputes its boxes bottom up over the same tree (`binary::refit`, `wide::refit`, `gpu::refit`), as skinned or
 //! morphed meshes need each frame: the tree's shape, its order and every other section stay, so a refit to the
@@ -15,13 +15,15 @@ pub use report::{RebuildPolicy, RefitReport};
 
 use crate::binary::refit::refit_binary;
 use crate::error::Error;
+use crate::format::Affine3x4;
 use crate::gpu::refit::refit_gpu;
 use crate::open::file::BvhFile;
+use crate::open::view_mut::BvhViewMut;
 use crate::parallel::Workers;
 use crate::wide::refit::refit_wide;
 use positions::MovedRecords;
 
-impl BvhFile {
+impl BvhViewMut<'_> {
     /// Moves the triangle records to `positions` and refits the file's layouts to them, on up to `threads`
     /// threads (the caller's included; 0 counts as 1): the binary nodes' boxes, the wide slots' boxes and packet
     /// lanes, the GPU nodes' quantized boxes and triangles, each bottom up over the file's own tree, with the
@@ -69,9 +71,21 @@ impl BvhFile {
         edit.finish(workers);
         Ok(RefitReport::of(&self.view(), workers))
     }
+}
 
-    /// [`BvhFile::refit`] to one triangle a record (`v0`, `v1`, `v2` in record order), on one thread.
+impl BvhFile {
+    /// [`BvhViewMut::refit`] of the file's bytes.
+    pub fn refit(&mut self, positions: RefitPositions<'_>, threads: usize) -> Result<RefitReport, Error> {
+        self.view_mut().refit(positions, threads)
+    }
+
+    /// [`BvhViewMut::refit`] to one triangle a record (`v0`, `v1`, `v2` in record order), on one thread.
     pub fn refit_triangles(&mut self, positions: &[[[f32; 3]; 3]]) -> Result<RefitReport, Error> {
         self.refit(RefitPositions::Triangles(positions), 1)
+    }
+
+    /// [`BvhViewMut::move_instances`] of the file's bytes.
+    pub fn move_instances(&mut self, moves: &[(u32, Affine3x4)]) -> Result<(), Error> {
+        self.view_mut().move_instances(moves)
     }
 }

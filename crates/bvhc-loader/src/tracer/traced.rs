@@ -10,34 +10,67 @@ use crate::tracer::Tracer;
 /// A [`BvhFile`] and the tracer over it ([`BvhView::tracer`]), made once.
 pub struct TracedFile {
     /// Borrows from `file`'s buffer: declared first, so it is dropped before `file`. Its `'static` never leaves
-    /// this struct: [`TracedFile::tracer`] hands it out for the borrow of `self` only.
-    tracer: Tracer<'static>,
+    /// this struct: [`TracedFile::tracer`] hands it out for the borrow of `self` only. `None` only while
+    /// [`TracedFile::edit_file`] changes the buffer (no borrow of it lives then).
+    tracer: Option<Tracer<'static>>,
     file: BvhFile,
+}
+
+/// A tracer over `file` with its lifetime widened to `'static`, which [`TracedFile`] keeps (see its fields).
+#[allow(unsafe_code)] // the lifetime of the tracer's borrow, see the SAFETY note
+fn kept_tracer(file: &BvhFile, checks_rays: bool) -> Tracer<'static> {
+    let tracer = file.view().tracer();
+    let tracer = if checks_rays { tracer } else { tracer.trusting_rays() };
+    // SAFETY: the tracer borrows slices of `file`'s heap buffer (`AlignedBuffer`), which `file` owns, changes
+    // only inside `TracedFile::edit_file` (which drops this tracer first and makes a new one after) and frees
+    // only when dropped; moving `file` into the struct moves the buffer's pointer, not its bytes. The struct
+    // drops `tracer` before `file`, and never exposes the `'static` lifetime: `tracer()` narrows it to the
+    // borrow of `self`, during which `file` lives and does not change.
+    unsafe { std::mem::transmute::<Tracer<'_>, Tracer<'static>>(tracer) }
 }
 
 impl TracedFile {
     /// `file` with its fastest tracer (the wide kernel on the best path, through the instances of a two-level
     /// file).
-    #[allow(unsafe_code)] // the lifetime of the tracer's borrow, see the SAFETY note
     pub fn new(file: BvhFile) -> TracedFile {
-        let tracer = file.view().tracer();
-        // SAFETY: the tracer borrows slices of `file`'s heap buffer (`AlignedBuffer`), which `file` owns, never
-        // changes after opening and frees only when dropped; moving `file` into the struct moves the buffer's
-        // pointer, not its bytes. The struct drops `tracer` before `file`, and never exposes the `'static`
-        // lifetime: `tracer()` narrows it to the borrow of `self`, during which `file` lives.
-        let tracer = unsafe { std::mem::transmute::<Tracer<'_>, Tracer<'static>>(tracer) };
-        TracedFile { tracer, file }
+        TracedFile { tracer: Some(kept_tracer(&file, true)), file }
     }
 
     /// This file with its tracer trusting rays ([`Tracer::trusting_rays`]): for bindings that check rays
     /// themselves to report an error rather than panic.
-    pub fn trusting_rays(self) -> TracedFile {
-        TracedFile { tracer: self.tracer.trusting_rays(), file: self.file }
+    pub fn trusting_rays(mut self) -> TracedFile {
+        self.tracer = self.tracer.take().map(Tracer::trusting_rays);
+        self
     }
 
-    /// The tracer, made when this was.
+    /// The tracer, made when this was (or after the last [`TracedFile::edit_file`]).
     pub fn tracer(&self) -> &Tracer<'_> {
-        &self.tracer
+        match &self.tracer {
+            Some(tracer) => tracer,
+            // `edit_file` puts a tracer back before it returns, or unwinds through `Restore`, which does.
+            None => unreachable!("a TracedFile always holds its tracer outside edit_file"),
+        }
+    }
+
+    /// Runs `edit` on the file (a refit, moved instances: [`BvhFile::refit`], [`BvhFile::move_instances`]) and
+    /// makes the tracer again over the changed bytes, checking rays or not as before. Taking `&mut self`, it
+    /// cannot overlap a trace through this file.
+    pub fn edit_file<R>(&mut self, edit: impl FnOnce(&mut BvhFile) -> R) -> R {
+        /// Puts a tracer back when dropped, so that even a panic in `edit` leaves one.
+        struct Restore<'t> {
+            traced: &'t mut TracedFile,
+            checks_rays: bool,
+        }
+        impl Drop for Restore<'_> {
+            fn drop(&mut self) {
+                self.traced.tracer = Some(kept_tracer(&self.traced.file, self.checks_rays));
+            }
+        }
+        let checks_rays = self.tracer.as_ref().is_none_or(Tracer::checks_rays);
+        // No borrow of the buffer may live while it changes.
+        self.tracer = None;
+        let restore = Restore { traced: self, checks_rays };
+        edit(&mut restore.traced.file)
     }
 
     /// The file.
@@ -53,7 +86,7 @@ impl TracedFile {
 
 impl std::fmt::Debug for TracedFile {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("TracedFile").field("file", &self.file).field("kernel", &self.tracer.kernel()).finish()
+        f.debug_struct("TracedFile").field("file", &self.file).field("kernel", &self.tracer().kernel()).finish()
     }
 }
 
@@ -71,5 +104,19 @@ mod tests {
         let ray = Ray::new([0.25, 0.75, 1.0], [0.0, 0.0, -1.0]);
         assert_eq!(moved.tracer().closest_hit(&ray), moved.view().tracer().closest_hit(&ray));
         assert_eq!(moved.tracer().closest_hit(&ray).map(|h| h.t), Some(1.0));
+    }
+
+    #[test]
+    fn an_edit_makes_the_tracer_again_over_the_changed_bytes() {
+        let file = BvhFile::from_bytes(include_bytes!("../../tests/data/quad-v1.1.bvh")).unwrap();
+        let mut traced = TracedFile::new(file).trusting_rays();
+        let ray = Ray::new([0.25, 0.75, 1.0], [0.0, 0.0, -1.0]);
+        assert_eq!(traced.tracer().closest_hit(&ray).map(|h| h.t), Some(1.0));
+        // The quad lifted by 0.5 towards the ray.
+        let lifted: Vec<[[f32; 3]; 3]> =
+            traced.view().triangles().iter().map(|t| t.vertices.map(|[x, y, z]| [x, y, z + 0.5])).collect();
+        traced.edit_file(|file| file.refit_triangles(&lifted)).unwrap();
+        assert_eq!(traced.tracer().closest_hit(&ray).map(|h| h.t), Some(0.5));
+        assert!(!traced.tracer().checks_rays(), "still trusting rays");
     }
 }

@@ -18,7 +18,7 @@ import builtins
 import json
 import os
 import tempfile
-from typing import Any, Callable, Dict, Iterator, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -36,6 +36,7 @@ from ._native import (
 __all__ = [
     "MISS",
     "FORMAT_VERSION",
+    "REBUILD_COST_RATIO",
     "Error",
     "InvalidInputError",
     "InvalidFileError",
@@ -51,6 +52,9 @@ __all__ = [
     "options",
     "verify",
 ]
+
+#: The cost ratio past which :meth:`Scene.refit` recommends converting again (``bvhc refit``'s default).
+REBUILD_COST_RATIO = 1.5
 
 #: ``triangle``, ``source_id`` and ``instance`` of a miss (and absent ids), as in ``format-spec/rays-and-hits.md``.
 MISS = 0xFFFFFFFF
@@ -412,15 +416,59 @@ class Scene:
             directions,
         )
 
+    def refit(
+        self,
+        positions: Any = None,
+        *,
+        source_vertices: Optional[List[Any]] = None,
+        threads: Optional[int] = None,
+        max_cost_ratio: float = REBUILD_COST_RATIO,
+    ) -> Dict[str, Any]:
+        """Move the triangle records and refit the file's trees in place, keeping their shape (skinned or
+        morphed meshes, each frame). The scene must be opened with ``writable=True``; one-level files without
+        split references (convert with ``no_splits=True``).
+
+        ``positions``: ``(n, 3, 3)`` float32, C-contiguous (read in place), one triangle a record in record
+        order (as :attr:`triangles` holds them). Or ``source_vertices``: for each source range
+        (:attr:`source_ranges`), an ``(m, 3)`` float32 array of its primitive's vertex positions indexed as the
+        source indexes them (:attr:`source_vertices`), or ``None`` to keep that range. Positions are in the
+        file's space (world space after the glTF node's transform, as skinning produces them). The same result
+        on any number of ``threads`` (default: all cores).
+
+        Returns the refit tree's costs beside the file's own: ``cost``, ``file_cost`` (binary tree),
+        ``wide_cost``, ``file_wide_cost`` (``None`` where the file states none), ``cost_ratio`` and
+        ``rebuild_recommended`` (the ratio above ``max_cost_ratio``: converting the posed geometry anew would
+        trace faster). Raises :class:`InvalidInputError` for positions that do not fit (naming the record, range
+        or vertex), with the file unchanged. :attr:`triangles` and the other views show the new values; call
+        :meth:`write` to ship the posed file."""
+        self._info = None
+        return self._native.refit(positions, source_vertices, threads, max_cost_ratio)
+
+    def move_instances(self, instances: Any, transforms: Any) -> None:
+        """Place instances of a two-level file anew, in place (opened ``writable=True``): ``instances`` (indices)
+        by ``transforms`` (``(k, 3, 4)`` float32 object-to-world rows ``[a, b, c, d]``, as :attr:`instances`
+        stores them); their inverses and world boxes are computed and the top trees refit."""
+        self._info = None
+        indices = [int(i) for i in np.asarray(instances, dtype=np.int64).reshape(-1)]
+        self._native.move_instances(indices, np.ascontiguousarray(transforms, dtype=np.float32))
+
+    def write(self, path: PathLike) -> None:
+        """Write the file to ``path`` atomically with the costs its metadata states recomputed, so that a refit
+        or moved file passes ``bvhc verify``."""
+        self._native.write(os.fspath(path))
+
     def __repr__(self) -> str:
         info = self.info()
         return f"<bvhc.Scene {self.path!r}: .bvh {info['format_version']}, {info['triangle_count']} triangles>"
 
 
-def open(path: PathLike, verify: bool = True, mmap: bool = True) -> Scene:
+def open(path: PathLike, verify: bool = True, mmap: bool = True, writable: bool = False) -> Scene:
     """Open the ``.bvh`` file at ``path``: a read-only memory map of it (``mmap=False`` reads it into memory
     instead), checked structurally, and with ``verify`` against every validity rule. Raises :class:`IoError`
     for a file that cannot be read, :class:`InvalidFileError` for one that breaks a rule.
+
+    ``writable=True`` makes a scene that :meth:`Scene.refit` and :meth:`Scene.move_instances` change in place:
+    a private copy-on-write map (or the bytes read into memory); the file on disk never changes.
 
     As with any memory map, the file must not be changed while open: replace files by renaming them (as
     ``bvhc`` writes them)."""
@@ -428,11 +476,11 @@ def open(path: PathLike, verify: bool = True, mmap: bool = True) -> Scene:
     data: np.ndarray
     try:
         if mmap and os.path.getsize(name) > 0:
-            # Still the map, without memmap's subclass behaviour.
-            data = np.memmap(name, dtype=np.uint8, mode="r").view(np.ndarray)
+            # Still the map, without memmap's subclass behaviour; "c" is copy-on-write, private to this process.
+            data = np.memmap(name, dtype=np.uint8, mode="c" if writable else "r").view(np.ndarray)
         else:
             data = np.fromfile(name, dtype=np.uint8)
-            data.flags.writeable = False
+            data.flags.writeable = writable
     except OSError as error:
         raise IoError(f"{name}: {error.strerror or error}") from error
     return Scene(_native.Scene(data, name, verify))

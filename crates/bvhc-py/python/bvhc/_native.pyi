@@ -1,6 +1,6 @@
 """Types of the native module ``bvhc._native`` (the package's public functions wrap it: see ``bvhc``)."""
 
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 import numpy.typing as npt
@@ -40,6 +40,15 @@ class Scene:
     def verify(self) -> None: ...
     @property
     def source_id_count(self) -> int: ...
+    def refit(
+        self,
+        positions: Optional[npt.NDArray[np.float32]] = None,
+        source_vertices: Optional[List[Optional[npt.NDArray[np.float32]]]] = None,
+        threads: Optional[int] = None,
+        max_cost_ratio: float = 1.5,
+    ) -> Dict[str, Any]: ...
+    def move_instances(self, instances: List[int], transforms: npt.NDArray[np.float32]) -> None: ...
+    def write(self, output: str) -> None: ...
     def closest_hits(
         self,
         origins: Any,

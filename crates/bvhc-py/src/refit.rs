@@ -1,0 +1,116 @@
+//! Moving geometry from Python: a scene opened writable (`bvhc.open(path, writable=True)`: a private
+//! copy-on-write map, or the file read into memory) refit in place to numpy positions read in place (per record,
+//! or per source vertex of each source range), its instances moved, and written back with its costs
+//! recomputed. The scene's numpy views of its sections see the new values (the same memory).
+
+use bvhc::loader::format::Affine3x4;
+use bvhc::loader::{BvhViewMut, RebuildPolicy, RefitPositions, RefitReport};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::errors::{InvalidInputError, loader};
+
+/// The scene's bytes borrowed writable, opened; `what` names the call in errors.
+fn with_view_mut<R: Send>(
+    py: Python<'_>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+    what: &str,
+    f: impl FnOnce(&mut BvhViewMut<'_>) -> Result<R, bvhc::loader::Error> + Send,
+) -> PyResult<R> {
+    let mut array = bytes.bind(py).try_readwrite().map_err(|_| {
+        InvalidInputError::new_err(format!(
+            "{path}: {what} changes the file's bytes: open it with bvhc.open(path, writable=True)"
+        ))
+    })?;
+    let slice = array.as_slice_mut().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
+    py.detach(|| {
+        let mut view = BvhViewMut::open(slice)?;
+        f(&mut view)
+    })
+    .map_err(|e| loader(&e, format!("{path}: {what}: {e}")))
+}
+
+/// A C-contiguous float32 array's values, in place; `name` names it in errors.
+fn floats<'a>(array: &'a PyReadonlyArrayDyn<'_, f32>, name: &str, last: &[usize]) -> PyResult<&'a [f32]> {
+    let shape = array.shape();
+    if shape.len() < last.len() || shape[shape.len() - last.len()..] != *last {
+        return Err(InvalidInputError::new_err(format!("{name}: shape {shape:?}, expected (n, {last:?})")));
+    }
+    array.as_slice().map_err(|_| InvalidInputError::new_err(format!("{name}: a C-contiguous float32 array")))
+}
+
+/// The report as a dict: the four costs (`None` where the file states none), `cost_ratio`, and
+/// `rebuild_recommended` by `max_cost_ratio`.
+fn report_dict<'py>(py: Python<'py>, report: &RefitReport, max_cost_ratio: f64) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("cost", report.cost)?;
+    dict.set_item("file_cost", report.file_cost)?;
+    dict.set_item("wide_cost", report.wide_cost)?;
+    dict.set_item("file_wide_cost", report.file_wide_cost)?;
+    dict.set_item("cost_ratio", report.cost_ratio())?;
+    dict.set_item("rebuild_recommended", RebuildPolicy { max_cost_ratio }.should_rebuild(report))?;
+    Ok(dict)
+}
+
+/// `Scene.refit`: per record (`positions`, `(n, 3, 3)`) or per source range (`source_vertices`, a list of
+/// `(m, 3)` arrays or `None`).
+pub fn refit<'py>(
+    py: Python<'py>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+    positions: Option<PyReadonlyArrayDyn<'py, f32>>,
+    source_vertices: Option<Vec<Option<PyReadonlyArrayDyn<'py, f32>>>>,
+    threads: usize,
+    max_cost_ratio: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let report = match (&positions, &source_vertices) {
+        (Some(positions), None) => {
+            let values = floats(positions, "positions", &[3, 3])?;
+            let triangles = values.as_chunks::<3>().0.as_chunks::<3>().0;
+            with_view_mut(py, bytes, path, "refit", |view| view.refit(RefitPositions::Triangles(triangles), threads))?
+        }
+        (None, Some(ranges)) => {
+            let mut slices: Vec<Option<&[[f32; 3]]>> = Vec::with_capacity(ranges.len());
+            for (r, range) in ranges.iter().enumerate() {
+                let slice = range.as_ref().map(|a| floats(a, &format!("source_vertices[{r}]"), &[3])).transpose()?;
+                slices.push(slice.map(|values| values.as_chunks::<3>().0));
+            }
+            with_view_mut(py, bytes, path, "refit", |view| {
+                view.refit(RefitPositions::SourceVertices(&slices), threads)
+            })?
+        }
+        _ => return Err(InvalidInputError::new_err("refit: give positions or source_vertices, not both")),
+    };
+    report_dict(py, &report, max_cost_ratio)
+}
+
+/// `Scene.move_instances`: `instances` (uint32, `(k,)`) placed by `transforms` (`(k, 3, 4)` float32 rows).
+pub fn move_instances(
+    py: Python<'_>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+    instances: Vec<u32>,
+    transforms: PyReadonlyArrayDyn<'_, f32>,
+) -> PyResult<()> {
+    let values = floats(&transforms, "transforms", &[3, 4])?;
+    let maps = values.as_chunks::<4>().0.as_chunks::<3>().0;
+    if maps.len() != instances.len() {
+        let (given, count) = (maps.len(), instances.len());
+        return Err(InvalidInputError::new_err(format!("move_instances: {given} transforms for {count} instances")));
+    }
+    let moves: Vec<(u32, Affine3x4)> = instances.into_iter().zip(maps.iter().copied()).collect();
+    with_view_mut(py, bytes, path, "move_instances", |view| view.move_instances(&moves))
+}
+
+/// `Scene.write`: the file written atomically to `output` with its stated costs recomputed.
+pub fn write(py: Python<'_>, bytes: &Py<PyArray1<u8>>, path: &str, output: std::path::PathBuf) -> PyResult<()> {
+    let array = bytes.bind(py).readonly();
+    let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
+    py.detach(|| {
+        let file = bvhc::loader::BvhFile::from_bytes(slice)?;
+        bvhc::loader::write::write_atomic(&output, file.rewritten()?.as_bytes())
+    })
+    .map_err(|e| loader(&e, format!("{}: {e}", output.display())))
+}
