@@ -16,6 +16,7 @@ mod crossings;
 mod exact_reference;
 mod example_alpha;
 mod example_ao;
+mod example_skinned;
 mod fetch_scenes;
 mod reencode;
 mod refit;

@@ -84,8 +84,9 @@ impl<'a> MovedRecords<'a> {
                         )));
                     }
                 }
+                let mut last_range = 0;
                 for record in 0..record_count {
-                    if let Err(why) = self.record(record) {
+                    if let Err(why) = self.record(record, &mut last_range) {
                         return Err(Error::Refit(format!("triangle record {record}: {why}")));
                     }
                 }
@@ -95,15 +96,26 @@ impl<'a> MovedRecords<'a> {
     }
 
     /// The new vertices of `record`, `None` where the record stays; an error saying why a record cannot move.
-    fn record(&self, record: usize) -> Result<Option<[[f32; 3]; 3]>, String> {
+    /// `last_range` carries the range of the record before (records of one primitive often follow each other),
+    /// tried before a search.
+    fn record(&self, record: usize, last_range: &mut usize) -> Result<Option<[[f32; 3]; 3]>, String> {
         match self {
             MovedRecords::Triangles(triangles) => Ok(triangles.get(record).copied()),
             MovedRecords::SourceVertices { positions, ranges, ids, corners } => {
                 let id = ids.get(record).copied().ok_or("no source id")?;
-                let range = ranges.partition_point(|r| r.first_source_triangle <= id).checked_sub(1);
-                let range = range
-                    .filter(|&r| id - ranges[r].first_source_triangle < ranges[r].source_triangle_count)
-                    .ok_or_else(|| format!("source id {id} lies in no source range"))?;
+                let holds = |r: usize| {
+                    ranges.get(r).is_some_and(|r| id.wrapping_sub(r.first_source_triangle) < r.source_triangle_count)
+                };
+                let range = if holds(*last_range) {
+                    *last_range
+                } else {
+                    let after = ranges.partition_point(|r| r.first_source_triangle <= id);
+                    after
+                        .checked_sub(1)
+                        .filter(|&r| holds(r))
+                        .ok_or_else(|| format!("source id {id} lies in no source range"))?
+                };
+                *last_range = range;
                 let Some(vertices) = positions[range] else { return Ok(None) };
                 let indices = corners.get(record).ok_or("no source vertices")?.indices;
                 let vertex = |k: usize| {
@@ -129,9 +141,10 @@ impl<'a> MovedRecords<'a> {
                 }
             }
             MovedRecords::SourceVertices { .. } => {
+                let mut last_range = 0;
                 for (k, record) in chunk.iter_mut().enumerate() {
                     // Checked before: every record has its vertices (or stays).
-                    if let Ok(Some(vertices)) = self.record(first + k) {
+                    if let Ok(Some(vertices)) = self.record(first + k, &mut last_range) {
                         record.vertices = vertices;
                     }
                 }
