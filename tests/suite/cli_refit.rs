@@ -106,8 +106,14 @@ fn a_refit_to_a_moved_gltf_gives_each_triangle_a_fresh_conversions_positions() {
     let run = bvhc(&[&"refit", &file, &"--positions", &moved, &"-o", &output, &"--json"]);
     let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
     assert_eq!(report["triangle_records"], 144);
-    assert!(report["cost_ratio"].as_f64().unwrap() > 0.0);
+    let ratio = report["cost_ratio"].as_f64().unwrap();
+    assert!(ratio > 0.0);
+    assert_eq!(report["rebuild_recommended"], ratio > 1.2, "the default policy, {ratio}");
+    let run = bvhc(&[&"refit", &file, &"--positions", &moved, &"-o", &output, &"--json", &"--max-cost-ratio", &"1e9"]);
+    let report: serde_json::Value = serde_json::from_str(&stdout(&run)).unwrap();
     assert_eq!(report["rebuild_recommended"], false);
+    let run = bvhc(&[&"refit", &file, &"--positions", &moved, &"-o", &output, &"--max-cost-ratio", &"0.5"]);
+    assert_eq!(run.status.code(), Some(2), "a ratio below 1 is a usage error: {}", stderr(&run));
 }
 
 #[test]

@@ -217,7 +217,7 @@ fn bend_vertex([x, y, z]: [f32; 3]) -> [f32; 3] {
 #[test]
 fn a_refit_gives_the_same_bytes_on_any_thread_count_per_record_or_per_source_vertex() {
     let dir = tempfile::tempdir().unwrap();
-    let (obj, vertices) = grid_obj(dir.path(), 300);
+    let (obj, vertices) = grid_obj(dir.path(), 450);
     let output = dir.path().join("grid.bvh");
     let overrides = Overrides { splits: Some(false), gpu_layout: Some(true), ..Overrides::default() };
     bvhc::Conversion::new(&obj, &output).preset(Preset::Fast).overrides(overrides).run().unwrap();

@@ -52,9 +52,10 @@
 //! types, checksums and costs), [`ray`] (the ray, the box and triangle tests, hits, spawning, instance boxes),
 //! [`tracer`] and [`filter`] (the tracers, batch sizes, hit filters), [`wide`] (the 8-wide kernel over
 //! in-memory arrays), [`gpu`] (the WGSL kernel, its CPU model, the wgpu tracer), [`verify`] (single rules) and,
-//! with the `write` feature, `write` (the writer, atomic outputs). An owned [`BvhFile`] can be edited in place
-//! (`BvhFile::edit`) and refit to moved triangles ([`BvhFile::refit_triangles`], each layout's refit beside its
-//! walk and encoder).
+//! with the `write` feature, `write` (the writer, atomic outputs). An owned [`BvhFile`], or any writable bytes opened as a
+//! [`BvhViewMut`], can be edited in place (`edit`), refit to moved triangles ([`BvhViewMut::refit`]: per record or
+//! per source vertex, on any number of threads, with a [`RefitReport`] for a [`RebuildPolicy`]; each layout's
+//! refit beside its walk and encoder) and have its instances moved ([`BvhViewMut::move_instances`]).
 //!
 //! Rays: a [`Tracer`] checks every ray against the ray contract ([`Ray::check`]: finite origin and direction,
 //! the direction not below `2^-64`, `0 <= t_min <= t_max`) and panics naming the rule and the ray, since such a

@@ -315,7 +315,7 @@ impl Scene {
     /// Refits the file in place (opened writable) to `positions` (`(n, 3, 3)` float32, a record each) or
     /// `source_vertices` (per source range, an `(m, 3)` float32 array or `None`), on `threads` threads; returns
     /// the refit tree's costs beside the file's, the cost ratio and whether it passes `max_cost_ratio`.
-    #[pyo3(signature = (positions=None, source_vertices=None, threads=None, max_cost_ratio=1.5))]
+    #[pyo3(signature = (positions=None, source_vertices=None, threads=None, max_cost_ratio=1.2))]
     fn refit<'py>(
         &self,
         py: Python<'py>,

@@ -5,7 +5,7 @@ use crate::format::{EMPTY_BOUNDS, PackedNode, PackedTriangle, triangle_bounds, u
 use crate::parallel::Workers;
 
 /// Nodes a thread takes at least in the leaf pass.
-const MIN_CHUNK: usize = 1 << 16;
+const MIN_CHUNK: usize = 1 << 18;
 
 /// Recomputes every node's box of `nodes` (a verified file's binary tree over `triangles`, children after their
 /// parent, V16-V18) bottom up: a leaf's box the union of its records' bounds (the leaves in parallel over chunks

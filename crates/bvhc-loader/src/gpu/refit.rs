@@ -9,8 +9,11 @@ use crate::format::{
 };
 use crate::parallel::Workers;
 
-/// GPU triangles, or nodes, a thread takes at least in a parallel pass.
-const MIN_CHUNK: usize = 1 << 15;
+/// GPU triangles a thread takes at least in the parallel pass (below, a thread's start costs more than it saves).
+const MIN_CHUNK: usize = 1 << 18;
+
+/// GPU nodes a thread takes at least (each costs about half a microsecond to encode).
+const MIN_NODE_CHUNK: usize = 1 << 11;
 
 /// Rewrites `gpu_triangles` from `triangles` (each one's `triangle_index` record) and every node of `nodes` (a
 /// verified file's GPU tree, breadth first) bottom up: each slot's exact box (an inner slot's the union of its
@@ -42,7 +45,7 @@ pub(crate) fn refit_gpu(
         let (above, deeper) = content.split_at_mut(run.end);
         let run_content = &mut above[run.start..];
         let deeper: &[Bounds] = deeper;
-        let results = workers.for_chunks(&mut nodes[run.clone()], MIN_CHUNK / 16, |first, chunk| {
+        let results = workers.for_chunks(&mut nodes[run.clone()], MIN_NODE_CHUNK, |first, chunk| {
             let mut chunk_content = vec![EMPTY_BOUNDS; chunk.len()];
             let start = run.start + first;
             refit_run(chunk, &mut chunk_content, start, run.end, deeper, gpu_triangles, false).map(|()| chunk_content)

@@ -14,10 +14,9 @@ use crate::format::{
     SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
 };
 use crate::open::view::BvhView;
-use crate::open::view_mut::BvhViewMut;
 use crate::parallel::Workers;
 
-/// The sections of a [`BvhFile`] that an edit may rewrite, as typed mutable slices (`None`: the file has no such
+/// The sections of a file (`BvhFile::edit`, `BvhViewMut::edit`) that an edit may rewrite, as typed mutable slices (`None`: the file has no such
 /// section). Dropping it recomputes their checksums and the header's.
 pub struct SectionsMut<'a> {
     /// The `nodes` section.
@@ -71,15 +70,6 @@ const EDITABLE: [SectionKind; 9] = [
     SectionKind::TopNodes,
     SectionKind::TopWideNodes,
 ];
-
-impl BvhViewMut<'_> {
-    /// The file's geometric sections for writing in place ([`SectionsMut`]); the checksums are recomputed when
-    /// the returned value is dropped. An error only for a file whose sections overlap or are misaligned, which
-    /// opening refuses (rules V1-V10), so never for an opened file.
-    pub fn edit(&mut self) -> Result<SectionsMut<'_>, Error> {
-        SectionsMut::split(self.bytes_mut())
-    }
-}
 
 impl<'a> SectionsMut<'a> {
     /// `bytes` (an opened file's, V1-V10 holding) split into the editable sections.
@@ -190,9 +180,9 @@ impl SectionsMut<'_> {
         // The sections dealt to the threads largest first, each to the least loaded.
         let mut order: Vec<usize> = (0..self.entries.len()).collect();
         order.sort_by_key(|&k| std::cmp::Reverse(self.bytes_of(self.entries[k].1).len()));
-        // Below a few MiB in all, one thread hashes faster than two start.
+        // Below 32 MiB in all, one thread hashes about as fast as two start.
         let total: usize = self.entries.iter().map(|&(_, kind)| self.bytes_of(kind).len()).sum();
-        let threads = if total < 1 << 23 { 1 } else { workers.count().min(order.len()).max(1) };
+        let threads = if total < 1 << 25 { 1 } else { workers.count().min(order.len()).max(1) };
         let mut shares: Vec<(usize, Vec<usize>)> = vec![(0, Vec::new()); threads];
         for k in order {
             let lightest = shares.iter_mut().min_by_key(|(load, _)| *load);
@@ -226,7 +216,7 @@ impl SectionsMut<'_> {
 }
 
 impl Drop for SectionsMut<'_> {
-    /// Writes the checksums ([`SectionsMut::finish`] on one thread) unless `finish` did.
+    /// Writes the checksums (on one thread) unless the refit ended the edit with its own threads already.
     fn drop(&mut self) {
         if !self.finished {
             self.write_checksums(Workers::new(1));

@@ -31,9 +31,11 @@ impl<'a> BvhViewMut<'a> {
         unsafe { BvhView::open_unchecked(self.bytes) }
     }
 
-    /// The bytes, for an edit in place.
-    pub(crate) fn bytes_mut(&mut self) -> &mut [u8] {
-        self.bytes
+    /// The file's geometric sections for writing in place ([`SectionsMut`]); the checksums are recomputed when
+    /// the returned value is dropped. An error only for a file whose sections overlap or are misaligned, which
+    /// opening refuses (rules V1-V10), so never for an opened file.
+    pub fn edit(&mut self) -> Result<SectionsMut<'_>, Error> {
+        SectionsMut::split(self.bytes)
     }
 }
 

@@ -6,17 +6,17 @@ use crate::format::{PackedTriangle, SourceRange, SourceVertexIndices};
 use crate::parallel::Workers;
 
 /// Records a thread writes at least.
-const MIN_CHUNK: usize = 1 << 16;
+const MIN_CHUNK: usize = 1 << 18;
 
 /// Where a refit's triangles move to, in the file's space (the space of its triangle records: for a glTF scene
 /// the world space after each node's transform, which is what skinning produces).
 #[derive(Clone, Copy, Debug)]
 pub enum RefitPositions<'a> {
-    /// One triangle a record, in record order (`v0`, `v1`, `v2` as [`BvhView::triangles`] holds them).
+    /// One triangle a record, in record order (`v0`, `v1`, `v2` as [`crate::BvhView::triangles`] holds them).
     Triangles(&'a [[[f32; 3]; 3]]),
-    /// Per source range (the ranges of [`BvhView::source_table`], in order), the positions of its primitive's
+    /// Per source range (the ranges of [`crate::BvhView::source_table`], in order), the positions of its primitive's
     /// vertices indexed as the source primitive indexes them (the indices of the `source_vertices` section,
-    /// [`BvhView::source_corners`]), or `None` to leave that range's records where they are. What a skinning or
+    /// [`crate::BvhView::source_corners`]), or `None` to leave that range's records where they are. What a skinning or
     /// morphing pass produces for each mesh primitive. Needs a file written with source vertices (bvhc's
     /// default).
     SourceVertices(&'a [Option<&'a [[f32; 3]]>]),

@@ -9,7 +9,7 @@ use crate::format::{
 use crate::parallel::Workers;
 
 /// Packets, or nodes, a thread takes at least in a parallel pass.
-const MIN_CHUNK: usize = 1 << 15;
+const MIN_CHUNK: usize = 1 << 16;
 
 /// Rewrites `packets`' used lanes from `triangles` (each lane's `triangle_index` record) and every slot box of
 /// `nodes` (a verified file's wide tree, children after parents, V29-V30) bottom up, as the converter's packing

@@ -54,7 +54,7 @@ __all__ = [
 ]
 
 #: The cost ratio past which :meth:`Scene.refit` recommends converting again (``bvhc refit``'s default).
-REBUILD_COST_RATIO = 1.5
+REBUILD_COST_RATIO = 1.2
 
 #: ``triangle``, ``source_id`` and ``instance`` of a miss (and absent ids), as in ``format-spec/rays-and-hits.md``.
 MISS = 0xFFFFFFFF
