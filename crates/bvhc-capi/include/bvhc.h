@@ -235,7 +235,8 @@ bvhc_status bvhc_source_range_of(const bvhc_file *file, uint32_t source_triangle
  * threads (0 or 1: the calling thread). The report compares the refit tree's costs with the costs the file
  * states (NaN where it states none): rebuild (convert again) once cost_ratio passes a threshold, 1.2 by default
  * in bvhc. bvhc_move_instances places instances of a two-level file anew (3x4 row-major object-to-world maps,
- * 12 floats each). bvhc_write writes the file atomically with its stated costs recomputed, so it verifies.
+ * 12 floats each). bvhc_write writes the file atomically with its stated costs and checksums recomputed (a
+ * refit leaves both stale: bvhc_verify fails until then), so it verifies.
  * Refusals are BVHC_ERROR_ARGUMENT with the file unchanged, naming the record, range, vertex or instance. The
  * pointers of bvhc_get_sections stay valid (the arrays change in place). */
 typedef struct bvhc_refit_report {

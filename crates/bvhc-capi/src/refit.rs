@@ -1,6 +1,6 @@
 //! Moving geometry from C: refitting an open file to moved triangles (`bvhc_refit_triangles`, per record;
 //! `bvhc_refit_source_vertices`, per source vertex of each primitive), moving instances of a two-level file
-//! (`bvhc_move_instances`), and writing the result (`bvhc_write`, its costs recomputed so that it verifies).
+//! (`bvhc_move_instances`), and writing the result (`bvhc_write`, its costs and checksums recomputed so that it verifies).
 //! These change the file: they must not race with any other call on it (as `bvhc_close` must not); each makes
 //! the file's tracer again, so the next trace sees the new geometry.
 

@@ -18,11 +18,6 @@ impl Workers {
         Workers { count: threads.max(1) }
     }
 
-    /// The number of threads allowed.
-    pub(crate) fn count(&self) -> usize {
-        self.count
-    }
-
     /// Runs every task once, the first on the calling thread and each other on a thread of its own (callers pass
     /// at most [`Workers::count`] tasks), and returns their results in order.
     pub(crate) fn run<R: Send, F: FnOnce() -> R + Send>(&self, tasks: Vec<F>) -> Vec<R> {

@@ -1,7 +1,7 @@
 //! The binary layout's refit: every node's box recomputed from the triangle records beneath it, children before
 //! parents, keeping the tree's shape (which node holds which records).
 
-use crate::format::{EMPTY_BOUNDS, PackedNode, PackedTriangle, triangle_bounds, union_bounds};
+use crate::format::{EMPTY_BOUNDS, PackedNode, PackedTriangle, grow_bounds, union_bounds};
 use crate::parallel::Workers;
 
 /// Nodes a thread takes at least in the leaf pass.
@@ -17,8 +17,7 @@ pub(crate) fn refit_binary(nodes: &mut [PackedNode], triangles: &[PackedTriangle
         for node in chunk.iter_mut().filter(|n| n.is_leaf()) {
             let (first, count) = (node.index as usize, node.count as usize);
             let records = triangles.get(first..first.saturating_add(count)).unwrap_or(&[]);
-            (node.min, node.max) =
-                records.iter().fold(EMPTY_BOUNDS, |b, t| union_bounds(b, triangle_bounds(&t.vertices)));
+            (node.min, node.max) = records.iter().fold(EMPTY_BOUNDS, |b, t| grow_bounds(b, &t.vertices));
         }
     });
     for i in (0..nodes.len()).rev() {

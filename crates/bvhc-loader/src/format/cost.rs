@@ -77,3 +77,31 @@ pub fn wide_cost(root: Option<&PackedNode>, nodes: &[WideNode8], node_visit: f64
     }
     total / root_area
 }
+
+/// A tree's box areas as a refit sums them on its way (in its own order, so equal to the spec's running sums
+/// within rounding, not bit for bit): `inner`, the inner nodes' (or inner slots') areas; `leaf`, the leaves'
+/// areas each times its triangle count (binary) or packet count (wide).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct AreaSums {
+    pub inner: f64,
+    pub leaf: f64,
+}
+
+impl AreaSums {
+    /// The binary tree's cost (section 5.6) from its sums and its root's area.
+    pub(crate) fn binary_cost(&self, root_area: f64, c_t: f64, c_i: f64) -> BinaryCost {
+        if root_area <= 0.0 {
+            return BinaryCost { sah_cost: 0.0, inner_area_ratio: 0.0, leaf_area_ratio: 0.0 };
+        }
+        let (inner_area_ratio, leaf_area_ratio) = (self.inner / root_area, self.leaf / root_area);
+        BinaryCost { sah_cost: c_t * inner_area_ratio + c_i * leaf_area_ratio, inner_area_ratio, leaf_area_ratio }
+    }
+
+    /// The wide tree's cost (section 6.1) from its slots' sums and the binary root's area.
+    pub(crate) fn wide_cost(&self, root_area: f64, node_visit: f64, packet_test: f64) -> f64 {
+        if root_area <= 0.0 {
+            return 0.0;
+        }
+        (node_visit * (root_area + self.inner) + packet_test * self.leaf) / root_area
+    }
+}

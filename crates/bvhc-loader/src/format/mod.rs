@@ -120,6 +120,22 @@ pub(crate) fn union_bounds(a: Bounds, b: Bounds) -> Bounds {
     (std::array::from_fn(|k| a.0[k].min(b.0[k])), std::array::from_fn(|k| a.1[k].max(b.1[k])))
 }
 
+/// `bounds` grown to hold the points `points` (the refits' folds): one compare-and-select a coordinate, where
+/// `f32::min` costs four instructions for its NaN rule. A NaN coordinate is passed over (the comparison is false),
+/// as `f32::min` passes it over when the other operand is not NaN, so a fold from [`EMPTY_BOUNDS`] gives the box
+/// `f32::min` and `f32::max` give, but for which zero, `+0` or `-0`, a bound at zero takes.
+#[inline(always)]
+pub(crate) fn grow_bounds(mut bounds: Bounds, points: &[[f32; 3]]) -> Bounds {
+    for point in points {
+        for axis in 0..3 {
+            let value = point[axis];
+            bounds.0[axis] = if value < bounds.0[axis] { value } else { bounds.0[axis] };
+            bounds.1[axis] = if value > bounds.1[axis] { value } else { bounds.1[axis] };
+        }
+    }
+    bounds
+}
+
 /// The bounding box of a triangle's three vertices.
 pub(crate) fn triangle_bounds(v: &[[f32; 3]; 3]) -> Bounds {
     (

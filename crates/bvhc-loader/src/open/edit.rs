@@ -14,7 +14,6 @@ use crate::format::{
     SectionKind, SourceRange, SourceVertexIndices, TrianglePacket4, WideNode8,
 };
 use crate::open::view::BvhView;
-use crate::parallel::Workers;
 
 /// The sections of a file (`BvhFile::edit`, `BvhViewMut::edit`) that an edit may rewrite, as typed mutable slices (`None`: the file has no such
 /// section). Dropping it recomputes their checksums and the header's.
@@ -50,7 +49,7 @@ pub struct SectionsMut<'a> {
     /// The section table's stride and, per editable section, its table index.
     stride: usize,
     entries: Vec<(usize, SectionKind)>,
-    /// Whether the checksums were written already ([`SectionsMut::finish`]).
+    /// Whether the edit ended without recomputing the checksums (`end_without_checksums`).
     finished: bool,
 }
 
@@ -168,42 +167,20 @@ impl SectionsMut<'_> {
 }
 
 impl SectionsMut<'_> {
-    /// Ends the edit: the checksums recomputed now, the sections spread over `workers`' threads (what dropping
-    /// the edit does on one thread).
-    pub(crate) fn finish(mut self, workers: Workers) {
-        self.write_checksums(workers);
+    /// Ends the edit leaving the checksums as they were, so that they describe the bytes before it: for a refit,
+    /// whose file verifies again only once `BvhFile::rewritten` has recomputed the metadata's costs, which
+    /// computes the checksums too. Hashing every section of a large file costs about a tenth of its refit.
+    pub(crate) fn end_without_checksums(mut self) {
         self.finished = true;
     }
 
     /// Writes each editable section's checksum into its table entry, then the header's checksum.
-    fn write_checksums(&mut self, workers: Workers) {
-        // The sections dealt to the threads largest first, each to the least loaded.
-        let mut order: Vec<usize> = (0..self.entries.len()).collect();
-        order.sort_by_key(|&k| std::cmp::Reverse(self.bytes_of(self.entries[k].1).len()));
-        // Below 32 MiB in all, one thread hashes about as fast as two start.
-        let total: usize = self.entries.iter().map(|&(_, kind)| self.bytes_of(kind).len()).sum();
-        let threads = if total < 1 << 25 { 1 } else { workers.count().min(order.len()).max(1) };
-        let mut shares: Vec<(usize, Vec<usize>)> = vec![(0, Vec::new()); threads];
-        for k in order {
-            let lightest = shares.iter_mut().min_by_key(|(load, _)| *load);
-            if let Some((load, share)) = lightest {
-                *load += self.bytes_of(self.entries[k].1).len();
-                share.push(k);
-            }
-        }
-        let this: &SectionsMut<'_> = self;
-        let tasks: Vec<_> = shares
-            .iter()
-            .map(|(_, share)| {
-                move || {
-                    share.iter().map(|&k| (k, section_checksum(this.bytes_of(this.entries[k].1)))).collect::<Vec<_>>()
-                }
-            })
-            .collect();
-        let checksums = workers.run(tasks).concat();
+    fn write_checksums(&mut self) {
         let field = std::mem::offset_of!(SectionEntry, section_checksum);
-        for (k, checksum) in checksums {
-            let at = HEADER_BYTE_LEN + self.entries[k].0 * self.stride + field;
+        for index in 0..self.entries.len() {
+            let (table_index, kind) = self.entries[index];
+            let checksum = section_checksum(self.bytes_of(kind));
+            let at = HEADER_BYTE_LEN + table_index * self.stride + field;
             if let Some(slot) = self.table.get_mut(at..at + 8) {
                 slot.copy_from_slice(&checksum.to_le_bytes());
             }
@@ -216,10 +193,10 @@ impl SectionsMut<'_> {
 }
 
 impl Drop for SectionsMut<'_> {
-    /// Writes the checksums (on one thread) unless the refit ended the edit with its own threads already.
+    /// Writes the checksums, unless the edit ended without them ([`SectionsMut::end_without_checksums`]).
     fn drop(&mut self) {
         if !self.finished {
-            self.write_checksums(Workers::new(1));
+            self.write_checksums();
         }
     }
 }

@@ -26,11 +26,11 @@ use positions::MovedRecords;
 impl BvhViewMut<'_> {
     /// Moves the triangle records to `positions` and refits the file's layouts to them, on up to `threads`
     /// threads (the caller's included; 0 counts as 1): the binary nodes' boxes, the wide slots' boxes and packet
-    /// lanes, the GPU nodes' quantized boxes and triangles, each bottom up over the file's own tree, with the
-    /// checksums recomputed ([`BvhFile::edit`]). The result is the same for any thread count. Returns the refit
-    /// tree's costs beside those the file was converted with ([`RefitReport`]). The metadata's costs then still
-    /// describe the converted pose: a file that must pass `verify` (one to ship) is `BvhFile::rewritten`
-    /// (feature `write`), which recomputes them.
+    /// lanes, the GPU nodes' quantized boxes and triangles, each bottom up over the file's own tree. The result
+    /// is the same for any thread count. Returns the refit tree's costs beside those the file was converted with
+    /// ([`RefitReport`]). The metadata's costs then still describe the converted pose, and the checksums the bytes
+    /// before the refit (hashing the file each frame would buy nothing a tracer reads): a file that must pass
+    /// `verify` (one to ship) is `BvhFile::rewritten` (feature `write`), which recomputes both.
     ///
     /// Refused, with the file unchanged: a two-level file (its meshes are placed by instances, whose top tree a
     /// refit of the meshes would leave stale), a file with split references (its leaves hold clipped pieces of
@@ -68,7 +68,7 @@ impl BvhViewMut<'_> {
         if let (Some(nodes), Some(gpu_triangles)) = (edit.gpu_nodes.as_deref_mut(), edit.gpu_triangles.as_deref_mut()) {
             refit_gpu(nodes, gpu_triangles, triangles, workers)?;
         }
-        edit.finish(workers);
+        edit.end_without_checksums();
         Ok(RefitReport::of(&self.view(), workers))
     }
 }

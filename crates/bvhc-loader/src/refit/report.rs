@@ -7,11 +7,11 @@
 //! tree, 6.1 for the wide tree), each normalized by its root's area, so a scene that only grows or moves keeps its
 //! ratio at 1.
 
-use crate::format::PackedNode;
-use crate::format::cost::{BinaryCost, box_area};
+use crate::format::cost::{AreaSums, BinaryCost, box_area};
+use crate::format::{LEAF_BIT, WIDE, WideNode8};
 use crate::open::view::BvhView;
 use crate::parallel::Workers;
-use crate::verify::costs::stated_costs;
+use crate::verify::costs::{CostsOf, stated_costs};
 use crate::verify::metadata::parsed_metadata;
 
 /// A refit tree's costs beside the costs the file's metadata states (those of the tree at the pose it was
@@ -31,11 +31,13 @@ pub struct RefitReport {
 }
 
 impl RefitReport {
-    /// The costs of `view` (just refit) beside its metadata's, the binary tree's summed on `workers`' threads.
+    /// The costs of `view` (just refit) beside its metadata's, its trees' areas summed per chunk of nodes on
+    /// `workers`' threads.
     pub(crate) fn of(view: &BvhView<'_>, workers: Workers) -> RefitReport {
         let mut report = RefitReport { cost: None, file_cost: None, wide_cost: None, file_wide_cost: None };
         let Ok(Some(metadata)) = parsed_metadata(view) else { return report };
-        for stated in stated_costs(view, &metadata, |c_t, c_i| binary_cost_in_chunks(view.nodes(), c_t, c_i, workers)) {
+        let sums = RefitSums::of(view, workers);
+        for stated in stated_costs(view, &metadata, &sums) {
             match stated.name {
                 "cost.sah_cost" => {
                     (report.cost, report.file_cost) = (Some(stated.computed), Some(stated.stated.value()))
@@ -61,23 +63,52 @@ impl RefitReport {
     }
 }
 
-/// [`crate::format::cost::binary_cost`] summed per chunk of nodes on `workers`' threads, then over the chunks:
-/// the same sums in another order, so equal to the spec's running sum within rounding (far inside V37's
-/// tolerance), not bit for bit.
-fn binary_cost_in_chunks(nodes: &[PackedNode], c_t: f64, c_i: f64, workers: Workers) -> BinaryCost {
-    let root_area = nodes.first().map_or(0.0, |root| box_area(&root.min, &root.max));
-    if root_area <= 0.0 {
-        return BinaryCost { sah_cost: 0.0, inner_area_ratio: 0.0, leaf_area_ratio: 0.0 };
+/// A refit file's box areas, summed per chunk of nodes, as the costs the metadata's rule compares (sections 5.6
+/// and 6.1): the same sums in another order than the spec's running sums, so equal to them within rounding (far
+/// inside V37's tolerance), not bit for bit.
+struct RefitSums {
+    root_area: f64,
+    binary: AreaSums,
+    wide: AreaSums,
+}
+
+impl RefitSums {
+    fn of(view: &BvhView<'_>, workers: Workers) -> RefitSums {
+        let nodes = view.nodes();
+        let root_area = nodes.first().map_or(0.0, |root| box_area(&root.min, &root.max));
+        let binary = workers.map_chunks(nodes, 1 << 18, |_, chunk| {
+            chunk.iter().fold(AreaSums::default(), |sums, node| {
+                let area = box_area(&node.min, &node.max);
+                match node.count {
+                    0 => AreaSums { inner: sums.inner + area, ..sums },
+                    count => AreaSums { leaf: sums.leaf + area * f64::from(count), ..sums },
+                }
+            })
+        });
+        let wide_nodes = view.wide_sections().map_or(&[][..], |sections| sections.nodes);
+        let wide = wide_nodes.iter().flat_map(|node| (0..WIDE).filter_map(|slot| node.slot(slot))).fold(
+            AreaSums::default(),
+            |sums, ((min, max), child)| {
+                let area = box_area(&min, &max);
+                match child & LEAF_BIT {
+                    0 => AreaSums { inner: sums.inner + area, ..sums },
+                    _ => AreaSums { leaf: sums.leaf + area * f64::from(WideNode8::leaf_packets(child).1), ..sums },
+                }
+            },
+        );
+        let add = |a: AreaSums, b: &AreaSums| AreaSums { inner: a.inner + b.inner, leaf: a.leaf + b.leaf };
+        RefitSums { root_area, binary: binary.iter().fold(AreaSums::default(), add), wide }
     }
-    let sums = workers.map_chunks(nodes, 1 << 18, |_, chunk| {
-        chunk.iter().fold((0.0f64, 0.0f64), |(inner, leaf), node| {
-            let area = box_area(&node.min, &node.max);
-            if node.is_leaf() { (inner, leaf + area * f64::from(node.count)) } else { (inner + area, leaf) }
-        })
-    });
-    let (inner, leaf) = sums.iter().fold((0.0, 0.0), |(i, l), &(ci, cl)| (i + ci, l + cl));
-    let (inner_area_ratio, leaf_area_ratio) = (inner / root_area, leaf / root_area);
-    BinaryCost { sah_cost: c_t * inner_area_ratio + c_i * leaf_area_ratio, inner_area_ratio, leaf_area_ratio }
+}
+
+impl CostsOf for RefitSums {
+    fn binary(&self, c_t: f64, c_i: f64) -> BinaryCost {
+        self.binary.binary_cost(self.root_area, c_t, c_i)
+    }
+
+    fn wide(&self, node_visit: f64, packet_test: f64) -> f64 {
+        self.wide.wide_cost(self.root_area, node_visit, packet_test)
+    }
 }
 
 /// When a refit tree has decayed enough that converting the posed geometry again pays: past a cost ratio

@@ -33,13 +33,9 @@ pub(crate) fn close(stated: f64, computed: f64) -> bool {
 /// `cost.inner_area_ratio` and `cost.leaf_area_ratio` (section 5.6, under `cost.c_t` and `cost.c_i`, 3 and 2
 /// when absent), and `wide.cost` (section 6.1, under `build.wide`'s `node_visit` and `packet_test`, 1 when
 /// absent) where the file has wide sections and the metadata `build.wide`. None for a two-level file (1.3
-/// defines no cost for one), and none for a member whose value is not a number. `binary` computes the binary
-/// tree's cost under `(c_t, c_i)` ([`binary_cost`] of the view's nodes, or a faster sum in another order).
-pub(crate) fn stated_costs<'m>(
-    view: &BvhView<'_>,
-    metadata: &'m Map,
-    binary: impl Fn(f64, f64) -> BinaryCost,
-) -> Vec<StatedCost<'m>> {
+/// defines no cost for one), and none for a member whose value is not a number. `computed` gives the costs the
+/// file's sections make them: [`FileCosts`] sums them in the spec's order, a refit from the sums it kept.
+pub(crate) fn stated_costs<'m>(view: &BvhView<'_>, metadata: &'m Map, computed: &impl CostsOf) -> Vec<StatedCost<'m>> {
     let mut stated = Vec::new();
     if view.two_level().is_some() {
         return stated;
@@ -47,7 +43,7 @@ pub(crate) fn stated_costs<'m>(
     let number_of = |record: &'m Map, key: &str| record.get(key).and_then(Value::as_number);
     if let Some(record) = metadata.object("cost") {
         let (c_t, c_i) = (record.number("c_t").unwrap_or(3.0), record.number("c_i").unwrap_or(2.0));
-        let cost = binary(c_t, c_i);
+        let cost = computed.binary(c_t, c_i);
         for (name, key, computed) in [
             ("cost.sah_cost", "sah_cost", cost.sah_cost),
             ("cost.inner_area_ratio", "inner_area_ratio", cost.inner_area_ratio),
@@ -60,13 +56,35 @@ pub(crate) fn stated_costs<'m>(
     }
     let number = metadata.object("wide").and_then(|wide| number_of(wide, "cost"));
     let constants = metadata.object("build").and_then(|build| build.object("wide"));
-    if let (Some(number), Some(constants), Some(sections)) = (number, constants, view.wide_sections()) {
+    if let (Some(number), Some(constants), Some(_)) = (number, constants, view.wide_sections()) {
         let node_visit = constants.number("node_visit").unwrap_or(1.0);
         let packet_test = constants.number("packet_test").unwrap_or(1.0);
-        let computed = wide_cost(view.nodes().first(), sections.nodes, node_visit, packet_test);
+        let computed = computed.wide(node_visit, packet_test);
         stated.push(StatedCost { name: "wide.cost", stated: number, computed, of: "wide tree" });
     }
     stated
+}
+
+/// The costs of a file's trees under given constants (sections 5.6 and 6.1).
+pub(crate) trait CostsOf {
+    /// The binary tree's cost under `c_t` and `c_i`.
+    fn binary(&self, c_t: f64, c_i: f64) -> BinaryCost;
+    /// The wide tree's cost under `node_visit` and `packet_test` (called only for a file with wide sections).
+    fn wide(&self, node_visit: f64, packet_test: f64) -> f64;
+}
+
+/// The costs of a view's trees summed as the spec states them ([`binary_cost`], [`wide_cost`]), bit for bit.
+pub(crate) struct FileCosts<'v, 'a>(pub &'v BvhView<'a>);
+
+impl CostsOf for FileCosts<'_, '_> {
+    fn binary(&self, c_t: f64, c_i: f64) -> BinaryCost {
+        binary_cost(self.0.nodes(), c_t, c_i)
+    }
+
+    fn wide(&self, node_visit: f64, packet_test: f64) -> f64 {
+        let nodes = self.0.wide_sections().map_or(&[][..], |sections| sections.nodes);
+        wide_cost(self.0.nodes().first(), nodes, node_visit, packet_test)
+    }
 }
 
 /// V37: `cost` and `wide.cost` equal the costs recomputed from the file; a two-level file states neither.
@@ -78,7 +96,7 @@ pub(crate) fn verify_costs(view: &BvhView<'_>, metadata: &Map) -> Result<(), Vio
             "metadata cost or wide.cost in a two-level file, for which 1.3 defines no cost".to_string(),
         ));
     }
-    match stated_costs(view, metadata, |c_t, c_i| binary_cost(view.nodes(), c_t, c_i))
+    match stated_costs(view, metadata, &FileCosts(view))
         .into_iter()
         .find(|cost| !close(cost.stated.value(), cost.computed))
     {

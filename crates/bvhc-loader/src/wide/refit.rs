@@ -63,23 +63,23 @@ fn write_lanes(packet: &mut TrianglePacket4, triangles: &[PackedTriangle]) {
     }
 }
 
-/// The box of a packet's used lanes: unused lanes hold NaN coordinates (`UNUSED_LANE_COORDINATE_BITS`), which
-/// `f32::min` and `f32::max` pass over, so all four lanes are folded alike (and vectorize).
+/// The box of a packet's used lanes: an unused lane holds NaN in every coordinate (`UNUSED_LANE_COORDINATE_BITS`),
+/// which the comparisons pass over (`value < bound` is false for a NaN), so all four lanes are folded alike, a
+/// compare-and-select a lane (the lanes vectorize).
 fn packet_bounds(packet: &TrianglePacket4) -> Bounds {
-    let mut lowest = [[f32::INFINITY; PACKET_LANES]; 3];
-    let mut highest = [[f32::NEG_INFINITY; PACKET_LANES]; 3];
-    for vertex in &packet.vertices {
-        for axis in 0..3 {
-            for lane in 0..PACKET_LANES {
-                lowest[axis][lane] = lowest[axis][lane].min(vertex[axis][lane]);
-                highest[axis][lane] = highest[axis][lane].max(vertex[axis][lane]);
-            }
-        }
-    }
-    (
-        lowest.map(|l| l.into_iter().fold(f32::INFINITY, f32::min)),
-        highest.map(|h| h.into_iter().fold(f32::NEG_INFINITY, f32::max)),
-    )
+    type Four = [f32; PACKET_LANES];
+    let lower = |a: Four, b: Four| -> Four { std::array::from_fn(|i| if b[i] < a[i] { b[i] } else { a[i] }) };
+    let upper = |a: Four, b: Four| -> Four { std::array::from_fn(|i| if b[i] > a[i] { b[i] } else { a[i] }) };
+    let [v0, v1, v2] = &packet.vertices;
+    let low: [Four; 3] =
+        std::array::from_fn(|a| lower(lower([f32::INFINITY; PACKET_LANES], v0[a]), lower(v1[a], v2[a])));
+    let high: [Four; 3] =
+        std::array::from_fn(|a| upper(upper([f32::NEG_INFINITY; PACKET_LANES], v0[a]), upper(v1[a], v2[a])));
+    // Across the lanes: pairs, then the two halves.
+    let across = |l: Four, pick: fn(f32, f32) -> f32| pick(pick(l[0], l[2]), pick(l[1], l[3]));
+    let min = |a: f32, b: f32| if b < a { b } else { a };
+    let max = |a: f32, b: f32| if b > a { b } else { a };
+    (low.map(|l| across(l, min)), high.map(|h| across(h, max)))
 }
 
 /// A wide node's box: the union of its eight slots' boxes (empty slots hold the empty box `+inf..-inf`, V29, so

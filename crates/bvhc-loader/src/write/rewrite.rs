@@ -3,10 +3,9 @@
 //! metadata's new length, and verifies the result.
 
 use crate::error::{Error, violation};
-use crate::format::cost::binary_cost;
 use crate::open::file::BvhFile;
 use crate::open::view::BvhView;
-use crate::verify::costs::stated_costs;
+use crate::verify::costs::{FileCosts, stated_costs};
 use crate::verify::json::parse_object;
 use crate::write::writer::BvhWriter;
 
@@ -43,7 +42,7 @@ fn metadata_with_costs(view: &BvhView<'_>, text: &str) -> Result<String, Error> 
     let unreadable = |e: String| violation(crate::error::Rule::Metadata, format!("metadata section: {e}"));
     let metadata = parse_object(text).map_err(unreadable)?;
     let mut replacements = Vec::new();
-    for cost in stated_costs(view, &metadata, |c_t, c_i| binary_cost(view.nodes(), c_t, c_i)) {
+    for cost in stated_costs(view, &metadata, &FileCosts(view)) {
         if cost.stated.value().to_bits() == cost.computed.to_bits() {
             continue;
         }

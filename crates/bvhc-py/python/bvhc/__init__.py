@@ -453,8 +453,8 @@ class Scene:
         self._native.move_instances(indices, np.ascontiguousarray(transforms, dtype=np.float32))
 
     def write(self, path: PathLike) -> None:
-        """Write the file to ``path`` atomically with the costs its metadata states recomputed, so that a refit
-        or moved file passes ``bvhc verify``."""
+        """Write the file to ``path`` atomically with the costs its metadata states and its checksums recomputed
+        (a refit leaves both stale, so :meth:`verify` fails on the scene itself), so that it passes ``bvhc verify``."""
         self._native.write(os.fspath(path))
 
     def __repr__(self) -> str:
