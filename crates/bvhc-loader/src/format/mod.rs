@@ -127,8 +127,7 @@ pub(crate) fn union_bounds(a: Bounds, b: Bounds) -> Bounds {
 #[inline(always)]
 pub(crate) fn grow_bounds(mut bounds: Bounds, points: &[[f32; 3]]) -> Bounds {
     for point in points {
-        for axis in 0..3 {
-            let value = point[axis];
+        for (axis, &value) in point.iter().enumerate() {
             bounds.0[axis] = if value < bounds.0[axis] { value } else { bounds.0[axis] };
             bounds.1[axis] = if value > bounds.1[axis] { value } else { bounds.1[axis] };
         }
