@@ -193,7 +193,7 @@ impl SectionsMut<'_> {
 }
 
 impl Drop for SectionsMut<'_> {
-    /// Writes the checksums, unless the edit ended without them ([`SectionsMut::end_without_checksums`]).
+    /// Writes the checksums, unless the edit ended without them (a refit's).
     fn drop(&mut self) {
         if !self.finished {
             self.write_checksums();
