@@ -11,6 +11,9 @@
 //!    rays/s of the refit file against a fresh conversion of the bent geometry (uniform rays through the scene's
 //!    box and a camera's primary rays, one thread, median of 5).
 //!
+//! 4. Split references (`BVHC_REFIT_SPLITS`, default on; `0` skips it): the default conversion (split references
+//!    allowed) refit to its own positions, which grows each reference's boxes to its whole triangle: the cost
+//!    ratio and closest-hit Mrays/s before and after.
 //! 3. Instances: ms to move every instance (and 1 in 100) of a generated two-level file of 10,000 instances
 //!    (`BvhFile::move_instances`: records, world boxes, both top trees, checksums).
 //!
@@ -200,6 +203,30 @@ fn instances_table(dir: &Path, runs: usize) {
     println!("| {} (1 in 100) | {:.3} |", some.len(), some_ms.as_secs_f64() * 1e3);
 }
 
+/// The split-reference table's row for `path`, or `None` when its default conversion has no split reference.
+fn split_row(name: &str, path: &Path, dir: &Path) -> Option<String> {
+    let output = dir.join(format!("{name}-split.bvh"));
+    let overrides = Overrides { instancing: Some(Instancing::Never), ..Overrides::default() };
+    bvhc::Conversion::new(path, &output).overrides(overrides).run().expect("the scene converts");
+    let file = BvhFile::read(&output).expect("the conversion reads back");
+    if !file.view().has_split_references() {
+        return None;
+    }
+    let positions: Vec<[[f32; 3]; 3]> = file.view().triangles().iter().map(|t| t.vertices).collect();
+    let mut refit = BvhFile::from_bytes(file.as_bytes()).expect("a copy");
+    let report = refit.refit(RefitPositions::Triangles(&positions), 2).expect("the scene refits");
+    let root = file.view().nodes()[0];
+    let uniform = rays::uniform_rays(&root, 200_000, 7);
+    let camera = rays::camera_rays(&root, 400, 300);
+    let (before_uniform, after_uniform) = (speed(&file, &uniform), speed(&refit, &uniform));
+    let (before_camera, after_camera) = (speed(&file, &camera), speed(&refit, &camera));
+    Some(format!(
+        "| {name} | {} | {:.3} | {before_uniform:.2} -> {after_uniform:.2} | {before_camera:.2} -> {after_camera:.2} |",
+        positions.len(),
+        report.cost_ratio()
+    ))
+}
+
 /// Closest-hit Mrays/s of `file` over `rays` (one thread, median of 5).
 fn speed(file: &BvhFile, rays: &[bvhc::loader::Ray]) -> f64 {
     harness::batch_speed(rays, &file.view().tracer(), true, false, 5)
@@ -264,6 +291,18 @@ fn main() {
         }
     }
     instances_table(dir.path(), runs);
+    if std::env::var("BVHC_REFIT_SPLITS").map_or(true, |v| v != "0") {
+        println!("\nSplit references: the default conversion refit to its own positions (each reference boxed as its");
+        println!("whole triangle), cost ratio and closest-hit Mrays/s before -> after:\n");
+        println!("| scene | records | cost ratio | uniform rays | camera rays |");
+        println!("|---|---|---|---|---|");
+        for (name, path) in &scenes {
+            match split_row(name, path, dir.path()) {
+                Some(row) => println!("{row}"),
+                None => println!("| {name} | (no split reference in its default conversion) | | | |"),
+            }
+        }
+    }
     if curve {
         println!("\nDecay: the refit tree's cost ratio and closest-hit Mrays/s, refit / fresh conversion:\n");
         println!("| scene | bend, radians | cost ratio | uniform rays | camera rays |");

@@ -195,11 +195,16 @@ fn what_refit_cannot_take_is_refused_naming_why_with_nothing_written() {
     refused(&grid_file, &turned_obj, "triangle 0 has the vertices");
     // The glTF asset against the OBJ's file: other primitives.
     refused(&grid_file, &rest, "the file has 1 source ranges (primitives placed), the asset 2");
-    // Split references, and no ids.
+    // A file with split references refits each reference to its whole triangle (tests/suite/refit.rs); without
+    // ids, refused.
     let split = dir.path().join("split.bvh");
     convert(&teapot(), &split, &["--split-budget", "1"]);
     assert!(BvhFile::read(&split).unwrap().view().has_split_references());
-    refused(&split, &teapot(), "--no-splits");
+    let split_out = dir.path().join("split-out.bvh");
+    let run = bvhc(&[&"refit", &split, &"--positions", &teapot(), &"-o", &split_out]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    BvhFile::read(&split_out).unwrap().view().verify().unwrap();
+    std::fs::remove_file(&split_out).unwrap();
     let bare = dir.path().join("bare.bvh");
     convert(&full_obj, &bare, &["--no-splits", "--no-ids"]);
     refused(&bare, &full_obj, "no triangle ids");

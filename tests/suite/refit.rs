@@ -17,7 +17,9 @@ type Triangle = [[f32; 3]; 3];
 fn teapot(dir: &std::path::Path, splits: bool) -> BvhFile {
     let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
     let output = dir.join(if splits { "split.bvh" } else { "teapot.bvh" });
-    let overrides = Overrides { splits: Some(splits), gpu_layout: Some(true), ..Overrides::default() };
+    let budget = splits.then_some(1.0);
+    let overrides =
+        Overrides { splits: Some(splits), split_budget: budget, gpu_layout: Some(true), ..Overrides::default() };
     bvhc::Conversion::new(teapot, &output).preset(Preset::Balanced).overrides(overrides).run().unwrap();
     BvhFile::read(&output).unwrap()
 }
@@ -158,6 +160,29 @@ fn a_refit_to_moved_triangles_equals_a_re_encoding_and_traces_them_on_every_kern
 }
 
 #[test]
+fn a_file_with_split_references_refits_each_reference_to_its_whole_triangle() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = teapot(dir.path(), true);
+    assert!(original.view().has_split_references());
+    let ids: Vec<u32> = (0..original.view().triangles().len() as u32).collect();
+    // At its own positions: every layout's boxes now hold whole triangles, a looser tree than the pieces'.
+    let mut own = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    let report = own.refit_triangles(&positions(&original)).unwrap();
+    assert!(report.cost_ratio() > 1.0, "{report:?}");
+    own.rewritten().unwrap().view().verify().unwrap();
+    // Bent: a function of each vertex, so a triangle's references move alike; the hits are the bent triangles'.
+    let moved = bent(&positions(&original));
+    let mut refit = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    refit.refit(RefitPositions::Triangles(&moved), 2).unwrap();
+    let shipped = refit.rewritten().unwrap();
+    shipped.view().verify().unwrap();
+    let rays = random_rays(79, 2000, 4.0);
+    for tracer in every_kernel(&shipped.view()) {
+        assert!(assert_matches_brute_force(&tracer, &moved, &rays, &ids) > 100);
+    }
+}
+
+#[test]
 fn what_a_refit_cannot_take_is_refused_with_the_file_unchanged() {
     let dir = tempfile::tempdir().unwrap();
     let mut file = teapot(dir.path(), false);
@@ -176,13 +201,29 @@ fn what_a_refit_cannot_take_is_refused_with_the_file_unchanged() {
     infinite[3][0][0] = f32::INFINITY;
     assert!(refused(&mut file, &infinite).contains("triangle record 3"));
     assert_eq!(file.as_bytes(), &before[..], "a refused refit leaves the file as it was");
-    // Split references (the golden file of section 12's fourth dump): a leaf's box holds a clipped piece of a
-    // triangle, not the triangle.
+    // Split references (the golden file of section 12's fourth dump): the references of one triangle must move
+    // alike, and without ids they cannot be told apart.
     let golden = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/golden");
     let mut split = BvhFile::read(golden.join("split-v1.1.bvh")).unwrap();
     assert!(split.view().has_split_references());
-    let split_positions = positions(&split);
-    assert!(refused(&mut split, &split_positions).contains("split references"));
+    let ids = split.view().triangle_ids().unwrap().to_vec();
+    let (a, b) = (0..ids.len())
+        .flat_map(|a| (a + 1..ids.len()).map(move |b| (a, b)))
+        .find(|&(a, b)| ids[a] == ids[b])
+        .expect("a split triangle");
+    let mut apart = positions(&split);
+    apart[b][0][0] += 0.25;
+    let why = refused(&mut split, &apart);
+    assert!(why.contains(&format!("triangle records {a} and {b} are references of one triangle")), "{why}");
+    let output = dir.path().join("split-no-ids.bvh");
+    let teapot_obj = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
+    let overrides =
+        Overrides { splits: Some(true), split_budget: Some(1.0), write_ids: Some(false), ..Overrides::default() };
+    bvhc::Conversion::new(teapot_obj, &output).overrides(overrides).run().unwrap();
+    let mut no_ids = BvhFile::read(&output).unwrap();
+    assert!(no_ids.view().has_split_references());
+    let no_ids_positions = positions(&no_ids);
+    assert!(refused(&mut no_ids, &no_ids_positions).contains("no triangle ids"));
     // Two levels (the golden two-level file): the meshes are placed by instances.
     let mut two_level = BvhFile::read(golden.join("instances-v1.3.bvh")).unwrap();
     assert!(two_level.view().two_level().is_some());

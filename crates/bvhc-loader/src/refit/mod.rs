@@ -32,10 +32,15 @@ impl BvhViewMut<'_> {
     /// before the refit (hashing the file each frame would buy nothing a tracer reads): a file that must pass
     /// `verify` (one to ship) is `BvhFile::rewritten` (feature `write`), which recomputes both.
     ///
+    /// A file with split references (its leaves hold clipped pieces of triangles) refits each reference to its
+    /// whole moved triangle: correct (every rule on split references asks a leaf's box to meet or cover its
+    /// pieces, and a box of the whole triangle does), but the pieces' tighter boxes are lost, so its cost ratio
+    /// starts above 1 even at the file's own positions (`docs/loader.md` measures it); convert meshes meant to
+    /// deform with `--no-splits`. The references of one triangle (one id) must move alike.
+    ///
     /// Refused, with the file unchanged: a two-level file (its meshes are placed by instances, whose top tree a
-    /// refit of the meshes would leave stale), a file with split references (its leaves hold clipped pieces of
-    /// triangles, whose boxes are not the triangles' own; convert with `--no-splits` for meshes meant to deform),
-    /// positions that do not fit the file (a count other than the records' or the source ranges', a source
+    /// refit of the meshes would leave stale), a file with split references but no ids, references of one
+    /// triangle given different positions (naming both records), positions that do not fit the file (a count other than the records' or the source ranges', a source
     /// vertex index past its range's positions, a file without source vertices for
     /// [`RefitPositions::SourceVertices`]) or a coordinate that is not finite, each naming the record, range or
     /// vertex. An error from the GPU layout (a box too large for its grid) leaves the file partly refit: refit a
@@ -49,13 +54,19 @@ impl BvhViewMut<'_> {
                     .into(),
             ));
         }
-        if view.has_split_references() {
+        let split = view.has_split_references();
+        if split && view.triangle_ids().is_none() {
             return Err(Error::Refit(
-                "the file has split references (leaves of clipped triangle pieces); convert with --no-splits".into(),
+                "the file has split references but no triangle ids, so a moved triangle's references cannot be \
+                 told apart from other triangles'; convert with --no-splits (or without --no-ids)"
+                    .into(),
             ));
         }
-        MovedRecords::new(positions, view.source_table(), view.triangle_ids(), view.source_vertices())?
-            .check(view.triangles().len())?;
+        let moved = MovedRecords::new(positions, view.source_table(), view.triangle_ids(), view.source_vertices())?;
+        moved.check(view.triangles().len())?;
+        if let (true, Some(ids)) = (split, view.triangle_ids()) {
+            moved.check_references_agree(ids)?;
+        }
         let workers = Workers::new(threads);
         let mut edit = self.edit()?;
         MovedRecords::new(positions, edit.source_table, edit.triangle_ids, edit.source_vertices)?

@@ -132,6 +132,33 @@ impl<'a> MovedRecords<'a> {
         }
     }
 
+    /// Checks that the records of one source id (a split triangle's references) move to the same positions,
+    /// naming the first two records that do not. Positions per source vertex always agree (V40: one id, one set
+    /// of source vertices).
+    pub(crate) fn check_references_agree(&self, ids: &[u32]) -> Result<(), Error> {
+        let MovedRecords::Triangles(triangles) = self else { return Ok(()) };
+        let id_count = ids.iter().map(|&id| id as usize + 1).max().unwrap_or(0);
+        let mut first_record = vec![u32::MAX; id_count];
+        for (record, &id) in ids.iter().enumerate() {
+            let Some(first) = first_record.get_mut(id as usize) else { continue };
+            if *first == u32::MAX {
+                *first = record as u32;
+            } else if triangles[*first as usize]
+                .as_flattened()
+                .iter()
+                .map(|c| c.to_bits())
+                .ne(triangles[record].as_flattened().iter().map(|c| c.to_bits()))
+            {
+                return Err(Error::Refit(format!(
+                    "triangle records {} and {record} are references of one triangle (source id {id}) given \
+                     different positions",
+                    *first
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// Writes the new vertices into `records` (all of the file's, in order), on `workers`' threads.
     pub(crate) fn write(&self, records: &mut [PackedTriangle], workers: Workers) {
         workers.for_chunks(records, MIN_CHUNK, |first, chunk| match self {

@@ -425,8 +425,9 @@ class Scene:
         max_cost_ratio: float = REBUILD_COST_RATIO,
     ) -> Dict[str, Any]:
         """Move the triangle records and refit the file's trees in place, keeping their shape (skinned or
-        morphed meshes, each frame). The scene must be opened with ``writable=True``; one-level files without
-        split references (convert with ``no_splits=True``).
+        morphed meshes, each frame). The scene must be opened with ``writable=True``; one-level files (with
+        split references, each reference is boxed as its whole triangle: convert meshes meant to deform with
+        ``splits=False`` for tighter trees).
 
         ``positions``: ``(n, 3, 3)`` float32, C-contiguous (read in place), one triangle a record in record
         order (as :attr:`triangles` holds them). Or ``source_vertices``: for each source range
