@@ -18,7 +18,7 @@ mod spatial_median;
 mod sweep;
 
 pub use binned_sah::{BIN_COUNT, MEDIAN_FALLBACK_DEPTH, build_binned_sah, build_binned_sah_boxes};
-pub use presplit::{MAX_BUDGET, References, split_triangles, split_triangles_with};
+pub use presplit::{MAX_BUDGET, References, split_triangles, split_triangles_keeping, split_triangles_with};
 pub use spatial_median::{build_spatial_median, build_spatial_median_boxes};
 
 use crate::build_tree::BuildTree;

@@ -68,11 +68,26 @@ pub fn split_triangles(triangles: &[[[f32; 3]; 3]], budget: f64) -> References {
 /// [`split_triangles`] with another waste threshold than [`super::WASTEFUL_RATIO_PRE_SPLIT`]: only triangles whose pieces could
 /// remove at least `min_waste_ratio` of their box's area are cut (0: any triangle a grid plane crosses).
 pub fn split_triangles_with(triangles: &[[[f32; 3]; 3]], budget: f64, min_waste_ratio: f64) -> References {
+    split_triangles_keeping(triangles, budget, min_waste_ratio, &[])
+}
+
+/// [`split_triangles_with`] leaving whole every triangle `t` with `whole[t]` (geometry meant to deform; a
+/// shorter `whole` leaves the rest free to be cut).
+pub fn split_triangles_keeping(
+    triangles: &[[[f32; 3]; 3]],
+    budget: f64,
+    min_waste_ratio: f64,
+    whole: &[bool],
+) -> References {
     let budget = if budget.is_nan() { 0.0 } else { budget.clamp(0.0, MAX_BUDGET) };
     let scene = triangles.par_iter().map(Aabb::of_triangle).reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
     let grid = Grid::new(&scene);
     let scene_area = scene.surface_area();
-    let priorities: Vec<f64> = triangles.par_iter().map(|t| priority(t, &grid, scene_area, min_waste_ratio)).collect();
+    let priorities: Vec<f64> = triangles
+        .par_iter()
+        .enumerate()
+        .map(|(t, v)| if whole.get(t) == Some(&true) { 0.0 } else { priority(v, &grid, scene_area, min_waste_ratio) })
+        .collect();
     let extra = (budget * triangles.len() as f64) as u64;
     let lambda = largest_lambda(&priorities, extra);
     let pieces: Vec<(u32, Aabb)> = triangles

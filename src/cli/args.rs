@@ -209,6 +209,10 @@ pub struct OptionArgs {
     /// with max-quality].
     #[arg(long, value_enum, help_heading = "Splits")]
     pub split_triangles: Option<SplitTriangles>,
+    /// No split references in geometry meant to deform (glTF primitives of skinned nodes or with morph targets),
+    /// whose records a refit then boxes tightly; the rest of the scene may still be cut.
+    #[arg(long, help_heading = "Splits")]
+    pub no_splits_deforming: bool,
     /// Skip the optimizer (the built tree is written as built).
     #[arg(long, help_heading = "Optimize")]
     pub no_optimize: bool,
@@ -285,6 +289,7 @@ impl OptionArgs {
             split_budget: self.split_budget,
             split_method: self.split_method,
             split_triangles: self.split_triangles,
+            splits_deforming: given(self.no_splits_deforming),
             optimize: given(self.no_optimize),
             selection: self.selection,
             time_budget: self.time_budget,

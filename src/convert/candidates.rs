@@ -12,8 +12,8 @@ use bvhc_loader::format::MAX_DEPTH;
 
 use super::report::{CandidateCost, Choice, ConvertError, Event, Stage, Timings};
 use crate::build_tree::BuildTree;
-use crate::builders::sbvh::{SbvhParams, build_sbvh};
-use crate::builders::split_triangles_with;
+use crate::builders::sbvh::{SbvhParams, build_sbvh_keeping};
+use crate::builders::split_triangles_keeping;
 use crate::layout::{WideCosts, WideTree, cluster_roots, collapse, collapse_by, collapse_references};
 use crate::optimize::{OptTree, OptimizeReport, Progress, StopReason, optimize, optimize_over_clusters};
 use crate::options::preset::CLUSTER_SIZE;
@@ -80,6 +80,7 @@ impl Contest {
 pub(super) fn best_candidate(
     input: &Path,
     triangles: &[[[f32; 3]; 3]],
+    whole: &[bool],
     options: &ConvertOptions,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
@@ -107,7 +108,7 @@ pub(super) fn best_candidate(
     let mut sample: Option<RaySample> = None;
     let mut contest = Contest { best: None, costs: Vec::new() };
     'search: for &cut in builds {
-        let (mut built, reference_count) = build_stage(input, triangles, &shared, cut, observer, timings)?;
+        let (mut built, reference_count) = build_stage(input, triangles, whole, &shared, cut, observer, timings)?;
         let cut_label = match cut {
             None => "none",
             Some(false) => SplitTriangles::Wasteful.name(),
@@ -150,10 +151,11 @@ pub(super) fn best_candidate(
 
 /// The build stage: the initial tree and the number of references it holds. `cut` is `None` for a build without
 /// split references, else whether any triangle worth cutting may be cut (else only triangles that waste a large
-/// part of their box); split references need `options.splits`.
+/// part of their box); split references need `options.splits`. The triangles `whole` marks are never cut.
 fn build_stage(
     input: &Path,
     triangles: &[[[f32; 3]; 3]],
+    whole: &[bool],
     options: &ConvertOptions,
     cut: Option<bool>,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
@@ -166,14 +168,14 @@ fn build_stage(
     let (build, reference_count) = match cut.and(options.splits) {
         Some(SplitOptions { budget, method: SplitMethod::PreSplit, .. }) => {
             let ratio = if any_triangle { 0.0 } else { SplitMethod::PreSplit.wasteful_ratio() };
-            let references = split_triangles_with(triangles, budget, ratio);
+            let references = split_triangles_keeping(triangles, budget, ratio, whole);
             u32::try_from(references.len()).map_err(|_| too_large(references.len()))?;
             (options.builder.build_references(&references), references.len())
         }
         Some(SplitOptions { budget, method: SplitMethod::Sbvh, .. }) => {
             let ratio = if any_triangle { 0.0 } else { SplitMethod::Sbvh.wasteful_ratio() };
             let params = SbvhParams { min_waste_ratio: ratio, ..SbvhParams::with_budget(budget) };
-            let build = build_sbvh(triangles, &params);
+            let build = build_sbvh_keeping(triangles, &params, whole);
             let reference_count = build.triangle_order.len();
             u32::try_from(reference_count).map_err(|_| too_large(reference_count))?;
             (build, reference_count)

@@ -69,16 +69,24 @@ pub(super) struct PackedPart {
 
 /// Builds, optimizes, lays out and packs one tree over `triangles`, whose source ids are `source_ids` and source
 /// vertices `source_vertices` (empty when not written), in the order of `triangles`.
+#[allow(clippy::too_many_arguments)] // the part's arrays, then the conversion's context
 pub(super) fn build_part(
     input: &Path,
     triangles: Vec<[[f32; 3]; 3]>,
     source_ids: Vec<u32>,
     source_vertices: Vec<[u32; 3]>,
+    deforming: &dyn Fn(u32) -> bool,
     options: &ConvertOptions,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
 ) -> Result<PackedPart, ConvertError> {
-    let Chosen { candidate, choice, sampling } = best_candidate(input, &triangles, options, observer, timings)?;
+    // Under `--no-splits-deforming`, the triangles of geometry meant to deform (by their source ids) stay whole.
+    let whole: Vec<bool> = match options.splits {
+        Some(splits) if !splits.deforming => source_ids.iter().map(|&id| deforming(id)).collect(),
+        _ => Vec::new(),
+    };
+    let Chosen { candidate, choice, sampling } = best_candidate(input, &triangles, &whole, options, observer, timings)?;
+    drop(whole);
     let Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, .. } = candidate;
     let over_references = reference_count > triangles.len();
     let _ = observer(Event::Stage(Stage::Write));

@@ -60,9 +60,11 @@ pub fn convert_with(
         sources: soup_sources,
         source_vertices: soup_source_vertices,
         cut_out,
+        deforming,
     } = soup;
-    // Only the source ranges are needed to mark the records of cut-out materials (after the build).
-    let ranges = TriangleSoup { sources: soup_sources, cut_out, ..TriangleSoup::default() };
+    // Only the source ranges are needed to mark the records of cut-out materials (after the build) and to
+    // know the geometry meant to deform (during it).
+    let ranges = TriangleSoup { sources: soup_sources, cut_out, deforming, ..TriangleSoup::default() };
     drop((positions, vertex_indices));
     let soup_source_vertices = if options.write_source_vertices { soup_source_vertices } else { Vec::new() };
     if u32::try_from(triangles.len()).is_err() {
@@ -71,7 +73,17 @@ pub fn convert_with(
     // The build and optimization allocate many vectors without reporting failure: make sure their estimated
     // peak, beyond the triangles held now, can be allocated before starting (see `crate::fallible`).
     probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
-    let part = build_part(input, triangles, soup_source_ids, soup_source_vertices, options, observer, &mut timings)?;
+    let deforming = |id: u32| ranges.is_deforming(id);
+    let part = build_part(
+        input,
+        triangles,
+        soup_source_ids,
+        soup_source_vertices,
+        &deforming,
+        options,
+        observer,
+        &mut timings,
+    )?;
     let PackedPart {
         packed,
         source_ids,

@@ -85,7 +85,9 @@ pub(super) fn convert_two_level(
         let PartArrays { triangles, source_ids, source_vertices } =
             part_arrays(&soup, part, options.write_source_vertices);
         probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
-        let packed = build_part(input, triangles, source_ids, source_vertices, options, observer, &mut timings)?;
+        let deforming = |id: u32| soup.is_deforming(id);
+        let packed =
+            build_part(input, triangles, source_ids, source_vertices, &deforming, options, observer, &mut timings)?;
         split |= packed.packed.triangles.len() > packed.triangle_count;
         record_source_ids.extend_from_slice(&packed.source_ids);
         let figures = PartFigures::of(&packed);

@@ -36,6 +36,9 @@ pub struct TriangleSoup {
     /// For each source range, whether its material may cut its triangles out (a glTF primitive whose material's
     /// `alphaMode` is `MASK` or `BLEND`); the converter marks them in the `triangle_flags` section (format 1.5).
     pub cut_out: Vec<bool>,
+    /// For each source range, whether its geometry is meant to deform (a glTF primitive of a skinned node, or
+    /// with morph targets): `--no-splits-deforming` keeps its triangles whole, for a tight refit.
+    pub deforming: Vec<bool>,
 }
 
 impl TriangleSoup {
@@ -60,6 +63,11 @@ impl TriangleSoup {
         let index = after.checked_sub(1)?;
         let range = self.sources.get(index)?;
         (source_id - range.first_source_triangle < range.source_triangle_count).then_some(index)
+    }
+
+    /// Whether the triangle of `source_id` comes from a primitive meant to deform.
+    pub fn is_deforming(&self, source_id: u32) -> bool {
+        self.source_index_of(source_id).and_then(|i| self.deforming.get(i).copied()).unwrap_or(false)
     }
 
     /// Whether the triangle of `source_id` comes from a material that may cut it out.
@@ -109,6 +117,8 @@ pub struct PrimitiveInstance<'a, S: Fn(u32) -> [f64; 3], P: Fn(u32) -> [f32; 3]>
     pub first_use: bool,
     /// Whether the primitive's material may cut its triangles out (glTF `alphaMode` `MASK` or `BLEND`).
     pub cut_out: bool,
+    /// Whether the primitive is meant to deform (a skinned node's, or one with morph targets).
+    pub deforming: bool,
 }
 
 /// Fills a [`TriangleSoup`] and the counts of an [`ImportReport`].
@@ -201,6 +211,7 @@ impl SoupBuilder {
             reserved: 0,
         });
         self.soup.cut_out.push(primitive.cut_out);
+        self.soup.deforming.push(primitive.deforming);
         self.remap.clear();
         self.remap.resize(primitive.vertex_count, u32::MAX);
         let report = &mut self.report;
@@ -287,6 +298,7 @@ impl SoupBuilder {
             flip_winding: false,
             first_use: true,
             cut_out: false,
+            deforming: false,
         })?;
         self.report.mesh_placements += 1;
         self.report.file_mesh_triangles += triangles.len() as u64;

@@ -205,12 +205,22 @@ pub struct SplitOptions {
     /// Which triangles may be cut.
     #[serde(skip_serializing_if = "SplitTriangles::is_default")]
     pub triangles: SplitTriangles,
+    /// Whether the triangles of geometry meant to deform (glTF primitives of skinned nodes or with morph
+    /// targets) may be cut too; `false` keeps them whole, so that a refit of their records keeps tight boxes
+    /// (`--no-splits-deforming`). Recorded only when `false`.
+    #[serde(skip_serializing_if = "is_true")]
+    pub deforming: bool,
+}
+
+/// Whether `value` is `true` (for serde's `skip_serializing_if`).
+fn is_true(value: &bool) -> bool {
+    *value
 }
 
 impl SplitOptions {
     /// The default method and triangles with `budget`.
     pub fn with_budget(budget: f64) -> SplitOptions {
-        SplitOptions { budget, method: SplitMethod::default(), triangles: SplitTriangles::default() }
+        SplitOptions { budget, method: SplitMethod::default(), triangles: SplitTriangles::default(), deforming: true }
     }
 }
 

@@ -35,6 +35,8 @@ pub struct Overrides {
     pub split_method: Option<SplitMethod>,
     /// Splits: which triangles may be cut.
     pub split_triangles: Option<SplitTriangles>,
+    /// `Some(false)`: no split references in geometry meant to deform (`--no-splits-deforming`).
+    pub splits_deforming: Option<bool>,
     /// Optimize: `Some(false)` skips the optimizer.
     pub optimize: Option<bool>,
     /// Optimize: how batch nodes are ranked.
@@ -183,13 +185,18 @@ fn resolve_splits(preset: Preset, o: &Overrides) -> Result<Option<SplitOptions>,
             (o.split_budget.is_some(), "--split-budget"),
             (o.split_method.is_some(), "--split-method"),
             (o.split_triangles.is_some(), "--split-triangles"),
+            (o.splits_deforming.is_some(), "--no-splits-deforming"),
         ];
         refuse_any(&given, "--no-splits", "drop one of them")?;
         return Ok(None);
     }
     let from_preset = preset.splits();
     let Some(budget) = o.split_budget.or(from_preset.map(|s| s.budget)) else {
-        let given = [(o.split_method.is_some(), "--split-method"), (o.split_triangles.is_some(), "--split-triangles")];
+        let given = [
+            (o.split_method.is_some(), "--split-method"),
+            (o.split_triangles.is_some(), "--split-triangles"),
+            (o.splits_deforming.is_some(), "--no-splits-deforming"),
+        ];
         let because = format!("the {} preset, which makes no split references", preset.name());
         refuse_any(&given, &because, "add --split-budget FRACTION")?;
         if o.splits == Some(true) {
@@ -205,6 +212,7 @@ fn resolve_splits(preset: Preset, o: &Overrides) -> Result<Option<SplitOptions>,
         budget,
         method: o.split_method.unwrap_or(base.method),
         triangles: o.split_triangles.unwrap_or(base.triangles),
+        deforming: o.splits_deforming.unwrap_or(base.deforming),
     }))
 }
 

@@ -24,6 +24,8 @@ const REFUSED: &[(&[&str], &str, &str)] = &[
     (&["--no-optimize", "--time-budget", "3"], "--time-budget", "--no-optimize"),
     (&["--no-splits", "--split-method", "pre-split"], "--split-method", "--no-splits"),
     (&["--no-splits", "--split-triangles", "any"], "--split-triangles", "--no-splits"),
+    (&["--no-splits", "--no-splits-deforming"], "--no-splits-deforming", "--no-splits"),
+    (&["--preset", "fast", "--no-splits-deforming"], "--no-splits-deforming", "fast preset"),
     (&["--preset", "fast", "--split-triangles", "any"], "--split-triangles", "fast preset"),
     (&["--preset", "fast", "--split-method", "pre-split"], "--split-method", "fast preset"),
     (&["--builder", "spatial-median"], "--builder spatial-median", "SBVH"),
@@ -140,6 +142,7 @@ fn bvhc_options_prints_what_a_conversion_records_and_the_schema_accepts_it() {
         &["--no-splits", "--no-merge", "--no-wide", "--no-ids", "--keep-degenerate"],
         &["--no-optimize", "--max-leaf-size", "4", "--split-method", "pre-split", "--builder", "spatial-median"],
         &["--optimize-over", "choose", "--time-budget", "60"],
+        &["--no-splits-deforming", "--split-triangles", "any"],
     ] {
         let printed = bvhc(&[&["options"][..], flags].concat());
         assert!(printed.status.success(), "{flags:?}: {}", String::from_utf8_lossy(&printed.stderr));

@@ -358,3 +358,99 @@ fn positions_per_source_vertex_that_do_not_fit_are_refused_naming_what() {
     let why = refused(&mut bare, RefitPositions::SourceVertices(&[Some(&vertices)]));
     assert!(why.contains("source_vertices section"), "{why}");
 }
+
+/// A glTF of two meshes of long crossing slivers (which split references cut), the second with a morph target
+/// (geometry meant to deform; the target's deltas are zero).
+fn slivers_gltf(dir: &std::path::Path) -> std::path::PathBuf {
+    let mut positions: Vec<f32> = Vec::new();
+    for k in 0..48 {
+        let a = k as f32 * 0.131;
+        positions.extend([0.0, 0.0, 0.0]);
+        positions.extend([10.0 * a.cos(), 10.0 * a.sin(), 0.0]);
+        positions.extend([10.0 * (a + 0.02).cos(), 10.0 * (a + 0.02).sin(), 0.05]);
+    }
+    let count = positions.len() / 3;
+    let mut bin: Vec<u8> = positions.iter().flat_map(|c| c.to_le_bytes()).collect();
+    bin.extend(std::iter::repeat_n(0u8, count * 12));
+    let (lo, hi) = ([-10.0, -10.0, 0.0], [10.0, 10.0, 0.05]);
+    let gltf = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"mesh": 1, "translation": [0.0, 0.0, 0.5]}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": 0}}]},
+            {"primitives": [{"attributes": {"POSITION": 0}, "targets": [{"POSITION": 1}]}], "weights": [0.0]}
+        ],
+        "buffers": [{"uri": "slivers.bin", "byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": count * 12},
+            {"buffer": 0, "byteOffset": count * 12, "byteLength": count * 12}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC3", "min": lo, "max": hi},
+            {"bufferView": 1, "componentType": 5126, "count": count, "type": "VEC3", "min": [0, 0, 0], "max": [0, 0, 0]}
+        ]
+    });
+    std::fs::write(dir.join("slivers.bin"), bin).unwrap();
+    let path = dir.join("slivers.gltf");
+    std::fs::write(&path, gltf.to_string()).unwrap();
+    path
+}
+
+/// Per mesh of the slivers, whether some triangle of it has several records (split references).
+fn split_meshes(file: &BvhFile) -> [bool; 2] {
+    let view = file.view();
+    let (ids, ranges) = (view.triangle_ids().unwrap(), view.source_table().unwrap());
+    let mut seen = std::collections::HashSet::new();
+    let mut split = [false; 2];
+    for &id in ids {
+        if !seen.insert(id) {
+            let range = ranges.iter().find(|r| id - r.first_source_triangle < r.source_triangle_count).unwrap();
+            split[range.mesh_index as usize] = true;
+        }
+    }
+    split
+}
+
+#[test]
+fn no_splits_deforming_leaves_the_geometry_meant_to_deform_whole_and_the_rest_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = slivers_gltf(dir.path());
+    let convert = |name: &str, deforming: Option<bool>| {
+        let output = dir.path().join(name);
+        let overrides = Overrides {
+            split_budget: Some(1.0),
+            split_triangles: Some(bvhc::options::SplitTriangles::Any),
+            splits_deforming: deforming,
+            ..Overrides::default()
+        };
+        bvhc::Conversion::new(&input, &output).overrides(overrides).run().unwrap();
+        BvhFile::read(&output).unwrap()
+    };
+    // By default both meshes are cut; with the option, only the static one.
+    assert_eq!(split_meshes(&convert("default.bvh", None)), [true, true]);
+    let kept = convert("kept.bvh", Some(false));
+    assert_eq!(split_meshes(&kept), [true, false]);
+    kept.view().verify().unwrap();
+    let metadata: serde_json::Value = serde_json::from_str(kept.view().metadata_str().unwrap().unwrap()).unwrap();
+    assert_eq!(metadata["build"]["splits"]["deforming"], false);
+    crate::common::assert_metadata_matches_schema(&kept);
+    // The morphed mesh moves per source vertex, the static one stays: a refit of the file's own split pieces
+    // and the moved whole triangles, which verifies and traces.
+    let count = 48 * 3;
+    let ranges = kept.view().source_table().unwrap().to_vec();
+    let lifted: Vec<[f32; 3]> = (0..count)
+        .map(|v| {
+            let (k, corner) = ((v / 3) as f32 * 0.131, v % 3);
+            let a = k + if corner == 2 { 0.02 } else { 0.0 };
+            let r = if corner == 0 { 0.0 } else { 10.0 };
+            [r * a.cos(), r * a.sin(), 0.5 + if corner == 2 { 0.05 } else { 0.0 } + 0.3]
+        })
+        .collect();
+    let positions: Vec<Option<&[[f32; 3]]>> =
+        ranges.iter().map(|r| (r.mesh_index == 1).then_some(&lifted[..])).collect();
+    let mut refit = BvhFile::from_bytes(kept.as_bytes()).unwrap();
+    refit.refit(RefitPositions::SourceVertices(&positions), 2).unwrap();
+    refit.rewritten().unwrap().view().verify().unwrap();
+}

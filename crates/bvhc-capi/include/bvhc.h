@@ -232,7 +232,7 @@ bvhc_status bvhc_source_range_of(const bvhc_file *file, uint32_t source_triangle
  * (9 floats each, v0 v1 v2 as bvhc_triangle_vertices gives them) or per source vertex of each source range
  * (positions[r]: 3 * vertex_counts[r] floats indexed as the source primitive indexes them, NULL to keep the
  * range); one-level files (with split references, each reference is boxed as its whole triangle: convert meshes
- * meant to deform with --no-splits for tighter trees); the same result on any number of
+ * meant to deform with --no-splits or --no-splits-deforming for tighter trees); the same result on any number of
  * threads (0 or 1: the calling thread). The report compares the refit tree's costs with the costs the file
  * states (NaN where it states none): rebuild (convert again) once cost_ratio passes a threshold, 1.2 by default
  * in bvhc. bvhc_move_instances places instances of a two-level file anew (3x4 row-major object-to-world maps,

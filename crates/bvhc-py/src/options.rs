@@ -120,6 +120,7 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
                     Some(v.choice(&[("binned-sah", Builder::BinnedSah), ("spatial-median", Builder::SpatialMedian)])?)
             }
             "splits" => o.splits = Some(v.boolean()?),
+            "splits_deforming" => o.splits_deforming = Some(v.boolean()?),
             "split_budget" => {
                 let budget = v.number()?;
                 if !(0.0..=bvhc::builders::MAX_BUDGET).contains(&budget) {

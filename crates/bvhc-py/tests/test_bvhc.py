@@ -695,3 +695,11 @@ def test_moved_instances_trace_where_they_stand(tmp_path):
     assert hits["t"][0] == np.float32(3.0)
     with pytest.raises(bvhc.InvalidInputError, match="instance 2"):
         scene.move_instances([2], transform)
+
+
+def test_splits_deforming_is_the_command_lines_flag():
+    resolved = bvhc.options(splits_deforming=False)
+    printed = json.loads(cli("options", "--no-splits-deforming"))
+    assert resolved == printed and resolved["splits"]["deforming"] is False
+    with pytest.raises(bvhc.OptionsError, match="no-splits-deforming"):
+        bvhc.options(splits=False, splits_deforming=False)

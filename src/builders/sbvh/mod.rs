@@ -65,6 +65,12 @@ impl SbvhParams {
 /// triangle (a triangle may lie in several leaves, each with its own box), as
 /// [`Builder::build_references`](super::Builder::build_references) returns for pre-split references.
 pub fn build_sbvh(triangles: &[[[f32; 3]; 3]], params: &SbvhParams) -> BuildTree {
+    build_sbvh_keeping(triangles, params, &[])
+}
+
+/// [`build_sbvh`] leaving whole every triangle `t` with `whole[t]` (geometry meant to deform; a shorter `whole`
+/// leaves the rest free to be cut).
+pub fn build_sbvh_keeping(triangles: &[[[f32; 3]; 3]], params: &SbvhParams, whole: &[bool]) -> BuildTree {
     let references: Vec<Reference> =
         triangles.par_iter().enumerate().map(|(t, v)| Reference::new(&Aabb::of_triangle(v), t as u32)).collect();
     if references.is_empty() {
@@ -74,7 +80,11 @@ pub fn build_sbvh(triangles: &[[[f32; 3]; 3]], params: &SbvhParams) -> BuildTree
     let root = union_of(&references, |r| r.bounds).to_aabb();
     let alpha = if params.alpha.is_nan() { 0.0 } else { params.alpha.max(0.0) };
     let min_waste_ratio = if params.min_waste_ratio.is_nan() { 0.0 } else { params.min_waste_ratio };
-    let splittable = triangles.par_iter().map(|t| worth_cutting(t, min_waste_ratio)).collect();
+    let splittable = triangles
+        .par_iter()
+        .enumerate()
+        .map(|(t, v)| whole.get(t) != Some(&true) && worth_cutting(v, min_waste_ratio))
+        .collect();
     let builder = Sbvh { triangles, splittable, min_overlap: alpha * root.surface_area() };
     // At most `2 (n + extra) - 1` nodes, numbered in u32.
     let most_leaves = (u32::MAX as usize).div_ceil(2);

@@ -263,6 +263,8 @@ impl Walker<'_, '_> {
                     flip_winding,
                     first_use: self.placed.insert((mesh_index, p)),
                     cut_out: primitive::cuts_out(self.root, json_primitive).map_err(|e| Located::new(&at, e))?,
+                    deforming: self.root.nodes.get(node).is_some_and(|n| n.skin.is_some())
+                        || json_primitive.targets.as_ref().is_some_and(|targets| !targets.is_empty()),
                 })
                 .map_err(|(kind, e)| Located::of_kind(kind, &at, e))?;
         }

@@ -36,7 +36,8 @@ impl BvhViewMut<'_> {
     /// whole moved triangle: correct (every rule on split references asks a leaf's box to meet or cover its
     /// pieces, and a box of the whole triangle does), but the pieces' tighter boxes are lost, so its cost ratio
     /// starts above 1 even at the file's own positions (`docs/loader.md` measures it); convert meshes meant to
-    /// deform with `--no-splits`. The references of one triangle (one id) must move alike.
+    /// deform with `--no-splits` or `--no-splits-deforming`. The references of one triangle (one id) must move
+    /// alike.
     ///
     /// Refused, with the file unchanged: a two-level file (its meshes are placed by instances, whose top tree a
     /// refit of the meshes would leave stale), a file with split references but no ids, references of one

@@ -79,7 +79,8 @@ def convert(
 
     ``preset`` is ``fast``, ``balanced`` or ``max-quality``; ``options`` override it, named as the command
     line's flags with underscores (``max_leaf_size=4``, ``instancing="always"``, ``opacity="opaque"``,
-    ``max_memory="8G"``; ``splits=False`` for ``--no-splits``, likewise ``optimize``, ``merge_leaves``, ``wide``,
+    ``max_memory="8G"``; ``splits=False`` for ``--no-splits``, ``splits_deforming=False`` for
+    ``--no-splits-deforming``, likewise ``optimize``, ``merge_leaves``, ``wide``,
     ``ids``, ``source_vertices``). The output is written atomically; when it is up to date (same inputs, options
     and format) nothing is done unless ``force``. ``threads`` defaults to all cores; the bytes do not depend on
     it. ``progress(stage, batch, cost, best_cost)`` is called at each stage (``import``, ``build``,
