@@ -454,3 +454,37 @@ fn no_splits_deforming_leaves_the_geometry_meant_to_deform_whole_and_the_rest_cu
     refit.refit(RefitPositions::SourceVertices(&positions), 2).unwrap();
     refit.rewritten().unwrap().view().verify().unwrap();
 }
+
+#[test]
+fn a_refit_of_corrupted_bytes_never_panics() {
+    // Files that open (the structural rules) but break the tree rules: child and leaf indices, packet lanes and
+    // GPU metas scribbled over. A refit may refuse or write nonsense boxes; it must neither panic nor hang.
+    let dir = tempfile::tempdir().unwrap();
+    let original = teapot(dir.path(), false);
+    let moved = bent(&positions(&original));
+    let sections: Vec<_> = original
+        .view()
+        .sections()
+        .filter(|s| {
+            s.kind.is_some_and(|k| {
+                matches!(
+                    k,
+                    SectionKind::Nodes | SectionKind::WideNodes | SectionKind::TrianglePackets | SectionKind::GpuNodes
+                )
+            })
+        })
+        .map(|s| (s.entry.section_byte_offset as usize, s.entry.section_byte_len as usize))
+        .collect();
+    let mut rng = crate::common::rng(46);
+    for round in 0..300 {
+        use rand::RngExt;
+        let mut bytes = original.as_bytes().to_vec();
+        let (offset, len) = sections[round % sections.len()];
+        for _ in 0..rng.random_range(1..40) {
+            let at = offset + rng.random_range(0..len);
+            bytes[at] = rng.random();
+        }
+        let Ok(mut file) = BvhFile::from_bytes(&bytes) else { continue };
+        let _ = file.refit(RefitPositions::Triangles(&moved), 1 + round % 3);
+    }
+}
