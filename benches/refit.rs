@@ -201,6 +201,26 @@ fn instances_table(dir: &Path, runs: usize) {
     println!("|---|---|");
     println!("| {} (all) | {:.3} |", every.len(), all_ms.as_secs_f64() * 1e3);
     println!("| {} (1 in 100) | {:.3} |", some.len(), some_ms.as_secs_f64() * 1e3);
+    // Every instance carried to another's place (a shuffle): the refit top tree keeps its old grouping.
+    let shuffled: Vec<(u32, [[f32; 4]; 3])> =
+        (0..instances.len()).map(|k| (k as u32, instances[(k * 7919) % instances.len()])).collect();
+    moving.move_instances(&shuffled).expect("the instances move");
+    let rebuild = harness::median_time(runs, || {
+        std::hint::black_box(bvhc::instancing::rebuilt_top_trees(&moving).expect("the top trees rebuild"));
+    });
+    let rebuilt = bvhc::instancing::rebuilt_top_trees(&moving).expect("the top trees rebuild");
+    let cost = |file: &BvhFile| bvhc::instancing::top_tree_cost(&file.view()).expect("two-level");
+    let root = moving.view().two_level().expect("two-level").top_nodes[0];
+    let uniform = rays::uniform_rays(&root, 200_000, 9);
+    println!(
+        "\nAfter shuffling the instances' places: top tree cost refit {:.2} / rebuilt {:.2}, closest-hit Mrays/s \
+         {:.2} / {:.2}; the rebuild (a new file, verified) {:.1} ms",
+        cost(&moving),
+        cost(&rebuilt),
+        speed(&moving, &uniform),
+        speed(&rebuilt, &uniform),
+        rebuild.as_secs_f64() * 1e3
+    );
 }
 
 /// The split-reference table's row for `path`, or `None` when its default conversion has no split reference.

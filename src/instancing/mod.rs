@@ -2,8 +2,10 @@
 //! top-level tree. [`top_tree`] builds the tree over the instances' world boxes, [`top_wide`] its 8-wide form;
 //! [`TwoLevelScene::assemble`]
 //! lays the meshes' packed trees out as the file's sections (each mesh's indices relative to its own ranges,
-//! `format-spec/bvh-1.md` 5.10) beside the mesh table, the instances and the top tree.
+//! `format-spec/bvh-1.md` 5.10) beside the mesh table, the instances and the top tree; [`rebuild`] builds a moved
+//! file's top trees anew.
 
+pub mod rebuild;
 pub mod top_tree;
 pub mod top_wide;
 
@@ -13,6 +15,7 @@ use bvhc_loader::{
     ray::instance_world_box,
 };
 
+pub use rebuild::{rebuilt_top_trees, top_tree_cost};
 pub use top_tree::build_top_tree;
 pub use top_wide::collapse_top_tree;
 

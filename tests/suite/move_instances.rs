@@ -118,3 +118,44 @@ fn moving_instances_of_corrupted_bytes_never_panics() {
         let _ = file.move_instances(&moves);
     }
 }
+
+#[test]
+fn a_rebuilt_top_tree_traces_the_moved_instances_alike_and_costs_less_than_the_refit_one() {
+    // The instances' places swapped around (each moved where another stood, and far off): the refit top tree
+    // keeps its old grouping, the rebuilt one groups them where they stand now.
+    let placements = test_placements();
+    let mut moved = placements.clone();
+    let n = placements.len();
+    let moves: Vec<(u32, Affine3x4)> = (0..n)
+        .map(|k| {
+            let mut map = placements[(k * 3 + 1) % n].object_to_world;
+            map[0][3] += 4.0 * k as f32;
+            moved[k].object_to_world = map;
+            (k as u32, map)
+        })
+        .collect();
+    let (scene, sources) = two_level(&test_meshes(), &placements, true);
+    let mut file = write_two_level(&scene, &sources).unwrap();
+    file.move_instances(&moves).unwrap();
+    let rebuilt = bvhc::instancing::rebuilt_top_trees(&file).unwrap();
+    rebuilt.view().verify().unwrap();
+    for kind in [SectionKind::Instances, SectionKind::Meshes, SectionKind::Nodes, SectionKind::Triangles] {
+        assert_eq!(section(&rebuilt, kind), section(&file, kind), "{kind:?} kept");
+    }
+    let (refit_cost, rebuilt_cost) = (
+        bvhc::instancing::top_tree_cost(&file.view()).unwrap(),
+        bvhc::instancing::top_tree_cost(&rebuilt.view()).unwrap(),
+    );
+    assert!(rebuilt_cost < refit_cost, "rebuilt {rebuilt_cost} against refit {refit_cost}");
+    let (target, _) = two_level(&test_meshes(), &moved, true);
+    let placed = flatten(&target);
+    let rays = test_rays(&placed, 3000, 93);
+    for tracer in every_kernel(&rebuilt.view()) {
+        let (checked, ambiguous, _) = check_against_oracle(&tracer, &rebuilt, &placed, &rays);
+        assert!(checked > 1500 && ambiguous < rays.len() / 20, "{checked} checked, {ambiguous} ambiguous");
+    }
+    // A one-level file has none.
+    let one_level = crate::common::write_wide_file(&random_triangles(5, 20, 1.0), 2);
+    assert!(bvhc::instancing::rebuilt_top_trees(&one_level).is_err());
+    assert_eq!(bvhc::instancing::top_tree_cost(&one_level.view()), None);
+}
