@@ -316,3 +316,34 @@ pub fn kernel_paths() -> Vec<bvhc::loader::KernelPath> {
 pub fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(f)
 }
+
+/// `rounds` copies of `file` that still open (the structural rules), each with up to `max_bytes` random bytes
+/// written over one of the sections of `kinds` (round by round in turn): for the checks that code reading a file
+/// that breaks the tree rules never panics.
+pub fn scribbled_copies(
+    file: &BvhFile,
+    kinds: &[bvhc::loader::format::SectionKind],
+    rounds: usize,
+    max_bytes: usize,
+    seed: u64,
+) -> Vec<(usize, BvhFile)> {
+    let sections: Vec<(usize, usize)> = file
+        .view()
+        .sections()
+        .filter(|s| s.kind.is_some_and(|k| kinds.contains(&k)))
+        .map(|s| (s.entry.section_byte_offset as usize, s.entry.section_byte_len as usize))
+        .collect();
+    let mut rng = rng(seed);
+    let mut copies = Vec::new();
+    for round in 0..rounds {
+        let mut bytes = file.as_bytes().to_vec();
+        let (offset, len) = sections[round % sections.len()];
+        for _ in 0..rng.random_range(1..max_bytes) {
+            bytes[offset + rng.random_range(0..len)] = rng.random();
+        }
+        if let Ok(copy) = BvhFile::from_bytes(&bytes) {
+            copies.push((round, copy));
+        }
+    }
+    copies
+}

@@ -96,25 +96,9 @@ fn moving_instances_of_corrupted_bytes_never_panics() {
     let (scene, sources) = two_level(&test_meshes(), &test_placements(), true);
     let original = write_two_level(&scene, &sources).unwrap();
     let kinds = [SectionKind::TopNodes, SectionKind::TopWideNodes, SectionKind::Instances, SectionKind::Meshes];
-    let sections: Vec<(usize, usize)> = kinds
-        .iter()
-        .map(|&k| {
-            let info = original.view().sections().find(|s| s.kind == Some(k)).unwrap();
-            (info.entry.section_byte_offset as usize, info.entry.section_byte_len as usize)
-        })
-        .collect();
     let moves: Vec<(u32, Affine3x4)> =
         (0..8).map(|k| (k, affine(rotation_z(10.0 * k as f32), [0.1 * k as f32, 0.0, 0.0]))).collect();
-    let mut rng = crate::common::rng(47);
-    for round in 0..300 {
-        use rand::RngExt;
-        let mut bytes = original.as_bytes().to_vec();
-        let (offset, len) = sections[round % sections.len()];
-        for _ in 0..rng.random_range(1..20) {
-            let at = offset + rng.random_range(0..len);
-            bytes[at] = rng.random();
-        }
-        let Ok(mut file) = BvhFile::from_bytes(&bytes) else { continue };
+    for (_, mut file) in crate::common::scribbled_copies(&original, &kinds, 300, 20, 47) {
         let _ = file.move_instances(&moves);
     }
 }

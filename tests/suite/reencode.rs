@@ -5,7 +5,7 @@
 //! edit recomputes, so the file still passes the checksum rules.
 
 use bvhc::loader::format::{GpuSlot, PackedTriangle, SectionKind, WIDE, WideNode8};
-use bvhc::loader::{BvhFile, Rule};
+use bvhc::loader::{BvhFile, Rule, SectionsMut};
 use bvhc::options::{OptimizeOver, Overrides, Preset};
 
 type Bounds = ([f32; 3], [f32; 3]);
@@ -93,6 +93,38 @@ pub fn reencode_everything(file: &mut BvhFile) {
     }
 }
 
+/// Every binary box emptied and every occupied wide slot's box set to the unit box: what a re-encoding or a
+/// refit must overwrite, not inherit.
+pub fn scramble_boxes(edit: &mut SectionsMut<'_>) {
+    edit.nodes.iter_mut().for_each(|n| (n.min, n.max) = ([0.0; 3], [0.0; 3]));
+    for node in edit.wide_nodes.as_deref_mut().unwrap() {
+        for slot in 0..WIDE {
+            if node.slot(slot).is_some() {
+                node.set_slot_box(slot, ([0.0; 3], [1.0; 3]));
+            }
+        }
+    }
+}
+
+/// Word-by-word equality of two files' sections but the metadata, but for the sign of a zero bound: the
+/// converter's unions and the tests' (or a refit's) meet the vertex coordinates +0 and -0 in another order, and a
+/// box's bound is the same plane either way.
+pub fn assert_same_sections(a: &BvhFile, b: &BvhFile, what: &str) {
+    let same_but_zero_signs = |(x, y): (&[u8], &[u8])| {
+        x == y
+            || (x[..3] == y[..3]
+                && (x[3] | 0x80) == (y[3] | 0x80)
+                && u32::from_le_bytes(x.try_into().unwrap()) & 0x7FFF_FFFF == 0)
+    };
+    for section in a.view().sections().filter(|s| s.kind.is_some_and(|k| !matches!(k, SectionKind::Metadata))) {
+        let range = section.entry.section_byte_offset as usize
+            ..(section.entry.section_byte_offset + section.entry.section_byte_len) as usize;
+        let (x, y) = (&a.as_bytes()[range.clone()], &b.as_bytes()[range]);
+        let first = x.chunks(4).zip(y.chunks(4)).position(|words| !same_but_zero_signs(words));
+        assert_eq!(first, None, "{what}: {:?} differs at word {first:?}", section.kind);
+    }
+}
+
 #[test]
 fn every_node_re_encoded_in_place_gives_the_same_bytes() {
     let dir = tempfile::tempdir().unwrap();
@@ -101,14 +133,7 @@ fn every_node_re_encoded_in_place_gives_the_same_bytes() {
     // Scramble every box and grid first, so that the re-encoding, not the old bytes, makes the result.
     {
         let mut edit = file.edit().unwrap();
-        edit.nodes.iter_mut().for_each(|n| (n.min, n.max) = ([0.0; 3], [0.0; 3]));
-        for node in edit.wide_nodes.as_deref_mut().unwrap() {
-            for slot in 0..WIDE {
-                if node.slot(slot).is_some() {
-                    node.set_slot_box(slot, ([0.0; 3], [1.0; 3]));
-                }
-            }
-        }
+        scramble_boxes(&mut edit);
         edit.gpu_nodes
             .as_deref_mut()
             .unwrap()
@@ -117,24 +142,11 @@ fn every_node_re_encoded_in_place_gives_the_same_bytes() {
     }
     assert_ne!(file.as_bytes(), &original[..]);
     reencode_everything(&mut file);
-    // The same bytes, but for the sign of a zero bound: the converter's unions and these ones meet the vertex
-    // coordinates +0 and -0 in another order, and a box's bound is the same plane either way. The checksums
-    // (recomputed by the edit) then differ with them; the verifier checks them.
-    let same_but_zero_signs = |(a, b): (&[u8], &[u8])| {
-        a == b
-            || (a[..3] == b[..3]
-                && (a[3] | 0x80) == (b[3] | 0x80)
-                && u32::from_le_bytes(a.try_into().unwrap()) & 0x7FFF_FFFF == 0)
-    };
-    let sections = file.view().sections().collect::<Vec<_>>();
-    for section in sections.iter().filter(|s| s.kind.is_some_and(|k| !matches!(k, SectionKind::Metadata))) {
-        let range = section.entry.section_byte_offset as usize
-            ..(section.entry.section_byte_offset + section.entry.section_byte_len) as usize;
-        let (now, then) = (&file.as_bytes()[range.clone()], &original[range]);
-        let first = now.chunks(4).zip(then.chunks(4)).position(|words| !same_but_zero_signs(words));
-        assert_eq!(first, None, "{:?}: word {first:?} differs after re-encoding", section.kind);
-    }
-    assert_eq!(file.as_bytes().len(), original.len());
+    // The same bytes, but for the sign of a zero bound (see `assert_same_sections`). The checksums (recomputed by
+    // the edit) then differ with them; the verifier checks them.
+    let original = BvhFile::from_bytes(&original).unwrap();
+    assert_same_sections(&file, &original, "re-encoding");
+    assert_eq!(file.as_bytes().len(), original.as_bytes().len());
     file.view().verify().unwrap();
 }
 

@@ -4,12 +4,12 @@
 //! over the moved triangles on every kernel, and a file that verifies once rewritten; what a refit cannot take is
 //! refused with the file unchanged.
 
-use bvhc::loader::format::{PackedTriangle, SectionKind, WIDE};
+use bvhc::loader::format::{PackedTriangle, SectionKind};
 use bvhc::loader::{BvhFile, Error, RebuildPolicy, RefitPositions};
 use bvhc::options::{Overrides, Preset};
 
 use crate::common::{assert_matches_brute_force, every_kernel, random_rays};
-use crate::reencode::reencode_everything;
+use crate::reencode::{assert_same_sections, reencode_everything, scramble_boxes};
 
 type Triangle = [[f32; 3]; 3];
 
@@ -35,24 +35,6 @@ fn bent(positions: &[Triangle]) -> Vec<Triangle> {
         [x * a.cos() - z * a.sin() + 0.3 * y * y, y * 1.1, x * a.sin() + z * a.cos()]
     };
     positions.iter().map(|t| t.map(bend)).collect()
-}
-
-/// Word-by-word equality of two files' sections but the metadata, but for the sign of a zero bound (unions meet
-/// +0 and -0 in another order than the converter's).
-fn assert_same_sections(a: &BvhFile, b: &BvhFile, what: &str) {
-    let same_but_zero_signs = |(x, y): (&[u8], &[u8])| {
-        x == y
-            || (x[..3] == y[..3]
-                && (x[3] | 0x80) == (y[3] | 0x80)
-                && u32::from_le_bytes(x.try_into().unwrap()) & 0x7FFF_FFFF == 0)
-    };
-    for section in a.view().sections().filter(|s| s.kind.is_some_and(|k| !matches!(k, SectionKind::Metadata))) {
-        let range = section.entry.section_byte_offset as usize
-            ..(section.entry.section_byte_offset + section.entry.section_byte_len) as usize;
-        let (x, y) = (&a.as_bytes()[range.clone()], &b.as_bytes()[range]);
-        let first = x.chunks(4).zip(y.chunks(4)).position(|words| !same_but_zero_signs(words));
-        assert_eq!(first, None, "{what}: {:?} differs at word {first:?}", section.kind);
-    }
 }
 
 /// `original` with its records, packet lanes and GPU triangles moved to `moved` and every box re-encoded by the
@@ -88,14 +70,7 @@ fn a_refit_to_the_files_own_positions_gives_its_bytes_back() {
     // makes the result.
     {
         let mut edit = file.edit().unwrap();
-        edit.nodes.iter_mut().for_each(|n| (n.min, n.max) = ([0.0; 3], [0.0; 3]));
-        for node in edit.wide_nodes.as_deref_mut().unwrap() {
-            for slot in 0..WIDE {
-                if node.slot(slot).is_some() {
-                    node.set_slot_box(slot, ([0.0; 3], [1.0; 3]));
-                }
-            }
-        }
+        scramble_boxes(&mut edit);
         for packet in edit.triangle_packets.as_deref_mut().unwrap() {
             for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
                 packet.vertices[1][2][lane] += 1.0;
@@ -462,29 +437,8 @@ fn a_refit_of_corrupted_bytes_never_panics() {
     let dir = tempfile::tempdir().unwrap();
     let original = teapot(dir.path(), false);
     let moved = bent(&positions(&original));
-    let sections: Vec<_> = original
-        .view()
-        .sections()
-        .filter(|s| {
-            s.kind.is_some_and(|k| {
-                matches!(
-                    k,
-                    SectionKind::Nodes | SectionKind::WideNodes | SectionKind::TrianglePackets | SectionKind::GpuNodes
-                )
-            })
-        })
-        .map(|s| (s.entry.section_byte_offset as usize, s.entry.section_byte_len as usize))
-        .collect();
-    let mut rng = crate::common::rng(46);
-    for round in 0..300 {
-        use rand::RngExt;
-        let mut bytes = original.as_bytes().to_vec();
-        let (offset, len) = sections[round % sections.len()];
-        for _ in 0..rng.random_range(1..40) {
-            let at = offset + rng.random_range(0..len);
-            bytes[at] = rng.random();
-        }
-        let Ok(mut file) = BvhFile::from_bytes(&bytes) else { continue };
+    let kinds = [SectionKind::Nodes, SectionKind::WideNodes, SectionKind::TrianglePackets, SectionKind::GpuNodes];
+    for (round, mut file) in crate::common::scribbled_copies(&original, &kinds, 300, 40, 46) {
         let _ = file.refit(RefitPositions::Triangles(&moved), 1 + round % 3);
     }
 }

@@ -98,10 +98,9 @@ pub unsafe extern "C" fn bvhc_refit_triangles(
         // SAFETY: `positions` is not null and, by the contract, points to `9 * triangle_count` readable floats,
         // unchanged during the call.
         let floats = unsafe { std::slice::from_raw_parts(positions, len) };
-        let (triangles, _) = floats.as_chunks::<9>();
-        let triangles: Vec<[[f32; 3]; 3]> =
-            triangles.iter().map(|t| std::array::from_fn(|v| [t[3 * v], t[3 * v + 1], t[3 * v + 2]])).collect();
-        refit(call, file, RefitPositions::Triangles(&triangles), threads, report)
+        // Read in place: 9 floats a record are three vertices of three floats.
+        let triangles = floats.as_chunks::<3>().0.as_chunks::<3>().0;
+        refit(call, file, RefitPositions::Triangles(triangles), threads, report)
     })
 }
 
@@ -185,11 +184,8 @@ pub unsafe extern "C" fn bvhc_move_instances(
             // SAFETY: both are non-null and, by the contract, point to `count` indices and `12 * count` floats.
             unsafe { (std::slice::from_raw_parts(instances, count), std::slice::from_raw_parts(transforms, len)) }
         };
-        let moves: Vec<(u32, Affine3x4)> = indices
-            .iter()
-            .zip(floats.as_chunks::<12>().0)
-            .map(|(&index, m)| (index, std::array::from_fn(|row| std::array::from_fn(|column| m[4 * row + column]))))
-            .collect();
+        let maps: &[Affine3x4] = floats.as_chunks::<4>().0.as_chunks::<3>().0;
+        let moves: Vec<(u32, Affine3x4)> = indices.iter().copied().zip(maps.iter().copied()).collect();
         let result = file.traced.edit_file(|file| file.move_instances(&moves));
         result.map_err(|e| (status_of(&e), format!("{call}: {e}")))?;
         Ok(BVHC_OK)

@@ -46,6 +46,13 @@ impl Workers {
         })
     }
 
+    /// The length of the chunks `len` items are cut into: no more chunks than threads, none shorter than
+    /// `min_chunk` items (so a small pass is one chunk), at least 1.
+    fn chunk_len(&self, len: usize, min_chunk: usize) -> usize {
+        let chunk_count = self.count.min(len / min_chunk.max(1)).max(1);
+        len.div_ceil(chunk_count).max(1)
+    }
+
     /// Calls `work(first_index, chunk)` on consecutive chunks of `items` that together cover it once, each chunk
     /// on its own thread, with no more chunks than threads and none shorter than `min_chunk` items (so a small
     /// pass stays on the calling thread). Returns the results in chunk order.
@@ -55,11 +62,10 @@ impl Workers {
         min_chunk: usize,
         work: impl Fn(usize, &mut [T]) -> R + Sync,
     ) -> Vec<R> {
-        let chunk_count = self.count.min(items.len() / min_chunk.max(1)).max(1);
-        if chunk_count == 1 {
+        let chunk_len = self.chunk_len(items.len(), min_chunk);
+        if chunk_len >= items.len() {
             return vec![work(0, items)];
         }
-        let chunk_len = items.len().div_ceil(chunk_count);
         let work = &work;
         let tasks: Vec<_> =
             items.chunks_mut(chunk_len).enumerate().map(|(k, chunk)| move || work(k * chunk_len, chunk)).collect();
@@ -74,8 +80,7 @@ impl Workers {
         min_chunk: usize,
         work: impl Fn(usize, &[T]) -> R + Sync,
     ) -> Vec<R> {
-        let chunk_count = self.count.min(items.len() / min_chunk.max(1)).max(1);
-        let chunk_len = items.len().div_ceil(chunk_count).max(1);
+        let chunk_len = self.chunk_len(items.len(), min_chunk);
         let work = &work;
         let tasks: Vec<_> =
             items.chunks(chunk_len).enumerate().map(|(k, chunk)| move || work(k * chunk_len, chunk)).collect();

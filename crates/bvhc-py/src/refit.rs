@@ -109,8 +109,8 @@ pub fn write(py: Python<'_>, bytes: &Py<PyArray1<u8>>, path: &str, output: std::
     let array = bytes.bind(py).readonly();
     let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
     py.detach(|| {
-        let file = bvhc::loader::BvhFile::from_bytes(slice)?;
-        bvhc::loader::write::write_atomic(&output, file.rewritten()?.as_bytes())
+        let view = bvhc::loader::BvhView::open(slice)?;
+        bvhc::loader::write::write_atomic(&output, view.rewritten()?.as_bytes())
     })
     .map_err(|e| loader(&e, format!("{}: {e}", output.display())))
 }

@@ -50,7 +50,7 @@ pub struct SectionsMut<'a> {
     stride: usize,
     entries: Vec<(usize, SectionKind)>,
     /// Whether the edit ended without recomputing the checksums (`end_without_checksums`).
-    finished: bool,
+    checksums_left: bool,
 }
 
 /// The kinds an edit hands out read only, beside the editable ones.
@@ -140,7 +140,7 @@ impl<'a> SectionsMut<'a> {
             table,
             stride,
             entries,
-            finished: false,
+            checksums_left: false,
         })
     }
 }
@@ -171,7 +171,7 @@ impl SectionsMut<'_> {
     /// whose file verifies again only once `BvhFile::rewritten` has recomputed the metadata's costs, which
     /// computes the checksums too. Hashing every section of a large file costs about a tenth of its refit.
     pub(crate) fn end_without_checksums(mut self) {
-        self.finished = true;
+        self.checksums_left = true;
     }
 
     /// Writes each editable section's checksum into its table entry, then the header's checksum.
@@ -195,7 +195,7 @@ impl SectionsMut<'_> {
 impl Drop for SectionsMut<'_> {
     /// Writes the checksums, unless the edit ended without them (a refit's).
     fn drop(&mut self) {
-        if !self.finished {
+        if !self.checksums_left {
             self.write_checksums();
         }
     }

@@ -32,8 +32,9 @@ impl BvhViewMut<'_> {
             return Err(Error::Refit("a one-level file has no instances to move".into()));
         };
         let instance_count = sections.instances.len();
-        // The moved instances' records and world boxes, checked before anything is written.
-        let mut moved: Vec<Option<(InstanceRecord, Bounds)>> = vec![None; instance_count];
+        // The moved instances' records and their world boxes (by instance), checked before anything is written.
+        let mut records: Vec<(usize, InstanceRecord)> = Vec::with_capacity(moves.len());
+        let mut boxes: Vec<Option<Bounds>> = vec![None; instance_count];
         for &(index, object_to_world) in moves {
             let Some((instance, mesh)) = sections.placement(index) else {
                 return Err(Error::Refit(format!("instance {index}: the file has {instance_count} instances")));
@@ -50,17 +51,18 @@ impl BvhViewMut<'_> {
                 gpu_instance_index: instance.gpu_instance_index,
                 ..record
             };
-            moved[index as usize] = Some((record, world_box));
+            records.push((index as usize, record));
+            boxes[index as usize] = Some(world_box);
         }
         let mut edit = self.edit()?;
         if let Some(instances) = edit.instances.as_deref_mut() {
-            for (instance, moved) in instances.iter_mut().zip(&moved) {
-                if let Some((record, _)) = moved {
-                    *instance = *record;
+            // In order, so that a later pair for the same instance wins, as its box does.
+            for (index, record) in records {
+                if let Some(instance) = instances.get_mut(index) {
+                    *instance = record;
                 }
             }
         }
-        let boxes: Vec<Option<Bounds>> = moved.iter().map(|m| m.map(|(_, world_box)| world_box)).collect();
         if let Some(top_nodes) = edit.top_nodes.as_deref_mut() {
             refit_top_binary(top_nodes, &boxes);
         }

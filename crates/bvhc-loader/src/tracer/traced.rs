@@ -10,9 +10,9 @@ use crate::tracer::Tracer;
 /// A [`BvhFile`] and the tracer over it ([`BvhView::tracer`]), made once.
 pub struct TracedFile {
     /// Borrows from `file`'s buffer: declared first, so it is dropped before `file`. Its `'static` never leaves
-    /// this struct: [`TracedFile::tracer`] hands it out for the borrow of `self` only. `None` only while
-    /// [`TracedFile::edit_file`] changes the buffer (no borrow of it lives then).
-    tracer: Option<Tracer<'static>>,
+    /// this struct: [`TracedFile::tracer`] hands it out for the borrow of `self` only. While
+    /// [`TracedFile::edit_file`] changes the buffer it is a tracer over no triangles, which borrows nothing.
+    tracer: Tracer<'static>,
     file: BvhFile,
 }
 
@@ -33,23 +33,18 @@ impl TracedFile {
     /// `file` with its fastest tracer (the wide kernel on the best path, through the instances of a two-level
     /// file).
     pub fn new(file: BvhFile) -> TracedFile {
-        TracedFile { tracer: Some(kept_tracer(&file, true)), file }
+        TracedFile { tracer: kept_tracer(&file, true), file }
     }
 
     /// This file with its tracer trusting rays ([`Tracer::trusting_rays`]): for bindings that check rays
     /// themselves to report an error rather than panic.
-    pub fn trusting_rays(mut self) -> TracedFile {
-        self.tracer = self.tracer.take().map(Tracer::trusting_rays);
-        self
+    pub fn trusting_rays(self) -> TracedFile {
+        TracedFile { tracer: self.tracer.trusting_rays(), file: self.file }
     }
 
     /// The tracer, made when this was (or after the last [`TracedFile::edit_file`]).
     pub fn tracer(&self) -> &Tracer<'_> {
-        match &self.tracer {
-            Some(tracer) => tracer,
-            // `edit_file` puts a tracer back before it returns, or unwinds through `Restore`, which does.
-            None => unreachable!("a TracedFile always holds its tracer outside edit_file"),
-        }
+        &self.tracer
     }
 
     /// Runs `edit` on the file (a refit, moved instances: [`BvhFile::refit`], [`BvhFile::move_instances`]) and
@@ -63,12 +58,12 @@ impl TracedFile {
         }
         impl Drop for Restore<'_> {
             fn drop(&mut self) {
-                self.traced.tracer = Some(kept_tracer(&self.traced.file, self.checks_rays));
+                self.traced.tracer = kept_tracer(&self.traced.file, self.checks_rays);
             }
         }
-        let checks_rays = self.tracer.as_ref().is_none_or(Tracer::checks_rays);
+        let checks_rays = self.tracer.checks_rays();
         // No borrow of the buffer may live while it changes.
-        self.tracer = None;
+        self.tracer = Tracer::new(&[], &[], None);
         let restore = Restore { traced: self, checks_rays };
         edit(&mut restore.traced.file)
     }

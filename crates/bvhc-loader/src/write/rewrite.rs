@@ -23,12 +23,19 @@ impl BvhFile {
     /// (after [`BvhFile::edit`]) pass `verify` again, and what a program writes out
     /// ([`crate::write::write_atomic`]) to ship it.
     pub fn rewritten(&self) -> Result<BvhFile, Error> {
-        let view = self.view();
-        let metadata = match view.metadata_str() {
-            Some(text) => Some(metadata_with_costs(&view, text?)?),
+        self.view().rewritten()
+    }
+}
+
+impl BvhView<'_> {
+    /// [`BvhFile::rewritten`] of the bytes this view reads (a refit binding's own array, a map), without first
+    /// copying them into a `BvhFile`.
+    pub fn rewritten(&self) -> Result<BvhFile, Error> {
+        let metadata = match self.metadata_str() {
+            Some(text) => Some(metadata_with_costs(self, text?)?),
             None => None,
         };
-        let mut writer = BvhWriter::from_view(&view);
+        let mut writer = BvhWriter::from_view(self);
         if let Some(metadata) = &metadata {
             writer = writer.metadata(metadata);
         }
