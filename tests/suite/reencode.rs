@@ -93,6 +93,81 @@ pub fn reencode_everything(file: &mut BvhFile) {
     }
 }
 
+/// `original` with its records, packet lanes and GPU triangles moved to `moved` and every box re-encoded by the
+/// test's own reading of the format's rules (`reencode::reencode_everything`).
+pub fn reencoded(original: &BvhFile, moved: &[[[f32; 3]; 3]]) -> BvhFile {
+    let mut expected = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    {
+        let mut edit = expected.edit().unwrap();
+        for (record, vertices) in edit.triangles.iter_mut().zip(moved) {
+            *record = PackedTriangle { vertices: *vertices };
+        }
+        let packets = edit.triangle_packets.as_deref_mut().unwrap();
+        for packet in packets.iter_mut() {
+            for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
+                let t = moved[packet.triangle_index[lane] as usize];
+                (0..3).for_each(|v| (0..3).for_each(|a| packet.vertices[v][a][lane] = t[v][a]));
+            }
+        }
+        for gpu_triangle in edit.gpu_triangles.as_deref_mut().unwrap() {
+            gpu_triangle.vertices = moved[gpu_triangle.triangle_index as usize];
+        }
+    }
+    reencode_everything(&mut expected);
+    expected
+}
+
+/// A copy of `file` with its checksums recomputed (an edit that changes nothing), as a refit leaves them stale.
+pub fn with_checksums(file: &BvhFile) -> BvhFile {
+    let mut copy = BvhFile::from_bytes(file.as_bytes()).unwrap();
+    drop(copy.edit().unwrap());
+    copy
+}
+
+/// The binary and wide trees laid out anew breadth first (each inner node's pair of children, each wide node's
+/// children, placed in the order a breadth-first walk meets them), keeping every box, leaf and packet: a valid
+/// file in a layout other than the converter's depth-first one.
+pub fn breadth_first(file: &mut BvhFile) {
+    let mut edit = file.edit().unwrap();
+    let old = edit.nodes.to_vec();
+    let mut order = vec![0usize];
+    let mut new_index = vec![0u32; old.len()];
+    let mut k = 0;
+    while k < order.len() {
+        let node = old[order[k]];
+        if !node.is_leaf() {
+            new_index[node.index as usize] = order.len() as u32;
+            order.extend([node.index as usize, node.index as usize + 1]);
+        }
+        k += 1;
+    }
+    for (new, &at) in order.iter().enumerate() {
+        let mut node = old[at];
+        if !node.is_leaf() {
+            node.index = new_index[node.index as usize];
+        }
+        edit.nodes[new] = node;
+    }
+    let wide = edit.wide_nodes.as_deref_mut().expect("wide sections");
+    let old = wide.to_vec();
+    let (mut order, mut new_index) = (vec![0usize], vec![0u32; old.len()]);
+    let mut k = 0;
+    while k < order.len() {
+        for &child in old[order[k]].child.iter().filter(|&&c| c & bvhc::loader::format::LEAF_BIT == 0) {
+            new_index[child as usize] = order.len() as u32;
+            order.push(child as usize);
+        }
+        k += 1;
+    }
+    for (new, &at) in order.iter().enumerate() {
+        let mut node = old[at];
+        for child in node.child.iter_mut().filter(|c| **c & bvhc::loader::format::LEAF_BIT == 0) {
+            *child = new_index[*child as usize];
+        }
+        wide[new] = node;
+    }
+}
+
 /// Every binary box emptied and every occupied wide slot's box set to the unit box: what a re-encoding or a
 /// refit must overwrite, not inherit.
 pub fn scramble_boxes(edit: &mut SectionsMut<'_>) {

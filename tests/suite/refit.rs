@@ -4,12 +4,12 @@
 //! over the moved triangles on every kernel, and a file that verifies once rewritten; what a refit cannot take is
 //! refused with the file unchanged.
 
-use bvhc::loader::format::{PackedTriangle, SectionKind};
+use bvhc::loader::format::SectionKind;
 use bvhc::loader::{BvhFile, Error, RebuildPolicy, RefitPositions};
 use bvhc::options::{Overrides, Preset};
 
 use crate::common::{assert_matches_brute_force, every_kernel, random_rays};
-use crate::reencode::{assert_same_sections, reencode_everything, scramble_boxes};
+use crate::reencode::{assert_same_sections, breadth_first, reencoded, scramble_boxes, with_checksums};
 
 type Triangle = [[f32; 3]; 3];
 
@@ -37,30 +37,6 @@ fn bent(positions: &[Triangle]) -> Vec<Triangle> {
     positions.iter().map(|t| t.map(bend)).collect()
 }
 
-/// `original` with its records, packet lanes and GPU triangles moved to `moved` and every box re-encoded by the
-/// test's own reading of the format's rules (`reencode::reencode_everything`).
-fn reencoded(original: &BvhFile, moved: &[Triangle]) -> BvhFile {
-    let mut expected = BvhFile::from_bytes(original.as_bytes()).unwrap();
-    {
-        let mut edit = expected.edit().unwrap();
-        for (record, vertices) in edit.triangles.iter_mut().zip(moved) {
-            *record = PackedTriangle { vertices: *vertices };
-        }
-        let packets = edit.triangle_packets.as_deref_mut().unwrap();
-        for packet in packets.iter_mut() {
-            for lane in (0..4).filter(|&l| packet.triangle_index[l] != u32::MAX) {
-                let t = moved[packet.triangle_index[lane] as usize];
-                (0..3).for_each(|v| (0..3).for_each(|a| packet.vertices[v][a][lane] = t[v][a]));
-            }
-        }
-        for gpu_triangle in edit.gpu_triangles.as_deref_mut().unwrap() {
-            gpu_triangle.vertices = moved[gpu_triangle.triangle_index as usize];
-        }
-    }
-    reencode_everything(&mut expected);
-    expected
-}
-
 #[test]
 fn a_refit_to_the_files_own_positions_gives_its_bytes_back() {
     let dir = tempfile::tempdir().unwrap();
@@ -86,13 +62,6 @@ fn a_refit_to_the_files_own_positions_gives_its_bytes_back() {
     let stale = file.view().verify().expect_err("the checksums describe the scrambled bytes");
     assert!(stale.to_string().contains("checksum"), "{stale}");
     with_checksums(&file).view().verify().unwrap();
-}
-
-/// A copy of `file` with its checksums recomputed (an edit that changes nothing), as a refit leaves them stale.
-fn with_checksums(file: &BvhFile) -> BvhFile {
-    let mut copy = BvhFile::from_bytes(file.as_bytes()).unwrap();
-    drop(copy.edit().unwrap());
-    copy
 }
 
 #[test]
@@ -257,10 +226,8 @@ fn a_refit_gives_the_same_bytes_on_any_thread_count_per_record_or_per_source_ver
         let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
         let again = file.refit(RefitPositions::Triangles(&moved), threads).unwrap();
         assert!(file.as_bytes() == one.as_bytes(), "{threads} threads: other bytes");
-        assert_eq!(again.wide_cost, report.wide_cost, "{threads} threads");
-        // The binary cost is summed per chunk of nodes: the same within rounding.
-        let (a, b) = (again.cost.unwrap(), report.cost.unwrap());
-        assert!((a - b).abs() <= 1e-12 * b, "{threads} threads: {a} vs {b}");
+        // The costs are summed per subtree, the same subtrees on any thread count.
+        assert_eq!(again, report, "{threads} threads");
     }
     // The same move given per source vertex (the OBJ's `v` records, one source range).
     let bent_vertices: Vec<[f32; 3]> = vertices.iter().map(|&v| bend_vertex(v)).collect();
@@ -274,6 +241,36 @@ fn a_refit_gives_the_same_bytes_on_any_thread_count_per_record_or_per_source_ver
     }
     one.view().verify().expect_err("stale costs until rewritten");
     one.rewritten().unwrap().view().verify().unwrap();
+}
+
+#[test]
+fn a_file_in_another_layout_refits_as_a_re_encoding_says() {
+    // The grid's trees laid out breadth first: valid files (children after parents, V14 and V29) that another
+    // writer might produce, whose subtrees are not runs of nodes, so the refit takes its whole-tree passes.
+    let dir = tempfile::tempdir().unwrap();
+    let (obj, _) = grid_obj(dir.path(), 450);
+    let output = dir.path().join("grid.bvh");
+    let overrides = Overrides { splits: Some(false), gpu_layout: Some(true), ..Overrides::default() };
+    bvhc::Conversion::new(&obj, &output).preset(Preset::Fast).overrides(overrides).run().unwrap();
+    let original = BvhFile::read(&output).unwrap();
+    let mut relaid = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    breadth_first(&mut relaid);
+    assert_ne!(relaid.view().nodes(), original.view().nodes());
+    relaid.view().verify().unwrap();
+    let moved: Vec<Triangle> = positions(&original).iter().map(|t| t.map(bend_vertex)).collect();
+    let expected = reencoded(&relaid, &moved);
+    let mut in_layout = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    let report = in_layout.refit(RefitPositions::Triangles(&moved), 2).unwrap();
+    for threads in [1, 2] {
+        let mut file = BvhFile::from_bytes(relaid.as_bytes()).unwrap();
+        let again = file.refit(RefitPositions::Triangles(&moved), threads).unwrap();
+        assert!(with_checksums(&file).as_bytes() == expected.as_bytes(), "{threads} threads: other bytes");
+        // The same trees' costs, summed in another order.
+        for (a, b) in [(again.cost, report.cost), (again.wide_cost, report.wide_cost)] {
+            let (a, b) = (a.unwrap(), b.unwrap());
+            assert!((a - b).abs() <= 1e-12 * b, "{threads} threads: {a} vs {b}");
+        }
+    }
 }
 
 #[test]

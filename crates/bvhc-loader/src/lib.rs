@@ -73,6 +73,7 @@ mod refit;
 pub mod ray;
 mod simd;
 mod source;
+mod subtrees;
 mod trace;
 pub mod tracer;
 pub mod verify;

@@ -4,6 +4,7 @@
 //! count.
 
 use std::panic::resume_unwind;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// How many threads a pass may use (at least one: the caller's).
@@ -19,7 +20,7 @@ impl Workers {
     }
 
     /// Runs every task once, the first on the calling thread and each other on a thread of its own (callers pass
-    /// at most [`Workers::count`] tasks), and returns their results in order.
+    /// at most as many tasks as there are threads), and returns their results in order.
     pub(crate) fn run<R: Send, F: FnOnce() -> R + Send>(&self, tasks: Vec<F>) -> Vec<R> {
         if self.count < 2 || tasks.len() < 2 {
             return tasks.into_iter().map(|task| task()).collect();
@@ -44,6 +45,40 @@ impl Workers {
             // Each slot is taken exactly once, so every result is there.
             results.into_iter().flatten().collect()
         })
+    }
+
+    /// Runs every task once on up to the pass's threads (the caller's included), each thread taking the
+    /// next task not taken until none is left (so tasks of unequal sizes balance: pass the largest first), and
+    /// returns their results in task order. A thread the system refuses leaves its share to the others.
+    pub(crate) fn run_all<R: Send, F: FnOnce() -> R + Send>(&self, tasks: Vec<F>) -> Vec<R> {
+        let threads = self.count.min(tasks.len());
+        if threads < 2 {
+            return tasks.into_iter().map(|task| task()).collect();
+        }
+        let slots: Vec<Mutex<(Option<F>, Option<R>)>> =
+            tasks.into_iter().map(|task| Mutex::new((Some(task), None))).collect();
+        let next = AtomicUsize::new(0);
+        let drain = || {
+            while let Some(slot) = slots.get(next.fetch_add(1, Ordering::Relaxed)) {
+                let task = slot.lock().unwrap_or_else(PoisonError::into_inner).0.take();
+                if let Some(task) = task {
+                    let result = task();
+                    slot.lock().unwrap_or_else(PoisonError::into_inner).1 = Some(result);
+                }
+            }
+        };
+        std::thread::scope(|scope| {
+            let drain = &drain;
+            let handles: Vec<_> =
+                (1..threads).filter_map(|_| std::thread::Builder::new().spawn_scoped(scope, drain).ok()).collect();
+            drain();
+            for handle in handles {
+                // A task panics only where its code does; the panic goes on in the caller.
+                handle.join().unwrap_or_else(|panic| resume_unwind(panic));
+            }
+        });
+        // Every task ran once: the caller's thread drained the queue to its end.
+        slots.into_iter().filter_map(|slot| slot.into_inner().unwrap_or_else(PoisonError::into_inner).1).collect()
     }
 
     /// The length of the chunks `len` items are cut into: no more chunks than threads, none shorter than
@@ -71,21 +106,6 @@ impl Workers {
             items.chunks_mut(chunk_len).enumerate().map(|(k, chunk)| move || work(k * chunk_len, chunk)).collect();
         self.run(tasks)
     }
-
-    /// Calls `work(first_index, chunk)` on consecutive chunks of `items`, as [`Workers::for_chunks`] does for
-    /// a slice it may write.
-    pub(crate) fn map_chunks<T: Sync, R: Send>(
-        &self,
-        items: &[T],
-        min_chunk: usize,
-        work: impl Fn(usize, &[T]) -> R + Sync,
-    ) -> Vec<R> {
-        let chunk_len = self.chunk_len(items.len(), min_chunk);
-        let work = &work;
-        let tasks: Vec<_> =
-            items.chunks(chunk_len).enumerate().map(|(k, chunk)| move || work(k * chunk_len, chunk)).collect();
-        self.run(tasks)
-    }
 }
 
 #[cfg(test)]
@@ -106,7 +126,9 @@ mod tests {
             assert_eq!(starts[0], 0);
             assert!(starts.len() <= threads.max(1) && starts.windows(2).all(|w| w[0] < w[1]));
         }
-        let sums = Workers::new(2).map_chunks(&[1, 2, 3, 4, 5], 2, |_, chunk| chunk.iter().sum::<i32>());
-        assert_eq!(sums, vec![6, 9]);
+        for threads in [1, 2, 5] {
+            let tasks: Vec<_> = (0..9).map(|k| move || k * k).collect();
+            assert_eq!(Workers::new(threads).run_all(tasks), (0..9).map(|k| k * k).collect::<Vec<_>>());
+        }
     }
 }

@@ -88,6 +88,21 @@ pub(crate) struct AreaSums {
 }
 
 impl AreaSums {
+    /// The sums with one more node: an inner node's (or inner slot's) `area` when `count` is 0, else a leaf's
+    /// `area` times its `count` (triangles, or packets).
+    #[inline(always)]
+    pub(crate) fn with_node(self, area: f64, count: u32) -> AreaSums {
+        match count {
+            0 => AreaSums { inner: self.inner + area, ..self },
+            count => AreaSums { leaf: self.leaf + area * f64::from(count), ..self },
+        }
+    }
+
+    /// Both sums added.
+    pub(crate) fn plus(self, other: AreaSums) -> AreaSums {
+        AreaSums { inner: self.inner + other.inner, leaf: self.leaf + other.leaf }
+    }
+
     /// The binary tree's cost (section 5.6) from its sums and its root's area.
     pub(crate) fn binary_cost(&self, root_area: f64, c_t: f64, c_i: f64) -> BinaryCost {
         if root_area <= 0.0 {

@@ -120,19 +120,74 @@ pub(crate) fn union_bounds(a: Bounds, b: Bounds) -> Bounds {
     (std::array::from_fn(|k| a.0[k].min(b.0[k])), std::array::from_fn(|k| a.1[k].max(b.1[k])))
 }
 
-/// `bounds` grown to hold the points `points` (the refits' folds): one compare-and-select a coordinate, where
-/// `f32::min` costs four instructions for its NaN rule. A NaN coordinate is passed over (the comparison is false),
-/// as `f32::min` passes it over when the other operand is not NaN, so a fold from [`EMPTY_BOUNDS`] gives the box
-/// `f32::min` and `f32::max` give, but for which zero, `+0` or `-0`, a bound at zero takes.
+/// The smallest box holding `a` and `b` where no bound is NaN (the refits' unions of boxes they computed): one
+/// compare-and-select a bound, the box [`union_bounds`] gives but for which zero, `+0` or `-0`, a bound at zero
+/// takes.
 #[inline(always)]
-pub(crate) fn grow_bounds(mut bounds: Bounds, points: &[[f32; 3]]) -> Bounds {
-    for point in points {
-        for (axis, &value) in point.iter().enumerate() {
-            bounds.0[axis] = if value < bounds.0[axis] { value } else { bounds.0[axis] };
-            bounds.1[axis] = if value > bounds.1[axis] { value } else { bounds.1[axis] };
-        }
+pub(crate) fn merge_bounds(a: Bounds, b: Bounds) -> Bounds {
+    (
+        std::array::from_fn(|k| if b.0[k] < a.0[k] { b.0[k] } else { a.0[k] }),
+        std::array::from_fn(|k| if b.1[k] > a.1[k] { b.1[k] } else { a.1[k] }),
+    )
+}
+
+/// A box folded from triangles, the refits' fold: each of a triangle's nine coordinates kept apart while
+/// triangles are added (nine independent compare-and-selects a triangle, which vectorize, with no chain through
+/// the three vertices), the three vertices of each axis folded at the end. A NaN coordinate is passed over (the
+/// comparison is false), so the box is the one `f32::min` and `f32::max` give from [`EMPTY_BOUNDS`], but for
+/// which zero, `+0` or `-0`, a bound at zero takes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TriangleFold {
+    /// The least of each coordinate: `v0.x, v0.y, v0.z, v1.x`, then `v1.y, v1.z, v2.x, v2.y`, then `v2.z`.
+    low: ([f32; 4], [f32; 4], f32),
+    /// The greatest of each, likewise.
+    high: ([f32; 4], [f32; 4], f32),
+}
+
+impl TriangleFold {
+    /// No triangle yet: the fold of the empty box.
+    pub(crate) const EMPTY: TriangleFold = TriangleFold {
+        low: ([f32::INFINITY; 4], [f32::INFINITY; 4], f32::INFINITY),
+        high: ([f32::NEG_INFINITY; 4], [f32::NEG_INFINITY; 4], f32::NEG_INFINITY),
+    };
+
+    /// Adds a triangle's vertices.
+    #[inline(always)]
+    pub(crate) fn add(&mut self, vertices: &[[f32; 3]; 3]) {
+        let [a0, a1, a2, a3, b0, b1, b2, b3, c] = *vertices.as_flattened() else { unreachable!() };
+        let (a, b) = ([a0, a1, a2, a3], [b0, b1, b2, b3]);
+        let lower = |x: [f32; 4], low: [f32; 4]| -> [f32; 4] {
+            std::array::from_fn(|i| if x[i] < low[i] { x[i] } else { low[i] })
+        };
+        let upper = |x: [f32; 4], high: [f32; 4]| -> [f32; 4] {
+            std::array::from_fn(|i| if x[i] > high[i] { x[i] } else { high[i] })
+        };
+        self.low = (lower(a, self.low.0), lower(b, self.low.1), if c < self.low.2 { c } else { self.low.2 });
+        self.high = (upper(a, self.high.0), upper(b, self.high.1), if c > self.high.2 { c } else { self.high.2 });
     }
-    bounds
+
+    /// The box of the triangles added.
+    #[inline(always)]
+    pub(crate) fn bounds(&self) -> Bounds {
+        let lower = |a: f32, b: f32| if b < a { b } else { a };
+        let upper = |a: f32, b: f32| if b > a { b } else { a };
+        let ((l0, l1, l2), (h0, h1, h2)) = (self.low, self.high);
+        // Coordinate k of the nine is v(k / 3), axis k % 3.
+        let low = [l0[0], l0[1], l0[2], l0[3], l1[0], l1[1], l1[2], l1[3], l2];
+        let high = [h0[0], h0[1], h0[2], h0[3], h1[0], h1[1], h1[2], h1[3], h2];
+        (
+            std::array::from_fn(|a| lower(lower(low[a], low[3 + a]), low[6 + a])),
+            std::array::from_fn(|a| upper(upper(high[a], high[3 + a]), high[6 + a])),
+        )
+    }
+}
+
+/// The box of `records`' vertices ([`TriangleFold`]).
+#[inline(always)]
+pub(crate) fn records_bounds(records: &[PackedTriangle]) -> Bounds {
+    let mut fold = TriangleFold::EMPTY;
+    records.iter().for_each(|record| fold.add(&record.vertices));
+    fold.bounds()
 }
 
 /// The bounding box of a triangle's three vertices.

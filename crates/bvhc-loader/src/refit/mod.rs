@@ -13,9 +13,12 @@ mod report;
 pub use positions::RefitPositions;
 pub use report::{RebuildPolicy, RefitReport};
 
+use report::RefitSums;
+
 use crate::binary::refit::refit_binary;
 use crate::error::Error;
 use crate::format::Affine3x4;
+use crate::format::cost::{AreaSums, box_area};
 use crate::gpu::refit::refit_gpu;
 use crate::open::file::BvhFile;
 use crate::open::view_mut::BvhViewMut;
@@ -70,18 +73,23 @@ impl BvhViewMut<'_> {
         }
         let workers = Workers::new(threads);
         let mut edit = self.edit()?;
-        MovedRecords::new(positions, edit.source_table, edit.triangle_ids, edit.source_vertices)?
-            .write(edit.triangles, workers);
+        let moved = MovedRecords::new(positions, edit.source_table, edit.triangle_ids, edit.source_vertices)?;
+        let binary = match moved {
+            // The common case compiled on its own, its records' copies inlined into the tree's walk.
+            MovedRecords::Triangles(triangles) => refit_binary(edit.nodes, edit.triangles, triangles, workers),
+            _ => refit_binary(edit.nodes, edit.triangles, &moved, workers),
+        };
+        let root_area = edit.nodes.first().map_or(0.0, |root| box_area(&root.min, &root.max));
         let triangles = &*edit.triangles;
-        refit_binary(edit.nodes, triangles, workers);
-        if let (Some(nodes), Some(packets)) = (edit.wide_nodes.as_deref_mut(), edit.triangle_packets.as_deref_mut()) {
-            refit_wide(nodes, packets, triangles, workers);
-        }
+        let wide = match (edit.wide_nodes.as_deref_mut(), edit.triangle_packets.as_deref_mut()) {
+            (Some(nodes), Some(packets)) => refit_wide(nodes, packets, triangles, workers),
+            _ => AreaSums::default(),
+        };
         if let (Some(nodes), Some(gpu_triangles)) = (edit.gpu_nodes.as_deref_mut(), edit.gpu_triangles.as_deref_mut()) {
             refit_gpu(nodes, gpu_triangles, triangles, workers)?;
         }
         edit.end_without_checksums();
-        Ok(RefitReport::of(&self.view(), workers))
+        Ok(RefitReport::of(&self.view(), &RefitSums { root_area, binary, wide }))
     }
 }
 

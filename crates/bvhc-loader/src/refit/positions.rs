@@ -1,12 +1,10 @@
 //! The new positions a refit takes ([`RefitPositions`]): checked against the file before anything is written,
-//! then written into the triangle records, in parallel over chunks of records.
+//! then written into the triangle records leaf by leaf as the binary tree's refit walks them
+//! ([`NewRecords`]).
 
+use crate::binary::refit::NewRecords;
 use crate::error::Error;
-use crate::format::{PackedTriangle, SourceRange, SourceVertexIndices};
-use crate::parallel::Workers;
-
-/// Records a thread writes at least.
-const MIN_CHUNK: usize = 1 << 18;
+use crate::format::{Bounds, PackedTriangle, SourceRange, SourceVertexIndices, TriangleFold};
 
 /// Where a refit's triangles move to, in the file's space (the space of its triangle records: for a glTF scene
 /// the world space after each node's transform, which is what skinning produces).
@@ -158,25 +156,38 @@ impl<'a> MovedRecords<'a> {
         }
         Ok(())
     }
+}
 
-    /// Writes the new vertices into `records` (all of the file's, in order), on `workers`' threads.
-    pub(crate) fn write(&self, records: &mut [PackedTriangle], workers: Workers) {
-        workers.for_chunks(records, MIN_CHUNK, |first, chunk| match self {
-            MovedRecords::Triangles(triangles) => {
-                for (record, vertices) in chunk.iter_mut().zip(&triangles[first..]) {
-                    record.vertices = *vertices;
-                }
-            }
+/// Positions per record, in record order.
+impl NewRecords for [[[f32; 3]; 3]] {
+    #[inline(always)]
+    fn write(&self, first: usize, records: &mut [PackedTriangle]) -> Bounds {
+        let mut fold = TriangleFold::EMPTY;
+        for (record, vertices) in records.iter_mut().zip(self.get(first..).unwrap_or(&[])) {
+            record.vertices = *vertices;
+            fold.add(vertices);
+        }
+        fold.bounds()
+    }
+}
+
+impl NewRecords for MovedRecords<'_> {
+    fn write(&self, first: usize, records: &mut [PackedTriangle]) -> Bounds {
+        match self {
+            MovedRecords::Triangles(triangles) => triangles.write(first, records),
             MovedRecords::SourceVertices { .. } => {
+                let mut fold = TriangleFold::EMPTY;
                 let mut last_range = 0;
-                for (k, record) in chunk.iter_mut().enumerate() {
+                for (k, record) in records.iter_mut().enumerate() {
                     // Checked before: every record has its vertices (or stays).
                     if let Ok(Some(vertices)) = self.record(first + k, &mut last_range) {
                         record.vertices = vertices;
                     }
+                    fold.add(&record.vertices);
                 }
+                fold.bounds()
             }
-        });
+        }
     }
 }
 

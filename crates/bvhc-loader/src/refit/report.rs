@@ -7,10 +7,8 @@
 //! tree, 6.1 for the wide tree), each normalized by its root's area, so a scene that only grows or moves keeps its
 //! ratio at 1.
 
-use crate::format::cost::{AreaSums, BinaryCost, box_area};
-use crate::format::{LEAF_BIT, WIDE, WideNode8};
+use crate::format::cost::{AreaSums, BinaryCost};
 use crate::open::view::BvhView;
-use crate::parallel::Workers;
 use crate::verify::costs::{CostsOf, stated_costs};
 use crate::verify::metadata::parsed_metadata;
 
@@ -31,13 +29,11 @@ pub struct RefitReport {
 }
 
 impl RefitReport {
-    /// The costs of `view` (just refit) beside its metadata's, its trees' areas summed per chunk of nodes on
-    /// `workers`' threads.
-    pub(crate) fn of(view: &BvhView<'_>, workers: Workers) -> RefitReport {
+    /// The costs of `view` (just refit), from the area sums its refits made, beside its metadata's.
+    pub(crate) fn of(view: &BvhView<'_>, sums: &RefitSums) -> RefitReport {
         let mut report = RefitReport { cost: None, file_cost: None, wide_cost: None, file_wide_cost: None };
         let Ok(Some(metadata)) = parsed_metadata(view) else { return report };
-        let sums = RefitSums::of(view, workers);
-        for stated in stated_costs(view, &metadata, &sums) {
+        for stated in stated_costs(view, &metadata, sums) {
             match stated.name {
                 "cost.sah_cost" => {
                     (report.cost, report.file_cost) = (Some(stated.computed), Some(stated.stated.value()))
@@ -63,42 +59,16 @@ impl RefitReport {
     }
 }
 
-/// A refit file's box areas, summed per chunk of nodes, as the costs the metadata's rule compares (sections 5.6
-/// and 6.1): the same sums in another order than the spec's running sums, so equal to them within rounding (far
-/// inside V37's tolerance), not bit for bit.
-struct RefitSums {
-    root_area: f64,
-    binary: AreaSums,
-    wide: AreaSums,
-}
-
-impl RefitSums {
-    fn of(view: &BvhView<'_>, workers: Workers) -> RefitSums {
-        let nodes = view.nodes();
-        let root_area = nodes.first().map_or(0.0, |root| box_area(&root.min, &root.max));
-        let binary = workers.map_chunks(nodes, 1 << 18, |_, chunk| {
-            chunk.iter().fold(AreaSums::default(), |sums, node| {
-                let area = box_area(&node.min, &node.max);
-                match node.count {
-                    0 => AreaSums { inner: sums.inner + area, ..sums },
-                    count => AreaSums { leaf: sums.leaf + area * f64::from(count), ..sums },
-                }
-            })
-        });
-        let wide_nodes = view.wide_sections().map_or(&[][..], |sections| sections.nodes);
-        let wide = wide_nodes.iter().flat_map(|node| (0..WIDE).filter_map(|slot| node.slot(slot))).fold(
-            AreaSums::default(),
-            |sums, ((min, max), child)| {
-                let area = box_area(&min, &max);
-                match child & LEAF_BIT {
-                    0 => AreaSums { inner: sums.inner + area, ..sums },
-                    _ => AreaSums { leaf: sums.leaf + area * f64::from(WideNode8::leaf_packets(child).1), ..sums },
-                }
-            },
-        );
-        let add = |a: AreaSums, b: &AreaSums| AreaSums { inner: a.inner + b.inner, leaf: a.leaf + b.leaf };
-        RefitSums { root_area, binary: binary.iter().fold(AreaSums::default(), add), wide }
-    }
+/// A refit file's box areas, summed by the refits as they make the boxes, for the costs the metadata's rule
+/// compares (sections 5.6 and 6.1): the same sums in another order than the spec's running sums, so equal to them
+/// within rounding (far inside V37's tolerance), not bit for bit.
+pub(crate) struct RefitSums {
+    /// The binary root's area.
+    pub(crate) root_area: f64,
+    /// The binary tree's sums.
+    pub(crate) binary: AreaSums,
+    /// The wide tree's sums (zero without the wide sections).
+    pub(crate) wide: AreaSums,
 }
 
 impl CostsOf for RefitSums {
