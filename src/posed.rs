@@ -39,12 +39,21 @@ impl std::fmt::Display for PosedError {
 impl std::error::Error for PosedError {}
 
 /// The positions of `view`'s triangle records (one triangle a record, in record order) in `asset`, imported
-/// under `limits`: see the module documentation.
+/// under `limits`: see the module documentation. A two-level file is refused (its meshes' records are in each
+/// mesh's own space, not where the asset places them).
 pub fn record_positions(
     view: &BvhView<'_>,
     asset: &Path,
     limits: &ImportLimits,
 ) -> Result<Vec<[[f32; 3]; 3]>, PosedError> {
+    if view.two_level().is_some() {
+        return Err(PosedError::File(
+            "the file is two-level (each mesh stored once in its own space, placed by instances), but the asset's \
+             triangles are read as the scene places them: convert the moved asset again, or refit the meshes \
+             through the library (BvhFile::refit, each mesh's records in its own space)"
+                .into(),
+        ));
+    }
     let (Some(ids), Some(ranges)) = (view.triangle_ids(), view.source_table()) else {
         return Err(PosedError::File(
             "the file has no triangle ids (converted with --no-ids), so its records cannot be matched to the \

@@ -50,7 +50,7 @@ int main(int argc, char **argv) {
     size_t moved = transforms_len / (12 * sizeof(float));
     bvhc_file *one = NULL, *two = NULL;
     if (bvhc_open(argv[1], &one) != BVHC_OK || bvhc_open(argv[5], &two) != BVHC_OK) return 102;
-    /* Refusals, each leaving the file as it was: another count, a NaN, a two-level file, nulls. */
+    /* Refusals, each leaving the file as it was: another count, a NaN, another file's count, nulls. */
     bvhc_refit_report report;
     if (bvhc_refit_triangles(one, positions, records - 1, 2, &report) != BVHC_ERROR_ARGUMENT) return 103;
     printf("refused: %s\n", bvhc_last_error_message());

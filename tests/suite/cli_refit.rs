@@ -208,6 +208,11 @@ fn what_refit_cannot_take_is_refused_naming_why_with_nothing_written() {
     let bare = dir.path().join("bare.bvh");
     convert(&full_obj, &bare, &["--no-splits", "--no-ids"]);
     refused(&bare, &full_obj, "no triangle ids");
+    // A two-level file's meshes are in their own spaces, which the asset's placed triangles are not.
+    let two_level = dir.path().join("two-level.bvh");
+    convert(&rest, &two_level, &["--no-splits", "--instancing", "always"]);
+    assert!(BvhFile::read(&two_level).unwrap().view().two_level().is_some());
+    refused(&two_level, &rest, "the file is two-level");
     assert!(
         !files_in(dir.path()).iter().any(|n| n.contains(".tmp") || n.starts_with(".bvhc")),
         "{:?}",

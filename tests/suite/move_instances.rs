@@ -1,10 +1,11 @@
-//! Moving instances of a two-level file (`BvhFile::move_instances`): the moved file holds the instance records
+//! Moving a two-level file's geometry: its instances (`BvhFile::move_instances`) and its meshes' triangles
+//! (`BvhFile::refit`, after which every instance follows its mesh). The moved file holds the instance records
 //! the writer gives the new placements, verifies, and traces them as the f64 oracle over the flattened scene
 //! says, on every kernel, with or without the wide sections; moving instances to where they stand gives the
 //! file's bytes back; what cannot be placed is refused naming the instance, with the file unchanged.
 
 use bvhc::loader::format::{Affine3x4, SectionKind};
-use bvhc::loader::{BvhFile, Error};
+use bvhc::loader::{BvhFile, Error, RefitPositions};
 
 use crate::common::{every_kernel, random_triangles};
 use crate::instances::{
@@ -90,7 +91,7 @@ fn what_cannot_be_placed_is_refused_naming_the_instance() {
 }
 
 #[test]
-fn moving_instances_of_corrupted_bytes_never_panics() {
+fn moving_instances_or_refitting_meshes_of_corrupted_bytes_never_panics() {
     // Top trees and instance records scribbled over in files that still open: a move refuses or writes nonsense
     // boxes, never panics.
     let (scene, sources) = two_level(&test_meshes(), &test_placements(), true);
@@ -100,6 +101,13 @@ fn moving_instances_of_corrupted_bytes_never_panics() {
         (0..8).map(|k| (k, affine(rotation_z(10.0 * k as f32), [0.1 * k as f32, 0.0, 0.0]))).collect();
     for (_, mut file) in crate::common::scribbled_copies(&original, &kinds, 300, 20, 47) {
         let _ = file.move_instances(&moves);
+    }
+    // A refit of the meshes too, with the meshes' own trees and packets scribbled over as well.
+    let positions: Vec<_> = original.view().triangles().iter().map(|t| t.vertices.map(bend)).collect();
+    let kinds =
+        [kinds.as_slice(), &[SectionKind::Nodes, SectionKind::WideNodes, SectionKind::TrianglePackets]].concat();
+    for (round, mut file) in crate::common::scribbled_copies(&original, &kinds, 300, 20, 48) {
+        let _ = file.refit(RefitPositions::Triangles(&positions), 1 + round % 2);
     }
 }
 
@@ -142,4 +150,60 @@ fn a_rebuilt_top_tree_traces_the_moved_instances_alike_and_costs_less_than_the_r
     let one_level = crate::common::write_wide_file(&random_triangles(5, 20, 1.0), 2);
     assert!(bvhc::instancing::rebuilt_top_trees(&one_level).is_err());
     assert_eq!(bvhc::instancing::top_tree_cost(&one_level.view()), None);
+}
+
+/// A smooth bend in a mesh's object space: a turn about the z axis growing with height, and a lift.
+fn bend([x, y, z]: [f32; 3]) -> [f32; 3] {
+    let (s, c) = (0.6 * y).sin_cos();
+    [x * c - y * s, x * s + y * c, z + 0.25 * x * x]
+}
+
+#[test]
+fn a_two_level_files_meshes_refit_and_every_instance_follows_on_every_kernel() {
+    let meshes = test_meshes();
+    let moved_meshes: Vec<Vec<_>> = meshes.iter().map(|m| m.iter().map(|t| t.map(bend)).collect()).collect();
+    for wide in [false, true] {
+        let (scene, sources) = two_level(&meshes, &test_placements(), wide);
+        let original = write_two_level(&scene, &sources).unwrap();
+        // Every mesh's records moved in its own space: positions per record, in record order over the meshes.
+        let positions: Vec<_> = original.view().triangles().iter().map(|t| t.vertices.map(bend)).collect();
+        for threads in [1, 2] {
+            let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
+            let report = file.refit(RefitPositions::Triangles(&positions), threads).unwrap();
+            // A two-level file states no costs (V37), so the report compares none.
+            assert_eq!((report.cost, report.wide_cost, report.cost_ratio()), (None, None, 1.0));
+            // The meshes' trees, the instances' world boxes and the top trees hold the moved geometry: the file
+            // verifies once its checksums are recomputed, and traces the moved meshes placed as before.
+            let shipped = file.rewritten().unwrap();
+            shipped.view().verify().unwrap();
+            let (target, _) = two_level(&moved_meshes, &test_placements(), wide);
+            let placed = flatten(&target);
+            let rays = test_rays(&placed, 3000, 17);
+            for tracer in every_kernel(&file.view()) {
+                let (checked, ambiguous, _) = check_against_oracle(&tracer, &file, &placed, &rays);
+                assert!(checked > 1500 && ambiguous < rays.len() / 20, "{checked} checked, {ambiguous} ambiguous");
+            }
+        }
+        // Back to the records' own positions: the file's bytes again.
+        let mut file = BvhFile::from_bytes(original.as_bytes()).unwrap();
+        file.refit(RefitPositions::Triangles(&positions), 1).unwrap();
+        let own: Vec<_> = original.view().triangles().iter().map(|t| t.vertices).collect();
+        file.refit(RefitPositions::Triangles(&own), 2).unwrap();
+        assert!(BvhFile::from_bytes(file.as_bytes()).unwrap().rewritten().unwrap().as_bytes() == original.as_bytes());
+    }
+}
+
+#[test]
+fn a_two_level_refit_whose_world_box_would_overflow_is_refused_with_the_file_unchanged() {
+    let (scene, sources) = two_level(&test_meshes(), &test_placements(), true);
+    let mut file = write_two_level(&scene, &sources).unwrap();
+    let before = file.as_bytes().to_vec();
+    // Instance 6 scales its mesh by 2 and carries it far: a mesh reaching 1e38 no longer fits f32 there.
+    let mut positions: Vec<_> = file.view().triangles().iter().map(|t| t.vertices).collect();
+    positions[0][0] = [3.0e38, 0.0, 0.0];
+    match file.refit(RefitPositions::Triangles(&positions), 1) {
+        Err(Error::Refit(why)) => assert!(why.contains("instance") && why.contains("does not fit f32"), "{why}"),
+        other => panic!("refused as a refit error, got {other:?}"),
+    }
+    assert!(file.as_bytes() == before.as_slice(), "the file unchanged");
 }

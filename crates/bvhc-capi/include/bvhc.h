@@ -231,10 +231,11 @@ bvhc_status bvhc_source_range_of(const bvhc_file *file, uint32_t source_triangle
 /* Moving geometry (docs/loader.md, "Refit"). A refit keeps the file's tree and moves its records: per record
  * (9 floats each, v0 v1 v2 as bvhc_triangle_vertices gives them) or per source vertex of each source range
  * (positions[r]: 3 * vertex_counts[r] floats indexed as the source primitive indexes them, NULL to keep the
- * range); one-level files (with split references, each reference is boxed as its whole triangle: convert meshes
- * meant to deform with --no-splits or --no-splits-deforming for tighter trees); the same result on any number of
- * threads (0 or 1: the calling thread). The report compares the refit tree's costs with the costs the file
- * states (NaN where it states none): rebuild (convert again) once cost_ratio passes a threshold, 1.2 by default
+ * range), in the records' space (in a two-level file each mesh's own: every instance then follows its mesh);
+ * with split references, each reference is boxed as its whole triangle (convert meshes meant to deform with
+ * --no-splits or --no-splits-deforming for tighter trees); the same result on any number of threads (0 or 1:
+ * the calling thread). The report compares the refit tree's costs with the costs the file states (NaN where it
+ * states none, as a two-level file does): rebuild (convert again) once cost_ratio passes a threshold, 1.2 by default
  * in bvhc. bvhc_move_instances places instances of a two-level file anew (3x4 row-major object-to-world maps,
  * 12 floats each). bvhc_write writes the file atomically with its stated costs and checksums recomputed (a
  * refit leaves both stale: bvhc_verify fails until then), so it verifies.

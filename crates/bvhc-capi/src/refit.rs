@@ -71,9 +71,10 @@ fn refit(
 /// gives them, in record order; `triangle_count` records, the file's count) and refits the file's layouts on up
 /// to `threads` threads (0 or 1: the calling thread alone), the same result for any count. `report`, when not
 /// null, receives the refit tree's costs. A file with split references refits each reference to its whole
-/// triangle (correct, looser: convert meshes meant to deform with `--no-splits-deforming`). Refused, with the file
-/// unchanged: a two-level file, another count, a coordinate that is not finite, a split triangle's references
-/// given different positions (the message names the records).
+/// triangle (correct, looser: convert meshes meant to deform with `--no-splits-deforming`); in a two-level file
+/// the records are each mesh's, in its own space, and every instance follows its mesh. Refused, with the file
+/// unchanged: another count, a coordinate that is not finite, a split triangle's references given different
+/// positions (the message names the records), an instance whose moved mesh no longer fits f32.
 ///
 /// # Safety
 ///

@@ -660,7 +660,7 @@ def test_refit_refuses_what_does_not_fit(tmp_path):
         assert scene._native.data.tobytes() == bvh.read_bytes(), "a refused call changes nothing"
 
 
-def test_moved_instances_trace_where_they_stand(tmp_path):
+def test_moved_instances_and_meshes_trace_where_they_stand(tmp_path):
     # One mesh (two triangles) placed twice by glTF nodes, converted two-level.
     positions = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=np.float32)
     indices = np.array([0, 1, 2, 0, 2, 3], dtype=np.uint16)
@@ -695,6 +695,17 @@ def test_moved_instances_trace_where_they_stand(tmp_path):
     assert hits["t"][0] == np.float32(3.0)
     with pytest.raises(bvhc.InvalidInputError, match="instance 2"):
         scene.move_instances([2], transform)
+    # The mesh itself lifted by 1 in its own space: both instances follow it.
+    lifted = scene.triangles.copy()
+    lifted[:, :, 2] += 1.0
+    report = scene.refit(lifted, threads=2)
+    assert report["cost"] is None and report["cost_ratio"] == 1.0, "a two-level file states no costs"
+    scene.write(tmp_path / "lifted.bvh")
+    bvhc.verify(tmp_path / "lifted.bvh")
+    origins = np.array([[10.5, 0.5, 5.0], [0.5, 0.5, 5.0]], dtype=np.float32)
+    hits = scene.closest_hits(origins, directions, np.zeros(2), np.full(2, np.inf))
+    assert hits["instance"].tolist() == [1, 0]
+    assert hits["t"].tolist() == [2.0, 4.0]
 
 
 def test_splits_deforming_is_the_command_lines_flag():

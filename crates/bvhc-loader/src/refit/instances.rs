@@ -75,7 +75,7 @@ impl BvhViewMut<'_> {
 
 /// The binary top tree (children after parents, V43) refit: a leaf of a moved instance takes its new box
 /// (`boxes[instance]`), another leaf keeps its own, an inner node the union of its children's.
-fn refit_top_binary(nodes: &mut [PackedNode], boxes: &[Option<Bounds>]) {
+pub(super) fn refit_top_binary(nodes: &mut [PackedNode], boxes: &[Option<Bounds>]) {
     for i in (0..nodes.len()).rev() {
         let node = nodes[i];
         let bounds = if node.is_leaf() {
@@ -93,7 +93,7 @@ fn refit_top_binary(nodes: &mut [PackedNode], boxes: &[Option<Bounds>]) {
 
 /// The 8-wide top tree (children after parents) refit: a leaf slot of a moved instance takes its new box, another
 /// keeps its own, an inner slot the union of its child's slots.
-fn refit_top_wide(nodes: &mut [WideNode8], boxes: &[Option<Bounds>]) {
+pub(super) fn refit_top_wide(nodes: &mut [WideNode8], boxes: &[Option<Bounds>]) {
     for i in (0..nodes.len()).rev() {
         for slot in 0..WIDE {
             let child = nodes[i].child[slot];

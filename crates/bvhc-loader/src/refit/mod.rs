@@ -7,6 +7,7 @@
 //! [`RebuildPolicy`] to decide when to convert again.
 
 mod instances;
+mod meshes;
 mod positions;
 mod report;
 
@@ -42,22 +43,20 @@ impl BvhViewMut<'_> {
     /// deform with `--no-splits` or `--no-splits-deforming`. The references of one triangle (one id) must move
     /// alike.
     ///
-    /// Refused, with the file unchanged: a two-level file (its meshes are placed by instances, whose top tree a
-    /// refit of the meshes would leave stale), a file with split references but no ids, references of one
-    /// triangle given different positions (naming both records), positions that do not fit the file (a count other than the records' or the source ranges', a source
-    /// vertex index past its range's positions, a file without source vertices for
-    /// [`RefitPositions::SourceVertices`]) or a coordinate that is not finite, each naming the record, range or
-    /// vertex. An error from the GPU layout (a box too large for its grid) leaves the file partly refit: refit a
-    /// copy where that may happen.
+    /// In a two-level file the records are each mesh's, in the mesh's object space (a flattened mesh's records in
+    /// world space, an instanced mesh's in the space its instances map): each mesh's trees are refit over its own
+    /// ranges, then every instance takes its moved mesh's world box and both top trees are refit. A two-level
+    /// file states no costs (rule V37), so its report has none.
+    ///
+    /// Refused, with the file unchanged: a file with split references but no ids, references of one triangle
+    /// given different positions (naming both records), positions that do not fit the file (a count other than
+    /// the records' or the source ranges', a source vertex index past its range's positions, a file without
+    /// source vertices for [`RefitPositions::SourceVertices`]), a coordinate that is not finite, each naming the
+    /// record, range or vertex, and an instance whose moved mesh's world box does not fit f32. An error from the
+    /// GPU layout (a box too large for its grid) leaves the file partly refit: refit a copy where that may
+    /// happen.
     pub fn refit(&mut self, positions: RefitPositions<'_>, threads: usize) -> Result<RefitReport, Error> {
         let view = self.view();
-        if view.two_level().is_some() {
-            return Err(Error::Refit(
-                "a two-level file's meshes are placed by instances; refit is for one-level files (move instances \
-                 with move_instances)"
-                    .into(),
-            ));
-        }
         let split = view.has_split_references();
         if split && view.triangle_ids().is_none() {
             return Err(Error::Refit(
@@ -71,9 +70,18 @@ impl BvhViewMut<'_> {
         if let (true, Some(ids)) = (split, view.triangle_ids()) {
             moved.check_references_agree(ids)?;
         }
+        meshes::check_world_boxes(&view, &moved)?;
         let workers = Workers::new(threads);
         let mut edit = self.edit()?;
         let moved = MovedRecords::new(positions, edit.source_table, edit.triangle_ids, edit.source_vertices)?;
+        if edit.meshes.is_some() {
+            match moved {
+                MovedRecords::Triangles(triangles) => meshes::refit_meshes(&mut edit, triangles, workers),
+                _ => meshes::refit_meshes(&mut edit, &moved, workers),
+            }
+            edit.end_without_checksums();
+            return Ok(RefitReport::of(&self.view(), &RefitSums::default()));
+        }
         let binary = match moved {
             // The common case compiled on its own, its records' copies inlined into the tree's walk.
             MovedRecords::Triangles(triangles) => refit_binary(edit.nodes, edit.triangles, triangles, workers),

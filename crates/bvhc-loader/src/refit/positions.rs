@@ -96,7 +96,7 @@ impl<'a> MovedRecords<'a> {
     /// The new vertices of `record`, `None` where the record stays; an error saying why a record cannot move.
     /// `last_range` carries the range of the record before (records of one primitive often follow each other),
     /// tried before a search.
-    fn record(&self, record: usize, last_range: &mut usize) -> Result<Option<[[f32; 3]; 3]>, String> {
+    pub(super) fn record(&self, record: usize, last_range: &mut usize) -> Result<Option<[[f32; 3]; 3]>, String> {
         match self {
             MovedRecords::Triangles(triangles) => Ok(triangles.get(record).copied()),
             MovedRecords::SourceVertices { positions, ranges, ids, corners } => {

@@ -62,6 +62,7 @@ impl RefitReport {
 /// A refit file's box areas, summed by the refits as they make the boxes, for the costs the metadata's rule
 /// compares (sections 5.6 and 6.1): the same sums in another order than the spec's running sums, so equal to them
 /// within rounding (far inside V37's tolerance), not bit for bit.
+#[derive(Default)]
 pub(crate) struct RefitSums {
     /// The binary root's area.
     pub(crate) root_area: f64,

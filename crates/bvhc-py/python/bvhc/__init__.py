@@ -426,8 +426,9 @@ class Scene:
         max_cost_ratio: float = REBUILD_COST_RATIO,
     ) -> Dict[str, Any]:
         """Move the triangle records and refit the file's trees in place, keeping their shape (skinned or
-        morphed meshes, each frame). The scene must be opened with ``writable=True``; one-level files (with
-        split references, each reference is boxed as its whole triangle: convert meshes meant to deform with
+        morphed meshes, each frame). The scene must be opened with ``writable=True``. In a two-level file the
+        records are each mesh's, in the mesh's own space, and every instance follows its mesh. With split
+        references, each reference is boxed as its whole triangle (convert meshes meant to deform with
         ``splits=False`` for tighter trees).
 
         ``positions``: ``(n, 3, 3)`` float32, C-contiguous (read in place), one triangle a record in record
