@@ -206,10 +206,10 @@ fn instances_table(dir: &Path, runs: usize) {
         (0..instances.len()).map(|k| (k as u32, instances[(k * 7919) % instances.len()])).collect();
     moving.move_instances(&shuffled).expect("the instances move");
     let rebuild = harness::median_time(runs, || {
-        std::hint::black_box(bvhc::instancing::rebuilt_top_trees(&moving).expect("the top trees rebuild"));
+        std::hint::black_box(moving.rebuilt_top_trees().expect("the top trees rebuild"));
     });
-    let rebuilt = bvhc::instancing::rebuilt_top_trees(&moving).expect("the top trees rebuild");
-    let cost = |file: &BvhFile| bvhc::instancing::top_tree_cost(&file.view()).expect("two-level");
+    let rebuilt = moving.rebuilt_top_trees().expect("the top trees rebuild");
+    let cost = |file: &BvhFile| file.view().top_tree_cost().expect("two-level");
     let root = moving.view().two_level().expect("two-level").top_nodes[0];
     let uniform = rays::uniform_rays(&root, 200_000, 9);
     println!(

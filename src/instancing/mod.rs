@@ -1,13 +1,8 @@
 //! Two-level scenes (format 1.3): meshes built once in their object space, placed by instances under a
-//! top-level tree. [`top_tree`] builds the tree over the instances' world boxes, [`top_wide`] its 8-wide form;
-//! [`TwoLevelScene::assemble`]
-//! lays the meshes' packed trees out as the file's sections (each mesh's indices relative to its own ranges,
-//! `format-spec/bvh-1.md` 5.10) beside the mesh table, the instances and the top tree; [`rebuild`] builds a moved
-//! file's top trees anew.
-
-pub mod rebuild;
-pub mod top_tree;
-pub mod top_wide;
+//! top-level tree, built over the instances' world boxes by the loader's builder
+//! ([`bvhc_loader::top_tree`], which also rebuilds a moved file's top trees); [`TwoLevelScene::assemble`] lays the
+//! meshes' packed trees out as the file's sections (each mesh's indices relative to its own ranges,
+//! `format-spec/bvh-1.md` 5.10) beside the mesh table, the instances and the top trees.
 
 use bvhc_loader::{
     TwoLevelSections, format::Affine3x4, format::InstanceRecord, format::MeshRecord, format::PackedNode,
@@ -15,9 +10,7 @@ use bvhc_loader::{
     ray::instance_world_box,
 };
 
-pub use rebuild::{rebuilt_top_trees, top_tree_cost};
-pub use top_tree::build_top_tree;
-pub use top_wide::collapse_top_tree;
+use bvhc_loader::top_tree::{build_top_tree, collapse_top_tree};
 
 /// One mesh's packed trees in its object space, in the one-level layout (root first, indices from 0).
 #[derive(Clone, Debug, Default, PartialEq)]

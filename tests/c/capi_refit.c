@@ -1,7 +1,8 @@
 /* Moves geometry through the C API: refits a one-level .bvh to the positions of a float file (9 a record), on
  * two threads, checks the refusals, traces the rays of a ray file and writes the file back; then moves the
  * instances of a two-level .bvh by the 3x4 maps of a float file (12 an instance, instance k by map k) and traces
- * the same rays. One line per ray: "hit t triangle instance" (t as a bit pattern in hex) or "miss"; the report's
+ * the same rays, then rebuilds its top trees (printing their cost before and after as "top") and traces them
+ * again. One line per ray: "hit t triangle instance" (t as a bit pattern in hex) or "miss"; the report's
  * cost ratio as "ratio" and 17 significant digits. tests/suite/capi_refit.rs compares with Rust.
  * Usage: capi_refit ONE.bvh POSITIONS.bin RAYS.bin OUT.bvh TWO.bvh TRANSFORMS.bin */
 #include <math.h>
@@ -89,6 +90,14 @@ int main(int argc, char **argv) {
         return 114;
     }
     if (bvhc_verify(two) != BVHC_OK) return 115;
+    trace(two, rays, ray_count);
+    /* The top trees built anew over the moved instances: their cost before and after, then the same rays. */
+    double before, after;
+    if (bvhc_top_tree_cost(one, &before) != BVHC_ERROR_NOT_IN_FILE) return 116;
+    if (bvhc_rebuild_top_trees(one) != BVHC_ERROR_ARGUMENT) return 117;
+    if (bvhc_top_tree_cost(two, &before) != BVHC_OK || bvhc_rebuild_top_trees(two) != BVHC_OK) return 118;
+    if (bvhc_top_tree_cost(two, &after) != BVHC_OK || bvhc_verify(two) != BVHC_OK) return 119;
+    printf("top %.17g %.17g\n", before, after);
     trace(two, rays, ray_count);
     bvhc_close(one);
     bvhc_close(two);

@@ -1,7 +1,8 @@
 //! Moving geometry through the C API (`tests/c/capi_refit.c` against the static library): a refit to bent
 //! positions on two threads, per record, gives the hits and the cost ratio Rust's refit gives and writes the
-//! bytes Rust's `rewritten` writes; moved instances trace as Rust's `move_instances` makes them; refusals name
-//! the record or the call. SKIPPED without a C compiler or without the library.
+//! bytes Rust's `rewritten` writes; moved instances trace as Rust's `move_instances` makes them, and their top
+//! trees rebuilt as Rust's `rebuilt_top_trees` builds them, with the same costs; refusals name the record or the
+//! call. SKIPPED without a C compiler or without the library.
 
 use bvhc_loader::Trace;
 use std::process::Command;
@@ -88,7 +89,7 @@ fn a_c_program_refits_and_moves_instances_as_rust_does() {
     let line = lines.next().unwrap();
     assert!(line.contains("positions for 2 source ranges, but the file has 1"), "{line}");
     let lines: Vec<&str> = lines.collect();
-    assert_eq!(lines.len(), 2 * rays.len());
+    assert_eq!(lines.len(), 3 * rays.len() + 1);
     assert_eq!(lines[..rays.len()], traced_lines(&refit, &rays)[..], "the refit file's hits");
     assert!(std::fs::read(&out).unwrap() == refit.rewritten().unwrap().as_bytes(), "bvhc_write's bytes");
     BvhFile::read(&out).unwrap().view().verify().unwrap();
@@ -96,7 +97,15 @@ fn a_c_program_refits_and_moves_instances_as_rust_does() {
     let mut moved = BvhFile::from_bytes(two_file.as_bytes()).unwrap();
     let moves: Vec<(u32, Affine3x4)> = maps.iter().enumerate().map(|(k, m)| (k as u32, *m)).collect();
     moved.move_instances(&moves).unwrap();
-    assert_eq!(lines[rays.len()..], traced_lines(&moved, &rays)[..], "the moved instances' hits");
+    assert_eq!(lines[rays.len()..2 * rays.len()], traced_lines(&moved, &rays)[..], "the moved instances' hits");
+    // Rust's rebuild of the moved file's top trees.
+    let rebuilt = moved.rebuilt_top_trees().unwrap();
+    let costs = [moved.view().top_tree_cost().unwrap(), rebuilt.view().top_tree_cost().unwrap()];
+    let top: Vec<f64> =
+        lines[2 * rays.len()].strip_prefix("top ").unwrap().split(' ').map(|v| v.parse().unwrap()).collect();
+    assert_eq!(top.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), costs.map(f64::to_bits), "{top:?} vs {costs:?}");
+    assert!(costs[1] < costs[0], "the rebuilt top tree costs less: {costs:?}");
+    assert_eq!(lines[2 * rays.len() + 1..], traced_lines(&rebuilt, &rays)[..], "the rebuilt top trees' hits");
     let hits = lines.iter().filter(|l| l.starts_with("hit")).count();
     assert!(hits > 200, "{hits} hits");
 }

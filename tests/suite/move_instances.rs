@@ -129,15 +129,12 @@ fn a_rebuilt_top_tree_traces_the_moved_instances_alike_and_costs_less_than_the_r
     let (scene, sources) = two_level(&test_meshes(), &placements, true);
     let mut file = write_two_level(&scene, &sources).unwrap();
     file.move_instances(&moves).unwrap();
-    let rebuilt = bvhc::instancing::rebuilt_top_trees(&file).unwrap();
+    let rebuilt = file.rebuilt_top_trees().unwrap();
     rebuilt.view().verify().unwrap();
     for kind in [SectionKind::Instances, SectionKind::Meshes, SectionKind::Nodes, SectionKind::Triangles] {
         assert_eq!(section(&rebuilt, kind), section(&file, kind), "{kind:?} kept");
     }
-    let (refit_cost, rebuilt_cost) = (
-        bvhc::instancing::top_tree_cost(&file.view()).unwrap(),
-        bvhc::instancing::top_tree_cost(&rebuilt.view()).unwrap(),
-    );
+    let (refit_cost, rebuilt_cost) = (file.view().top_tree_cost().unwrap(), rebuilt.view().top_tree_cost().unwrap());
     assert!(rebuilt_cost < refit_cost, "rebuilt {rebuilt_cost} against refit {refit_cost}");
     let (target, _) = two_level(&test_meshes(), &moved, true);
     let placed = flatten(&target);
@@ -148,8 +145,8 @@ fn a_rebuilt_top_tree_traces_the_moved_instances_alike_and_costs_less_than_the_r
     }
     // A one-level file has none.
     let one_level = crate::common::write_wide_file(&random_triangles(5, 20, 1.0), 2);
-    assert!(bvhc::instancing::rebuilt_top_trees(&one_level).is_err());
-    assert_eq!(bvhc::instancing::top_tree_cost(&one_level.view()), None);
+    assert!(one_level.rebuilt_top_trees().is_err());
+    assert_eq!(one_level.view().top_tree_cost(), None);
 }
 
 /// A smooth bend in a mesh's object space: a turn about the z axis growing with height, and a lift.

@@ -24,7 +24,7 @@
  *   crashes; no exception or panic crosses the boundary;
  * - batch calls read the caller's rays in place and write each result straight into the caller's arrays;
  * - a bvhc_file changes only through the refit calls (bvhc_refit_triangles, bvhc_refit_source_vertices,
- *   bvhc_move_instances); otherwise any number of threads may trace through one at once; only bvhc_close and
+ *   bvhc_move_instances, bvhc_rebuild_top_trees); otherwise any number of threads may trace through one at once; only bvhc_close and
  *   the refit calls must not race with them.
  * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices (bvhc_triangle_vertices);
  * bvhc_hit_source_corners names them in the source scene's own primitive (format-spec/bvh-1.md 5.9), to
@@ -237,10 +237,12 @@ bvhc_status bvhc_source_range_of(const bvhc_file *file, uint32_t source_triangle
  * the calling thread). The report compares the refit tree's costs with the costs the file states (NaN where it
  * states none, as a two-level file does): rebuild (convert again) once cost_ratio passes a threshold, 1.2 by default
  * in bvhc. bvhc_move_instances places instances of a two-level file anew (3x4 row-major object-to-world maps,
- * 12 floats each). bvhc_write writes the file atomically with its stated costs and checksums recomputed (a
+ * 12 floats each), refitting the top trees; after large moves bvhc_rebuild_top_trees builds them anew (the
+ * converter's builder) once bvhc_top_tree_cost says the refit ones cost more, replacing the file's bytes (fetch
+ * bvhc_get_sections again). bvhc_write writes the file atomically with its stated costs and checksums recomputed (a
  * refit leaves both stale: bvhc_verify fails until then), so it verifies.
  * Refusals are BVHC_ERROR_ARGUMENT with the file unchanged, naming the record, range, vertex or instance. The
- * pointers of bvhc_get_sections stay valid (the arrays change in place). */
+ * pointers of bvhc_get_sections stay valid through the other calls (the arrays change in place). */
 typedef struct bvhc_refit_report {
     double cost, file_cost;           /* the binary tree's SAH cost now, and the one the file states */
     double wide_cost, file_wide_cost; /* the wide tree's cost now, and the one the file states */
@@ -251,6 +253,8 @@ bvhc_status bvhc_refit_triangles(bvhc_file *file, const float *positions, size_t
 bvhc_status bvhc_refit_source_vertices(bvhc_file *file, const float *const *positions, const size_t *vertex_counts,
                                        size_t range_count, unsigned threads, bvhc_refit_report *report);
 bvhc_status bvhc_move_instances(bvhc_file *file, const uint32_t *instances, const float *transforms, size_t count);
+bvhc_status bvhc_rebuild_top_trees(bvhc_file *file);
+bvhc_status bvhc_top_tree_cost(const bvhc_file *file, double *cost); /* BVHC_ERROR_NOT_IN_FILE if one-level */
 bvhc_status bvhc_write(const bvhc_file *file, const char *path);
 
 /* The file's arrays, for look-ups per candidate or per pixel without a call into the library: fill once with

@@ -1,6 +1,7 @@
 //! Moving geometry from C: refitting an open file to moved triangles (`bvhc_refit_triangles`, per record;
 //! `bvhc_refit_source_vertices`, per source vertex of each primitive), moving instances of a two-level file
-//! (`bvhc_move_instances`), and writing the result (`bvhc_write`, its costs and checksums recomputed so that it verifies).
+//! (`bvhc_move_instances`), rebuilding a moved file's top trees (`bvhc_rebuild_top_trees`, `bvhc_top_tree_cost`),
+//! and writing the result (`bvhc_write`, its costs and checksums recomputed so that it verifies).
 //! These change the file: they must not race with any other call on it (as `bvhc_close` must not); each makes
 //! the file's tracer again, so the next trace sees the new geometry.
 
@@ -9,7 +10,7 @@ use std::ffi::{CStr, c_char, c_int, c_uint};
 use bvhc_loader::format::Affine3x4;
 use bvhc_loader::{RefitPositions, RefitReport};
 
-use crate::boundary::{BVHC_OK, BvhcFile, argument, guarded, status_of};
+use crate::boundary::{BVHC_ERROR_NOT_IN_FILE, BVHC_OK, BvhcFile, argument, guarded, status_of};
 
 /// `bvhc_refit_report`: the refit tree's costs beside the costs the file states, NaN where the file states none
 /// (no metadata, or no wide sections for the wide cost); `cost_ratio` is 1 then.
@@ -189,6 +190,51 @@ pub unsafe extern "C" fn bvhc_move_instances(
         let moves: Vec<(u32, Affine3x4)> = indices.iter().copied().zip(maps.iter().copied()).collect();
         let result = file.traced.edit_file(|file| file.move_instances(&moves));
         result.map_err(|e| (status_of(&e), format!("{call}: {e}")))?;
+        Ok(BVHC_OK)
+    })
+}
+
+/// Builds both top trees of a two-level file anew over its instances as they now stand (after large moves, when
+/// [`bvhc_top_tree_cost`] says the refit trees cost more), by the converter's builder
+/// (`BvhView::rebuilt_top_trees`): the file's bytes are replaced by the rebuilt file's, so pointers from
+/// `bvhc_get_sections` must be fetched again. Refused, with the file unchanged: a one-level file, a world box that
+/// does not fit f32 (naming the instance).
+///
+/// # Safety
+///
+/// `file` is null or a live file no other call uses now.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_rebuild_top_trees(file: *mut BvhcFile) -> c_int {
+    guarded(|| {
+        let call = "bvhc_rebuild_top_trees";
+        // SAFETY: the caller's contract is `file_mut`'s.
+        let file = unsafe { file_mut(call, file) }?;
+        let rebuilt = file.traced.file().rebuilt_top_trees().map_err(|e| (status_of(&e), format!("{call}: {e}")))?;
+        file.traced.edit_file(|file| *file = rebuilt);
+        Ok(BVHC_OK)
+    })
+}
+
+/// Writes to `cost` the SAH cost of a two-level file's binary top tree (`BvhView::top_tree_cost`: the nodes'
+/// areas over the root's, each instance counted as one), to compare a refit top tree with a rebuilt one.
+/// `BVHC_ERROR_NOT_IN_FILE` for a one-level file.
+///
+/// # Safety
+///
+/// `file` is null or a live file; `cost` is null or points to a writable double.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_top_tree_cost(file: *const BvhcFile, cost: *mut f64) -> c_int {
+    guarded(|| {
+        let call = "bvhc_top_tree_cost";
+        // SAFETY: by the contract `file` is null or live, `cost` null or writable.
+        let (file, cost) = unsafe { (file.as_ref(), cost.as_mut()) };
+        let (Some(file), Some(cost)) = (file, cost) else {
+            return Err(argument(&format!("{call}: file and cost must not be null")));
+        };
+        let Some(value) = file.traced.view().top_tree_cost() else {
+            return Err((BVHC_ERROR_NOT_IN_FILE, format!("{call}: a one-level file has no top tree")));
+        };
+        *cost = value;
         Ok(BVHC_OK)
     })
 }

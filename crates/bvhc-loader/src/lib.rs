@@ -74,6 +74,7 @@ pub mod ray;
 mod simd;
 mod source;
 mod subtrees;
+pub mod top_tree;
 mod trace;
 pub mod tracer;
 pub mod verify;

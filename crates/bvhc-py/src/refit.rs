@@ -114,3 +114,27 @@ pub fn write(py: Python<'_>, bytes: &Py<PyArray1<u8>>, path: &str, output: std::
     })
     .map_err(|e| loader(&e, format!("{}: {e}", output.display())))
 }
+
+/// `Scene.rebuilt_top_trees`: the bytes of the file with both top trees built anew over its instances as they
+/// stand (`BvhView::rebuilt_top_trees`, verified), in a new array.
+pub fn rebuilt_top_trees<'py>(
+    py: Python<'py>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+) -> PyResult<Bound<'py, PyArray1<u8>>> {
+    let array = bytes.bind(py).readonly();
+    let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
+    let rebuilt = py
+        .detach(|| bvhc::loader::BvhView::open(slice)?.rebuilt_top_trees())
+        .map_err(|e| loader(&e, format!("{path}: rebuilt_top_trees: {e}")))?;
+    Ok(PyArray1::from_slice(py, rebuilt.as_bytes()))
+}
+
+/// `Scene.top_tree_cost`: a two-level file's binary top tree's SAH cost (`BvhView::top_tree_cost`), `None` for a
+/// one-level file.
+pub fn top_tree_cost(py: Python<'_>, bytes: &Py<PyArray1<u8>>, path: &str) -> PyResult<Option<f64>> {
+    let array = bytes.bind(py).readonly();
+    let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
+    let view = bvhc::loader::BvhView::open(slice).map_err(|e| loader(&e, format!("{path}: {e}")))?;
+    Ok(view.top_tree_cost())
+}

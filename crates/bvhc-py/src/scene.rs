@@ -338,6 +338,17 @@ impl Scene {
         crate::refit::move_instances(py, &self.bytes, &self.path, instances, transforms)
     }
 
+    /// The file with its top trees built anew over its instances as they stand, as a new byte array.
+    fn rebuilt_top_trees<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray1<u8>>> {
+        crate::refit::rebuilt_top_trees(py, &self.bytes, &self.path)
+    }
+
+    /// A two-level file's top tree cost (`None` for a one-level file).
+    #[getter]
+    fn top_tree_cost(&self, py: Python<'_>) -> PyResult<Option<f64>> {
+        crate::refit::top_tree_cost(py, &self.bytes, &self.path)
+    }
+
     /// Writes the file to `output` atomically, its stated costs recomputed (so a refit file verifies).
     fn write(&self, py: Python<'_>, output: std::path::PathBuf) -> PyResult<()> {
         crate::refit::write(py, &self.bytes, &self.path, output)

@@ -706,6 +706,18 @@ def test_moved_instances_and_meshes_trace_where_they_stand(tmp_path):
     hits = scene.closest_hits(origins, directions, np.zeros(2), np.full(2, np.inf))
     assert hits["instance"].tolist() == [1, 0]
     assert hits["t"].tolist() == [2.0, 4.0]
+    # The top trees built anew over the instances where they now stand: the same hits, a cost no higher.
+    rebuilt = scene.rebuilt_top_trees()
+    assert rebuilt.top_tree_cost <= scene.top_tree_cost
+    rebuilt.verify()
+    again = rebuilt.closest_hits(origins, directions, np.zeros(2), np.full(2, np.inf))
+    assert again["instance"].tolist() == [1, 0] and again["t"].tolist() == [2.0, 4.0]
+    one_level = tmp_path / "flat.bvh"
+    cli(tmp_path / "quads.gltf", "--instancing", "never", "-o", one_level, "-q")
+    flat = bvhc.open(one_level)
+    assert flat.top_tree_cost is None
+    with pytest.raises(bvhc.InvalidInputError, match="one-level file has no top tree"):
+        flat.rebuilt_top_trees()
 
 
 def test_splits_deforming_is_the_command_lines_flag():

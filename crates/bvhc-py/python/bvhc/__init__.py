@@ -455,6 +455,21 @@ class Scene:
         indices = [int(i) for i in np.asarray(instances, dtype=np.int64).reshape(-1)]
         self._native.move_instances(indices, np.ascontiguousarray(transforms, dtype=np.float32))
 
+    @property
+    def top_tree_cost(self) -> Optional[float]:
+        """A two-level file's binary top tree SAH cost (its nodes' areas over the root's, each instance counted
+        once), ``None`` for a one-level file: compare the refit tree's after :meth:`move_instances` with
+        :meth:`rebuilt_top_trees`' to decide whether a rebuild pays."""
+        return self._native.top_tree_cost
+
+    def rebuilt_top_trees(self) -> "Scene":
+        """A new scene (in memory, writable) holding this two-level file with both top trees built anew over
+        its instances as they now stand, by the converter's own builder (binned SAH over the instances' world
+        boxes): after large :meth:`move_instances` the refit trees keep their old grouping and trace slowly.
+        The file is laid out anew (the wide top tree may change its node count) and verified. Raises
+        :class:`InvalidInputError` for a one-level file."""
+        return Scene(_native.Scene(self._native.rebuilt_top_trees(), self.path, False))
+
     def write(self, path: PathLike) -> None:
         """Write the file to ``path`` atomically with the costs its metadata states and its checksums recomputed
         (a refit leaves both stale, so :meth:`verify` fails on the scene itself), so that it passes ``bvhc verify``."""

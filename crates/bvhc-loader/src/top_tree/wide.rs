@@ -5,8 +5,8 @@
 //! (`LEAF_BIT | instance`), its box the instance's world box. Nodes are numbered depth first, children after
 //! their parent. Deterministic: ties go to the lower slot.
 
-use bvhc_loader::format::{EMPTY_SLOT, LEAF_BIT, WIDE};
-use bvhc_loader::{format::PackedNode, format::WideNode8};
+use crate::format::{EMPTY_SLOT, LEAF_BIT, WIDE};
+use crate::format::{PackedNode, WideNode8};
 
 fn half_area(node: &PackedNode) -> f64 {
     let d: [f64; 3] = std::array::from_fn(|k| f64::from(node.max[k] - node.min[k]).max(0.0));
@@ -61,7 +61,7 @@ pub fn collapse_top_tree(binary: &[PackedNode]) -> Vec<WideNode8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::instancing::build_top_tree;
+    use crate::top_tree::build_top_tree;
 
     #[test]
     fn every_instance_is_in_one_leaf_slot_and_children_follow_their_parent() {

@@ -8,8 +8,8 @@
 //! than [`MEDIAN_BELOW_DEPTH`] (so it never reaches the format's `MAX_DEPTH`: below that depth every split
 //! halves). Deterministic: no threads, ties broken by index.
 
-use bvhc_loader::format::MAX_DEPTH;
-use bvhc_loader::format::PackedNode;
+use crate::format::MAX_DEPTH;
+use crate::format::PackedNode;
 
 /// Bins per axis.
 const BINS: usize = 16;
