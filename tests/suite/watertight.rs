@@ -1,5 +1,5 @@
 //! Watertightness: rays from inside closed meshes, and rays aimed exactly at shared vertices and edges, never
-//! slip through.
+//! slip through, in files as converted and in a file refit to a deformed pose.
 
 use bvhc::loader::Ray;
 use bvhc_loader::Trace;
@@ -47,6 +47,27 @@ fn soup(vertices: &[[f32; 3]], faces: &[[usize; 3]]) -> Vec<Triangle> {
     faces.iter().map(|f| f.map(|v| vertices[v])).collect()
 }
 
+/// Rays from each origin to every vertex, to every edge's midpoint, and in 2000 random directions.
+fn rays_at_vertices_and_edges(origins: &[[f32; 3]], vertices: &[[f32; 3]], faces: &[[usize; 3]]) -> Vec<Ray> {
+    let mut rays: Vec<Ray> = Vec::new();
+    let mut rng = rng(60);
+    for &origin in origins {
+        for v in vertices {
+            rays.push(Ray::new(origin, std::array::from_fn(|a| v[a] - origin[a])));
+        }
+        for f in faces {
+            for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+                let mid: [f32; 3] = std::array::from_fn(|k| (vertices[a][k] + vertices[b][k]) * 0.5);
+                rays.push(Ray::new(origin, std::array::from_fn(|k| mid[k] - origin[k])));
+            }
+        }
+        for _ in 0..2000 {
+            rays.push(Ray::new(origin, random_point(&mut rng, 1.0)));
+        }
+    }
+    rays
+}
+
 fn assert_all_hit(name: &str, triangles: &[Triangle], rays: &[Ray]) {
     for max_leaf_size in [1, 4] {
         let tree = packed_tree(triangles, max_leaf_size);
@@ -69,22 +90,7 @@ fn assert_all_hit(name: &str, triangles: &[Triangle], rays: &[Ray]) {
 fn rays_from_inside_a_closed_sphere_at_every_vertex_and_edge_hit() {
     let (vertices, faces) = icosphere(3, 2.0);
     let triangles = soup(&vertices, &faces);
-    let mut rays: Vec<Ray> = Vec::new();
-    let mut rng = rng(60);
-    for origin in [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [1.9, 0.0, 0.0]] {
-        for v in &vertices {
-            rays.push(Ray::new(origin, std::array::from_fn(|a| v[a] - origin[a])));
-        }
-        for f in &faces {
-            for (a, b) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
-                let mid: [f32; 3] = std::array::from_fn(|k| (vertices[a][k] + vertices[b][k]) * 0.5);
-                rays.push(Ray::new(origin, std::array::from_fn(|k| mid[k] - origin[k])));
-            }
-        }
-        for _ in 0..2000 {
-            rays.push(Ray::new(origin, random_point(&mut rng, 1.0)));
-        }
-    }
+    let rays = rays_at_vertices_and_edges(&[[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [1.9, 0.0, 0.0]], &vertices, &faces);
     assert_all_hit("icosphere", &triangles, &rays);
 }
 
@@ -134,4 +140,37 @@ fn axis_parallel_rays_through_grid_edges_and_vertices_of_a_closed_cube_hit() {
         rays.push(Ray::new([x, -1.0, 1.0], [0.0, 1.0, -0.0]));
     }
     assert_all_hit("grid cube", &triangles, &rays);
+}
+
+#[test]
+fn a_closed_sphere_refit_to_a_deformed_pose_stays_watertight_on_every_kernel() {
+    // The sphere converted as an OBJ (vertices shared), then refit to a smooth deformation of its vertices: the
+    // records' shared corners move alike, so the refit mesh is closed, and rays from inside it at its vertices
+    // and edges, as above, must all hit, on the binary kernel and the wide one on every path.
+    let (vertices, faces) = icosphere(3, 2.0);
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("sphere.obj");
+    let mut text: String = vertices.iter().map(|v| format!("v {} {} {}\n", v[0], v[1], v[2])).collect();
+    text.extend(faces.iter().map(|f| format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1)));
+    std::fs::write(&obj, text).unwrap();
+    let output = dir.path().join("sphere.bvh");
+    let overrides = bvhc::options::Overrides { splits: Some(false), ..Default::default() };
+    bvhc::Conversion::new(&obj, &output).overrides(overrides).run().unwrap();
+    let mut file = bvhc::loader::BvhFile::read(&output).unwrap();
+    // A squash, a twist about z and a bulge: one-to-one, so inside stays inside.
+    let deform = |[x, y, z]: [f32; 3]| {
+        let (s, c) = (0.4 * z).sin_cos();
+        let (x, y) = (1.4 * x, 0.6 * y);
+        [x * c - y * s, x * s + y * c + 0.1 * x * x, z]
+    };
+    let moved: Vec<Triangle> = file.view().triangles().iter().map(|t| t.vertices.map(deform)).collect();
+    file.refit(bvhc::loader::RefitPositions::Triangles(&moved), 2).unwrap();
+    let deformed: Vec<[f32; 3]> = vertices.iter().map(|&v| deform(v)).collect();
+    let origins = [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [1.9, 0.0, 0.0], [0.0, 0.0, -1.9]].map(deform);
+    let rays = rays_at_vertices_and_edges(&origins, &deformed, &faces);
+    for tracer in every_kernel(&file.view()) {
+        let misses = rays.iter().filter(|ray| tracer.closest_hit(ray).is_none()).count();
+        assert_eq!(misses, 0, "{:?}: {misses} of {} rays missed the refit sphere", tracer.kernel(), rays.len());
+        assert!(rays.iter().all(|ray| tracer.any_hit(ray)), "{:?}: any-hit missed", tracer.kernel());
+    }
 }
