@@ -82,15 +82,44 @@ impl<'a> MovedRecords<'a> {
                         )));
                     }
                 }
-                let mut last_range = 0;
+                let (mut last_range, mut last_kept) = (0, 0);
                 for record in 0..record_count {
-                    if let Err(why) = self.record(record, &mut last_range) {
+                    // The fast lookup first; where it finds nothing, the range is kept or the record at fault.
+                    if self.moved(record, &mut last_range).is_some() {
+                        continue;
+                    }
+                    if let Err(why) = self.record(record, &mut last_kept) {
                         return Err(Error::Refit(format!("triangle record {record}: {why}")));
                     }
                 }
             }
         }
         Ok(())
+    }
+
+    /// The new vertices of `record` where it moves, as [`MovedRecords::record`] finds them, without saying why a
+    /// record stays (the refit's own path: checked before, so `None` means the record keeps its vertices).
+    #[inline(always)]
+    fn moved(&self, record: usize, last_range: &mut usize) -> Option<[[f32; 3]; 3]> {
+        match self {
+            MovedRecords::Triangles(triangles) => triangles.get(record).copied(),
+            MovedRecords::SourceVertices { positions, ranges, ids, corners } => {
+                let id = *ids.get(record)?;
+                let holds = |r: usize| {
+                    ranges.get(r).is_some_and(|r| id.wrapping_sub(r.first_source_triangle) < r.source_triangle_count)
+                };
+                if !holds(*last_range) {
+                    *last_range = ranges.partition_point(|r| r.first_source_triangle <= id).checked_sub(1)?;
+                }
+                let vertices = (*positions.get(*last_range)?)?;
+                let indices = corners.get(record)?.indices;
+                Some([
+                    *vertices.get(indices[0] as usize)?,
+                    *vertices.get(indices[1] as usize)?,
+                    *vertices.get(indices[2] as usize)?,
+                ])
+            }
+        }
     }
 
     /// The new vertices of `record`, `None` where the record stays; an error saying why a record cannot move.
@@ -180,10 +209,13 @@ impl NewRecords for MovedRecords<'_> {
                 let mut last_range = 0;
                 for (k, record) in records.iter_mut().enumerate() {
                     // Checked before: every record has its vertices (or stays).
-                    if let Ok(Some(vertices)) = self.record(first + k, &mut last_range) {
-                        record.vertices = vertices;
+                    match self.moved(first + k, &mut last_range) {
+                        Some(vertices) => {
+                            record.vertices = vertices;
+                            fold.add(&vertices);
+                        }
+                        None => fold.add(&record.vertices),
                     }
-                    fold.add(&record.vertices);
                 }
                 fold.bounds()
             }
