@@ -12,7 +12,7 @@ use std::path::Path;
 use bvhc_loader::BvhView;
 use bvhc_loader::format::SourceRange;
 
-use crate::import::{ImportError, ImportLimits, ImportOptions, Instancing, SceneSelector, import};
+use crate::import::{ImportError, ImportLimits, ImportOptions, Instancing, PoseSelector, SceneSelector, import};
 
 /// Why an asset's positions cannot be given to a file's records.
 #[derive(Debug)]
@@ -39,12 +39,14 @@ impl std::fmt::Display for PosedError {
 impl std::error::Error for PosedError {}
 
 /// The positions of `view`'s triangle records (one triangle a record, in record order) in `asset`, imported
-/// under `limits`: see the module documentation. A two-level file is refused (its meshes' records are in each
+/// under `limits`, in the asset's default pose or, with `pose`, as it stands at that time of one of its
+/// animation clips (a glTF's): see the module documentation. A two-level file is refused (its meshes' records are in each
 /// mesh's own space, not where the asset places them).
 pub fn record_positions(
     view: &BvhView<'_>,
     asset: &Path,
     limits: &ImportLimits,
+    pose: Option<&PoseSelector>,
 ) -> Result<Vec<[[f32; 3]; 3]>, PosedError> {
     if view.two_level().is_some() {
         return Err(PosedError::File(
@@ -66,6 +68,7 @@ pub fn record_positions(
         keep_degenerate: true,
         limits: limits.clone(),
         instancing: Instancing::Never,
+        pose: pose.cloned(),
         ..ImportOptions::default()
     };
     let soup = import(asset, &options).map_err(PosedError::Import)?.soup;

@@ -188,8 +188,9 @@ impl Channel {
     fn sample(&self, time: f32) -> Option<Vec4> {
         let (first, last) = (*self.times.first()?, *self.times.last()?);
         let time = time.clamp(first, last);
-        let next = self.times.partition_point(|&t| t <= time).min(self.times.len() - 1);
-        let previous = next.saturating_sub(1);
+        // The last keyframe at or before the time, and the one after it (itself at the last keyframe).
+        let previous = self.times.partition_point(|&t| t <= time).saturating_sub(1);
+        let next = (previous + 1).min(self.times.len() - 1);
         let (t0, t1) = (self.times[previous], self.times[next]);
         let span = t1 - t0;
         let s = if span > 0.0 { (time - t0) / span } else { 0.0 };

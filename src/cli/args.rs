@@ -70,6 +70,10 @@ pub struct RefitArgs {
     /// .obj.gz or .ply.gz).
     #[arg(long, value_name = "MESH")]
     pub positions: PathBuf,
+    /// Take MESH as it stands SECONDS into its animation clip CLIP (a glTF's, by index or name), not in its
+    /// default pose: a pipeline refits the converted file to each pose of the clip it needs.
+    #[arg(long, value_name = "CLIP@SECONDS")]
+    pub pose: Option<bvhc::import::PoseSelector>,
     /// The refit .bvh file to write (atomically; may be FILE itself).
     #[arg(short, long, value_name = "OUTPUT.bvh")]
     pub output: PathBuf,
@@ -155,6 +159,10 @@ pub struct OptionArgs {
     /// The glTF scene to convert, by index or name.
     #[arg(long, value_name = "N|NAME", help_heading = "Import")]
     pub scene: Option<String>,
+    /// The glTF scene as it stands SECONDS into animation clip CLIP (index or name): node and morph weight
+    /// channels sampled, skins posed by the animated joints. Default: the default pose.
+    #[arg(long, value_name = "CLIP@SECONDS", help_heading = "Import")]
+    pub pose: Option<bvhc::import::PoseSelector>,
     /// Keep degenerate triangles instead of dropping them.
     #[arg(long, help_heading = "Import")]
     pub keep_degenerate: bool,
@@ -272,6 +280,7 @@ impl OptionArgs {
                 Ok(index) => SceneSelector::Index(index),
                 Err(_) => SceneSelector::Name(scene.clone()),
             }),
+            pose: self.pose.clone(),
             keep_degenerate: self.keep_degenerate.then_some(true),
             limits: Some(ImportLimits {
                 max_input_bytes: self.max_input_bytes,

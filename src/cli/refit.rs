@@ -22,7 +22,8 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
         Ok(file) => file,
         Err(exit) => return exit,
     };
-    let positions = match record_positions(&file.view(), &args.positions, &ImportLimits::default()) {
+    let positions = match record_positions(&file.view(), &args.positions, &ImportLimits::default(), args.pose.as_ref())
+    {
         Ok(positions) => positions,
         Err(PosedError::Import(error)) => {
             let exit = if error.kind == ErrorKind::Unreadable { Exit::Io } else { Exit::InvalidInput };

@@ -12,7 +12,7 @@ use serde::Serialize;
 use super::report::{Choice, WideSummary};
 use crate::builders::Builder;
 use crate::cost::SahCost;
-use crate::import::{ImportReport, Instancing, Opacity, SceneSelector};
+use crate::import::{ImportReport, Instancing, Opacity, PoseSelector, SceneSelector};
 use crate::layout::{GpuCosts, WideCosts};
 use crate::optimize::OptimizeParams;
 use crate::options::{ConvertOptions, LeafMerge, OptimizeOver, Preset, SplitOptions};
@@ -141,6 +141,8 @@ pub struct BuildRecord {
 struct ImportRecord {
     keep_degenerate: bool,
     scene: Option<SceneSelector>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pose: Option<PoseSelector>,
 }
 
 impl BuildRecord {
@@ -157,6 +159,7 @@ impl BuildRecord {
             import: ImportRecord {
                 keep_degenerate: options.import.keep_degenerate,
                 scene: options.import.scene.clone(),
+                pose: options.import.pose.clone(),
             },
             instancing: (options.import.instancing != Instancing::Auto).then_some(options.import.instancing),
             opacity: (options.import.opacity != Opacity::Materials).then_some(options.import.opacity),

@@ -24,6 +24,7 @@ mod soup;
 
 use std::path::{Path, PathBuf};
 
+pub use gltf::ClipSelector;
 pub use instancing::{AUTO_MIN_SAVED_TRIANGLES, InstancedMesh, Instancing, MeshPlacement};
 pub use limits::ImportLimits;
 pub use opacity::Opacity;
@@ -42,11 +43,45 @@ pub enum SceneSelector {
     Name(String),
 }
 
+/// A glTF scene as it stands at a time of one of its animation clips (`--pose CLIP@SECONDS`), instead of its
+/// default pose: the clip's node TRS and morph weight channels sampled at `seconds` (clamped to the clip's
+/// keyframes), skins posed by the animated joints.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct PoseSelector {
+    /// The clip, by index in the file's `animations` or by name.
+    pub clip: ClipSelector,
+    /// Seconds into the clip.
+    pub seconds: f64,
+}
+
+impl std::str::FromStr for PoseSelector {
+    type Err = String;
+
+    /// `CLIP@SECONDS`: the clip's index or name, then a time in seconds (`0@1.5`, `Run@0.25`).
+    fn from_str(text: &str) -> Result<PoseSelector, String> {
+        let (clip, seconds) = text.rsplit_once('@').ok_or_else(|| format!("'{text}' is not CLIP@SECONDS"))?;
+        let seconds: f64 = seconds.parse().map_err(|_| format!("'{seconds}' is not a number of seconds"))?;
+        if !seconds.is_finite() || seconds < 0.0 {
+            return Err(format!("{seconds} seconds: a time from 0 on"));
+        }
+        let clip = match clip.parse::<usize>() {
+            Ok(index) => ClipSelector::Index(index),
+            Err(_) if !clip.is_empty() => ClipSelector::Name(clip.to_string()),
+            Err(_) => return Err(format!("'{text}': no clip before '@'")),
+        };
+        Ok(PoseSelector { clip, seconds })
+    }
+}
+
 /// Import options; the defaults suit conversion.
-#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ImportOptions {
     /// The glTF scene to import; default: the file's default scene, else scene 0.
     pub scene: Option<SceneSelector>,
+    /// The pose of a glTF scene: a time of an animation clip; default (`None`): the default pose (every node's
+    /// own transform and morph weights, skins posed by their joints' default transforms).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pose: Option<PoseSelector>,
     /// Keep degenerate triangles (repeated index or zero area) instead of dropping them; they are counted
     /// either way.
     pub keep_degenerate: bool,
@@ -256,6 +291,9 @@ pub fn import_for_peak(
                 files_read.extend(more);
                 instanced = meshes;
             })
+        }
+        _ if options.pose.is_some() => {
+            Err(Located::new("pose", "an OBJ or PLY file has no animation to pose (--pose is for glTF)".to_string()))
         }
         SceneFormat::Obj => obj::read(&bytes, &options.limits, &mut builder),
         SceneFormat::Ply => ply::read(&bytes, &options.limits, &mut builder),

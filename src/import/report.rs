@@ -41,7 +41,7 @@ pub struct ImportReport {
     pub skipped_primitives_without_positions: u64,
     /// Placements of meshes (glTF node uses and instances; OBJ models; 1 for PLY).
     pub mesh_placements: u64,
-    /// Placements of skinned meshes, imported in their bind pose under their node's transform.
+    /// Placements by skinned nodes (their primitives posed by their joints, the node's own transform ignored).
     pub skinned_placements: u64,
 }
 

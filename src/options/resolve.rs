@@ -14,6 +14,8 @@ use crate::optimize::Selection;
 pub struct Overrides {
     /// Import: the glTF scene to convert.
     pub scene: Option<SceneSelector>,
+    /// Import: the glTF scene as it stands at a time of an animation clip.
+    pub pose: Option<crate::import::PoseSelector>,
     /// Import: keep degenerate triangles.
     pub keep_degenerate: Option<bool>,
     /// Import: the resource budget.
@@ -105,6 +107,9 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     let mut options = preset.options();
     if let Some(scene) = &o.scene {
         options.import.scene = Some(scene.clone());
+    }
+    if let Some(pose) = &o.pose {
+        options.import.pose = Some(pose.clone());
     }
     options.import.keep_degenerate = o.keep_degenerate.unwrap_or(options.import.keep_degenerate);
     if let Some(limits) = &o.limits {

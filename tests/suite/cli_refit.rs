@@ -147,7 +147,7 @@ fn a_refit_to_a_moved_obj_equals_the_librarys_and_traces_the_moved_triangles() {
     let rest = dir.path().join("rest.bvh");
     convert(&teapot(), &rest, &["--no-splits"]);
     let mut library = BvhFile::read(&rest).unwrap();
-    let positions = bvhc::posed::record_positions(&library.view(), &moved, &Default::default()).unwrap();
+    let positions = bvhc::posed::record_positions(&library.view(), &moved, &Default::default(), None).unwrap();
     library.refit(RefitPositions::Triangles(&positions), 1).unwrap();
     assert!(library.rewritten().unwrap().as_bytes() == refit.as_bytes(), "the CLI and the library");
     // The hits are the moved triangles'.

@@ -86,6 +86,10 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
                     _ => SceneSelector::Name(v.text().map_err(|_| v.error("a scene index or name"))?),
                 })
             }
+            "pose" => {
+                let text = v.text().map_err(|_| v.error("a pose 'CLIP@SECONDS'"))?;
+                o.pose = Some(text.parse().map_err(|why: String| v.error(&format!("a pose 'CLIP@SECONDS' ({why})")))?)
+            }
             "keep_degenerate" => o.keep_degenerate = Some(v.boolean()?),
             "allow_outside_buffers" => o.allow_buffers_outside_input_folder = Some(v.boolean()?),
             "max_input_bytes" => (limits.max_input_bytes, limits_given) = (v.count()?, true),

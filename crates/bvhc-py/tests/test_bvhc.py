@@ -720,6 +720,14 @@ def test_moved_instances_and_meshes_trace_where_they_stand(tmp_path):
         flat.rebuilt_top_trees()
 
 
+def test_pose_is_the_command_lines_flag():
+    resolved = bvhc.options(pose="Run@0.5")
+    printed = json.loads(cli("options", "--pose", "Run@0.5"))
+    assert resolved == printed and resolved["import"]["pose"] == {"clip": {"name": "Run"}, "seconds": 0.5}
+    with pytest.raises(bvhc.OptionsError, match="CLIP@SECONDS"):
+        bvhc.options(pose="Run")
+
+
 def test_splits_deforming_is_the_command_lines_flag():
     resolved = bvhc.options(splits_deforming=False)
     printed = json.loads(cli("options", "--no-splits-deforming"))

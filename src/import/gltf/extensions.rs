@@ -3,8 +3,9 @@
 use glam::{DMat4, DVec3};
 use gltf::json::Root;
 
+use super::Located;
 use super::buffers::Buffers;
-use super::{Located, quaternion};
+use super::pose::quaternion;
 use crate::import::Problem;
 use crate::import::limits::Meter;
 

@@ -8,19 +8,23 @@
 //! first placement, and every placement of them becomes a [`MeshPlacement`].
 
 mod buffers;
+mod clip;
 mod extensions;
+mod pose;
 mod primitive;
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
-use glam::{DMat4, DQuat, DVec3};
+use glam::DMat4;
 use gltf::json::Root;
 
 use bvhc_loader::format::NO_INDEX;
 use bvhc_loader::{format::Affine3x4, format::InstanceRecord};
 
 use self::buffers::Buffers;
+pub use self::clip::ClipSelector;
+use self::pose::{Placing, Pose, posed_positions};
 use super::instancing::{InstancedMesh, MeshPlacement, choose_instanced, stored_triangles};
 use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
 use super::{ErrorKind, ImportOptions, Located, SceneSelector};
@@ -54,8 +58,14 @@ pub(super) fn read(
     let stored = stored_triangles(&placements, &triangles, &instanced);
     builder.check_memory(stored).map_err(|e| Located::of_kind(ErrorKind::Limit, "scene", e))?;
     let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
+    let mut pose = Pose::rest(&root);
+    if let Some(selector) = &options.pose {
+        let clip = clip::clip_index(&root, &selector.clip).map_err(|e| e.at("animations"))?;
+        clip::apply_clip(&root, &mut buffers, clip, selector.seconds, &mut pose).map_err(|e| e.at("animations"))?;
+    }
     let mut walker = Walker {
         root: &root,
+        pose: &pose,
         buffers: &mut buffers,
         builder,
         placed: HashSet::new(),
@@ -123,6 +133,8 @@ fn mesh_placements(root: &Root, roots: &[usize]) -> Vec<u64> {
 
 struct Walker<'r, 'b> {
     root: &'r Root,
+    /// The pose the scene is placed in: every node's local transform, morph weights and world matrix.
+    pose: &'b Pose,
     buffers: &'b mut Buffers<'r>,
     builder: &'b mut SoupBuilder,
     /// (mesh, primitive) pairs placed so far, for the report's unique figures.
@@ -146,7 +158,7 @@ impl Walker<'_, '_> {
             if std::mem::replace(&mut visited[index], true) {
                 return Err(Located::new(&at, "is reached twice: the node hierarchy is not a tree".to_string()));
             }
-            let world = parent * local_transform(node);
+            let world = parent * self.pose.local.get(index).copied().unwrap_or(DMat4::IDENTITY);
             if !world.is_finite() {
                 return Err(Located::new(&at, "its world transform is not finite".to_string()));
             }
@@ -181,7 +193,11 @@ impl Walker<'_, '_> {
     /// placement). A placement whose transform is no valid instance (singular or not finite once rounded to
     /// f32, rule V42) is flattened, where its triangles are dropped as zero-area after placement.
     fn place(&mut self, node: usize, mesh_index: usize, instance: Option<usize>, world: DMat4) -> Result<(), Located> {
-        let placement = self.instanced.get(mesh_index).copied().unwrap_or(false).then(|| affine(&world)).flatten();
+        // A skinned node's placement, or one with morph weights of its own, is posed for this node alone.
+        let own_pose = self.root.nodes.get(node).is_some_and(|n| n.skin.is_some())
+            || self.pose.weights.get(node).is_some_and(Option::is_some);
+        let instanced = self.instanced.get(mesh_index).copied().unwrap_or(false) && !own_pose;
+        let placement = instanced.then(|| affine(&world)).flatten();
         let Some(object_to_world) = placement else {
             self.builder.report.mesh_placements += 1;
             return self.place_mesh(node, mesh_index, Some(node), instance, world);
@@ -221,7 +237,10 @@ impl Walker<'_, '_> {
             .meshes
             .get(mesh_index)
             .ok_or_else(|| Located::new(&format!("node {node}"), format!("mesh {mesh_index} does not exist")))?;
-        let flip_winding = world.determinant() < 0.0;
+        let weights = self.pose.morph_weights(self.root, provenance_node, mesh_index);
+        let skin =
+            provenance_node.and_then(|n| self.root.nodes.get(n)).and_then(|n| n.skin).map(|s| (s.value(), self.pose));
+        let placing = Placing { weights: &weights, skin, world };
         let mut world_positions: Vec<[f32; 3]> = Vec::new();
         for (p, json_primitive) in mesh.primitives.iter().enumerate() {
             let at = format!("mesh {mesh_index} primitive {p}");
@@ -230,9 +249,14 @@ impl Walker<'_, '_> {
             else {
                 continue;
             };
+            let (posed, skinned) =
+                posed_positions(self.root, self.buffers, json_primitive, &geometry.positions, &placing)
+                    .map_err(|e| e.at(&at))?;
+            // A skinned primitive's winding is its own (its node's transform is ignored).
+            let flip_winding = !skinned && world.determinant() < 0.0;
             world_positions.clear();
-            for (i, v) in geometry.positions.values.chunks_exact(3).enumerate() {
-                let w = world.transform_point3(DVec3::new(v[0], v[1], v[2])).as_vec3().to_array();
+            for (i, w) in posed.iter().enumerate() {
+                let w = w.as_vec3().to_array();
                 if !w.iter().all(|c| c.is_finite()) {
                     return Err(Located::new(
                         &at,
@@ -276,22 +300,4 @@ impl Walker<'_, '_> {
 fn affine(world: &DMat4) -> Option<Affine3x4> {
     let m: Affine3x4 = std::array::from_fn(|i| std::array::from_fn(|j| world.col(j)[i] as f32));
     InstanceRecord::placing(0, m).map(|_| m)
-}
-
-/// A node's local transform: `matrix` (column-major), or T * R * S.
-fn local_transform(node: &gltf::json::Node) -> DMat4 {
-    if let Some(m) = node.matrix {
-        return DMat4::from_cols_array(&m.map(f64::from));
-    }
-    let t = node.translation.map_or(DVec3::ZERO, |t| DVec3::from_array(t.map(f64::from)));
-    let r = node.rotation.map_or(DQuat::IDENTITY, |r| quaternion(r.0.map(f64::from)));
-    let s = node.scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.map(f64::from)));
-    DMat4::from_scale_rotation_translation(s, r, t)
-}
-
-/// A rotation from `[x, y, z, w]`, normalized (files often store slightly denormalized quaternions).
-pub(super) fn quaternion(xyzw: [f64; 4]) -> DQuat {
-    let q = DQuat::from_array(xyzw);
-    let length = q.length();
-    if length > 0.0 && length.is_finite() { q / length } else { DQuat::IDENTITY }
 }

@@ -79,6 +79,7 @@ def convert(
 
     ``preset`` is ``fast``, ``balanced`` or ``max-quality``; ``options`` override it, named as the command
     line's flags with underscores (``max_leaf_size=4``, ``instancing="always"``, ``opacity="opaque"``,
+    ``pose="Run@0.5"``,
     ``max_memory="8G"``; ``splits=False`` for ``--no-splits``, ``splits_deforming=False`` for
     ``--no-splits-deforming``, likewise ``optimize``, ``merge_leaves``, ``wide``,
     ``ids``, ``source_vertices``). The output is written atomically; when it is up to date (same inputs, options

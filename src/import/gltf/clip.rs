@@ -1,0 +1,163 @@
+//! A glTF animation clip sampled at a time (glTF 2.0 section 3.11): each channel's sampler evaluated at the time
+//! (clamped to its keyframes) with STEP, LINEAR (quaternions by shortest-arc spherical interpolation) or
+//! CUBICSPLINE (Hermite splines over the keyframe interval, tangents scaled by its length) interpolation,
+//! rotations normalized, and the value set on its node's translation, rotation, scale or morph weights. The
+//! pose's world matrices are then recomputed. In f64, the keyframes read through [`Buffers`] (so normalized
+//! integer outputs, as KHR_mesh_quantization allows for rotations and weights, decode too).
+
+use glam::{DMat4, DQuat, DVec3};
+use gltf::json::Root;
+use gltf::json::animation::{Interpolation, Property};
+use gltf::json::validation::Checked;
+
+use super::buffers::Buffers;
+use super::pose::{Pose, quaternion};
+use crate::import::Problem;
+
+/// Which clip a pose samples: by index in the file's `animations`, or by name.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClipSelector {
+    /// The clip at this index.
+    Index(usize),
+    /// The clip with this name.
+    Name(String),
+}
+
+/// The index of the clip `selector` names; an error listing the clips where none matches.
+pub(super) fn clip_index(root: &Root, selector: &ClipSelector) -> Result<usize, Problem> {
+    let count = root.animations.len();
+    match selector {
+        ClipSelector::Index(i) if *i < count => Ok(*i),
+        ClipSelector::Index(i) => Err(format!("animation {i} does not exist (the file has {count})").into()),
+        ClipSelector::Name(name) => {
+            root.animations.iter().position(|a| a.name.as_deref() == Some(name)).ok_or_else(|| {
+                let names: Vec<_> = root.animations.iter().map(|a| a.name.clone().unwrap_or_default()).collect();
+                format!("no animation is named '{name}' (names: {names:?})").into()
+            })
+        }
+    }
+}
+
+/// `pose` (every node's TRS and weights at rest, from [`Pose::rest`]) with clip `clip` applied at `seconds`.
+pub(super) fn apply_clip(
+    root: &Root,
+    buffers: &mut Buffers<'_>,
+    clip: usize,
+    seconds: f64,
+    pose: &mut Pose,
+) -> Result<(), Problem> {
+    let animation = root.animations.get(clip).ok_or_else(|| format!("animation {clip} does not exist"))?;
+    // Each node's translation, rotation and scale, as animated so far.
+    let mut trs: Vec<Option<(DVec3, DQuat, DVec3)>> = vec![None; root.nodes.len()];
+    for (c, channel) in animation.channels.iter().enumerate() {
+        let at = |why: String| Problem::from(format!("animation {clip} channel {c}: {why}"));
+        let node = channel.target.node.value();
+        let Some(json_node) = root.nodes.get(node) else { return Err(at(format!("node {node} does not exist"))) };
+        let Checked::Valid(property) = channel.target.path else { return Err(at("invalid target path".into())) };
+        let sampler = animation.samplers.get(channel.sampler.value()).ok_or_else(|| at("no such sampler".into()))?;
+        let Checked::Valid(interpolation) = sampler.interpolation else {
+            return Err(at("invalid interpolation".into()));
+        };
+        let times = buffers
+            .accessor(sampler.input.value())
+            .map_err(|e| e.prefixed(&format!("animation {clip} channel {c} input ")))?;
+        let outputs = buffers
+            .accessor(sampler.output.value())
+            .map_err(|e| e.prefixed(&format!("animation {clip} channel {c} output ")))?;
+        let width = match property {
+            Property::Translation | Property::Scale => 3,
+            Property::Rotation => 4,
+            Property::MorphTargetWeights => {
+                let targets = root.meshes.get(json_node.mesh.map_or(usize::MAX, |m| m.value()));
+                targets.and_then(|m| m.primitives.first()).and_then(|p| p.targets.as_ref()).map_or(0, Vec::len)
+            }
+        };
+        let keys = times.values.len();
+        let per_key = if interpolation == Interpolation::CubicSpline { 3 * width } else { width };
+        if width == 0 || outputs.values.len() != keys * per_key {
+            return Err(at(format!(
+                "{} output values for {keys} keyframes of {width} values ({interpolation:?})",
+                outputs.values.len()
+            )));
+        }
+        let value =
+            sample(&times.values, &outputs.values, width, interpolation, property == Property::Rotation, seconds);
+        let Some(value) = value else { continue };
+        if property == Property::MorphTargetWeights {
+            pose.weights[node] = Some(value);
+            continue;
+        }
+        let entry = trs[node].get_or_insert_with(|| rest_trs(json_node));
+        match property {
+            Property::Translation => entry.0 = DVec3::new(value[0], value[1], value[2]),
+            Property::Rotation => entry.1 = quaternion([value[0], value[1], value[2], value[3]]),
+            _ => entry.2 = DVec3::new(value[0], value[1], value[2]),
+        }
+    }
+    for (node, trs) in trs.into_iter().enumerate() {
+        if let Some((t, r, s)) = trs {
+            pose.local[node] = DMat4::from_scale_rotation_translation(s, r, t);
+        }
+    }
+    pose.update_world(root);
+    Ok(())
+}
+
+/// A node's translation, rotation and scale at rest (a node with a `matrix` is not animated, by the spec: its
+/// matrix's are taken apart).
+fn rest_trs(node: &gltf::json::Node) -> (DVec3, DQuat, DVec3) {
+    if let Some(m) = node.matrix {
+        let (s, r, t) = DMat4::from_cols_array(&m.map(f64::from)).to_scale_rotation_translation();
+        return (t, r, s);
+    }
+    let t = node.translation.map_or(DVec3::ZERO, |t| DVec3::from_array(t.map(f64::from)));
+    let r = node.rotation.map_or(DQuat::IDENTITY, |r| quaternion(r.0.map(f64::from)));
+    let s = node.scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.map(f64::from)));
+    (t, r, s)
+}
+
+/// The sampler's value at `time` (clamped to its keyframes), `width` values, or `None` without keyframes.
+fn sample(
+    times: &[f64],
+    outputs: &[f64],
+    width: usize,
+    interpolation: Interpolation,
+    rotation: bool,
+    time: f64,
+) -> Option<Vec<f64>> {
+    let (first, last) = (*times.first()?, *times.last()?);
+    let time = time.clamp(first.min(last), last.max(first));
+    // The last keyframe at or before the time, and the one after it (itself at the last keyframe).
+    let previous = times.partition_point(|&t| t <= time).saturating_sub(1);
+    let next = (previous + 1).min(times.len() - 1);
+    let (t0, t1) = (times[previous], times[next]);
+    let span = t1 - t0;
+    let s = if span > 0.0 { (time - t0) / span } else { 0.0 };
+    let key = |k: usize, part: usize| {
+        let per_key = if interpolation == Interpolation::CubicSpline { 3 * width } else { width };
+        &outputs[k * per_key + part * width..k * per_key + (part + 1) * width]
+    };
+    let value: Vec<f64> = match interpolation {
+        Interpolation::Step => key(previous, 0).to_vec(),
+        Interpolation::Linear if rotation => {
+            let q = |v: &[f64]| quaternion([v[0], v[1], v[2], v[3]]);
+            q(key(previous, 0)).slerp(q(key(next, 0)), s).to_array().to_vec()
+        }
+        Interpolation::Linear => key(previous, 0).iter().zip(key(next, 0)).map(|(a, b)| a + (b - a) * s).collect(),
+        Interpolation::CubicSpline => {
+            // Keyframe k's parts: in-tangent 0, value 1, out-tangent 2.
+            let (v0, out0, in1, v1) = (key(previous, 1), key(previous, 2), key(next, 0), key(next, 1));
+            let (s2, s3) = (s * s, s * s * s);
+            (0..width)
+                .map(|i| {
+                    (2.0 * s3 - 3.0 * s2 + 1.0) * v0[i]
+                        + span * (s3 - 2.0 * s2 + s) * out0[i]
+                        + (-2.0 * s3 + 3.0 * s2) * v1[i]
+                        + span * (s3 - s2) * in1[i]
+                })
+                .collect()
+        }
+    };
+    Some(if rotation { quaternion([value[0], value[1], value[2], value[3]]).to_array().to_vec() } else { value })
+}
