@@ -10,7 +10,7 @@
 use std::path::Path;
 
 use bvhc::import::{ClipSelector, ImportOptions, Instancing, PoseSelector, import};
-use glam::DVec3;
+use glam::{DMat4, DQuat, DVec3};
 
 use crate::common::scene;
 use crate::gltf_pose::{TestPose, expected_positions, read_gltf};
@@ -314,4 +314,109 @@ fn the_command_lines_pose_is_recorded_in_the_metadata_and_bad_ones_are_refused()
     refused(&path, "Run@1", "no animation is named 'Run'");
     let teapot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
     refused(&teapot, "0@1", "--pose is for glTF");
+}
+
+/// Accessor `index` of `gltf` decoded by hand (any component type, normalized as glTF 2.0 section 3.11 says,
+/// byte stride honoured; no sparse), as f64 rows: independent of the importer's decoder and of the `gltf` crate,
+/// which does not read `KHR_mesh_quantization`.
+fn decode_accessor(gltf: &serde_json::Value, bin: &[u8], index: usize) -> Vec<Vec<f64>> {
+    let accessor = &gltf["accessors"][index];
+    let view = &gltf["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+    let components = match accessor["type"].as_str().unwrap() {
+        "SCALAR" => 1,
+        "VEC2" => 2,
+        "VEC3" => 3,
+        "VEC4" => 4,
+        other => panic!("type {other}"),
+    };
+    let kind = accessor["componentType"].as_u64().unwrap();
+    let size = match kind {
+        5120 | 5121 => 1,
+        5122 | 5123 => 2,
+        _ => 4,
+    };
+    let normalized = accessor["normalized"].as_bool().unwrap_or(false);
+    let stride = view["byteStride"].as_u64().map_or(components * size, |s| s as usize);
+    let start =
+        view["byteOffset"].as_u64().unwrap_or(0) as usize + accessor["byteOffset"].as_u64().unwrap_or(0) as usize;
+    (0..accessor["count"].as_u64().unwrap() as usize)
+        .map(|i| {
+            (0..components)
+                .map(|c| {
+                    let at = start + i * stride + c * size;
+                    let b = &bin[at..at + size];
+                    match (kind, normalized) {
+                        (5120, true) => (f64::from(b[0] as i8) / 127.0).max(-1.0),
+                        (5120, false) => f64::from(b[0] as i8),
+                        (5121, true) => f64::from(b[0]) / 255.0,
+                        (5121, false) => f64::from(b[0]),
+                        (5122, true) => (f64::from(i16::from_le_bytes([b[0], b[1]])) / 32767.0).max(-1.0),
+                        (5122, false) => f64::from(i16::from_le_bytes([b[0], b[1]])),
+                        (5123, true) => f64::from(u16::from_le_bytes([b[0], b[1]])) / 65535.0,
+                        (5123, false) => f64::from(u16::from_le_bytes([b[0], b[1]])),
+                        _ => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn the_quantized_morph_cube_is_posed_by_its_animated_weights() {
+    // AnimatedMorphCube (KHR_mesh_quantization): positions and targets as shorts, its clip's weights as
+    // normalized bytes (LINEAR); node 0 (scaled by 3.6e-6, under a node turned and scaled by 100) places it.
+    let Some(path) = scene("khr-animated-morph-cube-quantized/AnimatedMorphCube.gltf") else { return };
+    let gltf: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let bin = std::fs::read(path.with_file_name(gltf["buffers"][0]["uri"].as_str().unwrap())).unwrap();
+    let primitive = &gltf["meshes"][0]["primitives"][0];
+    let base = decode_accessor(&gltf, &bin, primitive["attributes"]["POSITION"].as_u64().unwrap() as usize);
+    let targets: Vec<Vec<Vec<f64>>> = primitive["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| decode_accessor(&gltf, &bin, t["POSITION"].as_u64().unwrap() as usize))
+        .collect();
+    let times: Vec<f64> = decode_accessor(&gltf, &bin, 7).into_iter().map(|r| r[0]).collect();
+    let weights: Vec<f64> = decode_accessor(&gltf, &bin, 8).into_iter().map(|r| r[0]).collect();
+    let node = |n: usize| {
+        let node = &gltf["nodes"][n];
+        let v = |key: &str, default: [f64; 4]| {
+            node[key]
+                .as_array()
+                .map_or(default, |a| std::array::from_fn(|i| a.get(i).and_then(|x| x.as_f64()).unwrap_or(0.0)))
+        };
+        let (t, r, s) = (v("translation", [0.0; 4]), v("rotation", [0.0, 0.0, 0.0, 1.0]), v("scale", [1.0; 4]));
+        let q = DQuat::from_array(r);
+        DMat4::from_scale_rotation_translation(
+            DVec3::new(s[0], s[1], s[2]),
+            q / q.length(),
+            DVec3::new(t[0], t[1], t[2]),
+        )
+    };
+    let world = node(1) * node(0);
+    for seconds in [0.0, 0.8, 1.65, 3.3] {
+        // LINEAR between the two keyframes around the time, two weights a keyframe.
+        let after = times.partition_point(|&t| t <= seconds);
+        let (k0, k1) = (after.saturating_sub(1), after.min(times.len() - 1));
+        let s = if times[k1] > times[k0] { (seconds - times[k0]) / (times[k1] - times[k0]) } else { 0.0 };
+        let w: Vec<f64> =
+            (0..2).map(|i| weights[2 * k0 + i] + (weights[2 * k1 + i] - weights[2 * k0 + i]) * s).collect();
+        let pose = PoseSelector { clip: ClipSelector::Index(0), seconds };
+        let imported =
+            import(&path, &ImportOptions { keep_degenerate: true, pose: Some(pose), ..Default::default() }).unwrap();
+        let soup = imported.soup;
+        let extent = soup.positions.iter().flatten().fold(0.0f64, |m, &c| m.max(f64::from(c).abs()));
+        for t in 0..soup.triangles.len() {
+            for (corner, &v) in soup.vertices(t).iter().zip(&soup.source_vertices[t]) {
+                let v = v as usize;
+                let p =
+                    (0..3).map(|a| base[v][a] + w[0] * targets[0][v][a] + w[1] * targets[1][v][a]).collect::<Vec<_>>();
+                let want = world.transform_point3(DVec3::new(p[0], p[1], p[2]));
+                let got = DVec3::from_array(corner.map(f64::from));
+                assert!((got - want).abs().max_element() <= 1e-6 * extent, "{seconds} s, vertex {v}: {got} vs {want}");
+            }
+        }
+        assert!(w.iter().any(|&x| x > 0.0) || seconds == 0.0, "the clip moves the cube at {seconds} s");
+    }
 }
