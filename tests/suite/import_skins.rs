@@ -145,9 +145,18 @@ fn a_tiny_skin_is_posed_as_worked_out_by_hand() {
         assert!((0..3).all(|a| (corner[a] - want[a]).abs() <= 1e-6), "vertex {index}: {corner:?}, expected {want:?}");
     }
     assert_eq!(imported.report.skinned_placements, 1);
-    // The same asset through the independent posing above.
+    // Placed twice, with instancing forced: a skinned mesh is posed for each node, never shared as an instance.
+    let mut gltf: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    gltf["nodes"].as_array_mut().unwrap().push(serde_json::json!({"mesh": 0, "skin": 0}));
+    gltf["scenes"][0]["nodes"] = serde_json::json!([0, 3, 4]);
+    std::fs::write(&path, serde_json::to_vec(&gltf).unwrap()).unwrap();
+    let twice =
+        import(&path, &ImportOptions { keep_degenerate: true, instancing: Instancing::Always, ..Default::default() });
+    let twice = twice.unwrap();
+    assert_eq!((twice.report.instanced_meshes, twice.soup.triangles.len(), twice.report.skinned_placements), (0, 2, 2));
+    // The same asset through the independent posing.
     let (checked, worst) = check_scene(&path, None);
-    assert_eq!(checked, 3);
+    assert_eq!(checked, 6);
     assert!(worst <= 1e-7, "{worst:e}");
 }
 

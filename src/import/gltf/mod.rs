@@ -53,14 +53,21 @@ pub(super) fn read(
     // here, in a moment.
     let placements = mesh_placements(&root, &roots);
     let triangles: Vec<u64> = root.meshes.iter().map(|mesh| primitive::mesh_triangles(&root, mesh)).collect();
-    let instanced =
+    let clip =
+        options.pose.as_ref().map(|p| clip::clip_index(&root, &p.clip)).transpose().map_err(|e| e.at("animations"))?;
+    let mut instanced =
         choose_instanced(options.instancing, &placements, &triangles, |stored| builder.check_memory(stored).is_ok());
+    // A mesh that some node poses for itself (a skin, or morph weights of its own or animated) is not shared.
+    for (mesh, posed) in pose::posed_per_node(&root, clip).into_iter().enumerate() {
+        if posed && let Some(flag) = instanced.get_mut(mesh) {
+            *flag = false;
+        }
+    }
     let stored = stored_triangles(&placements, &triangles, &instanced);
     builder.check_memory(stored).map_err(|e| Located::of_kind(ErrorKind::Limit, "scene", e))?;
     let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
     let mut pose = Pose::rest(&root);
-    if let Some(selector) = &options.pose {
-        let clip = clip::clip_index(&root, &selector.clip).map_err(|e| e.at("animations"))?;
+    if let (Some(selector), Some(clip)) = (&options.pose, clip) {
         clip::apply_clip(&root, &mut buffers, clip, selector.seconds, &mut pose).map_err(|e| e.at("animations"))?;
     }
     let mut walker = Walker {
@@ -193,11 +200,8 @@ impl Walker<'_, '_> {
     /// placement). A placement whose transform is no valid instance (singular or not finite once rounded to
     /// f32, rule V42) is flattened, where its triangles are dropped as zero-area after placement.
     fn place(&mut self, node: usize, mesh_index: usize, instance: Option<usize>, world: DMat4) -> Result<(), Located> {
-        // A skinned node's placement, or one with morph weights of its own, is posed for this node alone.
-        let own_pose = self.root.nodes.get(node).is_some_and(|n| n.skin.is_some())
-            || self.pose.weights.get(node).is_some_and(Option::is_some);
-        let instanced = self.instanced.get(mesh_index).copied().unwrap_or(false) && !own_pose;
-        let placement = instanced.then(|| affine(&world)).flatten();
+        // (A mesh some node poses for itself is never instanced: see `pose::posed_per_node`.)
+        let placement = self.instanced.get(mesh_index).copied().unwrap_or(false).then(|| affine(&world)).flatten();
         let Some(object_to_world) = placement else {
             self.builder.report.mesh_placements += 1;
             return self.place_mesh(node, mesh_index, Some(node), instance, world);

@@ -76,6 +76,28 @@ impl Pose {
     }
 }
 
+/// Per glTF mesh: whether some node poses it for itself (a skin, morph weights of its own, or morph weights that
+/// clip `clip` animates), so that its placements cannot share one object-space copy. From the JSON alone.
+pub(super) fn posed_per_node(root: &Root, clip: Option<usize>) -> Vec<bool> {
+    let mut posed = vec![false; root.meshes.len()];
+    let animated: Vec<usize> = clip
+        .and_then(|c| root.animations.get(c))
+        .map(|a| {
+            let weights = |ch: &&gltf::json::animation::Channel| {
+                ch.target.path == Checked::Valid(gltf::json::animation::Property::MorphTargetWeights)
+            };
+            a.channels.iter().filter(weights).map(|ch| ch.target.node.value()).collect()
+        })
+        .unwrap_or_default();
+    for (index, node) in root.nodes.iter().enumerate() {
+        let own = node.skin.is_some() || node.weights.is_some() || animated.contains(&index);
+        if let Some(flag) = node.mesh.filter(|_| own).and_then(|m| posed.get_mut(m.value())) {
+            *flag = true;
+        }
+    }
+    posed
+}
+
 /// A node's local transform: `matrix` (column-major), or T * R * S.
 pub(super) fn local_transform(node: &gltf::json::Node) -> DMat4 {
     if let Some(m) = node.matrix {
