@@ -19,34 +19,6 @@ impl Workers {
         Workers { count: threads.max(1) }
     }
 
-    /// Runs every task once, the first on the calling thread and each other on a thread of its own (callers pass
-    /// at most as many tasks as there are threads), and returns their results in order.
-    pub(crate) fn run<R: Send, F: FnOnce() -> R + Send>(&self, tasks: Vec<F>) -> Vec<R> {
-        if self.count < 2 || tasks.len() < 2 {
-            return tasks.into_iter().map(|task| task()).collect();
-        }
-        let slots: Vec<Mutex<Option<F>>> = tasks.into_iter().map(|task| Mutex::new(Some(task))).collect();
-        let take = |k: usize| slots[k].lock().unwrap_or_else(PoisonError::into_inner).take();
-        std::thread::scope(|scope| {
-            let take = &take;
-            let handles: Vec<_> = (1..slots.len())
-                .map(|k| std::thread::Builder::new().spawn_scoped(scope, move || take(k).map(|task| task())).ok())
-                .collect();
-            let mut results = Vec::with_capacity(slots.len());
-            results.push(take(0).map(|task| task()));
-            for (k, handle) in (1..).zip(handles) {
-                results.push(match handle {
-                    // A task panics only where its code does; the panic goes on in the caller.
-                    Some(handle) => handle.join().unwrap_or_else(|panic| resume_unwind(panic)),
-                    // The thread was refused (and the task not taken): run it here.
-                    None => take(k).map(|task| task()),
-                });
-            }
-            // Each slot is taken exactly once, so every result is there.
-            results.into_iter().flatten().collect()
-        })
-    }
-
     /// Runs every task once on up to the pass's threads (the caller's included), each thread taking the
     /// next task not taken until none is left (so tasks of unequal sizes balance: pass the largest first), and
     /// returns their results in task order. A thread the system refuses leaves its share to the others.
@@ -81,6 +53,20 @@ impl Workers {
         slots.into_iter().filter_map(|slot| slot.into_inner().unwrap_or_else(PoisonError::into_inner).1).collect()
     }
 
+    /// [`Workers::run_all`] of tasks given with their sizes, started largest first (so that the threads end
+    /// together); the results in the order given.
+    pub(crate) fn run_largest_first<R: Send, F: FnOnce() -> R + Send>(&self, tasks: Vec<(usize, F)>) -> Vec<R> {
+        let mut order: Vec<usize> = (0..tasks.len()).collect();
+        order.sort_by_key(|&k| std::cmp::Reverse(tasks[k].0));
+        let mut slots: Vec<Option<F>> = tasks.into_iter().map(|(_, task)| Some(task)).collect();
+        let sorted: Vec<F> = order.iter().filter_map(|&k| slots[k].take()).collect();
+        let mut results: Vec<Option<R>> = (0..order.len()).map(|_| None).collect();
+        for (k, result) in order.into_iter().zip(self.run_all(sorted)) {
+            results[k] = Some(result);
+        }
+        results.into_iter().flatten().collect()
+    }
+
     /// The length of the chunks `len` items are cut into: no more chunks than threads, none shorter than
     /// `min_chunk` items (so a small pass is one chunk), at least 1.
     fn chunk_len(&self, len: usize, min_chunk: usize) -> usize {
@@ -104,7 +90,7 @@ impl Workers {
         let work = &work;
         let tasks: Vec<_> =
             items.chunks_mut(chunk_len).enumerate().map(|(k, chunk)| move || work(k * chunk_len, chunk)).collect();
-        self.run(tasks)
+        self.run_all(tasks)
     }
 }
 
@@ -129,6 +115,8 @@ mod tests {
         for threads in [1, 2, 5] {
             let tasks: Vec<_> = (0..9).map(|k| move || k * k).collect();
             assert_eq!(Workers::new(threads).run_all(tasks), (0..9).map(|k| k * k).collect::<Vec<_>>());
+            let sized: Vec<_> = (0..9).map(|k| ((k * 7) % 5, move || k + 1)).collect();
+            assert_eq!(Workers::new(threads).run_largest_first(sized), (1..10).collect::<Vec<_>>());
         }
     }
 }

@@ -150,7 +150,7 @@ mod tests {
 
     #[test]
     fn a_layout_whose_runs_collide_is_not_cut() {
-        // Node 1's children start where node 2's own index is: no run can hold them.
+        // Node 2 is a child of node 0 and of node 1 (not a tree): it would be a top node twice, and no cut holds it.
         let tree = Pairs(vec![Some(1), Some(2), None, None]);
         assert!(cut(&tree, 2).is_none());
     }

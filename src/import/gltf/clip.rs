@@ -11,7 +11,7 @@ use gltf::json::animation::{Interpolation, Property};
 use gltf::json::validation::Checked;
 
 use super::buffers::Buffers;
-use super::pose::{Pose, quaternion};
+use super::pose::{Pose, node_trs, quaternion};
 use crate::import::Problem;
 
 /// Which clip a pose samples: by index in the file's `animations`, or by name.
@@ -88,7 +88,7 @@ pub(super) fn apply_clip(
             pose.weights[node] = Some(value);
             continue;
         }
-        let entry = trs[node].get_or_insert_with(|| rest_trs(json_node));
+        let entry = trs[node].get_or_insert_with(|| node_trs(json_node));
         match property {
             Property::Translation => entry.0 = DVec3::new(value[0], value[1], value[2]),
             Property::Rotation => entry.1 = quaternion([value[0], value[1], value[2], value[3]]),
@@ -102,19 +102,6 @@ pub(super) fn apply_clip(
     }
     pose.update_world(root);
     Ok(())
-}
-
-/// A node's translation, rotation and scale at rest (a node with a `matrix` is not animated, by the spec: its
-/// matrix's are taken apart).
-fn rest_trs(node: &gltf::json::Node) -> (DVec3, DQuat, DVec3) {
-    if let Some(m) = node.matrix {
-        let (s, r, t) = DMat4::from_cols_array(&m.map(f64::from)).to_scale_rotation_translation();
-        return (t, r, s);
-    }
-    let t = node.translation.map_or(DVec3::ZERO, |t| DVec3::from_array(t.map(f64::from)));
-    let r = node.rotation.map_or(DQuat::IDENTITY, |r| quaternion(r.0.map(f64::from)));
-    let s = node.scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.map(f64::from)));
-    (t, r, s)
 }
 
 /// The sampler's value at `time` (clamped to its keyframes), `width` values, or `None` without keyframes.

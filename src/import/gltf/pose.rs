@@ -103,10 +103,21 @@ pub(super) fn local_transform(node: &gltf::json::Node) -> DMat4 {
     if let Some(m) = node.matrix {
         return DMat4::from_cols_array(&m.map(f64::from));
     }
+    let (t, r, s) = node_trs(node);
+    DMat4::from_scale_rotation_translation(s, r, t)
+}
+
+/// A node's translation, rotation and scale: its own (a rotation normalized), or its `matrix` taken apart (a
+/// node with a matrix is not animated, by the spec, but a clip that names one still gets its parts).
+pub(super) fn node_trs(node: &gltf::json::Node) -> (DVec3, DQuat, DVec3) {
+    if let Some(m) = node.matrix {
+        let (s, r, t) = DMat4::from_cols_array(&m.map(f64::from)).to_scale_rotation_translation();
+        return (t, r, s);
+    }
     let t = node.translation.map_or(DVec3::ZERO, |t| DVec3::from_array(t.map(f64::from)));
     let r = node.rotation.map_or(DQuat::IDENTITY, |r| quaternion(r.0.map(f64::from)));
     let s = node.scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.map(f64::from)));
-    DMat4::from_scale_rotation_translation(s, r, t)
+    (t, r, s)
 }
 
 /// A rotation from `[x, y, z, w]`, normalized (files often store slightly denormalized quaternions).
@@ -145,7 +156,10 @@ pub(super) fn posed_positions(
             skin_positions(&matrices, &influences, &mut positions)?;
             Ok((positions, true))
         }
-        _ => Ok((positions.iter().map(|&p| placing.world.transform_point3(p)).collect(), false)),
+        _ => {
+            positions.iter_mut().for_each(|p| *p = placing.world.transform_point3(*p));
+            Ok((positions, false))
+        }
     }
 }
 
@@ -249,7 +263,7 @@ fn joint_matrices(root: &Root, buffers: &mut Buffers<'_>, skin: usize, pose: &Po
 }
 
 /// Moves each vertex by the blend of its joints' matrices, its weights over every set normalized to sum 1 (a
-/// vertex whose weights sum to 0 follows the first joint of its first set, as viewers do).
+/// vertex whose weights sum to 0 follows the first joint of its first set).
 fn skin_positions(matrices: &[DMat4], sets: &[Influences], positions: &mut [DVec3]) -> Result<(), Problem> {
     for (v, p) in positions.iter_mut().enumerate() {
         let mut blended = DMat4::ZERO;

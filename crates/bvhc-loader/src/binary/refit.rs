@@ -4,16 +4,13 @@
 use std::ops::Range;
 
 use crate::format::cost::{AreaSums, box_area};
-use crate::format::{Bounds, EMPTY_BOUNDS, PackedNode, PackedTriangle, merge_bounds, records_bounds};
+use crate::format::{Bounds, EMPTY_BOUNDS, PackedNode, PackedTriangle, merge_bounds};
 use crate::parallel::Workers;
 use crate::subtrees::{TreeShape, carve, cut};
 
 /// Nodes from which the tree is cut into subtrees, each refit on its own while it is in cache, on threads where
 /// the caller allows them (below, the tree is one run on one thread: a thread's start costs more than it saves).
 const CUT_NODES: usize = 1 << 14;
-
-/// Records, or nodes, a thread takes at least in the whole-tree passes.
-const MIN_CHUNK: usize = 1 << 18;
 
 /// Parts a cut aims at: several a thread, so that threads balance subtrees of unequal sizes.
 const PARTS: usize = 32;
@@ -35,8 +32,8 @@ pub(crate) trait NewRecords: Sync {
 /// Returns the refit tree's area sums (section 5.6's, summed as the boxes are made). A large tree in the layout
 /// bvhc writes is cut into subtrees (`crate::subtrees`), each refit in one forward pass over its leaves (which
 /// write their records and box them as they go, the records streaming in order) and one backward pass over its
-/// inner nodes (in cache by then), the subtrees on `workers`' threads; any other tree is refit whole in passes,
-/// with the same result. Indices out of range (a file that does not verify) leave a box empty rather than panic.
+/// inner nodes (in cache by then), the subtrees on `workers`' threads; any other tree is refit whole, node by
+/// node on one thread, with the same result. Indices out of range (a file that does not verify) leave a box empty rather than panic.
 pub(crate) fn refit_binary(
     nodes: &mut [PackedNode],
     records: &mut [PackedTriangle],
@@ -47,7 +44,7 @@ pub(crate) fn refit_binary(
         true => refit_by_parts(nodes, records, new, workers),
         false => refit_run(nodes, 0, records, 0, new),
     };
-    refit.unwrap_or_else(|| refit_in_passes(nodes, records, new, workers))
+    refit.unwrap_or_else(|| refit_whole(nodes, records, new))
 }
 
 /// The binary tree as [`cut`] sees it: an inner node's children are the pair at its `index`.
@@ -78,7 +75,7 @@ fn refit_by_parts(
     let record_runs: Vec<Range<usize>> =
         cut.parts.iter().map(|part| leaf_records(nodes, part.start)).collect::<Option<_>>()?;
     let part_records = carve(records, &record_runs)?;
-    let mut tasks: Vec<_> = carve(nodes, &cut.parts)?
+    let tasks: Vec<_> = carve(nodes, &cut.parts)?
         .into_iter()
         .zip(part_records)
         .zip(cut.parts.iter().zip(&record_runs))
@@ -86,28 +83,35 @@ fn refit_by_parts(
             (part.len(), move || refit_run(nodes, part.start, records, run.start, new))
         })
         .collect();
-    // Largest first, for the threads to balance.
-    tasks.sort_by_key(|(size, _)| std::cmp::Reverse(*size));
     let mut sums = AreaSums::default();
-    for part_sums in workers.run_all(tasks.into_iter().map(|(_, task)| task).collect()) {
+    for part_sums in workers.run_largest_first(tasks) {
         sums = sums.plus(part_sums?);
     }
-    for &node in &cut.top {
-        let (bounds, count) = match nodes[node] {
-            leaf if leaf.is_leaf() => {
-                let first = leaf.index as usize;
-                let leaf_records = records.get_mut(first..first.saturating_add(leaf.count as usize)).unwrap_or(&mut []);
-                (new.write(first, leaf_records), leaf.count)
-            }
-            inner => {
-                let child = |c: usize| nodes.get(c).map_or(EMPTY_BOUNDS, |n| (n.min, n.max));
-                (merge_bounds(child(inner.index as usize), child(inner.index as usize + 1)), 0)
-            }
-        };
-        (nodes[node].min, nodes[node].max) = bounds;
-        sums = sums.with_node(box_area(&bounds.0, &bounds.1), count);
-    }
-    Some(sums)
+    Some(cut.top.iter().fold(sums, |sums, &node| sums.plus(refit_node(nodes, node, records, new))))
+}
+
+/// Refits node `node` from what lies below it, refit already: a leaf moves its records and takes their box, an
+/// inner node the union of its children's boxes. Returns its area sums. Indices out of range (a file that does
+/// not verify) give an empty box rather than panic.
+fn refit_node(
+    nodes: &mut [PackedNode],
+    node: usize,
+    records: &mut [PackedTriangle],
+    new: &(impl NewRecords + ?Sized),
+) -> AreaSums {
+    let (bounds, count) = match nodes[node] {
+        leaf if leaf.is_leaf() => {
+            let first = leaf.index as usize;
+            let leaf_records = records.get_mut(first..first.saturating_add(leaf.count as usize)).unwrap_or(&mut []);
+            (new.write(first, leaf_records), leaf.count)
+        }
+        inner => {
+            let child = |c: usize| nodes.get(c).map_or(EMPTY_BOUNDS, |n| (n.min, n.max));
+            (merge_bounds(child(inner.index as usize), child((inner.index as usize).saturating_add(1))), 0)
+        }
+    };
+    (nodes[node].min, nodes[node].max) = bounds;
+    AreaSums::default().with_node(box_area(&bounds.0, &bounds.1), count)
 }
 
 /// The records under the pair of nodes at `pair` (a part's first two nodes): from its first node's first leaf to
@@ -163,34 +167,8 @@ fn refit_run(
     Some(sums)
 }
 
-/// Refits any tree (one not in bvhc's layout, or one that does not verify) in passes: every record moved (in
-/// parallel over chunks), every leaf's box (in parallel over chunks of nodes), the inner nodes in reverse node
-/// order on one thread, then the area sums.
-fn refit_in_passes(
-    nodes: &mut [PackedNode],
-    records: &mut [PackedTriangle],
-    new: &(impl NewRecords + ?Sized),
-    workers: Workers,
-) -> AreaSums {
-    workers.for_chunks(records, MIN_CHUNK, |first, chunk| {
-        new.write(first, chunk);
-    });
-    let records: &[PackedTriangle] = records;
-    workers.for_chunks(nodes, MIN_CHUNK, |_, chunk| {
-        for node in chunk.iter_mut().filter(|n| n.is_leaf()) {
-            let (first, count) = (node.index as usize, node.count as usize);
-            let leaf = records.get(first..first.saturating_add(count)).unwrap_or(&[]);
-            (node.min, node.max) = records_bounds(leaf);
-        }
-    });
-    for i in (0..nodes.len()).rev() {
-        let node = nodes[i];
-        if node.is_leaf() {
-            continue;
-        }
-        let first = node.index as usize;
-        let child = |c: usize| nodes.get(c).map_or(EMPTY_BOUNDS, |n| (n.min, n.max));
-        (nodes[i].min, nodes[i].max) = merge_bounds(child(first), child(first.saturating_add(1)));
-    }
-    nodes.iter().fold(AreaSums::default(), |sums, node| sums.with_node(box_area(&node.min, &node.max), node.count))
+/// Refits any tree (one not in bvhc's layout, or one that does not verify) node by node in reverse node order,
+/// on one thread: children come after their parent (V14), so each node's children are refit before it.
+fn refit_whole(nodes: &mut [PackedNode], records: &mut [PackedTriangle], new: &(impl NewRecords + ?Sized)) -> AreaSums {
+    (0..nodes.len()).rev().fold(AreaSums::default(), |sums, node| sums.plus(refit_node(nodes, node, records, new)))
 }

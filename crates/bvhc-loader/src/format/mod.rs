@@ -182,14 +182,6 @@ impl TriangleFold {
     }
 }
 
-/// The box of `records`' vertices ([`TriangleFold`]).
-#[inline(always)]
-pub(crate) fn records_bounds(records: &[PackedTriangle]) -> Bounds {
-    let mut fold = TriangleFold::EMPTY;
-    records.iter().for_each(|record| fold.add(&record.vertices));
-    fold.bounds()
-}
-
 /// The bounding box of a triangle's three vertices.
 pub(crate) fn triangle_bounds(v: &[[f32; 3]; 3]) -> Bounds {
     (

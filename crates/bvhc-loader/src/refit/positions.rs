@@ -104,14 +104,8 @@ impl<'a> MovedRecords<'a> {
         match self {
             MovedRecords::Triangles(triangles) => triangles.get(record).copied(),
             MovedRecords::SourceVertices { positions, ranges, ids, corners } => {
-                let id = *ids.get(record)?;
-                let holds = |r: usize| {
-                    ranges.get(r).is_some_and(|r| id.wrapping_sub(r.first_source_triangle) < r.source_triangle_count)
-                };
-                if !holds(*last_range) {
-                    *last_range = ranges.partition_point(|r| r.first_source_triangle <= id).checked_sub(1)?;
-                }
-                let vertices = (*positions.get(*last_range)?)?;
+                let range = range_holding(ranges, *ids.get(record)?, last_range)?;
+                let vertices = (*positions.get(range)?)?;
                 let indices = corners.get(record)?.indices;
                 Some([
                     *vertices.get(indices[0] as usize)?,
@@ -130,19 +124,8 @@ impl<'a> MovedRecords<'a> {
             MovedRecords::Triangles(triangles) => Ok(triangles.get(record).copied()),
             MovedRecords::SourceVertices { positions, ranges, ids, corners } => {
                 let id = ids.get(record).copied().ok_or("no source id")?;
-                let holds = |r: usize| {
-                    ranges.get(r).is_some_and(|r| id.wrapping_sub(r.first_source_triangle) < r.source_triangle_count)
-                };
-                let range = if holds(*last_range) {
-                    *last_range
-                } else {
-                    let after = ranges.partition_point(|r| r.first_source_triangle <= id);
-                    after
-                        .checked_sub(1)
-                        .filter(|&r| holds(r))
-                        .ok_or_else(|| format!("source id {id} lies in no source range"))?
-                };
-                *last_range = range;
+                let range = range_holding(ranges, id, last_range)
+                    .ok_or_else(|| format!("source id {id} lies in no source range"))?;
                 let Some(vertices) = positions[range] else { return Ok(None) };
                 let indices = corners.get(record).ok_or("no source vertices")?.indices;
                 let vertex = |k: usize| {
@@ -185,6 +168,19 @@ impl<'a> MovedRecords<'a> {
         }
         Ok(())
     }
+}
+
+/// The source range holding `id`: `last_range` (the range of the record before: records of one primitive often
+/// follow each other) when it does, else the one a search finds, which becomes `last_range`; `None` when no range
+/// holds it.
+#[inline(always)]
+fn range_holding(ranges: &[SourceRange], id: u32, last_range: &mut usize) -> Option<usize> {
+    let holds =
+        |r: usize| ranges.get(r).is_some_and(|r| id.wrapping_sub(r.first_source_triangle) < r.source_triangle_count);
+    if !holds(*last_range) {
+        *last_range = ranges.partition_point(|r| r.first_source_triangle <= id).checked_sub(1).filter(|&r| holds(r))?;
+    }
+    Some(*last_range)
 }
 
 /// Positions per record, in record order.

@@ -6,8 +6,8 @@ use std::ops::Range;
 
 use crate::format::cost::AreaSums;
 use crate::format::{
-    Bounds, EMPTY_BOUNDS, EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedTriangle, TriangleFold, TrianglePacket4,
-    UNUSED_LANE, UNUSED_LANE_COORDINATE_BITS, WIDE, WideNode8,
+    Bounds, EMPTY_BOUNDS, EMPTY_SLOT, LEAF_BIT, PACKET_LANES, PackedTriangle, TrianglePacket4, UNUSED_LANE,
+    UNUSED_LANE_COORDINATE_BITS, WIDE, WideNode8,
 };
 use crate::parallel::Workers;
 use crate::subtrees::{TreeShape, carve, cut};
@@ -26,9 +26,9 @@ const PARTS: usize = 32;
 /// written, an inner slot's the box of its child's slots. Returns the refit tree's area sums (section 6.1's,
 /// summed as the boxes are made). A large tree in the layout bvhc writes is cut into subtrees
 /// (`crate::subtrees`), each refit in one forward pass over its leaf slots (the packets streaming in order) and
-/// one backward pass over its inner slots, the subtrees on `workers`' threads; any other tree is refit whole in
-/// passes, with the same result. Indices out of range (a file that does not verify) leave lanes as they are and
-/// boxes empty rather than panic.
+/// one backward pass over its inner slots, the subtrees on `workers`' threads; any other tree is refit whole,
+/// node by node on one thread, with the same result. Indices out of range (a file that does not verify) leave
+/// lanes as they are and boxes empty rather than panic.
 pub(crate) fn refit_wide(
     nodes: &mut [WideNode8],
     packets: &mut [TrianglePacket4],
@@ -39,7 +39,7 @@ pub(crate) fn refit_wide(
         true => refit_by_parts(nodes, packets, records, workers),
         false => refit_run(nodes, 0, packets, 0, records),
     };
-    refit.unwrap_or_else(|| refit_in_passes(nodes, packets, records))
+    refit.unwrap_or_else(|| refit_whole(nodes, packets, records))
 }
 
 /// The wide tree as [`cut`] sees it: a node's inner slots name its children.
@@ -67,7 +67,7 @@ fn refit_by_parts(
     let cut = cut(&Slots(nodes), PARTS)?;
     let packet_runs: Vec<Range<usize>> = cut.parts.iter().map(|part| leaf_packets(&nodes[part.clone()])).collect();
     let part_packets = carve(packets, &packet_runs)?;
-    let mut tasks: Vec<_> = carve(nodes, &cut.parts)?
+    let tasks: Vec<_> = carve(nodes, &cut.parts)?
         .into_iter()
         .zip(part_packets)
         .zip(cut.parts.iter().zip(&packet_runs))
@@ -75,28 +75,35 @@ fn refit_by_parts(
             (part.len(), move || refit_run(nodes, part.start, packets, run.start, records))
         })
         .collect();
-    // Largest first, for the threads to balance.
-    tasks.sort_by_key(|(size, _)| std::cmp::Reverse(*size));
     let mut sums = AreaSums::default();
-    for part_sums in workers.run_all(tasks.into_iter().map(|(_, task)| task).collect()) {
+    for part_sums in workers.run_largest_first(tasks) {
         sums = sums.plus(part_sums?);
     }
-    for &node in &cut.top {
-        for slot in 0..WIDE {
-            let child = nodes[node].child[slot];
-            let bounds = if child == EMPTY_SLOT {
-                continue;
-            } else if child & LEAF_BIT != 0 {
-                let (first, count) = WideNode8::leaf_packets(child);
-                refit_packets(packets.get_mut(first as usize..(first + count) as usize).unwrap_or(&mut []), records)
-            } else {
-                nodes.get(child as usize).map_or(EMPTY_BOUNDS, node_box)
-            };
-            nodes[node].set_slot_box(slot, bounds);
-        }
-        sums = sums.plus(slot_sums(&nodes[node]));
+    Some(cut.top.iter().fold(sums, |sums, &node| sums.plus(refit_node(nodes, node, packets, records))))
+}
+
+/// Refits node `node`'s slots from what lies below them, refit already: a leaf slot rewrites its packets and
+/// takes their box, an inner slot its child's box. Returns the node's area sums. Indices out of range (a file
+/// that does not verify) give an empty box rather than panic.
+fn refit_node(
+    nodes: &mut [WideNode8],
+    node: usize,
+    packets: &mut [TrianglePacket4],
+    records: &[PackedTriangle],
+) -> AreaSums {
+    for slot in 0..WIDE {
+        let child = nodes[node].child[slot];
+        let bounds = if child == EMPTY_SLOT {
+            continue;
+        } else if child & LEAF_BIT != 0 {
+            let (first, count) = WideNode8::leaf_packets(child);
+            refit_packets(packets.get_mut(first as usize..(first + count) as usize).unwrap_or(&mut []), records)
+        } else {
+            nodes.get(child as usize).map_or(EMPTY_BOUNDS, node_box)
+        };
+        nodes[node].set_slot_box(slot, bounds);
     }
-    Some(sums)
+    slot_sums(&nodes[node])
 }
 
 /// The packets the leaf slots of a part's nodes name, in bvhc's layout (packets in the order of the nodes and
@@ -210,41 +217,10 @@ fn refit_packets(packets: &mut [TrianglePacket4], records: &[PackedTriangle]) ->
     )
 }
 
-/// Refits any tree (one not in bvhc's layout, or one that does not verify): every packet's lanes, then every
-/// slot's box in reverse node order, on one thread, summing the areas as it goes.
-fn refit_in_passes(nodes: &mut [WideNode8], packets: &mut [TrianglePacket4], records: &[PackedTriangle]) -> AreaSums {
-    for packet in packets.iter_mut() {
-        refit_packets(std::slice::from_mut(packet), records);
-    }
-    let packets: &[TrianglePacket4] = packets;
-    let mut sums = AreaSums::default();
-    for i in (0..nodes.len()).rev() {
-        for slot in 0..WIDE {
-            let child = nodes[i].child[slot];
-            let bounds = if child == EMPTY_SLOT {
-                continue;
-            } else if child & LEAF_BIT != 0 {
-                let (first, count) = WideNode8::leaf_packets(child);
-                lanes_box(packets.get(first as usize..(first + count) as usize).unwrap_or(&[]))
-            } else {
-                nodes.get(child as usize).map_or(EMPTY_BOUNDS, node_box)
-            };
-            nodes[i].set_slot_box(slot, bounds);
-        }
-        sums = sums.plus(slot_sums(&nodes[i]));
-    }
-    sums
-}
-
-/// The box of the used lanes of `packets` (a lane naming no record, `UNUSED_LANE`, is passed over).
-fn lanes_box(packets: &[TrianglePacket4]) -> Bounds {
-    let mut fold = TriangleFold::EMPTY;
-    for packet in packets {
-        for lane in (0..PACKET_LANES).filter(|&lane| packet.triangle_index[lane] != UNUSED_LANE) {
-            fold.add(&std::array::from_fn(|v| std::array::from_fn(|a| packet.vertices[v][a][lane])));
-        }
-    }
-    fold.bounds()
+/// Refits any tree (one not in bvhc's layout, or one that does not verify) node by node in reverse node order,
+/// on one thread: children come after their parent (V29), so each node's children are refit before it.
+fn refit_whole(nodes: &mut [WideNode8], packets: &mut [TrianglePacket4], records: &[PackedTriangle]) -> AreaSums {
+    (0..nodes.len()).rev().fold(AreaSums::default(), |sums, node| sums.plus(refit_node(nodes, node, packets, records)))
 }
 
 /// A wide node's box: the union of its eight slots' boxes (empty slots hold the empty box `+inf..-inf`, V29, so
