@@ -1,37 +1,51 @@
-//! Trees across an animation (issue 47's evidence, the rest pose's column): each skinned scene is converted once
-//! in its default pose (one-level, without split references), then, at evenly spaced times of one of its clips,
-//! refit to the scene as it stands then (`bvhc::posed::record_positions` with the pose, `BvhFile::refit`) and
-//! compared with a fresh conversion of that pose (`--pose`): the refit wide tree's cost over the fresh tree's
-//! (section 6.1's cost; what an animation-aware tree should keep near 1), the cost ratio a `RebuildPolicy` reads
-//! (refit over the file's own), and closest-hit Mrays/s of both (uniform rays through the fresh scene's box, one
-//! thread, median of 5). Prints a Markdown table and each scene's worst and mean.
+//! Trees across an animation (issue 47's evidence): three trees of each scene refit to times of one clip and
+//! compared with a fresh conversion of each pose (`--pose`): the default pose's tree (converted once, no split
+//! references), the animation's tree (`--animation CLIP`, the same clip's poses), and the fresh tree. Times: the
+//! animation's sampled poses (the middles of `N` equal parts of the clip) and the poses between them (the parts'
+//! ends, the clip's first and last keyframes included). For each: the refit wide tree's cost over the fresh
+//! tree's (section 6.1's cost) and closest-hit Mrays/s of all three (uniform rays through the fresh scene's box,
+//! one thread, median of 5); then each scene's worst and mean, and the conversion times of a default static
+//! conversion and of `--animation` (medians of 3). Writes an SVG plot of the cost ratios over the clip.
 //!
-//! `cargo bench --bench animation`; `BVHC_ANIMATION_POSES` (default 8) poses a clip, `BVHC_ANIMATION_SCENES`
-//! picks scenes.
+//! Scenes: BrainStem, the Fox's Run, CesiumMan, and a procedural deformation of a large mesh (the Stanford
+//! dragon with a twist and a wave as morph targets, 20 s, `common/morphing_glb.rs`).
+//!
+//! `cargo bench --bench animation`; `BVHC_ANIMATION_POSES` (default the converter's 8) poses a clip,
+//! `BVHC_ANIMATION_SCENES` picks scenes, `BVHC_ANIMATION_PLOT` names the SVG (default `target/animation.svg`),
+//! `BVHC_ANIMATION_DRAGON` the dragon's file under the scenes (default `stanford-dragon/dragon_vrip.ply.gz`).
 
 #[path = "common/harness.rs"]
 mod harness;
+#[path = "common/morphing_glb.rs"]
+mod morphing_glb;
 #[path = "common/rays.rs"]
 mod rays;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
+use bvhc::animation::Animation;
 use bvhc::import::{ClipSelector, Instancing, PoseSelector};
 use bvhc::loader::{BvhFile, RefitPositions};
 use bvhc::options::Overrides;
 
-/// Scene, file, and the clip sampled.
-const SCENES: [(&str, &str, usize); 3] = [
+/// Scene, file (under the shared scenes; the procedural one is made from the dragon), and the clip measured.
+const SCENES: [(&str, &str, usize); 4] = [
     ("BrainStem", "khr-brainstem/BrainStem.gltf", 0),
     ("Fox", "khr-fox/Fox.gltf", 2),
     ("CesiumMan", "khr-cesium-man/CesiumMan.gltf", 0),
+    ("Dragon (procedural)", "", 0),
 ];
 
-/// One-level, no split references, at `pose` (default pose for `None`).
-fn convert(input: &Path, output: &Path, pose: Option<PoseSelector>) -> BvhFile {
-    let overrides =
-        Overrides { splits: Some(false), instancing: Some(Instancing::Never), pose, ..Overrides::default() };
-    bvhc::Conversion::new(input, output).overrides(overrides).run().expect("the scene converts");
+/// One-level, no split references, at `pose` (default pose for `None`), or with `animation` for its poses.
+fn convert(input: &Path, output: &Path, pose: Option<PoseSelector>, animation: Option<Animation>) -> BvhFile {
+    let overrides = Overrides {
+        splits: animation.is_none().then_some(false),
+        instancing: animation.is_none().then_some(Instancing::Never),
+        pose,
+        animation,
+        ..Overrides::default()
+    };
+    bvhc::Conversion::new(input, output).overrides(overrides).force(true).run().expect("the scene converts");
     BvhFile::read(output).expect("the conversion reads back")
 }
 
@@ -42,14 +56,13 @@ fn wide_cost(file: &BvhFile) -> f64 {
     metadata["wide"]["cost"].as_f64().expect("a wide cost")
 }
 
-/// The length of clip `clip` of the glTF at `path`: the largest `max` of its samplers' input accessors.
-fn clip_seconds(path: &Path, clip: usize) -> f64 {
-    let gltf: serde_json::Value = serde_json::from_slice(&std::fs::read(path).expect("the glTF")).expect("JSON");
-    let samplers = gltf["animations"][clip]["samplers"].as_array().expect("the clip's samplers");
-    samplers
-        .iter()
-        .filter_map(|s| gltf["accessors"][s["input"].as_u64()? as usize]["max"][0].as_f64())
-        .fold(0.0, f64::max)
+/// `file` refit to `asset` at `pose`, and its wide cost.
+fn refit(file: &BvhFile, asset: &Path, pose: &PoseSelector) -> (BvhFile, f64) {
+    let positions = bvhc::posed::record_positions(&file.view(), asset, &Default::default(), Some(pose))
+        .expect("the posed scene matches the file");
+    let mut refit = BvhFile::from_bytes(file.as_bytes()).expect("a copy");
+    let report = refit.refit(RefitPositions::Triangles(&positions), 2).expect("the pose refits");
+    (refit, report.wide_cost.expect("a wide cost"))
 }
 
 /// Closest-hit Mrays/s of `file` over `rays` (one thread, median of 5).
@@ -57,49 +70,189 @@ fn speed(file: &BvhFile, rays: &[bvhc::loader::Ray]) -> f64 {
     harness::batch_speed(rays, &file.view().tracer(), true, false, 5)
 }
 
+/// One measured time of a clip.
+struct Row {
+    /// The time as a share of the clip.
+    at: f64,
+    sampled: bool,
+    rest: f64,
+    animation: f64,
+}
+
+/// The procedural scene's GLB, made in `dir` from the dragon (`None` when the dragon is missing).
+fn procedural(dir: &Path) -> Option<PathBuf> {
+    let relative = std::env::var("BVHC_ANIMATION_DRAGON").unwrap_or("stanford-dragon/dragon_vrip.ply.gz".into());
+    let source = harness::scenes(&[("dragon", relative.as_str())], None).pop()?.1;
+    let soup = bvhc::import::import(&source, &Default::default()).expect("the dragon imports").soup;
+    let path = dir.join("morphing-dragon.glb");
+    morphing_glb::write(&path, &soup.positions, &soup.triangles);
+    Some(path)
+}
+
 fn main() {
     if !harness::benchmarking("animation") {
         return;
     }
-    let poses: usize = std::env::var("BVHC_ANIMATION_POSES").ok().and_then(|v| v.parse().ok()).unwrap_or(8).max(2);
+    let poses: u32 = std::env::var("BVHC_ANIMATION_POSES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(bvhc::animation::DEFAULT_POSES_PER_CLIP);
     let dir = tempfile::tempdir().expect("a temporary folder");
-    let list: Vec<(&str, &str)> = SCENES.iter().map(|&(name, path, _)| (name, path)).collect();
-    let scenes = harness::scenes(&list, Some("BVHC_ANIMATION_SCENES"));
-    println!("The default pose's tree refit to {poses} poses of a clip, against a fresh conversion of each pose:\n");
+    let wanted = harness::wanted_scenes("BVHC_ANIMATION_SCENES");
+    let mut scenes: Vec<(&str, PathBuf, usize)> = Vec::new();
+    for &(name, relative, clip) in &SCENES {
+        if wanted.as_ref().is_some_and(|w| !w.iter().any(|n| name.starts_with(n.as_str()))) {
+            continue;
+        }
+        let path = if relative.is_empty() {
+            procedural(dir.path())
+        } else {
+            harness::scenes(&[(name, relative)], None).pop().map(|s| s.1)
+        };
+        scenes.extend(path.map(|p| (name, p, clip)));
+    }
+    println!("Three trees refit to times of a clip ({poses} sampled poses), each against a fresh conversion:\n");
     println!(
-        "| scene | clip | seconds | refit cost / fresh cost | cost ratio (refit / file's own) | Mrays/s refit / fresh |"
+        "| scene | seconds | pose | default pose's tree / fresh | animation's tree / fresh | Mrays/s default / animation / fresh |"
     );
     println!("|---|---|---|---|---|---|");
     let mut summaries = Vec::new();
-    for (name, path) in &scenes {
-        let clip = SCENES.iter().find(|s| s.0 == *name).map_or(0, |s| s.2);
-        let rest = convert(path, &dir.path().join(format!("{name}.bvh")), None);
-        let duration = clip_seconds(path, clip);
-        let mut against_fresh = Vec::new();
-        for k in 0..poses {
-            let seconds = duration * k as f64 / (poses - 1) as f64;
-            let pose = PoseSelector { clip: ClipSelector::Index(clip), seconds };
-            let positions = bvhc::posed::record_positions(&rest.view(), path, &Default::default(), Some(&pose))
-                .expect("the posed scene matches the file");
-            let mut refit = BvhFile::from_bytes(rest.as_bytes()).expect("a copy");
-            let report = refit.refit(RefitPositions::Triangles(&positions), 2).expect("the pose refits");
-            let fresh = convert(path, &dir.path().join(format!("{name}-{k}.bvh")), Some(pose));
-            let ratio = report.wide_cost.expect("a wide cost") / wide_cost(&fresh);
+    let mut curves = Vec::new();
+    for (name, path, clip) in &scenes {
+        let span = bvhc::import::animation_clips(path, &Default::default()).expect("the clips")[*clip].clone();
+        let animation = Animation { clips: vec![ClipSelector::Index(*clip)], poses_per_clip: poses };
+        let rest = convert(path, &dir.path().join("rest.bvh"), None, None);
+        let animated = convert(path, &dir.path().join("animation.bvh"), None, Some(animation.clone()));
+        let parts = 2 * poses as usize;
+        let mut rows = Vec::new();
+        for j in 0..=parts {
+            let at = j as f64 / parts as f64;
+            let seconds = span.start + (span.end - span.start) * at;
+            let pose = PoseSelector { clip: ClipSelector::Index(*clip), seconds };
+            let fresh = convert(path, &dir.path().join("fresh.bvh"), Some(pose.clone()), None);
+            let fresh_cost = wide_cost(&fresh);
+            let (rest_refit, rest_cost) = refit(&rest, path, &pose);
+            let (animated_refit, animated_cost) = refit(&animated, path, &pose);
             let uniform = rays::uniform_rays(&fresh.view().nodes()[0], 200_000, 11);
+            let row =
+                Row { at, sampled: j % 2 == 1, rest: rest_cost / fresh_cost, animation: animated_cost / fresh_cost };
             println!(
-                "| {name} | {clip} | {seconds:.2} | {ratio:.3} | {:.3} | {:.2} / {:.2} |",
-                report.cost_ratio(),
-                speed(&refit, &uniform),
+                "| {name} | {seconds:.2} | {} | {:.3} | {:.3} | {:.2} / {:.2} / {:.2} |",
+                if row.sampled { "sampled" } else { "between" },
+                row.rest,
+                row.animation,
+                speed(&rest_refit, &uniform),
+                speed(&animated_refit, &uniform),
                 speed(&fresh, &uniform)
             );
-            against_fresh.push(ratio);
+            rows.push(row);
         }
-        let worst = against_fresh.iter().copied().fold(0.0, f64::max);
-        let mean = against_fresh.iter().sum::<f64>() / against_fresh.len() as f64;
-        summaries.push(format!("{name}: refit cost over fresh, worst {worst:.3}, mean {mean:.3}"));
+        let stats = |sampled: bool, of: fn(&Row) -> f64| {
+            let values: Vec<f64> = rows.iter().filter(|r| r.sampled == sampled).map(of).collect();
+            (values.iter().copied().fold(0.0, f64::max), values.iter().sum::<f64>() / values.len() as f64)
+        };
+        let (rs, rb) = (stats(true, |r| r.rest), stats(false, |r| r.rest));
+        let (as_, ab) = (stats(true, |r| r.animation), stats(false, |r| r.animation));
+        let runs = if name.starts_with("Dragon") { 1 } else { 3 };
+        let static_time = harness::median_time(runs, || {
+            bvhc::Conversion::new(path, dir.path().join("static.bvh")).force(true).run().expect("the scene converts");
+        });
+        let animation_time = harness::median_time(runs, || {
+            let overrides = Overrides { animation: Some(animation.clone()), ..Overrides::default() };
+            let timed = bvhc::Conversion::new(path, dir.path().join("timed.bvh")).overrides(overrides);
+            timed.force(true).run().expect("converts");
+        });
+        summaries.push(format!(
+            "{name}: over fresh, worst / mean at sampled poses: default {:.3} / {:.3}, animation {:.3} / {:.3}; \
+             between them: default {:.3} / {:.3}, animation {:.3} / {:.3}; conversion {:.2} s static, {:.2} s \
+             --animation ({:.2}x)",
+            rs.0,
+            rs.1,
+            as_.0,
+            as_.1,
+            rb.0,
+            rb.1,
+            ab.0,
+            ab.1,
+            static_time.as_secs_f64(),
+            animation_time.as_secs_f64(),
+            animation_time.as_secs_f64() / static_time.as_secs_f64()
+        ));
+        curves.push((name.to_string(), rows));
     }
     println!();
     for summary in summaries {
         println!("{summary}");
     }
+    let plot = std::env::var_os("BVHC_ANIMATION_PLOT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/animation.svg"));
+    std::fs::write(&plot, svg(&curves)).expect("the plot is written");
+    println!("\nplot: {}", plot.display());
+}
+
+/// A line plot of each scene's two cost ratios over the clip: solid the animation's tree, dashed the default
+/// pose's, dots at the sampled poses; the 1.10 target as a grey line.
+fn svg(curves: &[(String, Vec<Row>)]) -> String {
+    const COLORS: [&str; 4] = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd"];
+    let (width, height, left, top, plot_w, plot_h) = (720.0, 420.0, 60.0, 20.0, 620.0, 330.0);
+    let top_ratio = curves
+        .iter()
+        .flat_map(|(_, rows)| rows.iter().map(|r| r.rest.max(r.animation)))
+        .fold(1.2f64, f64::max)
+        .min(3.0);
+    let y = |ratio: f64| top + plot_h * (1.0 - (ratio.clamp(0.9, top_ratio) - 0.9) / (top_ratio - 0.9));
+    let x = |at: f64| left + plot_w * at;
+    let mut out = format!(
+        r##"<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif" font-size="12">
+<rect width="{width}" height="{height}" fill="white"/>
+<line x1="{left}" y1="{}" x2="{}" y2="{}" stroke="#999" stroke-dasharray="2,3"/>
+<text x="{}" y="{}" fill="#666">1.10</text>
+"##,
+        y(1.1),
+        left + plot_w,
+        y(1.1),
+        left + plot_w + 4.0,
+        y(1.1) + 4.0
+    );
+    let mut tick = 1.0;
+    while tick <= top_ratio + 1e-9 {
+        out += &format!(
+            "<line x1=\"{left}\" y1=\"{0}\" x2=\"{1}\" y2=\"{0}\" stroke=\"#eee\"/><text x=\"8\" y=\"{2}\">{tick:.1}</text>\n",
+            y(tick),
+            left + plot_w,
+            y(tick) + 4.0
+        );
+        tick += 0.1;
+    }
+    out += &format!(
+        "<text x=\"{}\" y=\"{}\">time in the clip (share of its span)</text>\n<text x=\"8\" y=\"12\">refit cost / fresh cost</text>\n",
+        left + 220.0,
+        height - 20.0
+    );
+    for (i, (name, rows)) in curves.iter().enumerate() {
+        let color = COLORS[i % COLORS.len()];
+        for (dash, of) in [("", (|r: &Row| r.animation) as fn(&Row) -> f64), ("6,4", |r: &Row| r.rest)] {
+            let points: Vec<String> = rows.iter().map(|r| format!("{:.1},{:.1}", x(r.at), y(of(r)))).collect();
+            out += &format!(
+                "<polyline fill=\"none\" stroke=\"{color}\" stroke-width=\"1.5\" stroke-dasharray=\"{dash}\" points=\"{}\"/>\n",
+                points.join(" ")
+            );
+        }
+        for r in rows.iter().filter(|r| r.sampled) {
+            out +=
+                &format!("<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2.5\" fill=\"{color}\"/>\n", x(r.at), y(r.animation));
+        }
+        out += &format!(
+            "<text x=\"{}\" y=\"{}\" fill=\"{color}\">{name}</text>\n",
+            left + 10.0 + 150.0 * i as f64,
+            height - 40.0
+        );
+    }
+    out += &format!(
+        "<text x=\"{}\" y=\"{}\" fill=\"#444\">solid: animation's tree (dots: sampled poses); dashed: default pose's tree</text>\n</svg>\n",
+        left + 10.0,
+        height - 4.0
+    );
+    out
 }

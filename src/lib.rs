@@ -29,6 +29,7 @@ pub mod layout;
 pub mod sampling;
 pub mod pack;
 pub mod instancing;
+pub mod animation;
 // Options and the pipeline over the stages.
 pub mod options;
 pub mod convert;

@@ -163,6 +163,14 @@ pub struct OptionArgs {
     /// channels sampled, skins posed by the animated joints. Default: the default pose.
     #[arg(long, value_name = "CLIP@SECONDS", help_heading = "Import")]
     pub pose: Option<bvhc::import::PoseSelector>,
+    /// Choose the tree for the scene's animation: sample poses across these clips (comma-separated indices or
+    /// names; every clip when none is given) and keep the tree, stored in the default pose, whose cost averaged
+    /// over the poses after a refit is lowest. Flattens the scene and makes no split references.
+    #[arg(long, value_name = "CLIPS", num_args = 0..=1, default_missing_value = "", help_heading = "Animation")]
+    pub animation: Option<String>,
+    /// Poses sampled in each clip with --animation, at the middles of equal parts of its span [default: 8].
+    #[arg(long, value_name = "N", requires = "animation", help_heading = "Animation")]
+    pub animation_poses: Option<u32>,
     /// Keep degenerate triangles instead of dropping them.
     #[arg(long, help_heading = "Import")]
     pub keep_degenerate: bool,
@@ -281,6 +289,13 @@ impl OptionArgs {
                 Err(_) => SceneSelector::Name(scene.clone()),
             }),
             pose: self.pose.clone(),
+            animation: match &self.animation {
+                Some(clips) => Some(bvhc::animation::Animation {
+                    clips: bvhc::animation::Animation::parse_clips(clips).map_err(|e| format!("--animation: {e}"))?,
+                    poses_per_clip: self.animation_poses.unwrap_or(bvhc::animation::DEFAULT_POSES_PER_CLIP),
+                }),
+                None => None,
+            },
             keep_degenerate: self.keep_degenerate.then_some(true),
             limits: Some(ImportLimits {
                 max_input_bytes: self.max_input_bytes,

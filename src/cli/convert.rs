@@ -103,9 +103,22 @@ pub fn convert(args: &ConvertArgs) -> Exit {
                         ),
                     ),
                 };
+                // An animation's tree: its poses, and how far the costliest refit strays from the stored cost.
+                let animation = r.animation.as_ref().map_or(String::new(), |a| {
+                    let (expected, of) = match a.expected_wide_cost {
+                        Some(wide) => (wide, "wide cost"),
+                        None => (a.expected_sah_cost, "SAH cost"),
+                    };
+                    format!(
+                        ", {} poses of {} clips: mean refit {of} {expected:.2}, worst {:.2}x the stored",
+                        a.poses.len(),
+                        a.clips.len(),
+                        a.worst_cost_ratio
+                    )
+                });
                 outln!(
                     out,
-                    "{}: {} triangles{levels} ({degenerate} degenerate {verdict}), {} nodes, {cost_of} {:.2}{optimized}, {} bytes, {:.2} s",
+                    "{}: {} triangles{levels} ({degenerate} degenerate {verdict}), {} nodes, {cost_of} {:.2}{optimized}{animation}, {} bytes, {:.2} s",
                     output.display(),
                     r.triangle_count,
                     r.node_count,

@@ -11,6 +11,10 @@ use std::time::{Duration, Instant};
 use bvhc_loader::format::MAX_DEPTH;
 
 use super::report::{CandidateCost, Choice, ConvertError, Event, Stage, Timings};
+use crate::animation::{
+    AnimationRecord, PoseReinsertion, PoseReinsertionReport, PoseSet, animation_record, average_cost, node_weights,
+    optimize_for_poses, pose_boxes_of,
+};
 use crate::build_tree::BuildTree;
 use crate::builders::sbvh::{SbvhParams, build_sbvh_keeping};
 use crate::builders::split_triangles_keeping;
@@ -32,11 +36,17 @@ pub(super) struct Candidate {
     /// With ray tuning: the wide kernel's mean cost for the held-out rays (of the GPU kernel without wide
     /// sections).
     pub sampled_cost: Option<f64>,
+    /// With an animation: the trees' costs in each sampled pose.
+    pub animation: Option<AnimationRecord>,
 }
 
 impl Candidate {
-    /// What a [`Choice`] compares: the sampled cost, else the wide tree's cost, else the binary SAH.
+    /// What a [`Choice`] compares: the sampled cost, else with an animation the average cost over its poses,
+    /// else the wide tree's cost, else the binary SAH.
     fn score(&self, options: &ConvertOptions) -> f64 {
+        if let Some(record) = &self.animation {
+            return record.expected_wide_cost.unwrap_or(record.expected_sah_cost);
+        }
         match (&self.sampled_cost, &self.wide_tree) {
             (Some(cost), _) => *cost,
             (None, Some((wide, costs))) => wide.cost(costs),
@@ -77,10 +87,12 @@ impl Contest {
 /// splits), built, optimized and merged, and the one whose [`Candidate::score`] is lowest (the first on a tie),
 /// with the costs of all when there were several. A time budget is shared equally among the optimizations; a
 /// cancelled optimization ends the search (its tree competes with those made before it).
+#[allow(clippy::too_many_arguments)] // the part's arrays, then the conversion's context
 pub(super) fn best_candidate(
     input: &Path,
     triangles: &[[[f32; 3]; 3]],
     whole: &[bool],
+    poses: Option<&PoseSet>,
     options: &ConvertOptions,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
@@ -117,7 +129,8 @@ pub(super) fn best_candidate(
         if unoptimized_too {
             // Whether optimizing pays: this build as it is, judged beside its optimized trees.
             built.limit_depth(MAX_DEPTH);
-            let candidate = merge_stage(&built, reference_count, triangles, options, None, &mut sample, timings);
+            let made = Optimized { optimization: None, for_poses: None };
+            let candidate = merge_stage(&built, reference_count, triangles, options, made, &mut sample, timings);
             contest.enter(candidate, options, (cut_label, "none"));
         }
         let mut built = Some(built);
@@ -126,7 +139,9 @@ pub(super) fn best_candidate(
             let tree = if k + 1 < over_clusters.len() { built.clone() } else { built.take() };
             let Some(mut tree) = tree else { unreachable!("the built tree is taken by the last candidate only") };
             let optimization = optimize_stage(&mut tree, &shared, clusters, observer, timings);
-            let candidate = merge_stage(&tree, reference_count, triangles, &shared, optimization, &mut sample, timings);
+            let for_poses = poses.map(|poses| optimize_for_animation(&mut tree, poses, &shared, timings));
+            let made = Optimized { optimization, for_poses };
+            let candidate = merge_stage(&tree, reference_count, triangles, &shared, made, &mut sample, timings);
             drop(tree);
             let cancelled = candidate.optimization.as_ref().is_some_and(|r| r.stop == StopReason::Cancelled);
             let over = if clusters { OptimizeOver::Clusters } else { OptimizeOver::References };
@@ -212,18 +227,63 @@ fn optimize_stage(
     optimization
 }
 
+/// What the optimize stage did to a candidate's tree.
+struct Optimized<'p> {
+    optimization: Option<OptimizeReport>,
+    /// With an animation: its reinsertion for the poses.
+    for_poses: Option<ForPoses<'p>>,
+}
+
+/// An animation's reinsertion: the poses, what it did, and each node's pose-averaged weight.
+struct ForPoses<'p> {
+    poses: &'p PoseSet,
+    reinsertion: PoseReinsertionReport,
+    weights: Vec<f64>,
+}
+
+/// The tree of an animation's candidate after the optimize stage, when reinsertion is on: reinserted for the
+/// cost averaged over `poses` (its time added to the optimize stage's), limited to the format's depth again.
+/// Returns what that did and each node's pose-averaged weight for the merge stage.
+fn optimize_for_animation<'p>(
+    tree: &mut OptTree,
+    poses: &'p PoseSet,
+    options: &ConvertOptions,
+    timings: &mut Timings,
+) -> ForPoses<'p> {
+    let clock = Instant::now();
+    let constants = options.optimize.constants;
+    let mut boxes = pose_boxes_of(tree, &poses.triangles);
+    let report = match options.reinsertion {
+        Some(_) => optimize_for_poses(tree, &mut boxes, constants, &PoseReinsertion::default()),
+        None => {
+            let cost = average_cost(tree, &boxes, constants);
+            PoseReinsertionReport { initial_cost: cost, final_cost: cost, rounds: 0, moves: 0, elapsed: Duration::ZERO }
+        }
+    };
+    if tree.max_depth() > MAX_DEPTH {
+        tree.limit_depth(MAX_DEPTH);
+        boxes = pose_boxes_of(tree, &poses.triangles);
+    }
+    let weights = node_weights(&boxes, tree.nodes.len());
+    timings.optimize += lap(clock);
+    ForPoses { poses, reinsertion: report, weights }
+}
+
 /// The merge stage of one candidate (its time added to `timings`): the binary leaves merged, the wide and GPU
 /// collapses, and with ray tuning the sample (made over this tree when it is the first), the collapses weighed by
-/// its training rays and the candidate's [`Candidate::sampled_cost`] on its held-out rays.
+/// its training rays and the candidate's [`Candidate::sampled_cost`] on its held-out rays. `made` is what the
+/// optimize stage did and, for an animation, what its reinsertion for the poses did and the nodes' pose weights,
+/// which the merging and collapses then weigh nodes by (the record of the poses' costs made here too).
 fn merge_stage(
     tree: &OptTree,
     reference_count: usize,
     triangles: &[[[f32; 3]; 3]],
     options: &ConvertOptions,
-    optimization: Option<OptimizeReport>,
+    made: Optimized<'_>,
     sample: &mut Option<RaySample>,
     timings: &mut Timings,
 ) -> Candidate {
+    let Optimized { optimization, for_poses } = made;
     let clock = Instant::now();
     let triangle_count = triangles.len();
     let repeats = reference_count > triangle_count;
@@ -231,9 +291,13 @@ fn merge_stage(
         &*sample.get_or_insert_with(|| RaySample::new(tree, triangles, &tuning, options.training_rays.as_ref()))
     });
     let sample = sample.filter(|s| s.is_sampled());
+    let (animation, pose_weights) = match for_poses {
+        Some(ForPoses { poses, reinsertion, weights }) => (Some((poses, reinsertion)), Some(weights)),
+        None => (None, None),
+    };
     let weights = match (options.ray_tuning, sample) {
         (Some(tuning), Some(sample)) => Some(tuned_weights(tree, triangles, &tuning, sample)),
-        _ => None,
+        _ => pose_weights,
     };
     let weights = weights.as_deref();
     let constants = options.optimize.constants;
@@ -267,8 +331,14 @@ fn merge_stage(
         };
         Some(sampled_wide_work(wide, triangles, &sample.held_out, costs.packet_width).cost_per_ray(&costs))
     });
+    let animation = animation.map(|(poses, report)| {
+        let wide = wide_tree.as_ref().map(|(tree, costs)| (tree, costs));
+        let stored_wide = wide.map(|(tree, costs)| tree.cost(costs));
+        let stored = final_tree.sah_cost(constants).cost;
+        animation_record(poses, &final_tree, constants, wide, stored, stored_wide, &report)
+    });
     timings.merge += lap(clock);
-    Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, sampled_cost }
+    Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, sampled_cost, animation }
 }
 
 /// The merge stage of a conversion: [`crate::layout::merge_and_collapse`] with the options' leaf size and

@@ -45,6 +45,9 @@ pub struct Metadata<'a> {
     /// What a two-level file instanced.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub two_level: Option<TwoLevelRecord>,
+    /// With `--animation`: the poses sampled and the written trees' costs in each.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub animation: Option<&'a crate::animation::AnimationRecord>,
 }
 
 /// The schema's `wide` object.
@@ -133,6 +136,9 @@ pub struct BuildRecord {
     /// Absent when the collapses weigh nodes by surface area.
     #[serde(skip_serializing_if = "Option::is_none")]
     ray_tuning: Option<crate::sampling::RayTuning>,
+    /// Absent unless the tree was chosen for an animation's poses.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    animation: Option<crate::animation::Animation>,
     write_ids: bool,
     write_source_vertices: bool,
 }
@@ -173,6 +179,7 @@ impl BuildRecord {
             wide: options.wide,
             gpu: options.gpu,
             ray_tuning: options.ray_tuning,
+            animation: options.animation.clone(),
             write_ids: options.write_ids,
             write_source_vertices: options.write_source_vertices,
         }

@@ -14,6 +14,7 @@ use bvhc_loader::{format::SourceVertexIndices, wide::WideBvh};
 
 use super::candidates::{Candidate, Chosen, best_candidate, lap};
 use super::report::{Choice, ConvertError, Event, Stage, Timings, WideSummary};
+use crate::animation::{AnimationRecord, PoseSet};
 use crate::cost::SahCost;
 use crate::fallible::{collect_exact, probe};
 use crate::optimize::OptimizeReport;
@@ -65,10 +66,13 @@ pub(super) struct PackedPart {
     pub choice: Option<Choice>,
     /// With ray tuning: the sample's sizes, or why it was skipped.
     pub sampling: Option<SamplingSummary>,
+    /// With an animation: the trees' costs in each sampled pose.
+    pub animation: Option<AnimationRecord>,
 }
 
 /// Builds, optimizes, lays out and packs one tree over `triangles`, whose source ids are `source_ids` and source
-/// vertices `source_vertices` (empty when not written), in the order of `triangles`.
+/// vertices `source_vertices` (empty when not written), in the order of `triangles`; with `poses` (an animation's,
+/// the same triangles in each pose) the tree is chosen for the cost averaged over them.
 #[allow(clippy::too_many_arguments)] // the part's arrays, then the conversion's context
 pub(super) fn build_part(
     input: &Path,
@@ -76,6 +80,7 @@ pub(super) fn build_part(
     source_ids: Vec<u32>,
     source_vertices: Vec<[u32; 3]>,
     deforming: &dyn Fn(u32) -> bool,
+    poses: Option<&PoseSet>,
     options: &ConvertOptions,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
     timings: &mut Timings,
@@ -85,9 +90,10 @@ pub(super) fn build_part(
         Some(splits) if !splits.deforming => source_ids.iter().map(|&id| deforming(id)).collect(),
         _ => Vec::new(),
     };
-    let Chosen { candidate, choice, sampling } = best_candidate(input, &triangles, &whole, options, observer, timings)?;
+    let Chosen { candidate, choice, sampling } =
+        best_candidate(input, &triangles, &whole, poses, options, observer, timings)?;
     drop(whole);
-    let Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, .. } = candidate;
+    let Candidate { final_tree, wide_tree, gpu_tree, reference_count, optimization, animation, .. } = candidate;
     let over_references = reference_count > triangles.len();
     let _ = observer(Event::Stage(Stage::Write));
     let clock = Instant::now();
@@ -160,6 +166,7 @@ pub(super) fn build_part(
         optimization,
         choice,
         sampling,
+        animation,
     })
 }
 

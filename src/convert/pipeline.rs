@@ -15,6 +15,7 @@ use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord, WideRe
 use super::part::{PackedPart, build_part, probe_working_set};
 use super::report::{ConvertError, ConvertReport, Event, GpuSummary, Stage, Timings};
 use super::write::{stream, verify_and_commit};
+use crate::animation::{Animation, PoseSet, import_poses, sampled_times};
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES, GPU_LAYOUT_BYTES_PER_TRIANGLE};
 use crate::import::{Instancing, SceneFormat, TriangleSoup, import_for_peak};
 use crate::options::ConvertOptions;
@@ -74,12 +75,17 @@ pub fn convert_with(
     // peak, beyond the triangles held now, can be allocated before starting (see `crate::fallible`).
     probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
     let deforming = |id: u32| ranges.is_deforming(id);
+    let poses = match &options.animation {
+        Some(animation) => Some(sample_animation(input, options, animation, &soup_source_ids, &mut timings)?),
+        None => None,
+    };
     let part = build_part(
         input,
         triangles,
         soup_source_ids,
         soup_source_vertices,
         &deforming,
+        poses.as_ref(),
         options,
         observer,
         &mut timings,
@@ -96,7 +102,9 @@ pub fn convert_with(
         optimization,
         choice,
         sampling,
+        animation,
     } = part;
+    drop(poses);
     let stored_triangle_count = packed.triangles.len();
     let clock = Instant::now();
     let inputs = input_entries(input, &imported.files_read)
@@ -122,6 +130,7 @@ pub fn convert_with(
         choice: choice.as_ref(),
         sampling: sampling.as_ref(),
         two_level: None,
+        animation: animation.as_ref(),
     }
     .to_json();
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles)
@@ -168,8 +177,29 @@ pub fn convert_with(
         choice,
         sampling,
         two_level: None,
+        animation,
         notes,
     })
+}
+
+/// The poses `animation` samples, imported (their time added to the import's), after a probe that their
+/// triangles and the optimizer's boxes in every pose can be allocated.
+fn sample_animation(
+    input: &Path,
+    options: &ConvertOptions,
+    animation: &Animation,
+    ids: &[u32],
+    timings: &mut Timings,
+) -> Result<PoseSet, ConvertError> {
+    let clock = Instant::now();
+    let (clips, times) = sampled_times(input, &options.import, animation)?;
+    // Each pose: its triangles (36 bytes) and two nodes' boxes a triangle (2 x 24 bytes).
+    let bytes = ids.len().saturating_mul(times.len()).saturating_mul(36 + 48);
+    crate::fallible::probe(bytes, "sampling the animation's poses")
+        .map_err(|e| super::part::out_of_memory(input, "sampling the animation's poses", e))?;
+    let poses = import_poses(input, &options.import, clips, times, ids)?;
+    timings.import += lap(clock);
+    Ok(poses)
 }
 
 /// `--instancing always` or `never` on an OBJ or PLY input: such a file places each model once, so it satisfies

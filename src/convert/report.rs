@@ -47,6 +47,8 @@ pub struct ConvertReport {
     pub sampling: Option<SamplingSummary>,
     /// What a two-level file (format 1.3) holds; absent for a one-level file.
     pub two_level: Option<TwoLevelSummary>,
+    /// With `--animation`: the poses sampled and the written trees' costs in each (the metadata's `animation`).
+    pub animation: Option<crate::animation::AnimationRecord>,
     /// Notes on options the input satisfies by its nature (an `--instancing` setting on an OBJ or PLY input,
     /// which places each model once); empty for most conversions.
     pub notes: Vec<String>,

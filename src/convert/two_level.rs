@@ -86,8 +86,17 @@ pub(super) fn convert_two_level(
             part_arrays(&soup, part, options.write_source_vertices);
         probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
         let deforming = |id: u32| soup.is_deforming(id);
-        let packed =
-            build_part(input, triangles, source_ids, source_vertices, &deforming, options, observer, &mut timings)?;
+        let packed = build_part(
+            input,
+            triangles,
+            source_ids,
+            source_vertices,
+            &deforming,
+            None,
+            options,
+            observer,
+            &mut timings,
+        )?;
         split |= packed.packed.triangles.len() > packed.triangle_count;
         record_source_ids.extend_from_slice(&packed.source_ids);
         let figures = PartFigures::of(&packed);
@@ -135,6 +144,7 @@ pub(super) fn convert_two_level(
             placed_triangle_count: summary.placed_triangle_count,
             flattened_triangle_count,
         }),
+        animation: None,
     }
     .to_json();
     let mut writer = BvhWriter::new(&scene.nodes, &scene.triangles)
@@ -184,6 +194,7 @@ pub(super) fn convert_two_level(
         choice: None,
         sampling: None,
         two_level: Some(summary),
+        animation: None,
         notes: Vec::new(),
     })
 }

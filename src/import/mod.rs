@@ -24,7 +24,7 @@ mod soup;
 
 use std::path::{Path, PathBuf};
 
-pub use gltf::ClipSelector;
+pub use gltf::{ClipSelector, ClipSpan};
 pub use instancing::{AUTO_MIN_SAVED_TRIANGLES, InstancedMesh, Instancing, MeshPlacement};
 pub use limits::ImportLimits;
 pub use opacity::Opacity;
@@ -254,6 +254,22 @@ impl Located {
 /// memory budget at [`memory::BYTES_PER_TRIANGLE`].
 pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportError> {
     import_for_peak(path, options, memory::BYTES_PER_TRIANGLE)
+}
+
+/// Every animation clip of the glTF file at `path`, with the span of its keyframes (none for a file without
+/// animations); an OBJ or PLY file, which has no animation, is refused.
+pub fn animation_clips(path: &Path, options: &ImportOptions) -> Result<Vec<ClipSpan>, ImportError> {
+    let error =
+        |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let Some((SceneFormat::Gltf | SceneFormat::Glb, gzipped)) = SceneFormat::from_file_name(&name) else {
+        return Err(error(Located::new(
+            "animations",
+            "only a glTF file has animation clips (.gltf or .glb)".to_string(),
+        )));
+    };
+    let bytes = limits::read_regular_file(path, gzipped, options.limits.max_input_bytes).map_err(error)?;
+    gltf::clips(path, &bytes, options).map_err(error)
 }
 
 /// Room the parsers need beyond the file's bytes before they start (checked by a probe, see [`import_for_peak`]).

@@ -47,6 +47,9 @@ pub struct ConvertOptions {
     /// The user's training rays (`--train-rays`), which replace the built-in ones; `ray_tuning` then names
     /// their file's hash.
     pub training_rays: Option<TrainingRays>,
+    /// Choose the tree for the average cost over poses sampled from a glTF's animation clips (`--animation`);
+    /// needs a one-level file without split references or ray tuning (see [`crate::animation`]).
+    pub animation: Option<crate::animation::Animation>,
     /// Write the triangle_ids and source_table sections.
     pub write_ids: bool,
     /// Write the source_vertices section of format 1.2 (each triangle's vertex indices in its source
@@ -101,6 +104,9 @@ impl ConvertOptions {
                 ));
             }
         }
+        if self.animation.is_some() {
+            self.validate_animation()?;
+        }
         if self.write_source_vertices && !self.write_ids {
             return Err(OptionsError::inert(
                 "source vertices",
@@ -154,6 +160,44 @@ impl ConvertOptions {
                     "the GPU sections of format 1.4 are for one-level files; drop one of them",
                 ));
             }
+        }
+        Ok(())
+    }
+
+    /// An animation's tree is refit to every pose: the scene flattened into one level (its records are the
+    /// triangles a pose's import places), whole triangles (a refit boxes a split reference by its whole
+    /// triangle), nodes weighed by the poses (not by sampled rays), and the poses a clip from 1 to
+    /// [`crate::animation::MAX_POSES`].
+    fn validate_animation(&self) -> Result<(), OptionsError> {
+        let because = "--animation";
+        if self.import.instancing != crate::import::Instancing::Never {
+            return Err(OptionsError::inert(
+                "instancing",
+                because,
+                "an animation's scene is flattened (each pose's triangles refit the file's records); add \
+                 --instancing never",
+            ));
+        }
+        if self.splits.is_some() {
+            return Err(OptionsError::inert(
+                "split references",
+                because,
+                "a refit boxes each reference by its whole moved triangle; add --no-splits",
+            ));
+        }
+        if self.ray_tuning.is_some() {
+            return Err(OptionsError::inert(
+                "ray tuning",
+                because,
+                "the collapses weigh nodes by the poses' areas; drop --tune-rays and --train-rays",
+            ));
+        }
+        let poses = self.animation.as_ref().map_or(1, |a| a.poses_per_clip as usize);
+        if !(1..=crate::animation::MAX_POSES).contains(&poses) {
+            return Err(OptionsError::invalid(
+                "--animation-poses",
+                format!("{poses} is not from 1 to {}", crate::animation::MAX_POSES),
+            ));
         }
         Ok(())
     }

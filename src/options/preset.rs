@@ -101,6 +101,7 @@ impl Preset {
             gpu: None,
             ray_tuning: None,
             training_rays: None,
+            animation: None,
             write_ids: true,
             write_source_vertices: true,
         }

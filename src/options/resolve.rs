@@ -16,6 +16,9 @@ pub struct Overrides {
     pub scene: Option<SceneSelector>,
     /// Import: the glTF scene as it stands at a time of an animation clip.
     pub pose: Option<crate::import::PoseSelector>,
+    /// The tree chosen for the average cost over poses of these clips (`--animation`, `--animation-poses`):
+    /// turns off the preset's split references and instancing.
+    pub animation: Option<crate::animation::Animation>,
     /// Import: keep degenerate triangles.
     pub keep_degenerate: Option<bool>,
     /// Import: the resource budget.
@@ -121,6 +124,9 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     options.import.opacity = o.opacity.unwrap_or(options.import.opacity);
     options.builder = o.builder.unwrap_or(options.builder);
     options.splits = resolve_splits(preset, o)?;
+    if o.animation.is_some() {
+        resolve_animation(o, &mut options)?;
+    }
     options.reinsertion = resolve_reinsertion(preset, o)?;
     if let Some(selection) = o.selection {
         options.optimize.selection = selection;
@@ -219,6 +225,28 @@ fn resolve_splits(preset: Preset, o: &Overrides) -> Result<Option<SplitOptions>,
         triangles: o.split_triangles.unwrap_or(base.triangles),
         deforming: o.splits_deforming.unwrap_or(base.deforming),
     }))
+}
+
+/// `--animation`: the scene flattened and no split references whatever the preset says; a split, instancing or
+/// ray-tuning setting given with it would do nothing, and is refused naming it.
+fn resolve_animation(o: &Overrides, options: &mut ConvertOptions) -> Result<(), OptionsError> {
+    let given = [
+        (o.splits == Some(true), "--splits"),
+        (o.split_budget.is_some(), "--split-budget"),
+        (o.split_method.is_some(), "--split-method"),
+        (o.split_triangles.is_some(), "--split-triangles"),
+        (o.splits_deforming.is_some(), "--no-splits-deforming"),
+        (o.instancing.is_some_and(|i| i != Instancing::Never), "--instancing"),
+        (o.tune_rays.is_some(), "--tune-rays"),
+        (o.train_rays.is_some(), "--train-rays"),
+    ];
+    let advice = "an animation's tree is refit to every pose: its scene is flattened, its triangles kept whole and \
+                  its nodes weighed by the poses; drop the setting";
+    refuse_any(&given, "--animation", advice)?;
+    options.splits = None;
+    options.import.instancing = Instancing::Never;
+    options.animation = o.animation.clone();
+    Ok(())
 }
 
 /// What reinsertion optimizes over, or `None` when optimization is off (then no optimizer setting may be given).

@@ -1,5 +1,6 @@
 //! The integration test suite: one binary, one module per subject.
 
+mod animation;
 mod box_test;
 mod c_header;
 mod c_library;

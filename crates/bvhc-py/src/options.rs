@@ -7,6 +7,7 @@ use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use bvhc::Conversion;
+use bvhc::animation::Animation;
 use bvhc::builders::Builder;
 use bvhc::convert::Event;
 use bvhc::convert::metadata::BuildRecord;
@@ -73,6 +74,7 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
     let mut o = Overrides::default();
     let mut limits = ImportLimits::default();
     let mut limits_given = false;
+    let mut animation_poses = None;
     for (key, value) in options.into_iter().flat_map(|d| d.iter()) {
         let name: String = key.extract()?;
         let v = Value { name: &name, value };
@@ -89,6 +91,19 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
             "pose" => {
                 let text = v.text().map_err(|_| v.error("a pose 'CLIP@SECONDS'"))?;
                 o.pose = Some(text.parse().map_err(|why: String| v.error(&format!("a pose 'CLIP@SECONDS' ({why})")))?)
+            }
+            "animation" => {
+                let clips = if v.value.is_instance_of::<pyo3::types::PyBool>() {
+                    v.boolean()?.then(Vec::new)
+                } else {
+                    let text = v.text().map_err(|_| v.error("True or clips 'CLIP,CLIP'"))?;
+                    Some(Animation::parse_clips(&text).map_err(|why| v.error(&format!("clips 'CLIP,CLIP' ({why})")))?)
+                };
+                o.animation = clips.map(|clips| Animation { clips, ..Animation::default() });
+            }
+            "animation_poses" => {
+                let poses = v.count()?;
+                animation_poses = Some(u32::try_from(poses).map_err(|_| v.error("a count from 1 to 64"))?);
             }
             "keep_degenerate" => o.keep_degenerate = Some(v.boolean()?),
             "allow_outside_buffers" => o.allow_buffers_outside_input_folder = Some(v.boolean()?),
@@ -182,6 +197,13 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
     }
     if limits_given {
         o.limits = Some(limits);
+    }
+    match (&mut o.animation, animation_poses) {
+        (Some(animation), Some(poses)) => animation.poses_per_clip = poses,
+        (None, Some(_)) => {
+            return Err(OptionsError::new_err("animation_poses: needs animation=True or animation='CLIPS'"));
+        }
+        _ => {}
     }
     Ok(o)
 }

@@ -734,3 +734,19 @@ def test_splits_deforming_is_the_command_lines_flag():
     assert resolved == printed and resolved["splits"]["deforming"] is False
     with pytest.raises(bvhc.OptionsError, match="no-splits-deforming"):
         bvhc.options(splits=False, splits_deforming=False)
+
+
+def test_animation_is_the_command_lines_flag():
+    assert bvhc.options(animation=True) == json.loads(cli("options", "--animation"))
+    resolved = bvhc.options(animation="0,Run", animation_poses=4)
+    printed = json.loads(cli("options", "--animation", "0,Run", "--animation-poses", "4"))
+    assert resolved == printed
+    assert resolved["animation"] == {"clips": [{"index": 0}, {"name": "Run"}], "poses_per_clip": 4}
+    assert "splits" not in resolved and resolved["instancing"] == "never"
+    assert "animation" not in bvhc.options(animation=False)
+    with pytest.raises(bvhc.OptionsError, match="needs animation"):
+        bvhc.options(animation_poses=4)
+    with pytest.raises(bvhc.OptionsError, match="--split-budget does nothing with --animation"):
+        bvhc.options(animation=True, split_budget=0.2)
+    with pytest.raises(bvhc.OptionsError, match="an empty clip name"):
+        bvhc.options(animation="0,,1")

@@ -148,3 +148,38 @@ fn sample(
     };
     Some(if rotation { quaternion([value[0], value[1], value[2], value[3]]).to_array().to_vec() } else { value })
 }
+
+/// One animation clip of a glTF file: its index, name and the span of its keyframes.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ClipSpan {
+    /// Its index in the file's `animations`.
+    pub index: usize,
+    /// Its name, where the file gives one.
+    pub name: Option<String>,
+    /// The earliest keyframe of any of its samplers, in seconds.
+    pub start: f64,
+    /// The latest keyframe of any of its samplers, in seconds.
+    pub end: f64,
+}
+
+/// Every clip's span, from its samplers' input keyframes (decoded, so a file whose accessors lack the `min` and
+/// `max` glTF requires still gets its spans). A clip without keyframes is refused.
+pub(super) fn clip_spans(root: &Root, buffers: &mut Buffers<'_>) -> Result<Vec<ClipSpan>, Problem> {
+    let mut spans = Vec::with_capacity(root.animations.len());
+    for (index, animation) in root.animations.iter().enumerate() {
+        let (mut start, mut end) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (s, sampler) in animation.samplers.iter().enumerate() {
+            let times = buffers
+                .accessor(sampler.input.value())
+                .map_err(|e| e.prefixed(&format!("animation {index} sampler {s} input ")))?;
+            for &t in &times.values {
+                (start, end) = (start.min(t), end.max(t));
+            }
+        }
+        if !(start.is_finite() && end.is_finite()) {
+            return Err(format!("animation {index} has no keyframes").into());
+        }
+        spans.push(ClipSpan { index, name: animation.name.clone(), start, end });
+    }
+    Ok(spans)
+}

@@ -23,7 +23,7 @@ use bvhc_loader::format::NO_INDEX;
 use bvhc_loader::{format::Affine3x4, format::InstanceRecord};
 
 use self::buffers::Buffers;
-pub use self::clip::ClipSelector;
+pub use self::clip::{ClipSelector, ClipSpan};
 use self::pose::{Placing, Pose, posed_positions};
 use super::instancing::{InstancedMesh, MeshPlacement, choose_instanced, stored_triangles};
 use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
@@ -38,14 +38,7 @@ pub(super) fn read(
     builder: &mut SoupBuilder,
 ) -> Result<(Vec<PathBuf>, Vec<InstancedMesh>), Located> {
     let scene = options.scene.as_ref();
-    let (json, bin) = if bytes.starts_with(b"glTF") {
-        let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| Located::new("GLB container", e.to_string()))?;
-        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
-    } else {
-        (bytes.to_vec(), None)
-    };
-    let root = Root::from_slice(&json).map_err(|e| Located::new("JSON", format!("malformed glTF JSON: {e}")))?;
-    extensions::check_required(&root)?;
+    let (root, bin) = parse(bytes)?;
     let roots = scene_roots(&root, scene)?;
     builder.report.file_mesh_triangles = primitive::file_mesh_triangles(&root);
     // The triangles the scene will store, counted from the JSON before any accessor is decoded, against the
@@ -83,6 +76,27 @@ pub(super) fn read(
     walker.walk(&roots)?;
     let meshes = walker.meshes;
     Ok((buffers.files_read, meshes))
+}
+
+/// The JSON document and the GLB's binary chunk of a `.gltf` or `.glb` file's bytes, its required extensions
+/// checked.
+fn parse(bytes: &[u8]) -> Result<(Root, Option<Vec<u8>>), Located> {
+    let (json, bin) = if bytes.starts_with(b"glTF") {
+        let glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| Located::new("GLB container", e.to_string()))?;
+        (glb.json.into_owned(), glb.bin.map(|b| b.into_owned()))
+    } else {
+        (bytes.to_vec(), None)
+    };
+    let root = Root::from_slice(&json).map_err(|e| Located::new("JSON", format!("malformed glTF JSON: {e}")))?;
+    extensions::check_required(&root)?;
+    Ok((root, bin))
+}
+
+/// Every animation clip of a `.gltf` or `.glb` file's bytes, with the span of its keyframes.
+pub(super) fn clips(path: &Path, bytes: &[u8], options: &ImportOptions) -> Result<Vec<ClipSpan>, Located> {
+    let (root, bin) = parse(bytes)?;
+    let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
+    clip::clip_spans(&root, &mut buffers).map_err(|e| e.at("animations"))
 }
 
 /// The root nodes of the selected scene: the one asked for, else the default scene, else scene 0, else (a file

@@ -1,0 +1,167 @@
+//! The poses an animation's tree is chosen for: times spread over the chosen clips, and the scene imported as it
+//! stands at each, its triangles in the order of the stored pose's.
+
+use std::path::Path;
+
+use super::{Animation, MAX_POSES};
+use crate::import::{ClipSelector, ClipSpan, ErrorKind, ImportError, ImportOptions, Instancing, PoseSelector};
+
+/// A sampled time of one clip.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SampledPose {
+    /// The clip's index in the file.
+    pub clip: usize,
+    /// The time, in seconds.
+    pub seconds: f64,
+}
+
+/// Every sampled pose and the scene's triangles in each.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseSet {
+    /// The clips sampled.
+    pub clips: Vec<ClipSpan>,
+    /// The poses, clip by clip, in time order.
+    pub poses: Vec<SampledPose>,
+    /// `triangles[k][t]`: triangle `t` of the stored pose (the conversion's order) as it stands in pose `k`.
+    pub triangles: Vec<Vec<[[f32; 3]; 3]>>,
+}
+
+/// The times `animation` samples in `spans` (the file's clips): `poses_per_clip` in each chosen clip, at the
+/// middles of equal parts of its span (one at its start when it has one keyframe time). Refused: a file without
+/// clips, a clip that does not exist, no pose or more than [`MAX_POSES`].
+pub fn sample_times(spans: &[ClipSpan], animation: &Animation) -> Result<(Vec<ClipSpan>, Vec<SampledPose>), String> {
+    if spans.is_empty() {
+        return Err("the file has no animation clips to sample".into());
+    }
+    let names = || spans.iter().map(|s| s.name.clone().unwrap_or_default()).collect::<Vec<_>>();
+    let chosen: Vec<ClipSpan> = if animation.clips.is_empty() {
+        spans.to_vec()
+    } else {
+        let mut chosen: Vec<ClipSpan> = Vec::new();
+        for selector in &animation.clips {
+            let span = match selector {
+                ClipSelector::Index(i) => spans
+                    .get(*i)
+                    .ok_or_else(|| format!("animation {i} does not exist (the file has {})", spans.len()))?,
+                ClipSelector::Name(name) => spans
+                    .iter()
+                    .find(|s| s.name.as_deref() == Some(name))
+                    .ok_or_else(|| format!("no animation is named '{name}' (names: {:?})", names()))?,
+            };
+            if !chosen.iter().any(|c| c.index == span.index) {
+                chosen.push(span.clone());
+            }
+        }
+        chosen
+    };
+    let per_clip = animation.poses_per_clip as usize;
+    if per_clip == 0 {
+        return Err("--animation-poses: at least 1 pose a clip".into());
+    }
+    let mut poses = Vec::new();
+    for span in &chosen {
+        let length = span.end - span.start;
+        let count = if length > 0.0 { per_clip } else { 1 };
+        for j in 0..count {
+            let seconds = span.start + length * (j as f64 + 0.5) / count as f64;
+            poses.push(SampledPose { clip: span.index, seconds: if length > 0.0 { seconds } else { span.start } });
+        }
+    }
+    if poses.len() > MAX_POSES {
+        return Err(format!(
+            "{} poses ({} clips at {per_clip} a clip) are more than {MAX_POSES}: choose fewer clips or lower \
+             --animation-poses",
+            poses.len(),
+            chosen.len()
+        ));
+    }
+    Ok((chosen, poses))
+}
+
+/// The clips `animation` samples in the glTF file at `input` and its times in them ([`sample_times`] on the
+/// file's clips), an error naming the file where it cannot.
+pub fn sampled_times(
+    input: &Path,
+    import: &ImportOptions,
+    animation: &Animation,
+) -> Result<(Vec<ClipSpan>, Vec<SampledPose>), ImportError> {
+    let spans = crate::import::animation_clips(input, import)?;
+    sample_times(&spans, animation).map_err(|message| refused(input, message))
+}
+
+fn refused(input: &Path, message: String) -> ImportError {
+    ImportError { path: input.to_path_buf(), location: "animations".into(), message, kind: ErrorKind::Invalid }
+}
+
+/// The scene's triangles in each of `poses` of the glTF file at `input`: the triangles with source ids `ids` (the
+/// stored pose's, in its order) found by their ids in each pose's import (`import`'s scene and limits, every
+/// placement flattened, degenerate triangles kept so that one a pose flattens keeps its place).
+pub fn import_poses(
+    input: &Path,
+    import: &ImportOptions,
+    clips: Vec<ClipSpan>,
+    poses: Vec<SampledPose>,
+    ids: &[u32],
+) -> Result<PoseSet, ImportError> {
+    let mut triangles = Vec::with_capacity(poses.len());
+    for pose in &poses {
+        let options = ImportOptions {
+            pose: Some(PoseSelector { clip: ClipSelector::Index(pose.clip), seconds: pose.seconds }),
+            keep_degenerate: true,
+            instancing: Instancing::Never,
+            ..import.clone()
+        };
+        let soup = crate::import::import(input, &options)?.soup;
+        let mut triangle_of_id = vec![u32::MAX; soup.source_ids.iter().map(|&id| id as usize + 1).max().unwrap_or(0)];
+        for (t, &id) in soup.source_ids.iter().enumerate() {
+            triangle_of_id[id as usize] = t as u32;
+        }
+        let mut posed = Vec::with_capacity(ids.len());
+        for &id in ids {
+            let t = triangle_of_id.get(id as usize).copied().filter(|&t| t != u32::MAX).ok_or_else(|| {
+                let why =
+                    format!("triangle {id} of the stored pose is not in clip {} at {} s", pose.clip, pose.seconds);
+                refused(input, why)
+            })?;
+            posed.push(soup.vertices(t as usize));
+        }
+        triangles.push(posed);
+    }
+    Ok(PoseSet { clips, poses, triangles })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn span(index: usize, name: &str, start: f64, end: f64) -> ClipSpan {
+        ClipSpan { index, name: Some(name.into()), start, end }
+    }
+
+    #[test]
+    fn times_are_the_middles_of_equal_parts_of_each_chosen_clip() {
+        let spans = [span(0, "Walk", 0.0, 2.0), span(1, "Run", 1.0, 1.0), span(2, "Jump", 0.5, 1.5)];
+        let animation = Animation { clips: Animation::parse_clips("Jump, 1,2").unwrap(), poses_per_clip: 4 };
+        let (clips, poses) = sample_times(&spans, &animation).unwrap();
+        assert_eq!(clips.iter().map(|c| c.index).collect::<Vec<_>>(), [2, 1]);
+        let times: Vec<(usize, f64)> = poses.iter().map(|p| (p.clip, p.seconds)).collect();
+        assert_eq!(times, [(2, 0.625), (2, 0.875), (2, 1.125), (2, 1.375), (1, 1.0)]);
+        let every = sample_times(&spans, &Animation { clips: Vec::new(), poses_per_clip: 1 }).unwrap().1;
+        assert_eq!(every.iter().map(|p| p.seconds).collect::<Vec<_>>(), [1.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn refusals_name_the_problem() {
+        let spans = [span(0, "Walk", 0.0, 2.0)];
+        let ask = |clips: &str, poses: u32| {
+            sample_times(&spans, &Animation { clips: Animation::parse_clips(clips).unwrap(), poses_per_clip: poses })
+                .unwrap_err()
+        };
+        assert!(ask("3", 8).contains("animation 3 does not exist"));
+        assert!(ask("Fly", 8).contains("no animation is named 'Fly'"));
+        assert!(ask("", 0).contains("at least 1"));
+        assert!(ask("", 65).contains("more than 64"));
+        assert!(sample_times(&[], &Animation::default()).unwrap_err().contains("no animation clips"));
+        assert!(Animation::parse_clips("Walk,,Run").is_err());
+    }
+}
