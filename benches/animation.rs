@@ -201,7 +201,10 @@ fn svg(curves: &[(String, Vec<Row>)]) -> String {
         .flat_map(|(_, rows)| rows.iter().map(|r| r.rest.max(r.animation)))
         .fold(1.2f64, f64::max)
         .min(3.0);
-    let y = |ratio: f64| top + plot_h * (1.0 - (ratio.clamp(0.9, top_ratio) - 0.9) / (top_ratio - 0.9));
+    let y = |ratio: f64| {
+        let at = top + plot_h * (1.0 - (ratio.clamp(0.9, top_ratio) - 0.9) / (top_ratio - 0.9));
+        (at * 100.0).round() / 100.0
+    };
     let x = |at: f64| left + plot_w * at;
     let mut out = format!(
         r##"<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif" font-size="12">
