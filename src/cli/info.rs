@@ -191,10 +191,40 @@ pub fn info(path: &Path, json: bool) -> Exit {
             let seed = sampling["held_out_seed"].as_u64().map_or(String::new(), |s| format!(", seed {s}"));
             outln!(out, "ray sampling: {training} training rays, {held_out} held-out rays{seed}");
         }
+        if let Some(line) = animation_line(&metadata["animation"]) {
+            outln!(out, "{line}");
+        }
         outln!(
             out,
             "timings: not recorded in the file (they would make identical builds differ); see `bvhc ... --json`"
         );
     }
     print(&out, Exit::Success)
+}
+
+/// The metadata's `animation` object in a line: the clips and poses the tree was chosen for, the mean refit cost
+/// and the costliest pose (`None` without one).
+fn animation_line(animation: &serde_json::Value) -> Option<String> {
+    let poses = animation["poses"].as_array()?;
+    let clips: Vec<String> = animation["clips"]
+        .as_array()?
+        .iter()
+        .map(|c| {
+            let name = c["name"].as_str().map_or_else(|| format!("clip {}", c["index"]), str::to_string);
+            format!("{name} {:.2}-{:.2} s", c["start"].as_f64().unwrap_or(0.0), c["end"].as_f64().unwrap_or(0.0))
+        })
+        .collect();
+    let (mean, of) = match animation["expected_wide_cost"].as_f64() {
+        Some(wide) => (wide, "wide cost"),
+        None => (animation["expected_sah_cost"].as_f64().unwrap_or(0.0), "SAH cost"),
+    };
+    let worst = &poses.get(animation["worst_pose"].as_u64()? as usize)?;
+    Some(format!(
+        "animation: tree chosen for {} poses of {}; refit {of} mean {mean:.3}, worst {:.3}x the stored (clip {} at {:.2} s)",
+        poses.len(),
+        clips.join(", "),
+        animation["worst_cost_ratio"].as_f64().unwrap_or(0.0),
+        worst["clip"],
+        worst["seconds"].as_f64().unwrap_or(0.0)
+    ))
 }

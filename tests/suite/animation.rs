@@ -100,6 +100,9 @@ fn an_animation_tree_records_its_poses_costs_and_costs_less_over_them_than_the_d
     let seconds: Vec<f64> =
         metadata["animation"]["poses"].as_array().unwrap().iter().map(|p| p["seconds"].as_f64().unwrap()).collect();
     assert_eq!(seconds, [2.5, 7.5, 12.5, 17.5]);
+    let info = bvhc(&[&"info", &dir.path().join("animated.bvh")]);
+    let info = String::from_utf8_lossy(&info.stdout).into_owned();
+    assert!(info.contains("animation: tree chosen for 4 poses of Deform 0.00-20.00 s; refit wide cost mean"), "{info}");
     // Named clips are recorded as given.
     convert(&asset, &dir.path().join("named.bvh"), &["--animation", "Deform", "--animation-poses", "2"]);
     let named = crate::common::assert_metadata_matches_schema(&BvhFile::read(dir.path().join("named.bvh")).unwrap());
