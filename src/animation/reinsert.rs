@@ -13,13 +13,12 @@
 //! Symbols as in `crate::optimize::search`: `C_D(X) = A(X u L)`, `C_I(X) = sum_anc A(anc u L) - A(anc)`, the
 //! search bounds a subtree by `C_I + A(L)`.
 
-use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use std::time::{Duration, Instant};
 
-use super::pose_boxes::PoseBoxes;
+use super::pose_boxes::{PoseBoxes, union_into};
 use crate::cost::SahConstants;
-use crate::optimize::{NONE, OptTree};
+use crate::optimize::{Candidate, NONE, OptTree};
 
 /// When the optimizer stops.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -187,30 +186,6 @@ fn refit_poses_from(tree: &OptTree, boxes: &mut PoseBoxes, mut i: u32) {
     }
 }
 
-/// A heap entry ordered so that `BinaryHeap` pops the smallest induced cost first, then the smallest index.
-#[derive(Clone, Copy, Debug)]
-struct Candidate {
-    induced: f32,
-    node: u32,
-}
-
-impl PartialEq for Candidate {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
-    }
-}
-impl Eq for Candidate {}
-impl PartialOrd for Candidate {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Candidate {
-    fn cmp(&self, other: &Self) -> Ordering {
-        other.induced.total_cmp(&self.induced).then(other.node.cmp(&self.node))
-    }
-}
-
 /// The searches' scratch: the heap, the moving node's boxes and the removal boxes.
 struct Search {
     heap: BinaryHeap<Candidate>,
@@ -251,7 +226,7 @@ impl Search {
             if let Some(hit) = self.search(tree, boxes, area_l, off_path, base, best) {
                 (best, found) = (hit.0, Some(hit));
             }
-            union_into(&mut self.removal, boxes.slot(off_path), boxes.pose_count());
+            union_into(&mut self.removal, boxes.slot(off_path));
             let removal_area = boxes.slot_area(&self.removal);
             if base + removal_area < best {
                 best = base + removal_area;
@@ -302,14 +277,6 @@ impl Search {
             }
         }
         found
-    }
-}
-
-/// `into` becomes its union with `other` (two slots of `poses` poses).
-fn union_into(into: &mut [f32], other: &[f32], poses: usize) {
-    let half = 3 * poses;
-    for (j, (a, &b)) in into.iter_mut().zip(other).enumerate() {
-        *a = if j < half { a.min(b) } else { a.max(b) };
     }
 }
 

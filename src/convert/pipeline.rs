@@ -15,7 +15,8 @@ use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord, WideRe
 use super::part::{PackedPart, build_part, probe_working_set};
 use super::report::{ConvertError, ConvertReport, Event, GpuSummary, Stage, Timings};
 use super::write::{stream, verify_and_commit};
-use crate::animation::{Animation, PoseSet, import_poses, sampled_times};
+use crate::animation::{PoseSet, SampledPose, import_poses, sampled_times};
+use crate::import::ClipSpan;
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES, GPU_LAYOUT_BYTES_PER_TRIANGLE};
 use crate::import::{Instancing, SceneFormat, TriangleSoup, import_for_peak};
 use crate::options::ConvertOptions;
@@ -43,7 +44,10 @@ pub fn convert_with(
     let peak_bytes_per_triangle =
         if options.candidate_count() > 1 { BYTES_PER_TRIANGLE_WITH_CANDIDATES } else { BYTES_PER_TRIANGLE };
     let gpu_bytes_per_triangle = if options.gpu.is_some() { GPU_LAYOUT_BYTES_PER_TRIANGLE } else { 0 };
-    let peak_bytes_per_triangle = peak_bytes_per_triangle + gpu_bytes_per_triangle;
+    // An animation's poses, chosen before the import so that the memory budget counts their triangles and boxes.
+    let sampled = options.animation.as_ref().map(|a| sampled_times(input, &options.import, a)).transpose()?;
+    let pose_bytes_per_triangle = sampled.as_ref().map_or(0, |(_, times)| pose_bytes_per_triangle(times.len()));
+    let peak_bytes_per_triangle = peak_bytes_per_triangle + gpu_bytes_per_triangle + pose_bytes_per_triangle;
     let imported = import_for_peak(input, &options.import, peak_bytes_per_triangle)?;
     timings.import = lap(clock);
     refuse_output_among(output, &imported.files_read)?;
@@ -75,8 +79,8 @@ pub fn convert_with(
     // peak, beyond the triangles held now, can be allocated before starting (see `crate::fallible`).
     probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
     let deforming = |id: u32| ranges.is_deforming(id);
-    let poses = match &options.animation {
-        Some(animation) => Some(sample_animation(input, options, animation, &soup_source_ids, &mut timings)?),
+    let poses = match sampled {
+        Some((clips, times)) => Some(import_animation(input, options, clips, times, &soup_source_ids, &mut timings)?),
         None => None,
     };
     let part = build_part(
@@ -182,20 +186,26 @@ pub fn convert_with(
     })
 }
 
-/// The poses `animation` samples, imported (their time added to the import's), after a probe that their
-/// triangles and the optimizer's boxes in every pose can be allocated.
-fn sample_animation(
+/// What `poses` sampled poses add to a conversion's peak, a triangle: its corners in each pose (36 bytes) and two
+/// nodes' boxes in each of the pose lanes (the count rounded up to 8: `crate::animation::PoseBoxes`).
+fn pose_bytes_per_triangle(poses: usize) -> u64 {
+    let lanes = poses.next_multiple_of(8).max(8) as u64;
+    36 * poses as u64 + 2 * 24 * lanes
+}
+
+/// The scene's triangles `ids` at each of `times` of `clips` (their time added to the import's), after a probe
+/// that they and the optimizer's boxes can be allocated.
+fn import_animation(
     input: &Path,
     options: &ConvertOptions,
-    animation: &Animation,
+    clips: Vec<ClipSpan>,
+    times: Vec<SampledPose>,
     ids: &[u32],
     timings: &mut Timings,
 ) -> Result<PoseSet, ConvertError> {
     let clock = Instant::now();
-    let (clips, times) = sampled_times(input, &options.import, animation)?;
-    // Each pose: its triangles (36 bytes) and two nodes' boxes a triangle (2 x 24 bytes).
-    let bytes = ids.len().saturating_mul(times.len()).saturating_mul(36 + 48);
-    crate::fallible::probe(bytes, "sampling the animation's poses")
+    let bytes = (ids.len() as u64).saturating_mul(pose_bytes_per_triangle(times.len()));
+    crate::fallible::probe(usize::try_from(bytes).unwrap_or(usize::MAX), "sampling the animation's poses")
         .map_err(|e| super::part::out_of_memory(input, "sampling the animation's poses", e))?;
     let poses = import_poses(input, &options.import, clips, times, ids)?;
     timings.import += lap(clock);

@@ -36,6 +36,7 @@ pub use edit_log::EditLog;
 pub use measure::{Selection, is_eligible};
 pub use measure_index::MeasureIndex;
 pub use params::{Algorithm, OptimizeParams};
+pub(crate) use search::Candidate;
 pub use search::{Move, SearchQueue, best_in_subtree, best_insertion, best_move};
 pub use select::{select_batch, select_batch_with};
 pub use tree::{ChildrenFirst, NONE, OptNode, OptTree, TreeEdits, area};

@@ -15,11 +15,11 @@ use super::tree::{NONE, OptTree, area};
 use crate::geometry::Aabb;
 
 /// A heap entry: a candidate and its induced cost, ordered so that `BinaryHeap` pops the smallest cost first
-/// (then the smallest node index).
+/// (then the smallest node index). Also the animation optimizer's (`crate::animation`).
 #[derive(Clone, Copy, Debug)]
-struct Candidate {
-    induced: f32,
-    node: u32,
+pub(crate) struct Candidate {
+    pub(crate) induced: f32,
+    pub(crate) node: u32,
 }
 
 impl PartialEq for Candidate {

@@ -153,6 +153,16 @@ fn animation_settings_that_cannot_be_honoured_are_refused() {
     }
     let teapot = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
     refused(&teapot, &["--animation"], "only a glTF file has animation clips");
+    // The memory budget counts every pose's triangles and boxes: a budget the still scene fits in refuses 64
+    // poses of it.
+    let budget = ["--max-memory", "110M"];
+    assert!(bvhc(&[&asset, &"-o", &output, &"-q", &budget[0], &budget[1]]).status.success());
+    std::fs::remove_file(&output).unwrap();
+    refused(
+        &asset,
+        &["--animation", "--animation-poses", "64", budget[0], budget[1]],
+        "more than the 110M --max-memory allows",
+    );
     // A glTF without clips: one triangle, its buffer a data URI.
     let still = dir.path().join("still.gltf");
     let bytes: Vec<u8> =
