@@ -77,7 +77,8 @@ pub struct RefitArgs {
     /// The refit .bvh file to write (atomically; may be FILE itself).
     #[arg(short, long, value_name = "OUTPUT.bvh")]
     pub output: PathBuf,
-    /// Say that converting anew would pay once the refit tree's cost exceeds the converted one's by this factor.
+    /// Say that converting anew would pay once the refit tree's cost exceeds the converted one's by this factor
+    /// (for a tree chosen for an animation, this factor times the largest ratio its sampled poses reach).
     #[arg(long, value_name = "RATIO", default_value_t = bvhc::loader::RebuildPolicy::DEFAULT.max_cost_ratio)]
     pub max_cost_ratio: f64,
     /// Print nothing but errors.

@@ -61,6 +61,7 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
             "wide_cost": report.wide_cost,
             "file_wide_cost": report.file_wide_cost,
             "cost_ratio": report.cost_ratio(),
+            "planned_cost_ratio": report.planned_cost_ratio,
             "rebuild_recommended": rebuild,
         });
         outln!(out, "{json:#}");
@@ -76,19 +77,24 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
             (Some(now), Some(then)) => format!("{then:.3} -> {now:.3}"),
             _ => "not stated".to_string(),
         };
+        let planned = report
+            .planned_cost_ratio
+            .map_or(String::new(), |p| format!("; the animation's sampled poses reach {p:.3}"));
         outln!(
             out,
-            "cost ratio {:.3} (SAH cost {}, wide cost {})",
+            "cost ratio {:.3} (SAH cost {}, wide cost {}{planned})",
             report.cost_ratio(),
             costs(report.cost, report.file_cost),
             costs(report.wide_cost, report.file_wide_cost)
         );
         if rebuild {
+            let of = match report.planned_cost_ratio {
+                Some(p) if p > 1.0 => format!("{} times the ratio the animation's poses reach", args.max_cost_ratio),
+                _ => format!("{} times the converted one's", args.max_cost_ratio),
+            };
             outln!(
                 out,
-                "note: the refit tree costs more than {} times the converted one's; converting {} anew would trace \
-                 faster",
-                args.max_cost_ratio,
+                "note: the refit tree costs more than {of}; converting {} anew would trace faster",
                 args.positions.display()
             );
         }

@@ -9,7 +9,7 @@ mod morphing_glb;
 use std::path::{Path, PathBuf};
 
 use bvhc::import::{ClipSelector, PoseSelector};
-use bvhc::loader::{BvhFile, RefitPositions};
+use bvhc::loader::{BvhFile, RebuildPolicy, RefitPositions};
 
 use crate::cli::bvhc;
 
@@ -192,4 +192,63 @@ fn base64_of(bytes: &[u8]) -> String {
         }
     }
     out
+}
+
+#[test]
+fn a_refit_report_plans_for_the_poses_the_tree_was_chosen_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = morphing_sphere(dir.path());
+    let animated = convert(&asset, &dir.path().join("animated.bvh"), &["--animation", "--animation-poses", "4"]);
+    let rest = convert(&asset, &dir.path().join("rest.bvh"), &["--no-splits", "--instancing", "never"]);
+    let metadata = crate::common::assert_metadata_matches_schema(&animated);
+    let poses = metadata["animation"]["poses"].as_array().unwrap();
+    let planned = metadata["animation"]["worst_cost_ratio"].as_f64().unwrap();
+    assert!(planned > 1.0, "{planned}");
+    let refit_to = |file: &BvhFile, seconds: f64| {
+        let pose = PoseSelector { clip: ClipSelector::Index(0), seconds };
+        let positions = bvhc::posed::record_positions(&file.view(), &asset, &Default::default(), Some(&pose)).unwrap();
+        let mut copy = BvhFile::from_bytes(file.as_bytes()).unwrap();
+        let report = copy.refit(RefitPositions::Triangles(&positions), 1).unwrap();
+        (copy, report)
+    };
+    for pose in poses {
+        let (_, report) = refit_to(&animated, pose["seconds"].as_f64().unwrap());
+        assert!(close(report.planned_cost_ratio.unwrap(), planned));
+        assert!(report.cost_ratio() <= planned * (1.0 + 1e-9));
+        assert!(!RebuildPolicy::DEFAULT.should_rebuild(&report), "{report:?}");
+        // The same threshold without the plan: what a file converted without --animation gets.
+        let plain = bvhc::loader::RefitReport { planned_cost_ratio: None, ..report };
+        assert_eq!(RebuildPolicy::DEFAULT.should_rebuild(&plain), plain.cost_ratio() > 1.2);
+        let (_, rest_report) = refit_to(&rest, pose["seconds"].as_f64().unwrap());
+        assert_eq!(rest_report.planned_cost_ratio, None);
+    }
+    // A ratio past 1.2 times the plan asks for a rebuild.
+    let (_, report) = refit_to(&animated, 5.0);
+    let beyond = bvhc::loader::RefitReport { file_wide_cost: report.wide_cost.map(|c| c / (1.21 * planned)), ..report };
+    assert!(RebuildPolicy::DEFAULT.should_rebuild(&beyond));
+    // After a refit restated the file's costs (at 5 s), the plan is the poses' costs over the new stated cost.
+    let (moved, _) = refit_to(&animated, 5.0);
+    let restated = BvhFile::from_bytes(moved.rewritten().unwrap().as_bytes()).unwrap();
+    let stated = crate::common::assert_metadata_matches_schema(&restated)["wide"]["cost"].as_f64().unwrap();
+    let worst = poses.iter().map(|p| p["wide_cost"].as_f64().unwrap()).fold(0.0, f64::max);
+    let (_, report) = refit_to(&restated, 15.0);
+    assert!(close(report.planned_cost_ratio.unwrap(), worst / stated), "{report:?} against {worst} / {stated}");
+    // The command line prints the plan and keeps quiet about a rebuild within it.
+    let output = dir.path().join("refit.bvh");
+    let seconds = format!("0@{}", poses[0]["seconds"]);
+    let run = bvhc(&[
+        &"refit",
+        &dir.path().join("animated.bvh"),
+        &"--positions",
+        &asset,
+        &"--pose",
+        &seconds,
+        &"-o",
+        &output,
+        &"--json",
+    ]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert!(close(json["planned_cost_ratio"].as_f64().unwrap(), planned));
+    assert_eq!(json["rebuild_recommended"], false);
 }

@@ -247,6 +247,9 @@ typedef struct bvhc_refit_report {
     double cost, file_cost;           /* the binary tree's SAH cost now, and the one the file states */
     double wide_cost, file_wide_cost; /* the wide tree's cost now, and the one the file states */
     double cost_ratio;                /* wide cost / stated where both exist, else the binary one's; 1 without */
+    double planned_cost_ratio;        /* a tree chosen for an animation (bvhc --animation): the largest cost_ratio
+                                         its sampled poses reach (docs/animation.md), rebuild past about 1.2 times
+                                         it; NaN for other files */
 } bvhc_refit_report;
 bvhc_status bvhc_refit_triangles(bvhc_file *file, const float *positions, size_t triangle_count, unsigned threads,
                                  bvhc_refit_report *report);

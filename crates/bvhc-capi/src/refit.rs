@@ -28,6 +28,9 @@ pub struct BvhcRefitReport {
     /// `RefitReport::cost_ratio`: the wide tree's cost over the stated one where both exist, else the binary
     /// tree's; what a rebuild policy compares with a threshold.
     pub cost_ratio: f64,
+    /// `RefitReport::planned_cost_ratio`: for a tree chosen for an animation, the largest `cost_ratio` its sampled
+    /// poses reach; NaN for other files.
+    pub planned_cost_ratio: f64,
 }
 
 impl From<&RefitReport> for BvhcRefitReport {
@@ -38,6 +41,7 @@ impl From<&RefitReport> for BvhcRefitReport {
             wide_cost: report.wide_cost.unwrap_or(f64::NAN),
             file_wide_cost: report.file_wide_cost.unwrap_or(f64::NAN),
             cost_ratio: report.cost_ratio(),
+            planned_cost_ratio: report.planned_cost_ratio.unwrap_or(f64::NAN),
         }
     }
 }

@@ -41,8 +41,9 @@ fn floats<'a>(array: &'a PyReadonlyArrayDyn<'_, f32>, name: &str, last: &[usize]
     array.as_slice().map_err(|_| InvalidInputError::new_err(format!("{name}: a C-contiguous float32 array")))
 }
 
-/// The report as a dict: the four costs (`None` where the file states none), `cost_ratio`, and
-/// `rebuild_recommended` by `max_cost_ratio`.
+/// The report as a dict: the four costs (`None` where the file states none), `cost_ratio`,
+/// `planned_cost_ratio` (a tree chosen for an animation: the largest ratio its sampled poses reach, else `None`)
+/// and `rebuild_recommended` by `max_cost_ratio` (times the planned ratio where there is one).
 fn report_dict<'py>(py: Python<'py>, report: &RefitReport, max_cost_ratio: f64) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     dict.set_item("cost", report.cost)?;
@@ -50,6 +51,7 @@ fn report_dict<'py>(py: Python<'py>, report: &RefitReport, max_cost_ratio: f64) 
     dict.set_item("wide_cost", report.wide_cost)?;
     dict.set_item("file_wide_cost", report.file_wide_cost)?;
     dict.set_item("cost_ratio", report.cost_ratio())?;
+    dict.set_item("planned_cost_ratio", report.planned_cost_ratio)?;
     dict.set_item("rebuild_recommended", RebuildPolicy { max_cost_ratio }.should_rebuild(report))?;
     Ok(dict)
 }

@@ -620,6 +620,7 @@ def test_refit_in_place_equals_bvhc_refit_of_the_moved_asset(tmp_path):
     before = np.array(scene.triangles)
     report = scene.refit(source_vertices=[bent], threads=2)
     assert report["cost_ratio"] > 1.0 and report["wide_cost"] is not None and not report["rebuild_recommended"]
+    assert report["planned_cost_ratio"] is None, "converted without animation=True"
     scene.write(tmp_path / "py.bvh")
     assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
     assert "every rule" in bvhc.verify(tmp_path / "py.bvh")
