@@ -1,11 +1,12 @@
 //! A skinned glTF animated by refitting its `.bvh` each frame: what a renderer of characters does with bvhc.
 //!
-//! The scene is converted once (without split references, every placement flattened: the refit's needs), then
-//! for each frame the example poses the glTF itself ([`pose`]: animation channels, joint hierarchy,
+//! The scene is converted once with `--animation` for the clip it plays (the tree chosen for the clip's sampled
+//! poses: flattened, without split references, as the refit needs), then for each frame the example poses the glTF itself ([`pose`]: animation channels, joint hierarchy,
 //! linear-blend skinning), hands the posed vertices of each primitive to `BvhFile::refit` as positions per
 //! source vertex (the file's `source_vertices` section maps them to its records), and renders the frame with
 //! the loader's tracer: shaded by the geometric normal. Each frame is written as a PNG and all of them as one
-//! animated PNG; the refit time and the refit tree's cost ratio are printed per frame.
+//! animated PNG; the refit time, the refit tree's cost ratio and whether `RebuildPolicy` would convert anew (it
+//! reads the ratio the clip's sampled poses were planned to reach) are printed per frame.
 //!
 //! ```sh
 //! cargo run --release --example skinned -- Fox/Fox.gltf frames/ [--clip 1] [--frames 24] [--width 320] [--height 240]
@@ -16,8 +17,9 @@ mod pose;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use bvhc::import::Instancing;
-use bvhc::loader::{BvhFile, Hit, Ray, RefitPositions, Trace};
+use bvhc::animation::Animation;
+use bvhc::import::ClipSelector;
+use bvhc::loader::{BvhFile, Hit, Ray, RebuildPolicy, RefitPositions, Trace};
 use bvhc::options::Overrides;
 
 struct Options {
@@ -131,7 +133,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let options = options()?;
     std::fs::create_dir_all(&options.output)?;
     let bvh = options.output.join("scene.bvh");
-    let overrides = Overrides { splits: Some(false), instancing: Some(Instancing::Never), ..Overrides::default() };
+    let animation = Animation { clips: vec![ClipSelector::Index(options.clip)], ..Animation::default() };
+    let overrides = Overrides { animation: Some(animation), ..Overrides::default() };
     bvhc::Conversion::new(&options.input, &bvh).overrides(overrides).run()?;
     let mut file = BvhFile::read(&bvh)?;
     let scene = pose::Scene::read(&options.input, options.clip)?;
@@ -171,9 +174,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let pixels: Vec<u8> = hits.iter().map(shade).collect();
         let render_ms = start.elapsed().as_secs_f64() * 1e3;
         write_frame(&options.output.join(format!("frame-{frame:03}.png")), &pixels, options.width, options.height)?;
+        let rebuild = if RebuildPolicy::DEFAULT.should_rebuild(&report) { ", rebuild" } else { "" };
         println!(
-            "frame {frame:3} (t = {time:.2} s): refit {refit_ms:.3} ms (cost ratio {:.3}), render {render_ms:.1} ms",
-            report.cost_ratio()
+            "frame {frame:3} (t = {time:.2} s): refit {refit_ms:.3} ms (cost ratio {:.3}, planned {:.3}{rebuild}), \
+             render {render_ms:.1} ms",
+            report.cost_ratio(),
+            report.planned_cost_ratio.unwrap_or(1.0)
         );
         frames.push(pixels);
     }

@@ -109,10 +109,11 @@ pub fn convert(args: &ConvertArgs) -> Exit {
                         Some(wide) => (wide, "wide cost"),
                         None => (a.expected_sah_cost, "SAH cost"),
                     };
+                    let clips =
+                        if a.clips.len() == 1 { "1 clip".to_string() } else { format!("{} clips", a.clips.len()) };
                     format!(
-                        ", {} poses of {} clips: mean refit {of} {expected:.2}, worst {:.2}x the stored",
+                        ", {} poses of {clips}: mean refit {of} {expected:.2}, worst {:.2}x the stored",
                         a.poses.len(),
-                        a.clips.len(),
                         a.worst_cost_ratio
                     )
                 });

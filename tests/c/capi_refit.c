@@ -69,7 +69,9 @@ int main(int argc, char **argv) {
         fprintf(stderr, "refit: %s\n", bvhc_last_error_message());
         return 108;
     }
-    printf("ratio %.17g planned %s\n", report.cost_ratio, isnan(report.planned_cost_ratio) ? "none" : "some");
+    double planned = 0.0;
+    int plan = bvhc_planned_cost_ratio(one, &planned);
+    printf("ratio %.17g planned %s\n", report.cost_ratio, plan == BVHC_ERROR_NOT_IN_FILE ? "none" : "some");
     const float *keep[1] = {NULL};
     size_t counts[1] = {0};
     if (bvhc_refit_source_vertices(one, keep, counts, 1, 1, NULL) != BVHC_OK) return 109;

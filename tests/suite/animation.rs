@@ -204,6 +204,8 @@ fn a_refit_report_plans_for_the_poses_the_tree_was_chosen_for() {
     let poses = metadata["animation"]["poses"].as_array().unwrap();
     let planned = metadata["animation"]["worst_cost_ratio"].as_f64().unwrap();
     assert!(planned > 1.0, "{planned}");
+    assert!(close(animated.view().planned_cost_ratio().unwrap(), planned));
+    assert_eq!(rest.view().planned_cost_ratio(), None);
     let refit_to = |file: &BvhFile, seconds: f64| {
         let pose = PoseSelector { clip: ClipSelector::Index(0), seconds };
         let positions = bvhc::posed::record_positions(&file.view(), &asset, &Default::default(), Some(&pose)).unwrap();

@@ -236,7 +236,7 @@ bvhc_status bvhc_source_range_of(const bvhc_file *file, uint32_t source_triangle
  * --no-splits or --no-splits-deforming for tighter trees); the same result on any number of threads (0 or 1:
  * the calling thread). The report compares the refit tree's costs with the costs the file states (NaN where it
  * states none, as a two-level file does): rebuild (convert again) once cost_ratio passes a threshold, 1.2 by default
- * in bvhc. bvhc_move_instances places instances of a two-level file anew (3x4 row-major object-to-world maps,
+ * in bvhc (times bvhc_planned_cost_ratio for a tree chosen for an animation). bvhc_move_instances places instances of a two-level file anew (3x4 row-major object-to-world maps,
  * 12 floats each), refitting the top trees; after large moves bvhc_rebuild_top_trees builds them anew (the
  * converter's builder) once bvhc_top_tree_cost says the refit ones cost more, replacing the file's bytes (fetch
  * bvhc_get_sections again). bvhc_write writes the file atomically with its stated costs and checksums recomputed (a
@@ -247,9 +247,6 @@ typedef struct bvhc_refit_report {
     double cost, file_cost;           /* the binary tree's SAH cost now, and the one the file states */
     double wide_cost, file_wide_cost; /* the wide tree's cost now, and the one the file states */
     double cost_ratio;                /* wide cost / stated where both exist, else the binary one's; 1 without */
-    double planned_cost_ratio;        /* a tree chosen for an animation (bvhc --animation): the largest cost_ratio
-                                         its sampled poses reach (docs/animation.md), rebuild past about 1.2 times
-                                         it; NaN for other files */
 } bvhc_refit_report;
 bvhc_status bvhc_refit_triangles(bvhc_file *file, const float *positions, size_t triangle_count, unsigned threads,
                                  bvhc_refit_report *report);
@@ -258,6 +255,10 @@ bvhc_status bvhc_refit_source_vertices(bvhc_file *file, const float *const *posi
 bvhc_status bvhc_move_instances(bvhc_file *file, const uint32_t *instances, const float *transforms, size_t count);
 bvhc_status bvhc_rebuild_top_trees(bvhc_file *file);
 bvhc_status bvhc_top_tree_cost(const bvhc_file *file, double *cost); /* BVHC_ERROR_NOT_IN_FILE if one-level */
+/* A tree chosen for an animation (bvhc --animation, docs/animation.md): the largest cost_ratio a refit to one of
+ * its sampled poses reaches; rebuild past about 1.2 times it rather than 1.2. BVHC_ERROR_NOT_IN_FILE for a file
+ * converted without --animation. */
+bvhc_status bvhc_planned_cost_ratio(const bvhc_file *file, double *ratio);
 bvhc_status bvhc_write(const bvhc_file *file, const char *path);
 
 /* The file's arrays, for look-ups per candidate or per pixel without a call into the library: fill once with

@@ -44,8 +44,8 @@ pub use filtered_batch::{
 pub use open::{bvhc_close, bvhc_open, bvhc_open_memory, bvhc_verify};
 pub use records::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};
 pub use refit::{
-    BvhcRefitReport, bvhc_move_instances, bvhc_rebuild_top_trees, bvhc_refit_source_vertices, bvhc_refit_triangles,
-    bvhc_top_tree_cost, bvhc_write,
+    BvhcRefitReport, bvhc_move_instances, bvhc_planned_cost_ratio, bvhc_rebuild_top_trees, bvhc_refit_source_vertices,
+    bvhc_refit_triangles, bvhc_top_tree_cost, bvhc_write,
 };
 pub use scene::{
     bvhc_get_instance, bvhc_get_mesh, bvhc_instance_count, bvhc_mesh_count, bvhc_metadata_json, bvhc_scene_bounds,

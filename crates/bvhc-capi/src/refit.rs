@@ -28,9 +28,6 @@ pub struct BvhcRefitReport {
     /// `RefitReport::cost_ratio`: the wide tree's cost over the stated one where both exist, else the binary
     /// tree's; what a rebuild policy compares with a threshold.
     pub cost_ratio: f64,
-    /// `RefitReport::planned_cost_ratio`: for a tree chosen for an animation, the largest `cost_ratio` its sampled
-    /// poses reach; NaN for other files.
-    pub planned_cost_ratio: f64,
 }
 
 impl From<&RefitReport> for BvhcRefitReport {
@@ -41,7 +38,6 @@ impl From<&RefitReport> for BvhcRefitReport {
             wide_cost: report.wide_cost.unwrap_or(f64::NAN),
             file_wide_cost: report.file_wide_cost.unwrap_or(f64::NAN),
             cost_ratio: report.cost_ratio(),
-            planned_cost_ratio: report.planned_cost_ratio.unwrap_or(f64::NAN),
         }
     }
 }
@@ -239,6 +235,30 @@ pub unsafe extern "C" fn bvhc_top_tree_cost(file: *const BvhcFile, cost: *mut f6
             return Err((BVHC_ERROR_NOT_IN_FILE, format!("{call}: a one-level file has no top tree")));
         };
         *cost = value;
+        Ok(BVHC_OK)
+    })
+}
+
+/// Writes to `ratio` the largest refit cost ratio a tree chosen for an animation reaches at the poses it was
+/// chosen for (`BvhView::planned_cost_ratio`: the metadata's pose costs over the cost the file states), what a
+/// rebuild policy's threshold multiplies. `BVHC_ERROR_NOT_IN_FILE` for a file converted without `--animation`.
+///
+/// # Safety
+///
+/// `file` is null or a live file; `ratio` is null or points to a writable double.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_planned_cost_ratio(file: *const BvhcFile, ratio: *mut f64) -> c_int {
+    guarded(|| {
+        let call = "bvhc_planned_cost_ratio";
+        // SAFETY: by the contract `file` is null or live, `ratio` null or writable.
+        let (file, ratio) = unsafe { (file.as_ref(), ratio.as_mut()) };
+        let (Some(file), Some(ratio)) = (file, ratio) else {
+            return Err(argument(&format!("{call}: file and ratio must not be null")));
+        };
+        let Some(value) = file.traced.view().planned_cost_ratio() else {
+            return Err((BVHC_ERROR_NOT_IN_FILE, format!("{call}: the file was not converted with --animation")));
+        };
+        *ratio = value;
         Ok(BVHC_OK)
     })
 }

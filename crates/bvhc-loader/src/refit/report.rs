@@ -10,6 +10,7 @@
 use crate::format::cost::{AreaSums, BinaryCost};
 use crate::open::view::BvhView;
 use crate::verify::costs::{CostsOf, stated_costs};
+use crate::verify::json::Map;
 use crate::verify::metadata::parsed_metadata;
 
 /// A refit tree's costs beside the costs the file's metadata states (those of the tree at the pose it was
@@ -46,7 +47,6 @@ impl RefitReport {
             planned_cost_ratio: None,
         };
         let Ok(Some(metadata)) = parsed_metadata(view) else { return report };
-        let poses = metadata.object("animation").and_then(|a| a.get("poses")).and_then(|p| p.as_array());
         for stated in stated_costs(view, &metadata, sums) {
             match stated.name {
                 "cost.sah_cost" => {
@@ -58,7 +58,7 @@ impl RefitReport {
                 _ => {}
             }
         }
-        report.planned_cost_ratio = poses.and_then(|poses| planned_ratio(poses, &report));
+        report.planned_cost_ratio = planned_ratio(&metadata, report.file_cost, report.file_wide_cost);
         report
     }
 
@@ -74,17 +74,32 @@ impl RefitReport {
     }
 }
 
-/// The largest cost of `poses` (the metadata's `animation.poses`) over the stated cost `report` compares with:
-/// wide costs where the file states one and every pose has one, else binary costs.
-fn planned_ratio(poses: &[crate::verify::json::Value], report: &RefitReport) -> Option<f64> {
+/// The largest cost the metadata's `animation.poses` state over the cost the file states (`stated_sah`, and
+/// `stated_wide` where it has wide sections): wide costs where the file states one and every pose has one, else
+/// binary costs. `None` without poses.
+fn planned_ratio(metadata: &Map, stated_sah: Option<f64>, stated_wide: Option<f64>) -> Option<f64> {
+    let poses = metadata.object("animation")?.get("poses")?.as_array()?;
     let largest =
         |key: &str| poses.iter().try_fold(0.0f64, |most, pose| Some(most.max(pose.as_object()?.number(key)?)));
-    let (most, stated) = match (report.file_wide_cost, largest("wide_cost")) {
+    let (most, stated) = match (stated_wide, largest("wide_cost")) {
         (Some(stated), Some(most)) => (most, stated),
-        _ => (largest("sah_cost")?, report.file_cost?),
+        _ => (largest("sah_cost")?, stated_sah?),
     };
     let ratio = most / stated;
     (!poses.is_empty() && ratio.is_finite() && ratio > 0.0).then_some(ratio)
+}
+
+impl BvhView<'_> {
+    /// For a tree chosen for an animation (`bvhc --animation`): the largest [`RefitReport::cost_ratio`] a refit to
+    /// one of the poses it was chosen for reaches, [`RefitReport::planned_cost_ratio`] before any refit: the
+    /// largest of the costs the metadata's `animation.poses` state over the cost the file states. `None` for other
+    /// files.
+    pub fn planned_cost_ratio(&self) -> Option<f64> {
+        let metadata = parsed_metadata(self).ok()??;
+        let stated_sah = metadata.object("cost").and_then(|cost| cost.number("sah_cost"));
+        let stated_wide = metadata.object("wide").and_then(|wide| wide.number("cost"));
+        planned_ratio(&metadata, stated_sah, stated_wide)
+    }
 }
 
 /// A refit file's box areas, summed by the refits as they make the boxes, for the costs the metadata's rule
