@@ -96,25 +96,11 @@ pub struct PoseCost {
     pub wide_cost: Option<f64>,
 }
 
-/// A clip in the metadata.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct ClipRecord {
-    /// Its index in the file's `animations`.
-    pub index: usize,
-    /// Its name (absent where the file gives none).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub name: Option<String>,
-    /// Its first and last keyframe times, in seconds.
-    pub start: f64,
-    /// See `start`.
-    pub end: f64,
-}
-
 /// The metadata's `animation` object (format spec section 5.5).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AnimationRecord {
-    /// The clips sampled.
-    pub clips: Vec<ClipRecord>,
+    /// The clips sampled: index, name where there is one, first and last keyframe times.
+    pub clips: Vec<ClipSpan>,
     /// Each sampled pose's costs, clip by clip in time order.
     pub poses: Vec<PoseCost>,
     /// The mean of the poses' `sah_cost`.
@@ -180,7 +166,7 @@ pub fn animation_record(
         _ => 1.0,
     };
     AnimationRecord {
-        clips: poses.clips.iter().map(clip_record).collect(),
+        clips: poses.clips.clone(),
         poses: costs,
         expected_sah_cost,
         expected_wide_cost,
@@ -193,8 +179,4 @@ pub fn animation_record(
             moves: reinsertion.moves,
         },
     }
-}
-
-fn clip_record(span: &ClipSpan) -> ClipRecord {
-    ClipRecord { index: span.index, name: span.name.clone(), start: span.start, end: span.end }
 }

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use super::pose_boxes::{PoseBoxes, union_into};
 use crate::cost::SahConstants;
-use crate::optimize::{Candidate, NONE, OptTree};
+use crate::optimize::{Candidate, NONE, OptTree, Selection, is_eligible, measure};
 
 /// When the optimizer stops.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,12 +51,8 @@ pub struct PoseReinsertionReport {
     /// Moves applied.
     pub moves: u64,
     /// Wall-clock time.
-    #[serde(serialize_with = "seconds")]
+    #[serde(serialize_with = "crate::optimize::seconds")]
     pub elapsed: Duration,
-}
-
-fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_f64(d.as_secs_f64())
 }
 
 /// The pose boxes of every node of `tree` (one triangle a leaf, `right` its index): leaf `t`'s box in pose `k`
@@ -142,17 +138,10 @@ pub fn optimize_for_poses(
 /// index.
 fn inefficient_nodes(tree: &OptTree, boxes: &PoseBoxes, fraction: f64) -> Vec<u32> {
     let mut ranked: Vec<(f64, u32)> = (0..tree.nodes.len() as u32)
-        .filter(|&i| {
-            let node = &tree.nodes[i as usize];
-            node.left != NONE && i != tree.root && node.parent != tree.root
-        })
+        .filter(|&i| is_eligible(tree, i))
         .map(|i| {
             let node = &tree.nodes[i as usize];
-            let (a, l, r) =
-                (f64::from(boxes.area(i)), f64::from(boxes.area(node.left)), f64::from(boxes.area(node.right)));
-            let sum = a / (0.5 * (l + r)).max(1e-30);
-            let min = a / l.min(r).max(1e-30);
-            (sum * min * a, i)
+            (measure(boxes.area(i), boxes.area(node.left), boxes.area(node.right), Selection::Comb), i)
         })
         .collect();
     let k = ((ranked.len() as f64 * fraction).ceil() as usize).min(ranked.len());

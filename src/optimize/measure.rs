@@ -48,7 +48,7 @@ impl Selection {
 const EPSILON: f64 = 1e-30;
 
 /// The measure of an inner node with area `a` and children of areas `l`, `r` (larger: more in need of a fix).
-pub(super) fn measure(a: f32, l: f32, r: f32, selection: Selection) -> f64 {
+pub(crate) fn measure(a: f32, l: f32, r: f32, selection: Selection) -> f64 {
     let (a, l, r) = (f64::from(a), f64::from(l), f64::from(r));
     let sum = a / (0.5 * (l + r)).max(EPSILON);
     let min = a / l.min(r).max(EPSILON);

@@ -33,6 +33,7 @@ use serde::Serialize;
 
 pub use clusters::optimize_over_clusters;
 pub use edit_log::EditLog;
+pub(crate) use measure::measure;
 pub use measure::{Selection, is_eligible};
 pub use measure_index::MeasureIndex;
 pub use params::{Algorithm, OptimizeParams};
@@ -65,7 +66,8 @@ pub struct Progress {
     pub elapsed: Duration,
 }
 
-fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
+/// A duration as seconds (f64), for serde; also the animation optimizer's report's.
+pub(crate) fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
     s.serialize_f64(d.as_secs_f64())
 }
 

@@ -154,7 +154,8 @@ fn sample(
 pub struct ClipSpan {
     /// Its index in the file's `animations`.
     pub index: usize,
-    /// Its name, where the file gives one.
+    /// Its name, where the file gives one (absent from JSON where it gives none).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
     /// The earliest keyframe of any of its samplers, in seconds.
     pub start: f64,
