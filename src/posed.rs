@@ -1,18 +1,21 @@
 //! A converted file's triangle records placed as a re-exported asset places them: the pipeline's fast path for
 //! a moved pose (`bvhc refit FILE --positions MESH`). The asset is the one the file was converted from, exported
 //! again with moved vertices and the same topology (PLY, OBJ or glTF); it is imported as the conversion imported
-//! it (the file's recorded glTF scene, every placement flattened, degenerate triangles kept so that a triangle
-//! flattened by the new pose still has its place), and each record takes the positions of the imported triangle
-//! with its source id (the `triangle_ids` section), the same primitive and, where the file records them
-//! (`source_vertices`), the same source vertices in the same corners. Anything else is a different topology,
-//! refused naming the range, triangle or vertex.
+//! it (the file's recorded glTF scene; a one-level file's placements flattened, a two-level file's meshes
+//! instanced as its metadata records; degenerate triangles kept so that a triangle flattened by the new pose
+//! still has its place), and each record takes the positions of the imported triangle with its source id (the
+//! `triangle_ids` section), the same primitive and, where the file records them (`source_vertices`), the same
+//! source vertices in the same corners; a two-level file's instances take their nodes' transforms
+//! ([`placed_pose`]). Anything else is a different topology, refused naming the range, triangle or vertex.
 
 use std::path::Path;
 
-use bvhc_loader::BvhView;
-use bvhc_loader::format::SourceRange;
+use bvhc_loader::format::{Affine3x4, NO_INDEX, SourceRange};
+use bvhc_loader::{BvhFile, BvhView, RefitPositions, RefitReport, TwoLevelSections};
 
-use crate::import::{ImportError, ImportLimits, ImportOptions, Instancing, PoseSelector, SceneSelector, import};
+use crate::import::{
+    ImportError, ImportLimits, ImportOptions, InstancedMesh, Instancing, PoseSelector, SceneSelector, import,
+};
 
 /// Why an asset's positions cannot be given to a file's records.
 #[derive(Debug)]
@@ -38,10 +41,33 @@ impl std::fmt::Display for PosedError {
 
 impl std::error::Error for PosedError {}
 
+/// A converted file's records and instances as its asset places them in one pose ([`placed_pose`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlacedPose {
+    /// Each triangle record's corners, in record order: a one-level file's in world space, a two-level file's in
+    /// its mesh's own space (an instanced mesh's records keep their object-space positions).
+    pub positions: Vec<[[f32; 3]; 3]>,
+    /// A two-level file's instances that a glTF node places, each with the node's transform in the pose, in
+    /// instance order (empty for a one-level file; the flattened mesh's identity instance is not among them).
+    pub instances: Vec<(u32, Affine3x4)>,
+}
+
+impl PlacedPose {
+    /// Refits `file` to the pose: its records moved ([`BvhFile::refit`] on `threads` threads), then its instances
+    /// placed anew ([`BvhFile::move_instances`], which refits the top trees). Returns the refit's report.
+    pub fn apply(&self, file: &mut BvhFile, threads: usize) -> Result<RefitReport, bvhc_loader::Error> {
+        let report = file.refit(RefitPositions::Triangles(&self.positions), threads)?;
+        if !self.instances.is_empty() {
+            file.move_instances(&self.instances)?;
+        }
+        Ok(report)
+    }
+}
+
 /// The positions of `view`'s triangle records (one triangle a record, in record order) in `asset`, imported
 /// under `limits`, in the asset's default pose or, with `pose`, as it stands at that time of one of its
-/// animation clips (a glTF's): see the module documentation. A two-level file is refused (its meshes' records are in each
-/// mesh's own space, not where the asset places them).
+/// animation clips (a glTF's): see the module documentation. A two-level file is refused: its instances move
+/// too, which [`placed_pose`] gives.
 pub fn record_positions(
     view: &BvhView<'_>,
     asset: &Path,
@@ -50,12 +76,27 @@ pub fn record_positions(
 ) -> Result<Vec<[[f32; 3]; 3]>, PosedError> {
     if view.two_level().is_some() {
         return Err(PosedError::File(
-            "the file is two-level (each mesh stored once in its own space, placed by instances), but the asset's \
-             triangles are read as the scene places them: convert the moved asset again, or refit the meshes \
-             through the library (BvhFile::refit, each mesh's records in its own space)"
+            "the file is two-level (meshes in their own spaces, placed by instances): its pose is its records'              positions and its instances' transforms (bvhc::posed::placed_pose)"
                 .into(),
         ));
     }
+    Ok(placed_pose(view, asset, limits, pose)?.positions)
+}
+
+/// `view`'s records and instances as `asset` (imported under `limits`) places them in its default pose or, with
+/// `pose`, at that time of one of its animation clips. The asset is imported as the conversion imported it:
+/// its recorded scene, and for a two-level file its recorded instancing and the clips an animation's tree was
+/// chosen for (which keep the meshes they move instanced), so that the same primitives are placed with the same
+/// source ids; each record takes its triangle's positions, each instance that a glTF node places the node's
+/// transform in the pose (matched by node and `EXT_mesh_gpu_instancing` instance). Refused, naming what differs:
+/// another topology, an instance the asset does not place as one in that pose (a moving node whose transform
+/// is singular there), a file without ids.
+pub fn placed_pose(
+    view: &BvhView<'_>,
+    asset: &Path,
+    limits: &ImportLimits,
+    pose: Option<&PoseSelector>,
+) -> Result<PlacedPose, PosedError> {
     let (Some(ids), Some(ranges)) = (view.triangle_ids(), view.source_table()) else {
         return Err(PosedError::File(
             "the file has no triangle ids (converted with --no-ids), so its records cannot be matched to the \
@@ -63,16 +104,24 @@ pub fn record_positions(
                 .into(),
         ));
     };
+    let metadata = metadata(view)?;
+    let two_level = view.two_level();
+    let (instancing, moving_clips) = match two_level {
+        None => (Instancing::Never, Vec::new()),
+        Some(_) => recorded_instancing(&metadata)?,
+    };
     let options = ImportOptions {
-        scene: recorded_scene(view)?,
+        scene: recorded_scene(&metadata),
         keep_degenerate: true,
         limits: limits.clone(),
-        instancing: Instancing::Never,
+        instancing,
+        moving_clips,
         pose: pose.cloned(),
         ..ImportOptions::default()
     };
-    let soup = import(asset, &options).map_err(PosedError::Import)?.soup;
-    same_ranges(ranges, &soup.sources)?;
+    let imported = import(asset, &options).map_err(PosedError::Import)?;
+    let soup = imported.soup;
+    same_ranges_as_file(ranges, &soup.sources)?;
     let id_count = ranges.last().map_or(0, |r| r.first_source_triangle as usize + r.source_triangle_count as usize);
     let mut triangle_of_id = vec![u32::MAX; id_count];
     for (triangle, &id) in soup.source_ids.iter().enumerate() {
@@ -98,25 +147,84 @@ pub fn record_positions(
         }
         positions.push(soup.vertices(triangle));
     }
-    Ok(positions)
+    let instances = match two_level {
+        None => Vec::new(),
+        Some(sections) => instance_transforms(&sections, &imported.instanced)?,
+    };
+    Ok(PlacedPose { positions, instances })
+}
+
+/// The transform in the pose of each of the file's instances that a glTF node places (`instanced`: the asset's
+/// instanced meshes in the pose), by node and `EXT_mesh_gpu_instancing` instance.
+fn instance_transforms(
+    sections: &TwoLevelSections<'_>,
+    instanced: &[InstancedMesh],
+) -> Result<Vec<(u32, Affine3x4)>, PosedError> {
+    let mut placed = std::collections::HashMap::new();
+    for placement in instanced.iter().flat_map(|mesh| &mesh.placements) {
+        placed.insert((placement.node_index, placement.gpu_instance_index), placement.object_to_world);
+    }
+    let mut transforms = Vec::new();
+    for (index, instance) in sections.instances.iter().enumerate() {
+        if instance.node_index == NO_INDEX {
+            continue;
+        }
+        let key = (instance.node_index, instance.gpu_instance_index);
+        let Some(&object_to_world) = placed.get(&key) else {
+            return Err(PosedError::Topology(format!(
+                "instance {index} (node {}) is not placed as an instance in the asset's pose (a transform \
+                 singular there, or another scene)",
+                instance.node_index
+            )));
+        };
+        transforms.push((index as u32, object_to_world));
+    }
+    Ok(transforms)
+}
+
+/// The file's metadata as JSON (`Null` without a metadata section).
+fn metadata(view: &BvhView<'_>) -> Result<serde_json::Value, PosedError> {
+    let Some(text) = view.metadata_str() else { return Ok(serde_json::Value::Null) };
+    let unreadable = |why: String| PosedError::File(format!("the file's metadata cannot be read: {why}"));
+    serde_json::from_str(text.map_err(|v| unreadable(v.to_string()))?).map_err(|e| unreadable(e.to_string()))
 }
 
 /// The glTF scene the conversion imported, from the metadata's `build.import.scene` (`None`: the default).
-fn recorded_scene(view: &BvhView<'_>) -> Result<Option<SceneSelector>, PosedError> {
-    let Some(text) = view.metadata_str() else { return Ok(None) };
-    let unreadable = |why: String| PosedError::File(format!("the file's metadata cannot be read: {why}"));
-    let metadata: serde_json::Value =
-        serde_json::from_str(text.map_err(|v| unreadable(v.to_string()))?).map_err(|e| unreadable(e.to_string()))?;
+fn recorded_scene(metadata: &serde_json::Value) -> Option<SceneSelector> {
     let scene = &metadata["build"]["import"]["scene"];
-    Ok(if let Some(index) = scene["index"].as_u64() {
+    if let Some(index) = scene["index"].as_u64() {
         Some(SceneSelector::Index(index as usize))
     } else {
         scene["name"].as_str().map(|name| SceneSelector::Name(name.to_string()))
-    })
+    }
+}
+
+/// How a two-level file's conversion instanced: the metadata's `two_level.instancing`, and the clips of its
+/// `animation` (which kept the meshes they move instanced).
+fn recorded_instancing(metadata: &serde_json::Value) -> Result<(Instancing, Vec<usize>), PosedError> {
+    let instancing = match metadata["two_level"]["instancing"].as_str() {
+        Some("always") => Instancing::Always,
+        Some("auto") => Instancing::Auto,
+        other => {
+            return Err(PosedError::File(format!(
+                "the metadata's two_level.instancing is {other:?}, not 'auto' or 'always', so the asset cannot be \
+                 imported as the conversion imported it"
+            )));
+        }
+    };
+    let clips = metadata["animation"]["clips"].as_array().map_or(&[][..], Vec::as_slice);
+    let moving_clips = clips.iter().filter_map(|clip| clip["index"].as_u64()).map(|i| i as usize).collect();
+    Ok((instancing, moving_clips))
 }
 
 /// The file's source ranges and the asset's name the same primitives with the same triangle counts.
-fn same_ranges(file: &[SourceRange], asset: &[SourceRange]) -> Result<(), PosedError> {
+fn same_ranges_as_file(file: &[SourceRange], asset: &[SourceRange]) -> Result<(), PosedError> {
+    same_ranges(file, asset, ("the file", "the asset")).map_err(PosedError::Topology)
+}
+
+/// Whether two imports' source ranges (`first`, `second`, named `names` in messages) place the same primitives
+/// (node, mesh, primitive, instance) with the same triangle counts and ids; else the first difference in words.
+pub(crate) fn same_ranges(first: &[SourceRange], second: &[SourceRange], names: (&str, &str)) -> Result<(), String> {
     let key = |r: &SourceRange| {
         (
             r.first_source_triangle,
@@ -127,20 +235,24 @@ fn same_ranges(file: &[SourceRange], asset: &[SourceRange]) -> Result<(), PosedE
             r.instance_index,
         )
     };
-    if file.len() != asset.len() {
-        return Err(PosedError::Topology(format!(
-            "the file has {} source ranges (primitives placed), the asset {}",
-            file.len(),
-            asset.len()
-        )));
+    if first.len() != second.len() {
+        return Err(format!(
+            "{} has {} source ranges (primitives placed), {} {}",
+            names.0,
+            first.len(),
+            names.1,
+            second.len()
+        ));
     }
-    match file.iter().zip(asset).position(|(a, b)| key(a) != key(b)) {
+    match first.iter().zip(second).position(|(a, b)| key(a) != key(b)) {
         None => Ok(()),
-        Some(k) => Err(PosedError::Topology(format!(
-            "source range {k} is {} in the file but {} in the asset",
-            describe(&file[k]),
-            describe(&asset[k])
-        ))),
+        Some(k) => Err(format!(
+            "source range {k} is {} in {} but {} in {}",
+            describe(&first[k]),
+            names.0,
+            describe(&second[k]),
+            names.1
+        )),
     }
 }
 

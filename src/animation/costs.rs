@@ -101,6 +101,29 @@ pub struct PoseCost {
 pub struct AnimationRecord {
     /// The clips sampled: index, name where there is one, first and last keyframe times.
     pub clips: Vec<ClipSpan>,
+    /// The refit costs of the tree the poses deform (a one-level file's; a two-level file's flattened mesh 0,
+    /// absent when nothing is flattened): each pose's, their means, the worst.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub costs: Option<PoseCosts>,
+    /// A two-level file's instances that the clips move rigidly (each placement of a mesh that a moving node
+    /// places): their transforms at a pose are the asset's, applied by moving the instances (their meshes do
+    /// not deform). Empty in a one-level file.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub moving_instances: Vec<MovingInstance>,
+}
+
+/// An instance of a two-level file that an animation moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct MovingInstance {
+    /// The instance's index in the file.
+    pub instance: u32,
+    /// The glTF node that places it.
+    pub node: u32,
+}
+
+/// A deforming tree's costs over an animation's sampled poses.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PoseCosts {
     /// Each sampled pose's costs, clip by clip in time order.
     pub poses: Vec<PoseCost>,
     /// The mean of the poses' `sah_cost`.
@@ -167,16 +190,19 @@ pub fn animation_record(
     };
     AnimationRecord {
         clips: poses.clips.clone(),
-        poses: costs,
-        expected_sah_cost,
-        expected_wide_cost,
-        worst_pose,
-        worst_cost_ratio,
-        reinsertion: ReinsertionRecord {
-            initial_cost: reinsertion.initial_cost,
-            final_cost: reinsertion.final_cost,
-            rounds: reinsertion.rounds,
-            moves: reinsertion.moves,
-        },
+        costs: Some(PoseCosts {
+            poses: costs,
+            expected_sah_cost,
+            expected_wide_cost,
+            worst_pose,
+            worst_cost_ratio,
+            reinsertion: ReinsertionRecord {
+                initial_cost: reinsertion.initial_cost,
+                final_cost: reinsertion.final_cost,
+                rounds: reinsertion.rounds,
+                moves: reinsertion.moves,
+            },
+        }),
+        moving_instances: Vec::new(),
     }
 }

@@ -10,13 +10,21 @@
 //! collapses weigh each node by its pose-averaged ray probability ([`node_weights`]) instead of its area in the
 //! stored pose. The metadata's `animation` object records the poses, each one's cost and the worst
 //! ([`AnimationRecord`]).
+//!
+//! Meshes that the clips only carry along (placed by a node a translation, rotation or scale channel moves, and
+//! not deformed) stay instanced unless `--instancing never` ([`crate::import::ImportOptions::moving_clips`]): the
+//! file is two-level, each such placement an instance whose transform follows its node
+//! ([`crate::posed::placed_pose`]), and the tree chosen for the poses is the flattened mesh 0's.
 
 mod costs;
 mod pose_boxes;
 mod reinsert;
 mod sample;
 
-pub use costs::{AnimationRecord, PoseCost, animation_record, binary_cost_at, node_weights, wide_cost_at};
+pub use costs::{
+    AnimationRecord, MovingInstance, PoseCost, PoseCosts, ReinsertionRecord, animation_record, binary_cost_at,
+    node_weights, wide_cost_at,
+};
 pub use pose_boxes::{MAX_POSES, PoseBoxes};
 pub use reinsert::{PoseReinsertion, PoseReinsertionReport, average_cost, optimize_for_poses, pose_boxes_of};
 pub use sample::{PoseSet, SampledPose, import_poses, sample_times, sampled_times};

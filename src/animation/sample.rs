@@ -4,7 +4,9 @@
 use std::path::Path;
 
 use super::{Animation, MAX_POSES};
-use crate::import::{ClipSelector, ClipSpan, ErrorKind, ImportError, ImportOptions, Instancing, PoseSelector};
+use bvhc_loader::format::SourceRange;
+
+use crate::import::{ClipSelector, ClipSpan, ErrorKind, ImportError, ImportOptions, PoseSelector};
 
 /// A sampled time of one clip.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -94,24 +96,34 @@ fn refused(input: &Path, message: String) -> ImportError {
 }
 
 /// The scene's triangles in each of `poses` of the glTF file at `input`: the triangles with source ids `ids` (the
-/// stored pose's, in its order) found by their ids in each pose's import (`import`'s scene and limits, every
-/// placement flattened, degenerate triangles kept so that one a pose flattens keeps its place).
+/// stored pose's, in its order) found by their ids in each pose's import (`import`'s scene, limits, instancing
+/// and moving clips, degenerate triangles kept so that one a pose flattens keeps its place). Each pose's import
+/// must place the primitives the stored one did (`sources`, its source ranges): a placement that a pose would
+/// flatten instead of instancing (a moving node's transform singular at that time) is refused naming it.
 pub fn import_poses(
     input: &Path,
     import: &ImportOptions,
-    clips: Vec<ClipSpan>,
-    poses: Vec<SampledPose>,
+    poses: (Vec<ClipSpan>, Vec<SampledPose>),
+    sources: &[SourceRange],
     ids: &[u32],
 ) -> Result<PoseSet, ImportError> {
+    let (clips, poses) = poses;
     let mut triangles = Vec::with_capacity(poses.len());
     for pose in &poses {
         let options = ImportOptions {
             pose: Some(PoseSelector { clip: ClipSelector::Index(pose.clip), seconds: pose.seconds }),
             keep_degenerate: true,
-            instancing: Instancing::Never,
             ..import.clone()
         };
         let soup = crate::import::import(input, &options)?.soup;
+        if let Err(why) = crate::posed::same_ranges(sources, &soup.sources, ("the default pose", "the pose")) {
+            let why = format!(
+                "clip {} at {} s places the scene's primitives otherwise ({why}): a moving \
+                 node's transform may be singular there; convert with --instancing never",
+                pose.clip, pose.seconds
+            );
+            return Err(refused(input, why));
+        }
         let mut triangle_of_id = vec![u32::MAX; soup.source_ids.iter().map(|&id| id as usize + 1).max().unwrap_or(0)];
         for (t, &id) in soup.source_ids.iter().enumerate() {
             triangle_of_id[id as usize] = t as u32;

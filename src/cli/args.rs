@@ -64,7 +64,8 @@ pub enum Command {
 /// `bvhc refit`'s arguments.
 #[derive(Debug, Args)]
 pub struct RefitArgs {
-    /// The .bvh file to refit: one-level, without split references (converted with `--no-splits`).
+    /// The .bvh file to refit, best without split references (converted with `--no-splits`); a two-level file's
+    /// instances move to where the asset's nodes stand.
     pub file: PathBuf,
     /// The moved asset: the file's input exported again with the same topology (.gltf, .glb, .obj, .ply,
     /// .obj.gz or .ply.gz).

@@ -105,16 +105,25 @@ pub fn convert(args: &ConvertArgs) -> Exit {
                 };
                 // An animation's tree: its poses, and how far the costliest refit strays from the stored cost.
                 let animation = r.animation.as_ref().map_or(String::new(), |a| {
-                    let (expected, of) = match a.expected_wide_cost {
-                        Some(wide) => (wide, "wide cost"),
-                        None => (a.expected_sah_cost, "SAH cost"),
-                    };
                     let clips =
                         if a.clips.len() == 1 { "1 clip".to_string() } else { format!("{} clips", a.clips.len()) };
+                    let moving = match a.moving_instances.len() {
+                        0 => String::new(),
+                        1 => ", 1 instance moving".to_string(),
+                        n => format!(", {n} instances moving"),
+                    };
+                    let Some(costs) = &a.costs else {
+                        return format!(", animation of {clips}{moving}");
+                    };
+                    let (expected, of) = match costs.expected_wide_cost {
+                        Some(wide) => (wide, "wide cost"),
+                        None => (costs.expected_sah_cost, "SAH cost"),
+                    };
+                    let deformed = if a.moving_instances.is_empty() { "" } else { " of mesh 0" };
                     format!(
-                        ", {} poses of {clips}: mean refit {of} {expected:.2}, worst {:.2}x the stored",
-                        a.poses.len(),
-                        a.worst_cost_ratio
+                        ", {} poses of {clips}{moving}: mean refit {of}{deformed} {expected:.2}, worst {:.2}x the stored",
+                        costs.poses.len(),
+                        costs.worst_cost_ratio
                     )
                 });
                 outln!(

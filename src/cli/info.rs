@@ -203,9 +203,8 @@ pub fn info(path: &Path, json: bool) -> Exit {
 }
 
 /// The metadata's `animation` object in a line: the clips and poses the tree was chosen for, the mean refit cost
-/// and the costliest pose (`None` without one).
+/// and the costliest pose, and a two-level file's instances the clips move (`None` without one).
 fn animation_line(animation: &serde_json::Value) -> Option<String> {
-    let poses = animation["poses"].as_array()?;
     let clips: Vec<String> = animation["clips"]
         .as_array()?
         .iter()
@@ -214,13 +213,21 @@ fn animation_line(animation: &serde_json::Value) -> Option<String> {
             format!("{name} {:.2}-{:.2} s", c["start"].as_f64().unwrap_or(0.0), c["end"].as_f64().unwrap_or(0.0))
         })
         .collect();
+    let moving = animation["moving_instances"].as_array().map_or(String::new(), |moving| {
+        let nodes: Vec<String> = moving.iter().map(|m| m["node"].to_string()).collect();
+        format!("; {} instances moving (nodes {})", moving.len(), nodes.join(", "))
+    });
+    let Some(poses) = animation["poses"].as_array() else {
+        return Some(format!("animation: {}{moving}; nothing flattened deforms", clips.join(", ")));
+    };
     let (mean, of) = match animation["expected_wide_cost"].as_f64() {
         Some(wide) => (wide, "wide cost"),
         None => (animation["expected_sah_cost"].as_f64().unwrap_or(0.0), "SAH cost"),
     };
+    let of_mesh = if moving.is_empty() { "" } else { " of mesh 0" };
     let worst = &poses.get(animation["worst_pose"].as_u64()? as usize)?;
     Some(format!(
-        "animation: tree chosen for {} poses of {}; refit {of} mean {mean:.3}, worst {:.3}x the stored (clip {} at {:.2} s)",
+        "animation: tree{of_mesh} chosen for {} poses of {}; refit {of} mean {mean:.3}, worst {:.3}x the stored (clip {} at {:.2} s){moving}",
         poses.len(),
         clips.join(", "),
         animation["worst_cost_ratio"].as_f64().unwrap_or(0.0),

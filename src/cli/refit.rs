@@ -1,12 +1,13 @@
 //! `bvhc refit FILE --positions MESH -o OUTPUT`: a converted file refit to a moved pose of its asset
-//! ([`bvhc::posed::record_positions`], [`bvhc::loader::BvhFile::refit`]), its costs recomputed
+//! ([`bvhc::posed::placed_pose`]: its records refit and, in a two-level file, the instances a glTF node places
+//! moved to the node's transform in that pose), its costs recomputed
 //! (`BvhFile::rewritten`, so that `bvhc verify` passes) and written atomically.
 
 use std::time::Instant;
 
 use bvhc::import::{ErrorKind, ImportLimits};
-use bvhc::loader::{RebuildPolicy, RefitPositions};
-use bvhc::posed::{PosedError, record_positions};
+use bvhc::loader::RebuildPolicy;
+use bvhc::posed::{PosedError, placed_pose};
 
 use super::args::RefitArgs;
 use super::info::read_verified;
@@ -22,9 +23,8 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
         Ok(file) => file,
         Err(exit) => return exit,
     };
-    let positions = match record_positions(&file.view(), &args.positions, &ImportLimits::default(), args.pose.as_ref())
-    {
-        Ok(positions) => positions,
+    let pose = match placed_pose(&file.view(), &args.positions, &ImportLimits::default(), args.pose.as_ref()) {
+        Ok(pose) => pose,
         Err(PosedError::Import(error)) => {
             let exit = if error.kind == ErrorKind::Unreadable { Exit::Io } else { Exit::InvalidInput };
             return fail(exit, error);
@@ -36,7 +36,7 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
     let threads = threads.map_or_else(|| std::thread::available_parallelism().map_or(1, usize::from), usize::from);
     let mut refit = file;
     let start = Instant::now();
-    let report = match refit.refit(RefitPositions::Triangles(&positions), threads) {
+    let report = match pose.apply(&mut refit, threads) {
         Ok(report) => report,
         Err(error) => return fail(loader_exit(&error), format!("{}: {error}", args.file.display())),
     };
@@ -53,7 +53,8 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
     if args.json {
         let json = serde_json::json!({
             "output": args.output,
-            "triangle_records": positions.len(),
+            "triangle_records": pose.positions.len(),
+            "instances_placed": pose.instances.len(),
             "refit_ms": refit_ms,
             "threads": threads,
             "cost": report.cost,
@@ -68,9 +69,14 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
     } else if !args.quiet {
         outln!(
             out,
-            "{}: {} triangle records refit to {} in {refit_ms:.1} ms on {threads} threads",
+            "{}: {} triangle records{} refit to {} in {refit_ms:.1} ms on {threads} threads",
             args.output.display(),
-            positions.len(),
+            pose.positions.len(),
+            match pose.instances.len() {
+                0 => String::new(),
+                1 => " and 1 instance".to_string(),
+                n => format!(" and {n} instances"),
+            },
             args.positions.display()
         );
         let costs = |now: Option<f64>, then: Option<f64>| match (now, then) {

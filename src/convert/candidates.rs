@@ -44,8 +44,8 @@ impl Candidate {
     /// What a [`Choice`] compares: the sampled cost, else with an animation the average cost over its poses,
     /// else the wide tree's cost, else the binary SAH.
     fn score(&self, options: &ConvertOptions) -> f64 {
-        if let Some(record) = &self.animation {
-            return record.expected_wide_cost.unwrap_or(record.expected_sah_cost);
+        if let Some(costs) = self.animation.as_ref().and_then(|record| record.costs.as_ref()) {
+            return costs.expected_wide_cost.unwrap_or(costs.expected_sah_cost);
         }
         match (&self.sampled_cost, &self.wide_tree) {
             (Some(cost), _) => *cost,

@@ -7,6 +7,7 @@ pub mod files;
 pub mod metadata;
 mod part;
 pub mod pipeline;
+mod sampled_poses;
 mod two_level;
 mod write;
 pub mod report;

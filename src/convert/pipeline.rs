@@ -14,9 +14,9 @@ use super::files::{input_entries, refuse_output_among};
 use super::metadata::{BuildRecord, CostRecord, Metadata, TrianglesRecord, WideRecord};
 use super::part::{PackedPart, build_part, probe_working_set};
 use super::report::{ConvertError, ConvertReport, Event, GpuSummary, Stage, Timings};
+use super::sampled_poses::{SampledAnimation, pose_bytes_per_triangle};
 use super::write::{stream, verify_and_commit};
-use crate::animation::{PoseSet, SampledPose, import_poses, sampled_times};
-use crate::import::ClipSpan;
+use crate::animation::sampled_times;
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES, GPU_LAYOUT_BYTES_PER_TRIANGLE};
 use crate::import::{Instancing, SceneFormat, TriangleSoup, import_for_peak};
 use crate::options::ConvertOptions;
@@ -48,11 +48,17 @@ pub fn convert_with(
     let sampled = options.animation.as_ref().map(|a| sampled_times(input, &options.import, a)).transpose()?;
     let pose_bytes_per_triangle = sampled.as_ref().map_or(0, |(_, times)| pose_bytes_per_triangle(times.len()));
     let peak_bytes_per_triangle = peak_bytes_per_triangle + gpu_bytes_per_triangle + pose_bytes_per_triangle;
-    let imported = import_for_peak(input, &options.import, peak_bytes_per_triangle)?;
+    // The animation's clips keep the meshes they move rigidly instanced (unless --instancing never).
+    let mut import_options = options.import.clone();
+    if let Some((clips, _)) = &sampled {
+        import_options.moving_clips = clips.iter().map(|clip| clip.index).collect();
+    }
+    let imported = import_for_peak(input, &import_options, peak_bytes_per_triangle)?;
     timings.import = lap(clock);
     refuse_output_among(output, &imported.files_read)?;
+    let animation = sampled.map(|sampled| SampledAnimation { sampled, import: import_options });
     if !imported.instanced.is_empty() {
-        return super::two_level::convert_two_level(input, output, options, imported, timings, observer);
+        return super::two_level::convert_two_level(input, output, options, imported, animation, timings, observer);
     }
     let soup = imported.soup;
     let triangles = soup.triangle_vertices();
@@ -79,8 +85,8 @@ pub fn convert_with(
     // peak, beyond the triangles held now, can be allocated before starting (see `crate::fallible`).
     probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
     let deforming = |id: u32| ranges.is_deforming(id);
-    let poses = match sampled {
-        Some((clips, times)) => Some(import_animation(input, options, clips, times, &soup_source_ids, &mut timings)?),
+    let poses = match animation {
+        Some(animation) => Some(animation.import_poses(input, &ranges.sources, &soup_source_ids, &mut timings)?),
         None => None,
     };
     let part = build_part(
@@ -184,32 +190,6 @@ pub fn convert_with(
         animation,
         notes,
     })
-}
-
-/// What `poses` sampled poses add to a conversion's peak, a triangle: its corners in each pose (36 bytes) and two
-/// nodes' boxes in each of the pose lanes (the count rounded up to 8: `crate::animation::PoseBoxes`).
-fn pose_bytes_per_triangle(poses: usize) -> u64 {
-    let lanes = poses.next_multiple_of(8).max(8) as u64;
-    36 * poses as u64 + 2 * 24 * lanes
-}
-
-/// The scene's triangles `ids` at each of `times` of `clips` (their time added to the import's), after a probe
-/// that they and the optimizer's boxes can be allocated.
-fn import_animation(
-    input: &Path,
-    options: &ConvertOptions,
-    clips: Vec<ClipSpan>,
-    times: Vec<SampledPose>,
-    ids: &[u32],
-    timings: &mut Timings,
-) -> Result<PoseSet, ConvertError> {
-    let clock = Instant::now();
-    let bytes = (ids.len() as u64).saturating_mul(pose_bytes_per_triangle(times.len()));
-    crate::fallible::probe(usize::try_from(bytes).unwrap_or(usize::MAX), "sampling the animation's poses")
-        .map_err(|e| super::part::out_of_memory(input, "sampling the animation's poses", e))?;
-    let poses = import_poses(input, &options.import, clips, times, ids)?;
-    timings.import += lap(clock);
-    Ok(poses)
 }
 
 /// `--instancing always` or `never` on an OBJ or PLY input: such a file places each model once, so it satisfies

@@ -3,7 +3,9 @@
 //! ([`super::part::build_part`], as a one-level file's tree is); the flattened rest of the scene, if any, is
 //! one more part placed once as it is, and comes first. The top-level tree is built over the instances' world
 //! boxes ([`crate::instancing`]). Parts are made one after the other, each with the whole thread pool, so the
-//! bytes do not depend on the number of threads.
+//! bytes do not depend on the number of threads. With an animation (`--animation`, whose clips keep the meshes
+//! they move rigidly instanced), the flattened part is what the poses deform: its tree is chosen for them
+//! ([`crate::animation`]) and the metadata's `animation` object records its costs and the moving instances.
 
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -17,7 +19,9 @@ use super::files::input_entries;
 use super::metadata::{BuildRecord, Metadata, TrianglesRecord, TwoLevelRecord, WideRecord};
 use super::part::{PackedPart, build_part, probe_working_set};
 use super::report::{ConvertError, ConvertReport, Event, Timings, TwoLevelSummary, WideSummary};
+use super::sampled_poses::SampledAnimation;
 use super::write::{stream, verify_and_commit};
+use crate::animation::{AnimationRecord, MovingInstance};
 use crate::import::memory::{BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_WITH_CANDIDATES};
 use crate::import::{Import, TriangleSoup};
 use crate::instancing::{PackedMesh, Placement, TwoLevelScene};
@@ -32,6 +36,7 @@ pub(super) fn convert_two_level(
     output: &Path,
     options: &ConvertOptions,
     imported: Import,
+    animation: Option<SampledAnimation>,
     mut timings: Timings,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
 ) -> Result<ConvertReport, ConvertError> {
@@ -56,6 +61,8 @@ pub(super) fn convert_two_level(
     drop(in_mesh);
     let mut parts: Vec<Vec<usize>> = Vec::new();
     let mut placements: Vec<Placement> = Vec::new();
+    // With an animation: the instances its clips move.
+    let mut moving_instances = Vec::new();
     let flattened_triangle_count = flattened.len() as u64;
     if !flattened.is_empty() {
         placements.push(Placement {
@@ -68,6 +75,10 @@ pub(super) fn convert_two_level(
     }
     for mesh in &instanced {
         let mesh_index = parts.len() as u32;
+        for (i, p) in mesh.placements.iter().enumerate().filter(|(_, p)| p.moving) {
+            let instance = (placements.len() + i) as u32;
+            moving_instances.push(MovingInstance { instance, node: p.node_index });
+        }
         placements.extend(mesh.placements.iter().map(|p| Placement {
             mesh_index,
             object_to_world: p.object_to_world,
@@ -81,22 +92,34 @@ pub(super) fn convert_two_level(
     let mut record_source_ids = Vec::new();
     let mut largest: Option<(usize, PartFigures)> = None;
     let mut split = false;
+    let clips = animation.as_ref().map(|a| a.sampled.0.clone());
+    let mut animation = animation;
+    let mut deformed = None;
     for (m, part) in parts.iter().enumerate() {
         let PartArrays { triangles, source_ids, source_vertices } =
             part_arrays(&soup, part, options.write_source_vertices);
         probe_working_set(input, triangles.len(), peak_bytes_per_triangle)?;
         let deforming = |id: u32| soup.is_deforming(id);
-        let packed = build_part(
+        // The flattened part is what the animation deforms (the instanced meshes move rigidly).
+        let poses = match animation.take().filter(|_| m == 0 && flattened_triangle_count > 0) {
+            Some(animation) => Some(animation.import_poses(input, &soup.sources, &source_ids, &mut timings)?),
+            None => None,
+        };
+        let mut packed = build_part(
             input,
             triangles,
             source_ids,
             source_vertices,
             &deforming,
-            None,
+            poses.as_ref(),
             options,
             observer,
             &mut timings,
         )?;
+        drop(poses);
+        if let Some(record) = packed.animation.take() {
+            deformed = record.costs;
+        }
         split |= packed.packed.triangles.len() > packed.triangle_count;
         record_source_ids.extend_from_slice(&packed.source_ids);
         let figures = PartFigures::of(&packed);
@@ -109,6 +132,7 @@ pub(super) fn convert_two_level(
     let triangle_flags = options.import.opacity.record_flags(&soup, &record_source_ids);
     drop(record_source_ids);
     let TriangleSoup { sources, .. } = soup;
+    let animation_record = clips.map(|clips| AnimationRecord { clips, costs: deformed, moving_instances });
     let scene = TwoLevelScene::assemble(meshes, &placements).map_err(ConvertError::Internal)?;
     let inputs = input_entries(input, &files_read)
         .map_err(|source| bvhc_loader::Error::Io { path: input.to_path_buf(), source })?;
@@ -144,7 +168,7 @@ pub(super) fn convert_two_level(
             placed_triangle_count: summary.placed_triangle_count,
             flattened_triangle_count,
         }),
-        animation: None,
+        animation: animation_record.as_ref(),
     }
     .to_json();
     let mut writer = BvhWriter::new(&scene.nodes, &scene.triangles)
@@ -194,7 +218,7 @@ pub(super) fn convert_two_level(
         choice: None,
         sampling: None,
         two_level: Some(summary),
-        animation: None,
+        animation: animation_record,
         notes: Vec::new(),
     })
 }

@@ -63,6 +63,8 @@ pub struct MeshPlacement {
     pub node_index: u32,
     /// The node's `EXT_mesh_gpu_instancing` instance, or `NO_INDEX`.
     pub gpu_instance_index: u32,
+    /// Whether the import's moving clips ([`super::ImportOptions::moving_clips`]) move the node.
+    pub moving: bool,
 }
 
 /// Which meshes to instance, given each mesh's placements and triangles (declared counts), and whether a scene

@@ -48,7 +48,7 @@ pub struct ConvertOptions {
     /// their file's hash.
     pub training_rays: Option<TrainingRays>,
     /// Choose the tree for the average cost over poses sampled from a glTF's animation clips (`--animation`);
-    /// needs a one-level file without split references or ray tuning (see [`crate::animation`]).
+    /// needs a file without split references or ray tuning (see [`crate::animation`]).
     pub animation: Option<crate::animation::Animation>,
     /// Write the triangle_ids and source_table sections.
     pub write_ids: bool,
@@ -164,20 +164,12 @@ impl ConvertOptions {
         Ok(())
     }
 
-    /// An animation's tree is refit to every pose: the scene flattened into one level (its records are the
-    /// triangles a pose's import places), whole triangles (a refit boxes a split reference by its whole
+    /// An animation's tree is refit to every pose: whole triangles (a refit boxes a split reference by its whole
     /// triangle), nodes weighed by the poses (not by sampled rays), and the poses a clip from 1 to
-    /// [`crate::animation::MAX_POSES`].
+    /// [`crate::animation::MAX_POSES`]. Meshes the clips move rigidly stay instanced unless
+    /// [`crate::import::Instancing::Never`] flattens them too.
     fn validate_animation(&self) -> Result<(), OptionsError> {
         let because = "--animation";
-        if self.import.instancing != crate::import::Instancing::Never {
-            return Err(OptionsError::inert(
-                "instancing",
-                because,
-                "an animation's scene is flattened (each pose's triangles refit the file's records); add \
-                 --instancing never",
-            ));
-        }
         if self.splits.is_some() {
             return Err(OptionsError::inert(
                 "split references",

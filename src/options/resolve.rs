@@ -227,8 +227,9 @@ fn resolve_splits(preset: Preset, o: &Overrides) -> Result<Option<SplitOptions>,
     }))
 }
 
-/// `--animation`: the scene flattened and no split references whatever the preset says; a split, instancing or
-/// ray-tuning setting given with it would do nothing, and is refused naming it.
+/// `--animation`: no split references whatever the preset says; a split or ray-tuning setting given with it
+/// would do nothing, and is refused naming it. `--instancing` stays the user's: `never` flattens the meshes the
+/// clips move rigidly too (a one-level file).
 fn resolve_animation(o: &Overrides, options: &mut ConvertOptions) -> Result<(), OptionsError> {
     let given = [
         (o.splits == Some(true), "--splits"),
@@ -236,15 +237,13 @@ fn resolve_animation(o: &Overrides, options: &mut ConvertOptions) -> Result<(), 
         (o.split_method.is_some(), "--split-method"),
         (o.split_triangles.is_some(), "--split-triangles"),
         (o.splits_deforming.is_some(), "--no-splits-deforming"),
-        (o.instancing.is_some_and(|i| i != Instancing::Never), "--instancing"),
         (o.tune_rays.is_some(), "--tune-rays"),
         (o.train_rays.is_some(), "--train-rays"),
     ];
-    let advice = "an animation's tree is refit to every pose: its scene is flattened, its triangles kept whole and \
-                  its nodes weighed by the poses; drop the setting";
+    let advice = "an animation's tree is refit to every pose: its triangles are kept whole and its nodes weighed by \
+                  the poses; drop the setting";
     refuse_any(&given, "--animation", advice)?;
     options.splits = None;
-    options.import.instancing = Instancing::Never;
     options.animation = o.animation.clone();
     Ok(())
 }

@@ -148,7 +148,7 @@ fn animation_settings_that_cannot_be_honoured_are_refused() {
     refused(&asset, &["--animation", "--animation-poses", "0"], "--animation-poses: 0 is not from 1 to 64");
     refused(&asset, &["--animation", "--animation-poses", "65"], "65 is not from 1 to 64");
     refused(&asset, &["--animation-poses", "4"], "--animation");
-    for (flag, value) in [("--split-budget", "0.2"), ("--instancing", "always"), ("--tune-rays", "5000")] {
+    for (flag, value) in [("--split-budget", "0.2"), ("--tune-rays", "5000")] {
         refused(&asset, &["--animation", flag, value], &format!("{flag} does nothing with --animation"));
     }
     let teapot = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
@@ -177,7 +177,7 @@ fn animation_settings_that_cannot_be_honoured_are_refused() {
 }
 
 /// Standard base64 with padding (RFC 4648), for a data URI.
-fn base64_of(bytes: &[u8]) -> String {
+pub fn base64_of(bytes: &[u8]) -> String {
     const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::new();
     for chunk in bytes.chunks(3) {

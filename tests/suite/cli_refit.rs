@@ -208,11 +208,25 @@ fn what_refit_cannot_take_is_refused_naming_why_with_nothing_written() {
     let bare = dir.path().join("bare.bvh");
     convert(&full_obj, &bare, &["--no-splits", "--no-ids"]);
     refused(&bare, &full_obj, "no triangle ids");
-    // A two-level file's meshes are in their own spaces, which the asset's placed triangles are not.
+    // A two-level file takes its records in their meshes' spaces and its instances where the asset's nodes
+    // stand: refit to its own asset, it verifies and holds its bytes; against the OBJ, other primitives.
     let two_level = dir.path().join("two-level.bvh");
     convert(&rest, &two_level, &["--no-splits", "--instancing", "always"]);
-    assert!(BvhFile::read(&two_level).unwrap().view().two_level().is_some());
-    refused(&two_level, &rest, "the file is two-level");
+    let original = BvhFile::read(&two_level).unwrap();
+    assert!(original.view().two_level().is_some());
+    let two_level_out = dir.path().join("two-level-out.bvh");
+    let run = bvhc(&[&"refit", &two_level, &"--positions", &rest, &"-o", &two_level_out]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    assert!(
+        String::from_utf8_lossy(&run.stdout).contains("instances refit"),
+        "{}",
+        String::from_utf8_lossy(&run.stdout)
+    );
+    let refit_two_level = BvhFile::read(&two_level_out).unwrap();
+    refit_two_level.view().verify().unwrap();
+    assert!(refit_two_level.as_bytes() == original.as_bytes(), "refit to its own pose, the same bytes");
+    std::fs::remove_file(&two_level_out).unwrap();
+    refused(&two_level, &full_obj, "source range 0 is mesh 0, primitive 0");
     assert!(
         !files_in(dir.path()).iter().any(|n| n.contains(".tmp") || n.starts_with(".bvhc")),
         "{:?}",

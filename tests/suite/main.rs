@@ -1,6 +1,7 @@
 //! The integration test suite: one binary, one module per subject.
 
 mod animation;
+mod animation_instances;
 mod box_test;
 mod c_header;
 mod c_library;

@@ -27,7 +27,7 @@ pub use self::clip::{ClipSelector, ClipSpan};
 use self::pose::{Placing, Pose, posed_positions};
 use super::instancing::{InstancedMesh, MeshPlacement, choose_instanced, stored_triangles};
 use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
-use super::{ErrorKind, ImportOptions, Located, SceneSelector};
+use super::{ErrorKind, ImportOptions, Instancing, Located, SceneSelector};
 
 /// Reads a `.gltf` (JSON) or `.glb` file's scene into `builder`; returns the external files it read and the
 /// meshes kept instanced.
@@ -50,8 +50,22 @@ pub(super) fn read(
         options.pose.as_ref().map(|p| clip::clip_index(&root, &p.clip)).transpose().map_err(|e| e.at("animations"))?;
     let mut instanced =
         choose_instanced(options.instancing, &placements, &triangles, |stored| builder.check_memory(stored).is_ok());
+    if let Some(&missing) = options.moving_clips.iter().find(|&&c| c >= root.animations.len()) {
+        let count = root.animations.len();
+        return Err(Located::new("animations", format!("animation {missing} does not exist (the file has {count})")));
+    }
+    // A mesh that the animation moves rigidly is stored once and placed by instances that a refit can move.
+    let moving_nodes = pose::moved_nodes(&root, &options.moving_clips);
+    if options.instancing != Instancing::Never {
+        for (mesh, moved) in pose::meshes_placed_by(&root, &moving_nodes).into_iter().enumerate() {
+            if let Some(flag) = instanced.get_mut(mesh) {
+                *flag |= moved && triangles[mesh] > 0;
+            }
+        }
+    }
     // A mesh that some node poses for itself (a skin, or morph weights of its own or animated) is not shared.
-    for (mesh, posed) in pose::posed_per_node(&root, clip).into_iter().enumerate() {
+    let posing_clips: Vec<usize> = options.moving_clips.iter().copied().chain(clip).collect();
+    for (mesh, posed) in pose::posed_per_node(&root, &posing_clips).into_iter().enumerate() {
         if posed && let Some(flag) = instanced.get_mut(mesh) {
             *flag = false;
         }
@@ -70,6 +84,7 @@ pub(super) fn read(
         builder,
         placed: HashSet::new(),
         instanced,
+        moving_nodes,
         slot_of_mesh: vec![None; root.meshes.len()],
         meshes: Vec::new(),
     };
@@ -162,6 +177,8 @@ struct Walker<'r, 'b> {
     placed: HashSet<(usize, usize)>,
     /// Per glTF mesh: whether it stays instanced.
     instanced: Vec<bool>,
+    /// Per node: whether the import's moving clips move it.
+    moving_nodes: Vec<bool>,
     /// Per glTF mesh: its index in `meshes` once its object-space triangles are in the soup.
     slot_of_mesh: Vec<Option<usize>>,
     /// The instanced meshes, in the order of their first placement.
@@ -236,6 +253,7 @@ impl Walker<'_, '_> {
             object_to_world,
             node_index: node as u32,
             gpu_instance_index: instance.map_or(NO_INDEX, |i| i as u32),
+            moving: self.moving_nodes.get(node).copied().unwrap_or(false),
         });
         Ok(())
     }

@@ -9,6 +9,7 @@
 
 use glam::{DMat4, DQuat, DVec3};
 use gltf::json::Root;
+use gltf::json::animation::Property;
 use gltf::json::mesh::Semantic;
 use gltf::json::validation::Checked;
 
@@ -77,25 +78,61 @@ impl Pose {
 }
 
 /// Per glTF mesh: whether some node poses it for itself (a skin, morph weights of its own, or morph weights that
-/// clip `clip` animates), so that its placements cannot share one object-space copy. From the JSON alone.
-pub(super) fn posed_per_node(root: &Root, clip: Option<usize>) -> Vec<bool> {
+/// one of `clips` animates), so that its placements cannot share one object-space copy. From the JSON alone.
+pub(super) fn posed_per_node(root: &Root, clips: &[usize]) -> Vec<bool> {
     let mut posed = vec![false; root.meshes.len()];
-    let animated: Vec<usize> = clip
-        .and_then(|c| root.animations.get(c))
-        .map(|a| {
-            let weights = |ch: &&gltf::json::animation::Channel| {
-                ch.target.path == Checked::Valid(gltf::json::animation::Property::MorphTargetWeights)
-            };
-            a.channels.iter().filter(weights).map(|ch| ch.target.node.value()).collect()
-        })
-        .unwrap_or_default();
+    let animated = channel_targets(root, clips, |p| p == Property::MorphTargetWeights);
     for (index, node) in root.nodes.iter().enumerate() {
-        let own = node.skin.is_some() || node.weights.is_some() || animated.contains(&index);
+        let own = node.skin.is_some() || node.weights.is_some() || animated[index];
         if let Some(flag) = node.mesh.filter(|_| own).and_then(|m| posed.get_mut(m.value())) {
             *flag = true;
         }
     }
     posed
+}
+
+/// Per node: whether one of `clips` moves it: a translation, rotation or scale channel on it or an ancestor. From
+/// the JSON alone (a channel whose keyframes never change counts).
+pub(super) fn moved_nodes(root: &Root, clips: &[usize]) -> Vec<bool> {
+    let count = root.nodes.len();
+    let mut moved = channel_targets(root, clips, |p| p != Property::MorphTargetWeights);
+    let mut stack: Vec<usize> = (0..count).filter(|&n| moved[n]).collect();
+    while let Some(node) = stack.pop() {
+        for child in root.nodes[node].children.iter().flatten().map(|c| c.value()) {
+            if child < count && !std::mem::replace(&mut moved[child], true) {
+                stack.push(child);
+            }
+        }
+    }
+    moved
+}
+
+/// Per glTF mesh: whether a node that `moved` flags places it.
+pub(super) fn meshes_placed_by(root: &Root, moved: &[bool]) -> Vec<bool> {
+    let mut meshes = vec![false; root.meshes.len()];
+    for (node, json) in root.nodes.iter().enumerate() {
+        if let Some(flag) = json.mesh.filter(|_| moved[node]).and_then(|m| meshes.get_mut(m.value())) {
+            *flag = true;
+        }
+    }
+    meshes
+}
+
+/// Per node: whether one of `clips` has a channel on it whose path `wanted` accepts (clips and nodes that do not
+/// exist are skipped: the clip sampler reports them).
+fn channel_targets(root: &Root, clips: &[usize], wanted: impl Fn(Property) -> bool) -> Vec<bool> {
+    let mut targets = vec![false; root.nodes.len()];
+    for animation in clips.iter().filter_map(|&c| root.animations.get(c)) {
+        for channel in &animation.channels {
+            if let (Checked::Valid(path), Some(flag)) =
+                (channel.target.path, targets.get_mut(channel.target.node.value()))
+                && wanted(path)
+            {
+                *flag = true;
+            }
+        }
+    }
+    targets
 }
 
 /// A node's local transform: `matrix` (column-major), or T * R * S.
