@@ -97,11 +97,12 @@ pub struct ImportOptions {
     /// `build` object, not here).
     #[serde(skip)]
     pub instancing: Instancing,
-    /// The animation clips (indices) whose rigid motion keeps meshes instanced (`--animation` on a glTF, unless
-    /// [`Instancing::Never`]): a mesh that some node these clips move places (a translation, rotation or scale
-    /// channel on the node or an ancestor) is stored once in its object space and placed by instances, whose
-    /// transforms a refit moves, unless some node poses it for itself (a skin, or morph weights of its own or
-    /// that these clips animate: those deform, and are flattened). Empty: none.
+    /// The animation clips (indices) of a conversion for an animation (`--animation` on a glTF): a mesh placed by
+    /// a node these clips move (a translation, rotation or scale channel on the node or an ancestor) is stored
+    /// once in its object space and placed by instances, whose transforms a refit moves, under
+    /// [`Instancing::Always`] (other modes decide as without an animation), unless some node poses it for itself
+    /// (a skin, or morph weights of its own or that these clips animate: those deform, and are flattened); the
+    /// placements record whether their node moves. Empty: none.
     #[serde(skip)]
     pub moving_clips: Vec<usize>,
     /// Which triangles the file marks not opaque (recorded by the conversion's `build` object, not here).

@@ -1,5 +1,5 @@
-//! `--animation` on a scene with rigidly animated nodes: the meshes the clips move stay instanced in a two-level
-//! file, the deforming rest is flattened into mesh 0 (its tree chosen for the poses), and the file refit to a
+//! `--animation --instancing always` on a scene with rigidly animated nodes: the meshes the clips move stay
+//! instanced in a two-level file, the deforming rest is flattened into mesh 0 (its tree chosen for the poses), and the file refit to a
 //! pose (`bvhc::posed::placed_pose`: the records moved, the instances placed where the nodes stand) traces as
 //! an f64 oracle over the asset imported flattened at that pose says, on every kernel, at the sampled times,
 //! between them and past the clip's end.
@@ -192,7 +192,11 @@ fn check_poses(file: &BvhFile, asset: &Path, clip: usize, seconds: &[f64]) -> us
 fn rigidly_animated_meshes_stay_instanced_and_trace_right_at_every_pose() {
     let dir = tempfile::tempdir().unwrap();
     let asset = swinging_scene(dir.path());
-    let file = convert(&asset, &dir.path().join("swing.bvh"), &["--animation", "--animation-poses", "4"]);
+    let file = convert(
+        &asset,
+        &dir.path().join("swing.bvh"),
+        &["--animation", "--animation-poses", "4", "--instancing", "always"],
+    );
     let view = file.view();
     view.verify().unwrap();
     let sections = view.two_level().expect("a two-level file");
@@ -208,12 +212,17 @@ fn rigidly_animated_meshes_stay_instanced_and_trace_right_at_every_pose() {
     // The sampled times, times between them, a STEP key, and past the clip's end (clamped to its last key).
     let checked = check_poses(&file, &asset, 0, &[0.25, 0.75, 1.0, 1.25, 1.6, 1.75, 0.0, 3.0]);
     assert!(checked > 4000, "{checked} hits checked");
-    // `--instancing never`: one level, the moving meshes flattened and refit like the rest.
+    // By default (`--instancing auto`, which leaves the small sphere flattened) and with `never`: one level, the
+    // moving meshes flattened and refit like the rest.
+    let auto = convert(&asset, &dir.path().join("auto.bvh"), &["--animation"]);
+    assert!(auto.view().two_level().is_none());
     let flat = convert(&asset, &dir.path().join("flat.bvh"), &["--animation", "--instancing", "never"]);
+    assert_eq!(flat.view().triangles().len(), auto.view().triangles().len(), "auto flattens it as never does");
     assert!(flat.view().two_level().is_none());
     let metadata = crate::common::assert_metadata_matches_schema(&flat);
     assert!(metadata["animation"].get("moving_instances").is_none());
     assert!(check_poses(&flat, &asset, 0, &[0.6, 1.6]) > 1000);
+    assert!(check_poses(&auto, &asset, 0, &[1.1]) > 500);
 }
 
 #[test]
@@ -221,7 +230,7 @@ fn the_cli_refits_a_two_level_animation_file_as_the_library_does() {
     let dir = tempfile::tempdir().unwrap();
     let asset = swinging_scene(dir.path());
     let path = dir.path().join("swing.bvh");
-    let file = convert(&asset, &path, &["--animation"]);
+    let file = convert(&asset, &path, &["--animation", "--instancing", "always"]);
     let output = dir.path().join("posed.bvh");
     let run = bvhc(&[&"refit", &path, &"--positions", &asset, &"--pose", &"Swing@1.3", &"-o", &output]);
     let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
@@ -243,7 +252,11 @@ fn the_cli_refits_a_two_level_animation_file_as_the_library_does() {
 fn the_milk_trucks_wheels_turn_as_instances() {
     let Some(asset) = crate::common::scene("khr-cesium-milk-truck/CesiumMilkTruck.gltf") else { return };
     let dir = tempfile::tempdir().unwrap();
-    let file = convert(&asset, &dir.path().join("truck.bvh"), &["--animation", "--animation-poses", "4"]);
+    let file = convert(
+        &asset,
+        &dir.path().join("truck.bvh"),
+        &["--animation", "--animation-poses", "4", "--instancing", "always"],
+    );
     let sections = file.view().two_level().expect("a two-level file");
     let metadata = crate::common::assert_metadata_matches_schema(&file);
     let moving = metadata["animation"]["moving_instances"].as_array().unwrap();

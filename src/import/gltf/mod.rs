@@ -54,9 +54,10 @@ pub(super) fn read(
         let count = root.animations.len();
         return Err(Located::new("animations", format!("animation {missing} does not exist (the file has {count})")));
     }
-    // A mesh that the animation moves rigidly is stored once and placed by instances that a refit can move.
+    // With --instancing always, a mesh that the animation moves rigidly is stored once and placed by instances
+    // that a refit can move.
     let moving_nodes = pose::moved_nodes(&root, &options.moving_clips);
-    if options.instancing != Instancing::Never {
+    if options.instancing == Instancing::Always {
         for (mesh, moved) in pose::meshes_placed_by(&root, &moving_nodes).into_iter().enumerate() {
             if let Some(flag) = instanced.get_mut(mesh) {
                 *flag |= moved && triangles[mesh] > 0;
