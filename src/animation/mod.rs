@@ -11,8 +11,8 @@
 //! stored pose. The metadata's `animation` object records the poses, each one's cost and the worst
 //! ([`AnimationRecord`]).
 //!
-//! Meshes that the clips only carry along (placed by a node a translation, rotation or scale channel moves, and
-//! not deformed) stay instanced unless `--instancing never` ([`crate::import::ImportOptions::moving_clips`]): the
+//! With `--instancing always`, meshes that the clips only carry along (placed by a node a translation, rotation
+//! or scale channel moves, and not deformed) stay instanced ([`crate::import::ImportOptions::moving_clips`]): the
 //! file is two-level, each such placement an instance whose transform follows its node
 //! ([`crate::posed::placed_pose`]), and the tree chosen for the poses is the flattened mesh 0's.
 

@@ -166,8 +166,8 @@ impl ConvertOptions {
 
     /// An animation's tree is refit to every pose: whole triangles (a refit boxes a split reference by its whole
     /// triangle), nodes weighed by the poses (not by sampled rays), and the poses a clip from 1 to
-    /// [`crate::animation::MAX_POSES`]. Meshes the clips move rigidly stay instanced unless
-    /// [`crate::import::Instancing::Never`] flattens them too.
+    /// [`crate::animation::MAX_POSES`]. Under [`crate::import::Instancing::Always`] meshes the clips move rigidly
+    /// stay instanced.
     fn validate_animation(&self) -> Result<(), OptionsError> {
         let because = "--animation";
         if self.splits.is_some() {
