@@ -41,29 +41,14 @@ pub fn write(path: &Path, positions: &[[f32; 3]], triangles: &[[u32; 3]]) {
             [(t * 0.45).sin() as f32, (0.5 - 0.5 * (t * 0.7).cos()) as f32]
         })
         .collect();
-    let mut bin: Vec<u8> = Vec::new();
-    let mut views = Vec::new();
-    let mut push = |bytes: Vec<u8>, bin: &mut Vec<u8>| {
-        let offset = bin.len();
-        views.push(format!(r#"{{"buffer":0,"byteOffset":{offset},"byteLength":{}}}"#, bytes.len()));
-        bin.extend(bytes);
-        while !bin.len().is_multiple_of(4) {
-            bin.push(0);
-        }
-    };
+    let mut chunk = BinaryChunk::default();
     let floats = |v: &[[f32; 3]]| v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
-    push(floats(positions), &mut bin);
-    push(triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect(), &mut bin);
-    push(floats(&twist), &mut bin);
-    push(floats(&wave), &mut bin);
-    push(times.iter().flat_map(|f| f.to_le_bytes()).collect(), &mut bin);
-    push(weights.iter().flat_map(|f| f.to_le_bytes()).collect(), &mut bin);
-    let range = |v: &[[f32; 3]]| {
-        let (lo, hi) = v.iter().fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
-            (std::array::from_fn(|a| lo[a].min(p[a])), std::array::from_fn(|a| hi[a].max(p[a])))
-        });
-        format!(r#""min":[{},{},{}],"max":[{},{},{}]"#, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2])
-    };
+    chunk.push(floats(positions));
+    chunk.push(triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect());
+    chunk.push(floats(&twist));
+    chunk.push(floats(&wave));
+    chunk.push(times.iter().flat_map(|f| f.to_le_bytes()).collect());
+    chunk.push(weights.iter().flat_map(|f| f.to_le_bytes()).collect());
     let n = positions.len();
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0,"name":"morphing"}}],
@@ -82,9 +67,23 @@ pub fn write(path: &Path, positions: &[[f32; 3]], triangles: &[[u32; 3]]) {
         range(&twist),
         range(&wave),
         2 * KEYS,
-        views.join(","),
-        bin.len()
+        chunk.views.join(","),
+        chunk.bin.len()
     );
+    let glb = glb_bytes(&json, chunk.bin);
+    std::fs::write(path, glb).expect("the GLB is written");
+}
+
+/// An accessor's `"min"` and `"max"` keys for positions `v`.
+pub fn range(v: &[[f32; 3]]) -> String {
+    let (lo, hi) = v.iter().fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
+        (std::array::from_fn(|a| lo[a].min(p[a])), std::array::from_fn(|a| hi[a].max(p[a])))
+    });
+    format!(r#""min":[{},{},{}],"max":[{},{},{}]"#, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2])
+}
+
+/// A GLB container of `json` (its line breaks dropped) and the binary chunk `bin` (4-byte aligned).
+pub fn glb_bytes(json: &str, bin: Vec<u8>) -> Vec<u8> {
     let mut json = json.replace('\n', "").into_bytes();
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
@@ -100,5 +99,26 @@ pub fn write(path: &Path, positions: &[[f32; 3]], triangles: &[[u32; 3]]) {
     glb.extend((bin.len() as u32).to_le_bytes());
     glb.extend(b"BIN\0");
     glb.extend(bin);
-    std::fs::write(path, glb).expect("the GLB is written");
+    glb
+}
+
+/// A GLB's binary chunk and the buffer views of what it holds.
+#[derive(Default)]
+pub struct BinaryChunk {
+    /// The bytes, each view's start 4-byte aligned.
+    pub bin: Vec<u8>,
+    /// Each view's JSON, in order.
+    pub views: Vec<String>,
+}
+
+impl BinaryChunk {
+    /// Appends `bytes` as the next buffer view.
+    pub fn push(&mut self, bytes: Vec<u8>) {
+        let offset = self.bin.len();
+        self.views.push(format!(r#"{{"buffer":0,"byteOffset":{offset},"byteLength":{}}}"#, bytes.len()));
+        self.bin.extend(bytes);
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+    }
 }

@@ -209,6 +209,18 @@ fn rigidly_animated_meshes_stay_instanced_and_trace_right_at_every_pose() {
     assert_eq!(record["moving_instances"], serde_json::json!([{"instance": 1, "node": 2}, {"instance": 2, "node": 3}]));
     assert_eq!(record["poses"].as_array().unwrap().len(), 4, "mesh 0 deforms: its poses' costs");
     assert!(record["worst_cost_ratio"].as_f64().unwrap() > 1.0);
+    // Applying a pose leaves the instanced mesh's trees untouched (its records are rigid; only its instances
+    // move): a mark scribbled on its root box survives, while the flattened mesh's root is refit.
+    let mut marked = BvhFile::from_bytes(file.as_bytes()).unwrap();
+    let (flat_root, rigid_root) = (sections.meshes[0].first_node as usize, sections.meshes[1].first_node as usize);
+    marked.edit().unwrap().nodes[rigid_root].min[0] -= 0.25;
+    marked.edit().unwrap().nodes[flat_root].min[0] -= 0.25;
+    let pose = PoseSelector { clip: ClipSelector::Index(0), seconds: 1.0 };
+    let placed = bvhc::posed::placed_pose(&view, &asset, &Default::default(), Some(&pose)).unwrap();
+    placed.apply(&mut marked, 1).unwrap();
+    let nodes = marked.view().nodes().to_vec();
+    assert_eq!(nodes[rigid_root].min[0], view.nodes()[rigid_root].min[0] - 0.25, "the rigid mesh's tree untouched");
+    assert!(nodes[flat_root].min[0] > view.nodes()[flat_root].min[0] - 0.25, "the flattened mesh's tree refit");
     // The sampled times, times between them, a STEP key, and past the clip's end (clamped to its last key).
     let checked = check_poses(&file, &asset, 0, &[0.25, 0.75, 1.0, 1.25, 1.6, 1.75, 0.0, 3.0]);
     assert!(checked > 4000, "{checked} hits checked");

@@ -204,3 +204,57 @@ fn a_two_level_refit_whose_world_box_would_overflow_is_refused_with_the_file_unc
     }
     assert!(file.as_bytes() == before.as_slice(), "the file unchanged");
 }
+
+#[test]
+fn moving_instances_in_a_frame_leaves_only_the_checksums_behind() {
+    let (scene, sources) = two_level(&test_meshes(), &test_placements(), true);
+    let original = write_two_level(&scene, &sources).unwrap();
+    let moves = [(2u32, affine(rotation_z(30.0), [1.0, -2.0, 0.5])), (5, affine(rotation_z(-75.0), [0.0, 4.0, -1.0]))];
+    let mut hashed = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    hashed.move_instances(&moves).unwrap();
+    let mut in_frame = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    in_frame.move_instances_in_frame(&moves).unwrap();
+    for kind in [SectionKind::Instances, SectionKind::TopNodes, SectionKind::TopWideNodes] {
+        assert_eq!(section(&in_frame, kind), section(&hashed, kind), "{kind:?}");
+    }
+    assert!(in_frame.view().verify().is_err(), "the checksums still describe the bytes before the move");
+    hashed.view().verify().unwrap();
+    assert!(in_frame.rewritten().unwrap().as_bytes() == hashed.rewritten().unwrap().as_bytes());
+}
+
+#[test]
+fn refitting_one_mesh_equals_refitting_the_file_with_the_others_in_place() {
+    let (scene, sources) = two_level(&test_meshes(), &test_placements(), true);
+    let original = write_two_level(&scene, &sources).unwrap();
+    let view = original.view();
+    let sections = view.two_level().unwrap();
+    let mesh = sections.meshes[1];
+    let range = mesh.first_triangle as usize..(mesh.first_triangle + mesh.triangle_count) as usize;
+    let mut all: Vec<[[f32; 3]; 3]> = view.triangles().iter().map(|t| t.vertices).collect();
+    let moved: Vec<[[f32; 3]; 3]> = random_triangles(23, range.len(), 1.5);
+    all[range.clone()].copy_from_slice(&moved);
+    let mut whole = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    whole.refit(RefitPositions::Triangles(&all), 2).unwrap();
+    let mut one = BvhFile::from_bytes(original.as_bytes()).unwrap();
+    one.refit_mesh(1, &moved, 2).unwrap();
+    assert!(one.as_bytes() == whole.as_bytes(), "the same bytes");
+    // Refusals name the problem and leave the file as it was.
+    let refused = |file: &mut BvhFile, mesh: u32, positions: &[[[f32; 3]; 3]]| match file.refit_mesh(mesh, positions, 1)
+    {
+        Err(Error::Refit(why)) => why,
+        other => panic!("refused as a refit error, got {other:?}"),
+    };
+    let before = one.as_bytes().to_vec();
+    let count = sections.meshes.len();
+    assert!(refused(&mut one, count as u32, &moved).contains(&format!("the file has {count} meshes")));
+    assert!(refused(&mut one, 1, &moved[1..]).contains("positions for"));
+    let mut bad = moved.clone();
+    bad[3][1][2] = f32::NAN;
+    assert!(refused(&mut one, 1, &bad).contains("not finite"));
+    let mut far = moved.clone();
+    far[0][0] = [3.0e38, 0.0, 0.0];
+    assert!(refused(&mut one, 1, &far).contains("does not fit f32"));
+    assert!(one.as_bytes() == before.as_slice(), "refusals change nothing");
+    let mut flat = crate::common::write_wide_file(&random_triangles(5, 50, 1.0), 2);
+    assert!(refused(&mut flat, 0, &moved).contains("one-level"));
+}

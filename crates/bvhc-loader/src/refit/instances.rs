@@ -27,6 +27,18 @@ impl BvhViewMut<'_> {
     /// and a map that breaks rule V42 (not finite, singular, or an inverse that does not fit f32) or whose world
     /// box does not fit f32, each naming the instance.
     pub fn move_instances(&mut self, moves: &[(u32, Affine3x4)]) -> Result<(), Error> {
+        self.place_instances(moves, true)
+    }
+
+    /// [`BvhViewMut::move_instances`] leaving the checksums as they were, as [`BvhViewMut::refit`] does: for a
+    /// file moved every frame (hashing a large file's sections costs more than moving its instances), which
+    /// verifies again once `BvhFile::rewritten` (feature `write`) has recomputed them. The same refusals.
+    pub fn move_instances_in_frame(&mut self, moves: &[(u32, Affine3x4)]) -> Result<(), Error> {
+        self.place_instances(moves, false)
+    }
+
+    /// The instances moved, the top trees refit, and the checksums recomputed when `checksums`.
+    fn place_instances(&mut self, moves: &[(u32, Affine3x4)], checksums: bool) -> Result<(), Error> {
         let view = self.view();
         let Some(sections) = view.two_level() else {
             return Err(Error::Refit("a one-level file has no instances to move".into()));
@@ -68,6 +80,9 @@ impl BvhViewMut<'_> {
         }
         if let Some(top_wide_nodes) = edit.top_wide_nodes.as_deref_mut() {
             refit_top_wide(top_wide_nodes, &boxes);
+        }
+        if !checksums {
+            edit.end_without_checksums();
         }
         Ok(())
     }

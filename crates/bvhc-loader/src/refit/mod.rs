@@ -45,7 +45,9 @@ impl BvhViewMut<'_> {
     ///
     /// In a two-level file the records are each mesh's, in the mesh's object space (a flattened mesh's records in
     /// world space, an instanced mesh's in the space its instances map): each mesh's trees are refit over its own
-    /// ranges, then every instance takes its moved mesh's world box and both top trees are refit. A two-level
+    /// ranges, then every instance takes its moved mesh's world box and both top trees are refit; a mesh none of
+    /// whose records moves (positions per source vertex that leave each of its ranges `None`, as for the rigid
+    /// meshes of an animation, whose instances move instead) keeps its trees untouched, at no cost. A two-level
     /// file states no costs (rule V37), so its report has none.
     ///
     /// Refused, with the file unchanged: a file with split references but no ids, references of one triangle
@@ -70,14 +72,15 @@ impl BvhViewMut<'_> {
         if let (true, Some(ids)) = (split, view.triangle_ids()) {
             moved.check_references_agree(ids)?;
         }
-        meshes::check_world_boxes(&view, &moved)?;
+        let moves = meshes::moving_meshes(&view, &moved);
+        meshes::check_world_boxes(&view, &moved, &moves)?;
         let workers = Workers::new(threads);
         let mut edit = self.edit()?;
         let moved = MovedRecords::new(positions, edit.source_table, edit.triangle_ids, edit.source_vertices)?;
         if edit.meshes.is_some() {
             match moved {
-                MovedRecords::Triangles(triangles) => meshes::refit_meshes(&mut edit, triangles, workers),
-                _ => meshes::refit_meshes(&mut edit, &moved, workers),
+                MovedRecords::Triangles(triangles) => meshes::refit_meshes(&mut edit, triangles, &moves, workers),
+                _ => meshes::refit_meshes(&mut edit, &moved, &moves, workers),
             }
             edit.end_without_checksums();
             return Ok(RefitReport::of(&self.view(), &RefitSums::default()));
@@ -115,5 +118,15 @@ impl BvhFile {
     /// [`BvhViewMut::move_instances`] of the file's bytes.
     pub fn move_instances(&mut self, moves: &[(u32, Affine3x4)]) -> Result<(), Error> {
         self.view_mut().move_instances(moves)
+    }
+
+    /// [`BvhViewMut::refit_mesh`] of the file's bytes.
+    pub fn refit_mesh(&mut self, mesh: u32, positions: &[[[f32; 3]; 3]], threads: usize) -> Result<RefitReport, Error> {
+        self.view_mut().refit_mesh(mesh, positions, threads)
+    }
+
+    /// [`BvhViewMut::move_instances_in_frame`] of the file's bytes.
+    pub fn move_instances_in_frame(&mut self, moves: &[(u32, Affine3x4)]) -> Result<(), Error> {
+        self.view_mut().move_instances_in_frame(moves)
     }
 }

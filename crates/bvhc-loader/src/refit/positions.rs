@@ -69,7 +69,7 @@ impl<'a> MovedRecords<'a> {
                     return Err(Error::Refit(format!("triangle record {record}: a coordinate that is not finite")));
                 }
             }
-            MovedRecords::SourceVertices { positions, ranges, .. } => {
+            MovedRecords::SourceVertices { positions, ranges, ids, .. } => {
                 if positions.len() != ranges.len() {
                     let (given, count) = (positions.len(), ranges.len());
                     return Err(Error::Refit(format!("positions for {given} source ranges, but the file has {count}")));
@@ -84,7 +84,12 @@ impl<'a> MovedRecords<'a> {
                 }
                 let (mut last_range, mut last_kept) = (0, 0);
                 for record in 0..record_count {
-                    // The fast lookup first; where it finds nothing, the range is kept or the record at fault.
+                    // The fast lookups first: a record of a range left where it is, or one that moves; where they
+                    // find nothing, the record is at fault.
+                    let id = ids.get(record).copied().unwrap_or(u32::MAX);
+                    if range_holding(ranges, id, &mut last_range).is_some_and(|r| positions[r].is_none()) {
+                        continue;
+                    }
                     if self.moved(record, &mut last_range).is_some() {
                         continue;
                     }
@@ -95,6 +100,21 @@ impl<'a> MovedRecords<'a> {
             }
         }
         Ok(())
+    }
+
+    /// Whether any of `records` moves: always with positions per record; per source vertex, whether a record's
+    /// range is given positions (a record in no range counts as moving: the checks refuse it).
+    pub(crate) fn moves_any(&self, records: std::ops::Range<usize>) -> bool {
+        match self {
+            MovedRecords::Triangles(_) => true,
+            MovedRecords::SourceVertices { positions, ranges, ids, .. } => {
+                let mut last_range = 0;
+                ids.get(records).unwrap_or(&[]).iter().any(|&id| {
+                    range_holding(ranges, id, &mut last_range)
+                        .is_none_or(|r| positions.get(r).is_some_and(Option::is_some))
+                })
+            }
+        }
     }
 
     /// The new vertices of `record` where it moves, as [`MovedRecords::record`] finds them, without saying why a

@@ -16,7 +16,7 @@ use crate::verify::metadata::parsed_metadata;
 /// A refit tree's costs beside the costs the file's metadata states (those of the tree at the pose it was
 /// converted at, which a refit leaves in the metadata). A cost the file does not state (no metadata, or no wide
 /// sections) is `None` on both sides.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RefitReport {
     /// The binary tree's SAH cost now (section 5.6, under the metadata's `c_t` and `c_i`).
     pub cost: Option<f64>,
@@ -39,13 +39,7 @@ pub struct RefitReport {
 impl RefitReport {
     /// The costs of `view` (just refit), from the area sums its refits made, beside its metadata's.
     pub(crate) fn of(view: &BvhView<'_>, sums: &RefitSums) -> RefitReport {
-        let mut report = RefitReport {
-            cost: None,
-            file_cost: None,
-            wide_cost: None,
-            file_wide_cost: None,
-            planned_cost_ratio: None,
-        };
+        let mut report = RefitReport::default();
         let Ok(Some(metadata)) = parsed_metadata(view) else { return report };
         for stated in stated_costs(view, &metadata, sums) {
             match stated.name {
