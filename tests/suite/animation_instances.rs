@@ -21,6 +21,11 @@ use bvhc_loader::Trace;
 /// 0.5); node 4 places mesh 0 standing still; node 0 places a ground quad (mesh 1); node 5 places a quad whose
 /// one morph target the clip weighs from 0 to 1 and back (mesh 2).
 fn swinging_scene(dir: &Path) -> PathBuf {
+    swinging_scene_of(dir, &[0, 1, 4, 5])
+}
+
+/// [`swinging_scene`] with only the root nodes `roots` in its scene (of 0, 1, 4 and 5).
+fn swinging_scene_of(dir: &Path, roots: &[usize]) -> PathBuf {
     let (vertices, triangles) = crate::common::unit_icosphere(2);
     let mut bytes: Vec<u8> = Vec::new();
     let mut views = Vec::new();
@@ -74,7 +79,7 @@ fn swinging_scene(dir: &Path) -> PathBuf {
     let gltf = serde_json::json!({
         "asset": {"version": "2.0"},
         "scene": 0,
-        "scenes": [{"nodes": [0, 1, 4, 5]}],
+        "scenes": [{"nodes": roots}],
         "nodes": [
             {"mesh": 1},
             {"translation": [0.0, 1.0, 0.0], "children": [2, 3]},
@@ -277,4 +282,22 @@ fn the_milk_trucks_wheels_turn_as_instances() {
     assert_eq!(sections.instances.len(), 3);
     let checked = check_poses(&file, &asset, 0, &[0.1, 0.4, 0.77, 1.2]);
     assert!(checked > 2000, "{checked} hits checked");
+}
+
+#[test]
+fn a_scene_whose_every_mesh_is_instanced_records_only_its_moving_instances() {
+    let dir = tempfile::tempdir().unwrap();
+    // The arm and the still icosphere only: nothing flattened, nothing deformed.
+    let asset = swinging_scene_of(dir.path(), &[1, 4]);
+    let file = convert(&asset, &dir.path().join("rigid.bvh"), &["--animation", "--instancing", "always"]);
+    let sections = file.view().two_level().expect("a two-level file");
+    assert_eq!(sections.meshes.len(), 1);
+    let metadata = crate::common::assert_metadata_matches_schema(&file);
+    let record = &metadata["animation"];
+    assert!(record.get("poses").is_none() && record.get("worst_cost_ratio").is_none(), "{record}");
+    assert_eq!(record["moving_instances"], serde_json::json!([{"instance": 0, "node": 2}, {"instance": 1, "node": 3}]));
+    let info = bvhc(&[&"info", &dir.path().join("rigid.bvh")]);
+    let info = String::from_utf8_lossy(&info.stdout).into_owned();
+    assert!(info.contains("2 instances moving (nodes 2, 3); nothing flattened deforms"), "{info}");
+    assert!(check_poses(&file, &asset, 0, &[0.3, 1.4]) > 1000);
 }
