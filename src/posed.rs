@@ -55,32 +55,44 @@ pub struct PlacedPose {
 impl PlacedPose {
     /// Refits `file` to the pose on `threads` threads. A one-level file: its records moved ([`BvhFile::refit`]). A
     /// two-level file: each mesh placed as it stands (the flattened geometry, which the pose deforms) refit to its
-    /// records' positions ([`BvhFile::refit_mesh`]; the instanced meshes never deform, so their trees are left as
-    /// they are, at no cost), then the instances placed anew ([`BvhFile::move_instances_in_frame`], which refits
-    /// the top trees). The checksums are left as a refit leaves them (`BvhFile::rewritten` makes a copy that
-    /// verifies). Returns the refit's report (a two-level file's states no cost).
+    /// records' positions ([`BvhFile::refit_mesh`]), and each instanced mesh only where its positions differ from
+    /// the file's records (an asset exported with the shared mesh's vertices moved; the meshes an animation moves
+    /// rigidly never differ, so their trees are left as they are and cost one comparison of their records), then
+    /// the instances placed anew ([`BvhFile::move_instances_in_frame`], which refits the top trees). The checksums
+    /// are left as a refit leaves them (`BvhFile::rewritten` makes a copy that verifies). Returns the refit's
+    /// report (a two-level file's states no cost).
     pub fn apply(&self, file: &mut BvhFile, threads: usize) -> Result<RefitReport, bvhc_loader::Error> {
         let Some(sections) = file.view().two_level() else {
             return file.refit(RefitPositions::Triangles(&self.positions), threads);
         };
-        let record_count = file.view().triangles().len();
-        if self.positions.len() != record_count {
-            let given = self.positions.len();
-            return Err(bvhc_loader::Error::Refit(format!("{given} positions for {record_count} triangle records")));
+        let records = file.view().triangles();
+        if self.positions.len() != records.len() {
+            let (given, count) = (self.positions.len(), records.len());
+            return Err(bvhc_loader::Error::Refit(format!("{given} positions for {count} triangle records")));
         }
-        // The meshes placed by an instance that no node places: the flattened geometry.
-        let mut flattened: Vec<(u32, std::ops::Range<usize>)> = Vec::new();
+        // The meshes placed by an instance that no node places hold the flattened geometry.
+        let mut flattened = vec![false; sections.meshes.len()];
         for instance in sections.instances.iter().filter(|i| i.node_index == NO_INDEX) {
-            if let Some(mesh) = sections.meshes.get(instance.mesh_index as usize) {
-                let first = mesh.first_triangle as usize;
-                flattened.push((instance.mesh_index, first..first + mesh.triangle_count as usize));
+            if let Some(flag) = flattened.get_mut(instance.mesh_index as usize) {
+                *flag = true;
             }
         }
-        // Nothing flattened: the instances' moves are the whole pose, and no cost is stated.
+        let mut moving: Vec<(u32, std::ops::Range<usize>)> = Vec::new();
+        for (index, mesh) in sections.meshes.iter().enumerate() {
+            let first = (mesh.first_triangle as usize).min(records.len());
+            let range = first..first.saturating_add(mesh.triangle_count as usize).min(records.len());
+            let differs = || {
+                let given = &self.positions[range.clone()];
+                records[range.clone()].iter().zip(given).any(|(r, p)| r.vertices != *p)
+            };
+            if flattened[index] || differs() {
+                moving.push((index as u32, range));
+            }
+        }
+        // Nothing moved but instances: no mesh refit, and no cost is stated.
         let mut report = RefitReport::default();
-        for (mesh, records) in flattened {
-            let positions = self.positions.get(records).unwrap_or(&[]);
-            report = file.refit_mesh(mesh, positions, threads)?;
+        for (mesh, range) in moving {
+            report = file.refit_mesh(mesh, &self.positions[range], threads)?;
         }
         if !self.instances.is_empty() {
             file.move_instances_in_frame(&self.instances)?;

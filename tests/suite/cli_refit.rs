@@ -34,7 +34,7 @@ fn grid(n: usize, lift: f32) -> (Vec<[f32; 3]>, Vec<[u16; 3]>) {
 }
 
 /// A glTF of one grid mesh placed by two nodes (one translated and turned, one mirrored), with `lift`.
-fn grid_gltf(dir: &Path, name: &str, lift: f32) -> PathBuf {
+pub fn grid_gltf(dir: &Path, name: &str, lift: f32) -> PathBuf {
     let (positions, triangles) = grid(6, lift);
     let mut bin: Vec<u8> = bytemuck::cast_slice(&positions).to_vec();
     let index_offset = bin.len();
