@@ -321,3 +321,36 @@ fn a_scene_whose_every_mesh_is_instanced_records_only_its_moving_instances() {
     assert!(info.contains("2 instances moving (nodes 2, 3); nothing flattened deforms"), "{info}");
     assert!(check_poses(&file, &asset, 0, &[0.3, 1.4]) > 1000);
 }
+
+#[test]
+fn a_pose_that_no_instance_can_hold_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = swinging_scene(dir.path());
+    let before = convert(&asset, &dir.path().join("before.bvh"), &["--animation", "--instancing", "always"]);
+    // The arm also scaled by its translation keys (STEP): [0, 1, 0] for the first second, a singular transform
+    // that no instance can hold, so its placements would be flattened at those poses.
+    let mut gltf: serde_json::Value = serde_json::from_slice(&std::fs::read(&asset).unwrap()).unwrap();
+    let clip = &mut gltf["animations"][0];
+    clip["samplers"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"input": 6, "output": 8, "interpolation": "STEP"}));
+    clip["channels"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"sampler": 3, "target": {"node": 1, "path": "scale"}}));
+    std::fs::write(&asset, serde_json::to_vec(&gltf).unwrap()).unwrap();
+    let output = dir.path().join("collapsing.bvh");
+    let run = bvhc(&[&asset, &"-o", &output, &"-q", &"--animation", &"--instancing", &"always"]);
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert!(!run.status.success(), "refused");
+    assert!(stderr.contains("clip 0 at 0.125 s places the scene's primitives otherwise"), "{stderr}");
+    assert!(stderr.contains("convert with --instancing never"), "{stderr}");
+    assert!(!output.exists(), "nothing written");
+    let flat = convert(&asset, &output, &["--animation", "--instancing", "never"]);
+    assert!(flat.view().two_level().is_none());
+    // Posing the file converted before the change at such a time is refused too, naming what differs.
+    let pose = PoseSelector { clip: ClipSelector::Index(0), seconds: 0.5 };
+    let error = bvhc::posed::placed_pose(&before.view(), &asset, &Default::default(), Some(&pose)).unwrap_err();
+    assert!(error.to_string().contains("topology differs"), "{error}");
+}
