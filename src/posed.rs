@@ -113,7 +113,8 @@ pub fn record_positions(
 ) -> Result<Vec<[[f32; 3]; 3]>, PosedError> {
     if view.two_level().is_some() {
         return Err(PosedError::File(
-            "the file is two-level (meshes in their own spaces, placed by instances): its pose is its records'              positions and its instances' transforms (bvhc::posed::placed_pose)"
+            "the file is two-level (meshes in their own spaces, placed by instances): its pose is its records' \
+             positions and its instances' transforms (bvhc::posed::placed_pose)"
                 .into(),
         ));
     }
