@@ -21,8 +21,8 @@ pub enum Instancing {
     /// when the flattened scene would not fit the memory budget; flatten the rest.
     #[default]
     Auto,
-    /// Instance every mesh placed more than once, and for an animation every mesh its clips move rigidly
-    /// ([`super::ImportOptions::moving_clips`]).
+    /// Instance every mesh placed more than once, and with `--animation` every mesh its clips move rigidly (see
+    /// `ImportOptions::moving_clips`).
     Always,
     /// Flatten every placement (a one-level file).
     Never,

@@ -743,7 +743,11 @@ def test_animation_is_the_command_lines_flag():
     printed = json.loads(cli("options", "--animation", "0,Run", "--animation-poses", "4"))
     assert resolved == printed
     assert resolved["animation"] == {"clips": [{"index": 0}, {"name": "Run"}], "poses_per_clip": 4}
-    assert "splits" not in resolved and resolved["instancing"] == "never"
+    # The default instancing (auto, left out) flattens rigid motion; "always" keeps it instanced.
+    assert "splits" not in resolved and "instancing" not in resolved
+    rigid = bvhc.options(animation=True, instancing="always")
+    assert rigid == json.loads(cli("options", "--animation", "--instancing", "always"))
+    assert rigid["instancing"] == "always"
     assert "animation" not in bvhc.options(animation=False)
     with pytest.raises(bvhc.OptionsError, match="needs animation"):
         bvhc.options(animation_poses=4)
