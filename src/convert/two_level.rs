@@ -36,7 +36,7 @@ pub(super) fn convert_two_level(
     output: &Path,
     options: &ConvertOptions,
     imported: Import,
-    animation: Option<SampledAnimation>,
+    mut animation: Option<SampledAnimation>,
     mut timings: Timings,
     observer: &mut dyn FnMut(Event<'_>) -> ControlFlow<()>,
 ) -> Result<ConvertReport, ConvertError> {
@@ -93,7 +93,6 @@ pub(super) fn convert_two_level(
     let mut largest: Option<(usize, PartFigures)> = None;
     let mut split = false;
     let clips = animation.as_ref().map(|a| a.sampled.0.clone());
-    let mut animation = animation;
     let mut deformed = None;
     for (m, part) in parts.iter().enumerate() {
         let PartArrays { triangles, source_ids, source_vertices } =

@@ -24,7 +24,7 @@ fn morphing_sphere(dir: &Path) -> PathBuf {
 }
 
 /// Converts `input` to `output` with `args`; panics with the error otherwise.
-fn convert(input: &Path, output: &Path, args: &[&str]) -> BvhFile {
+pub fn convert(input: &Path, output: &Path, args: &[&str]) -> BvhFile {
     let mut all: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&input, &"-o", &output, &"-q", &"--force"];
     all.extend(args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>));
     let run = bvhc(&all);

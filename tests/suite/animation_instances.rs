@@ -10,7 +10,7 @@ use bvhc::import::{ClipSelector, ImportOptions, Instancing, PoseSelector, import
 use bvhc::loader::format::{NO_INDEX, SourceRange};
 use bvhc::loader::{BvhFile, BvhView};
 
-use crate::animation::base64_of;
+use crate::animation::{base64_of, convert};
 use crate::cli::bvhc;
 use crate::common::every_kernel;
 use crate::instances::{Expected, Placed, T_TOLERANCE, oracle, test_rays};
@@ -111,15 +111,6 @@ fn swinging_scene_of(dir: &Path, roots: &[usize]) -> PathBuf {
     let path = dir.join("swing.gltf");
     std::fs::write(&path, serde_json::to_vec(&gltf).unwrap()).unwrap();
     path
-}
-
-/// Converts `input` to `output` with `args`; panics with the error otherwise.
-fn convert(input: &Path, output: &Path, args: &[&str]) -> BvhFile {
-    let mut all: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&input, &"-o", &output, &"-q", &"--force"];
-    all.extend(args.iter().map(|a| a as &dyn AsRef<std::ffi::OsStr>));
-    let run = bvhc(&all);
-    assert!(run.status.success(), "{args:?}: {}", String::from_utf8_lossy(&run.stderr));
-    BvhFile::read(output).unwrap()
 }
 
 /// The asset at `pose` (else in its default pose), imported flattened: every triangle in world space (f64) with
