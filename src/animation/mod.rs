@@ -43,11 +43,45 @@ pub struct Animation {
     /// Poses sampled in each clip, at the middles of equal parts of its keyframes' span (1 to
     /// [`MAX_POSES`] in all).
     pub poses_per_clip: u32,
+    /// The part of each clip sampled (`--animation-window`): its span cut to these times; `None`, the whole span.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub window: Option<TimeWindow>,
 }
 
 impl Default for Animation {
     fn default() -> Self {
-        Animation { clips: Vec::new(), poses_per_clip: DEFAULT_POSES_PER_CLIP }
+        Animation { clips: Vec::new(), poses_per_clip: DEFAULT_POSES_PER_CLIP, window: None }
+    }
+}
+
+/// A part of a clip, in seconds from the clip's time 0: for a tree chosen for the part an application plays (or
+/// for one tree per part of a long clip, switched as it plays).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct TimeWindow {
+    /// Its first time.
+    pub start: f64,
+    /// Its last time, not before `start`.
+    pub end: f64,
+}
+
+impl std::str::FromStr for TimeWindow {
+    type Err = String;
+
+    /// `START..END` in seconds (`2.5..5`), finite, `START <= END`.
+    fn from_str(text: &str) -> Result<Self, String> {
+        let (start, end) = text.split_once("..").ok_or_else(|| format!("'{text}': not START..END (seconds)"))?;
+        let seconds = |part: &str| {
+            part.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|s| s.is_finite())
+                .ok_or_else(|| format!("'{text}': '{}' is not a finite number of seconds", part.trim()))
+        };
+        let (start, end) = (seconds(start)?, seconds(end)?);
+        if start > end {
+            return Err(format!("'{text}': the window ends before it starts"));
+        }
+        Ok(TimeWindow { start, end })
     }
 }
 

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use super::{Animation, MAX_POSES};
+use super::{Animation, MAX_POSES, TimeWindow};
 use bvhc_loader::format::SourceRange;
 
 use crate::import::{ClipSelector, ClipSpan, ErrorKind, ImportError, ImportOptions, PoseSelector};
@@ -29,8 +29,9 @@ pub struct PoseSet {
 }
 
 /// The times `animation` samples in `spans` (the file's clips): `poses_per_clip` in each chosen clip, at the
-/// middles of equal parts of its span (one at its start when it has one keyframe time). Refused: a file without
-/// clips, a clip that does not exist, no pose or more than [`MAX_POSES`].
+/// middles of equal parts of its span cut to the animation's window (one at its start when that is one time).
+/// Refused: a file without clips, a clip that does not exist, a window that leaves no time of a chosen clip, no
+/// pose or more than [`MAX_POSES`].
 pub fn sample_times(spans: &[ClipSpan], animation: &Animation) -> Result<(Vec<ClipSpan>, Vec<SampledPose>), String> {
     if spans.is_empty() {
         return Err("the file has no animation clips to sample".into());
@@ -62,11 +63,12 @@ pub fn sample_times(spans: &[ClipSpan], animation: &Animation) -> Result<(Vec<Cl
     }
     let mut poses = Vec::new();
     for span in &chosen {
-        let length = span.end - span.start;
+        let (start, end) = sampled_part(span, animation.window)?;
+        let length = end - start;
         let count = if length > 0.0 { per_clip } else { 1 };
         for j in 0..count {
-            let seconds = span.start + length * (j as f64 + 0.5) / count as f64;
-            poses.push(SampledPose { clip: span.index, seconds: if length > 0.0 { seconds } else { span.start } });
+            let seconds = start + length * (j as f64 + 0.5) / count as f64;
+            poses.push(SampledPose { clip: span.index, seconds: if length > 0.0 { seconds } else { start } });
         }
     }
     if poses.len() > MAX_POSES {
@@ -78,6 +80,22 @@ pub fn sample_times(spans: &[ClipSpan], animation: &Animation) -> Result<(Vec<Cl
         ));
     }
     Ok((chosen, poses))
+}
+
+/// The times of `span` that are sampled: its keyframes' span, cut to `window` where there is one. Refused: a
+/// window that leaves no time of the clip.
+fn sampled_part(span: &ClipSpan, window: Option<TimeWindow>) -> Result<(f64, f64), String> {
+    let Some(window) = window else {
+        return Ok((span.start, span.end));
+    };
+    let (start, end) = (span.start.max(window.start), span.end.min(window.end));
+    if start > end {
+        return Err(format!(
+            "--animation-window {}..{} leaves no time of clip {} (its keyframes span {}..{} s)",
+            window.start, window.end, span.index, span.start, span.end
+        ));
+    }
+    Ok((start, end))
 }
 
 /// The clips `animation` samples in the glTF file at `input` and its times in them ([`sample_times`] on the
@@ -153,21 +171,45 @@ mod tests {
     #[test]
     fn times_are_the_middles_of_equal_parts_of_each_chosen_clip() {
         let spans = [span(0, "Walk", 0.0, 2.0), span(1, "Run", 1.0, 1.0), span(2, "Jump", 0.5, 1.5)];
-        let animation = Animation { clips: Animation::parse_clips("Jump, 1,2").unwrap(), poses_per_clip: 4 };
+        let animation =
+            Animation { clips: Animation::parse_clips("Jump, 1,2").unwrap(), poses_per_clip: 4, window: None };
         let (clips, poses) = sample_times(&spans, &animation).unwrap();
         assert_eq!(clips.iter().map(|c| c.index).collect::<Vec<_>>(), [2, 1]);
         let times: Vec<(usize, f64)> = poses.iter().map(|p| (p.clip, p.seconds)).collect();
         assert_eq!(times, [(2, 0.625), (2, 0.875), (2, 1.125), (2, 1.375), (1, 1.0)]);
-        let every = sample_times(&spans, &Animation { clips: Vec::new(), poses_per_clip: 1 }).unwrap().1;
+        let every = sample_times(&spans, &Animation { poses_per_clip: 1, ..Animation::default() }).unwrap().1;
         assert_eq!(every.iter().map(|p| p.seconds).collect::<Vec<_>>(), [1.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn a_window_cuts_each_clip_to_its_times() {
+        let spans = [span(0, "Walk", 0.0, 2.0), span(1, "Wave", 1.0, 3.0)];
+        let window = Some("0.5..1.5".parse().unwrap());
+        let (_, poses) =
+            sample_times(&spans, &Animation { poses_per_clip: 2, window, ..Animation::default() }).unwrap();
+        let times: Vec<(usize, f64)> = poses.iter().map(|p| (p.clip, p.seconds)).collect();
+        assert_eq!(times, [(0, 0.75), (0, 1.25), (1, 1.125), (1, 1.375)]);
+        // A window of one time samples it once; one past a clip's keyframes is refused, naming the clip.
+        let at =
+            |text: &str| Animation { poses_per_clip: 4, window: Some(text.parse().unwrap()), ..Animation::default() };
+        let (_, once) = sample_times(&spans[..1], &at("2..2")).unwrap();
+        assert_eq!(once, [SampledPose { clip: 0, seconds: 2.0 }]);
+        let why = sample_times(&spans, &at("2.5..4")).unwrap_err();
+        assert!(why.contains("leaves no time of clip 0") && why.contains("0..2 s"), "{why}");
+        for (text, expected) in
+            [("1..0.5", "ends before"), ("1", "START..END"), ("a..2", "'a' is not"), ("0..inf", "'inf'")]
+        {
+            let why = text.parse::<TimeWindow>().unwrap_err();
+            assert!(why.contains(expected), "{text}: {why}");
+        }
     }
 
     #[test]
     fn refusals_name_the_problem() {
         let spans = [span(0, "Walk", 0.0, 2.0)];
         let ask = |clips: &str, poses: u32| {
-            sample_times(&spans, &Animation { clips: Animation::parse_clips(clips).unwrap(), poses_per_clip: poses })
-                .unwrap_err()
+            let clips = Animation::parse_clips(clips).unwrap();
+            sample_times(&spans, &Animation { clips, poses_per_clip: poses, window: None }).unwrap_err()
         };
         assert!(ask("3", 8).contains("animation 3 does not exist"));
         assert!(ask("Fly", 8).contains("no animation is named 'Fly'"));

@@ -173,6 +173,10 @@ pub struct OptionArgs {
     /// Poses sampled in each clip with --animation, at the middles of equal parts of its span [default: 8].
     #[arg(long, value_name = "N", requires = "animation", help_heading = "Animation")]
     pub animation_poses: Option<u32>,
+    /// Sample only this part of each clip with --animation (seconds, START..END): a tree for the part that
+    /// plays, or one of several trees for the parts of a long clip, switched as it plays.
+    #[arg(long, value_name = "START..END", requires = "animation", help_heading = "Animation")]
+    pub animation_window: Option<bvhc::animation::TimeWindow>,
     /// Keep degenerate triangles instead of dropping them.
     #[arg(long, help_heading = "Import")]
     pub keep_degenerate: bool,
@@ -295,6 +299,7 @@ impl OptionArgs {
                 Some(clips) => Some(bvhc::animation::Animation {
                     clips: bvhc::animation::Animation::parse_clips(clips).map_err(|e| format!("--animation: {e}"))?,
                     poses_per_clip: self.animation_poses.unwrap_or(bvhc::animation::DEFAULT_POSES_PER_CLIP),
+                    window: self.animation_window,
                 }),
                 None => None,
             },

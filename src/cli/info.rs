@@ -191,7 +191,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
             let seed = sampling["held_out_seed"].as_u64().map_or(String::new(), |s| format!(", seed {s}"));
             outln!(out, "ray sampling: {training} training rays, {held_out} held-out rays{seed}");
         }
-        if let Some(line) = animation_line(&metadata["animation"]) {
+        if let Some(line) = animation_line(&metadata["animation"], &metadata["build"]["animation"]["window"]) {
             outln!(out, "{line}");
         }
         outln!(
@@ -202,15 +202,22 @@ pub fn info(path: &Path, json: bool) -> Exit {
     print(&out, Exit::Success)
 }
 
-/// The metadata's `animation` object in a line: the clips and poses the tree was chosen for, the mean refit cost
-/// and the costliest pose, and a two-level file's instances the clips move (`None` without one).
-fn animation_line(animation: &serde_json::Value) -> Option<String> {
+/// The metadata's `animation` object in a line: the clips (and the part of them sampled, from `window`, the
+/// `build` record's) and poses the tree was chosen for, the mean refit cost and the costliest pose, and a
+/// two-level file's instances the clips move (`None` without one).
+fn animation_line(animation: &serde_json::Value, window: &serde_json::Value) -> Option<String> {
     let clips: Vec<String> = animation["clips"]
         .as_array()?
         .iter()
         .map(|c| {
             let name = c["name"].as_str().map_or_else(|| format!("clip {}", c["index"]), str::to_string);
-            format!("{name} {:.2}-{:.2} s", c["start"].as_f64().unwrap_or(0.0), c["end"].as_f64().unwrap_or(0.0))
+            let (start, end) = (c["start"].as_f64().unwrap_or(0.0), c["end"].as_f64().unwrap_or(0.0));
+            match (window["start"].as_f64(), window["end"].as_f64()) {
+                (Some(from), Some(to)) => {
+                    format!("{name} {:.2}-{:.2} s (of {start:.2}-{end:.2} s)", start.max(from), end.min(to))
+                }
+                _ => format!("{name} {start:.2}-{end:.2} s"),
+            }
         })
         .collect();
     let moving = animation["moving_instances"].as_array().map_or(String::new(), |moving| {

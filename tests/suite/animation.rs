@@ -110,6 +110,33 @@ fn an_animation_tree_records_its_poses_costs_and_costs_less_over_them_than_the_d
 }
 
 #[test]
+fn a_tree_for_a_part_of_the_clip_samples_that_part_and_costs_less_there_than_the_whole_clips_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let asset = morphing_sphere(dir.path());
+    // The part's tree, stored in the pose of the part's middle; its record checked against the loader's refits.
+    let part = ["--animation", "--animation-window", "2..6", "--animation-poses", "4", "--pose", "0@4"];
+    check_against_rest(&asset, dir.path(), 0, &part);
+    let file = BvhFile::read(dir.path().join("animated.bvh")).unwrap();
+    let metadata = crate::common::assert_metadata_matches_schema(&file);
+    assert_eq!(
+        metadata["build"]["animation"],
+        serde_json::json!({"clips": [], "poses_per_clip": 4, "window": {"start": 2.0, "end": 6.0}})
+    );
+    let seconds: Vec<f64> =
+        metadata["animation"]["poses"].as_array().unwrap().iter().map(|p| p["seconds"].as_f64().unwrap()).collect();
+    assert_eq!(seconds, [2.5, 3.5, 4.5, 5.5]);
+    let info = bvhc(&[&"info", &dir.path().join("animated.bvh")]);
+    let info = String::from_utf8_lossy(&info.stdout).into_owned();
+    assert!(info.contains("chosen for 4 poses of Deform 2.00-6.00 s (of 0.00-20.00 s)"), "{info}");
+    // Over the part's times (sampled and between), the part's tree costs less than the whole clip's tree.
+    let whole = convert(&asset, &dir.path().join("whole.bvh"), &["--animation", "--animation-poses", "4"]);
+    let times = [2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0];
+    let mean = |file: &BvhFile| refit_costs(file, &asset, 0, &times).iter().map(|c| c.1).sum::<f64>() / 9.0;
+    let (part_mean, whole_mean) = (mean(&file), mean(&whole));
+    assert!(part_mean < whole_mean, "part's tree {part_mean}, whole clip's {whole_mean}");
+}
+
+#[test]
 fn skinned_shared_scenes_get_trees_that_cost_less_over_their_clips() {
     for (relative, clip) in [("khr-cesium-man/CesiumMan.gltf", 0usize), ("khr-fox/Fox.gltf", 2)] {
         let Some(asset) = crate::common::scene(relative) else { continue };
@@ -148,6 +175,14 @@ fn animation_settings_that_cannot_be_honoured_are_refused() {
     refused(&asset, &["--animation", "--animation-poses", "0"], "--animation-poses: 0 is not from 1 to 64");
     refused(&asset, &["--animation", "--animation-poses", "65"], "65 is not from 1 to 64");
     refused(&asset, &["--animation-poses", "4"], "--animation");
+    refused(&asset, &["--animation-window", "0..1"], "--animation");
+    refused(&asset, &["--animation", "--animation-window", "6..2"], "'6..2': the window ends before it starts");
+    refused(&asset, &["--animation", "--animation-window", "0,5"], "'0,5': not START..END (seconds)");
+    refused(
+        &asset,
+        &["--animation", "--animation-window", "25..30"],
+        "--animation-window 25..30 leaves no time of clip 0 (its keyframes span 0..20 s)",
+    );
     for (flag, value) in [("--split-budget", "0.2"), ("--tune-rays", "5000")] {
         refused(&asset, &["--animation", flag, value], &format!("{flag} does nothing with --animation"));
     }

@@ -75,6 +75,7 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
     let mut limits = ImportLimits::default();
     let mut limits_given = false;
     let mut animation_poses = None;
+    let mut animation_window = None;
     for (key, value) in options.into_iter().flat_map(|d| d.iter()) {
         let name: String = key.extract()?;
         let v = Value { name: &name, value };
@@ -104,6 +105,11 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
             "animation_poses" => {
                 let poses = v.count()?;
                 animation_poses = Some(u32::try_from(poses).map_err(|_| v.error("a count from 1 to 64"))?);
+            }
+            "animation_window" => {
+                let text = v.text().map_err(|_| v.error("a window 'START..END' in seconds"))?;
+                let window = text.parse().map_err(|why: String| v.error(&format!("a window 'START..END' ({why})")))?;
+                animation_window = Some(window);
             }
             "keep_degenerate" => o.keep_degenerate = Some(v.boolean()?),
             "allow_outside_buffers" => o.allow_buffers_outside_input_folder = Some(v.boolean()?),
@@ -202,6 +208,13 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
         (Some(animation), Some(poses)) => animation.poses_per_clip = poses,
         (None, Some(_)) => {
             return Err(OptionsError::new_err("animation_poses: needs animation=True or animation='CLIPS'"));
+        }
+        _ => {}
+    }
+    match (&mut o.animation, animation_window) {
+        (Some(animation), Some(window)) => animation.window = Some(window),
+        (None, Some(_)) => {
+            return Err(OptionsError::new_err("animation_window: needs animation=True or animation='CLIPS'"));
         }
         _ => {}
     }

@@ -751,6 +751,14 @@ def test_animation_is_the_command_lines_flag():
     assert "animation" not in bvhc.options(animation=False)
     with pytest.raises(bvhc.OptionsError, match="needs animation"):
         bvhc.options(animation_poses=4)
+    # A part of each clip, as --animation-window says it.
+    part = bvhc.options(animation=True, animation_window="2.5..5")
+    assert part == json.loads(cli("options", "--animation", "--animation-window", "2.5..5"))
+    assert part["animation"]["window"] == {"start": 2.5, "end": 5.0}
+    with pytest.raises(bvhc.OptionsError, match="ends before it starts"):
+        bvhc.options(animation=True, animation_window="5..2.5")
+    with pytest.raises(bvhc.OptionsError, match="animation_window: needs animation"):
+        bvhc.options(animation_window="0..1")
     with pytest.raises(bvhc.OptionsError, match="--split-budget does nothing with --animation"):
         bvhc.options(animation=True, split_budget=0.2)
     with pytest.raises(bvhc.OptionsError, match="an empty clip name"):
