@@ -11,7 +11,7 @@
 use std::path::Path;
 
 use bvhc_loader::format::{Affine3x4, NO_INDEX, SourceRange};
-use bvhc_loader::{BvhFile, BvhView, RefitPositions, RefitReport, TwoLevelSections};
+use bvhc_loader::{BvhFile, BvhView, BvhViewMut, RefitPositions, RefitReport, TwoLevelSections};
 
 use crate::import::{
     ImportError, ImportLimits, ImportOptions, InstancedMesh, Instancing, PoseSelector, SceneSelector, import,
@@ -62,6 +62,11 @@ impl PlacedPose {
     /// are left as a refit leaves them (`BvhFile::rewritten` makes a copy that verifies). Returns the refit's
     /// report (a two-level file's states no cost).
     pub fn apply(&self, file: &mut BvhFile, threads: usize) -> Result<RefitReport, bvhc_loader::Error> {
+        self.apply_in_place(&mut file.view_mut(), threads)
+    }
+
+    /// [`PlacedPose::apply`] on a file's bytes borrowed in place (a binding's writable array, a private map).
+    pub fn apply_in_place(&self, file: &mut BvhViewMut<'_>, threads: usize) -> Result<RefitReport, bvhc_loader::Error> {
         let Some(sections) = file.view().two_level() else {
             return file.refit(RefitPositions::Triangles(&self.positions), threads);
         };

@@ -88,6 +88,48 @@ pub fn refit<'py>(
     report_dict(py, &report, max_cost_ratio)
 }
 
+/// `Scene.pose`: the scene's records and instances placed as `asset` places them in its default pose or at
+/// `pose` (`CLIP@SECONDS`), imported as the conversion imported it (`bvhc::posed::placed_pose`), then applied in
+/// place (`PlacedPose::apply_in_place`: the deforming geometry refit, the moving instances placed); the refit's
+/// report with `instances_placed`.
+pub fn pose<'py>(
+    py: Python<'py>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+    asset: std::path::PathBuf,
+    pose: Option<String>,
+    threads: usize,
+    max_cost_ratio: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let pose: Option<bvhc::import::PoseSelector> = pose
+        .map(|text| text.parse().map_err(|why: String| InvalidInputError::new_err(format!("pose: {why}"))))
+        .transpose()?;
+    let placed = {
+        let array = bytes.bind(py).readonly();
+        let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
+        py.detach(|| {
+            let view = bvhc::loader::BvhView::open(slice).map_err(|e| loader(&e, format!("{path}: {e}")))?;
+            bvhc::posed::placed_pose(&view, &asset, &Default::default(), pose.as_ref())
+                .map_err(|e| posed(&e, format!("{path}: pose from {}: {e}", asset.display())))
+        })?
+    };
+    let report = with_view_mut(py, bytes, path, "pose", |view| placed.apply_in_place(view, threads))?;
+    let dict = report_dict(py, &report, max_cost_ratio)?;
+    dict.set_item("instances_placed", placed.instances.len())?;
+    Ok(dict)
+}
+
+/// The exception for an asset whose positions cannot be given to a file: an unreadable asset is an `IoError`,
+/// the rest (a broken asset, another topology, a file without ids) `InvalidInputError`.
+fn posed(error: &bvhc::posed::PosedError, message: String) -> PyErr {
+    match error {
+        bvhc::posed::PosedError::Import(e) if e.kind == bvhc::import::ErrorKind::Unreadable => {
+            crate::errors::IoError::new_err(message)
+        }
+        _ => InvalidInputError::new_err(message),
+    }
+}
+
 /// `Scene.move_instances`: `instances` (uint32, `(k,)`) placed by `transforms` (`(k, 3, 4)` float32 rows).
 pub fn move_instances(
     py: Python<'_>,

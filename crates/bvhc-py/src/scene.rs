@@ -328,6 +328,24 @@ impl Scene {
         crate::refit::refit(py, &self.bytes, &self.path, positions, source_vertices, threads, max_cost_ratio)
     }
 
+    /// Poses the file (opened writable) as the asset it was converted from stands in its default pose or at
+    /// `pose` (`"CLIP@SECONDS"`, a clip by index or name): every record given its triangle's positions there and
+    /// every instance a glTF node places the node's transform; the deforming geometry refit, the instanced
+    /// meshes left as they are unless their positions differ, the instances moved. Returns `refit`'s dict with
+    /// `instances_placed`.
+    #[pyo3(signature = (asset, pose=None, threads=None, max_cost_ratio=1.2))]
+    fn pose<'py>(
+        &self,
+        py: Python<'py>,
+        asset: std::path::PathBuf,
+        pose: Option<String>,
+        threads: Option<usize>,
+        max_cost_ratio: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+        crate::refit::pose(py, &self.bytes, &self.path, asset, pose, threads, max_cost_ratio)
+    }
+
     /// Places `instances` (a two-level file's, opened writable) by `transforms` (`(k, 3, 4)` float32 rows).
     fn move_instances(
         &self,

@@ -639,6 +639,31 @@ def test_refit_in_place_equals_bvhc_refit_of_the_moved_asset(tmp_path):
     assert np.array_equal(hits["t"], expected["t"]) and np.array_equal(hits["triangle"], expected["triangle"])
 
 
+def test_pose_from_the_asset_equals_bvhc_refit(tmp_path):
+    truck = scene("khr-cesium-milk-truck/CesiumMilkTruck.gltf")
+    for instancing in ["always", "never"]:
+        bvh = tmp_path / f"truck-{instancing}.bvh"
+        cli(truck, "--animation", "--instancing", instancing, "-o", bvh, "-q")
+        cli("refit", bvh, "--positions", truck, "--pose", "Wheels@0.6", "-o", tmp_path / "cli.bvh")
+        posed = bvhc.open(bvh, writable=True)
+        report = posed.pose(truck, "Wheels@0.6", threads=2)
+        # Two-level: the wheels are moving instances; one level: they are refit with the rest.
+        assert report["instances_placed"] == (2 if instancing == "always" else 0)
+        posed.write(tmp_path / "py.bvh")
+        assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes(), instancing
+        # Posed back to the default pose, the records are the file's own again.
+        posed.pose(truck)
+        assert np.array_equal(np.array(posed.triangles), np.array(bvhc.open(bvh).triangles))
+    with pytest.raises(bvhc.InvalidInputError, match="Fly"):
+        posed.pose(truck, "Fly@1")
+    with pytest.raises(bvhc.InvalidInputError, match="pose: 'Wheels' is not CLIP@SECONDS"):
+        posed.pose(truck, "Wheels")
+    with pytest.raises(bvhc.IoError, match="missing.gltf"):
+        posed.pose(tmp_path / "missing.gltf")
+    with pytest.raises(bvhc.InvalidInputError, match="writable=True"):
+        bvhc.open(bvh).pose(truck, "Wheels@0.6")
+
+
 def test_refit_refuses_what_does_not_fit(tmp_path):
     bvh = tmp_path / "t.bvh"
     cli(TEAPOT, "--no-splits", "-o", bvh, "-q")

@@ -448,6 +448,29 @@ class Scene:
         self._info = None
         return self._native.refit(positions, source_vertices, threads, max_cost_ratio)
 
+    def pose(
+        self,
+        asset: Union[str, "os.PathLike[str]"],
+        pose: Optional[str] = None,
+        *,
+        threads: Optional[int] = None,
+        max_cost_ratio: float = REBUILD_COST_RATIO,
+    ) -> Dict[str, Any]:
+        """Pose the file in place (opened ``writable=True``) as the ``asset`` it was converted from stands in its
+        default pose or at ``pose`` (``"CLIP@SECONDS"``, the glTF animation clip by index or name): the asset is
+        imported as the conversion imported it (its recorded scene, instancing and animation clips), every
+        triangle record given its triangle's positions there and every instance that a glTF node places the
+        node's transform. The deforming geometry is refit, an instanced mesh only where its positions differ
+        from the file's, and the moving instances are placed (``bvhc refit FILE --positions ASSET --pose
+        CLIP@SECONDS`` does the same, then writes the file).
+
+        Returns :meth:`refit`'s dict (a two-level file states no costs, so they are ``None``) with
+        ``instances_placed``. Raises :class:`InvalidInputError` for an asset that is not the file's (another
+        topology, a clip it does not have) and :class:`IoError` for one that cannot be read, with the file
+        unchanged."""
+        self._info = None
+        return self._native.pose(os.fspath(asset), pose, threads, max_cost_ratio)
+
     def move_instances(self, instances: Any, transforms: Any) -> None:
         """Place instances of a two-level file anew, in place (opened ``writable=True``): ``instances`` (indices)
         by ``transforms`` (``(k, 3, 4)`` float32 object-to-world rows ``[a, b, c, d]``, as :attr:`instances`

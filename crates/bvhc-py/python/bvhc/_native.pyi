@@ -47,6 +47,13 @@ class Scene:
         threads: Optional[int] = None,
         max_cost_ratio: float = 1.2,
     ) -> Dict[str, Any]: ...
+    def pose(
+        self,
+        asset: str,
+        pose: Optional[str] = None,
+        threads: Optional[int] = None,
+        max_cost_ratio: float = 1.2,
+    ) -> Dict[str, Any]: ...
     def move_instances(self, instances: List[int], transforms: npt.NDArray[np.float32]) -> None: ...
     def write(self, output: str) -> None: ...
     def closest_hits(
