@@ -164,7 +164,10 @@ impl BvhViewMut<'_> {
             .ok_or_else(|| Error::Refit(format!("mesh {mesh}: the file has {count} meshes")))?;
         let range = mesh_range(record.first_triangle, record.triangle_count);
         let moved = MovedRecords::Triangles(positions);
-        moved.check(range.len()).map_err(|e| Error::Refit(format!("mesh {mesh}: {e}")))?;
+        moved.check(range.len()).map_err(|e| match e {
+            Error::Refit(why) => Error::Refit(format!("mesh {mesh}: {why}")),
+            other => other,
+        })?;
         if let (true, Some(ids)) = (view.has_split_references(), view.triangle_ids()) {
             moved.check_references_agree(ids.get(range.clone()).unwrap_or(&[]))?;
         }
