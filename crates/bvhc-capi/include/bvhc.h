@@ -24,8 +24,8 @@
  *   crashes; no exception or panic crosses the boundary;
  * - batch calls read the caller's rays in place and write each result straight into the caller's arrays;
  * - a bvhc_file changes only through the refit calls (bvhc_refit_triangles, bvhc_refit_source_vertices,
- *   bvhc_move_instances, bvhc_rebuild_top_trees); otherwise any number of threads may trace through one at once; only bvhc_close and
- *   the refit calls must not race with them.
+ *   bvhc_refit_mesh, bvhc_move_instances, bvhc_move_instances_in_frame, bvhc_rebuild_top_trees); otherwise any
+ *   number of threads may trace through one at once; only bvhc_close and the refit calls must not race with them.
  * The point a hit describes is (1 - u - v) v0 + u v1 + v v2 of the record's vertices (bvhc_triangle_vertices);
  * bvhc_hit_source_corners names them in the source scene's own primitive (format-spec/bvh-1.md 5.9), to
  * interpolate its normals, texture coordinates or colours. bvhc_spawn_ray gives a secondary ray with t_min = 0
@@ -253,6 +253,15 @@ bvhc_status bvhc_refit_triangles(bvhc_file *file, const float *positions, size_t
 bvhc_status bvhc_refit_source_vertices(bvhc_file *file, const float *const *positions, const size_t *vertex_counts,
                                        size_t range_count, unsigned threads, bvhc_refit_report *report);
 bvhc_status bvhc_move_instances(bvhc_file *file, const uint32_t *instances, const float *transforms, size_t count);
+/* Per frame of an animation in a two-level file (docs/animation.md): bvhc_refit_mesh moves one mesh's records
+ * (9 floats each, in its own space and record order: bvhc_get_mesh's first_triangle on, triangle_count of them)
+ * and refits that mesh, its instances' world boxes and the top trees, leaving the other meshes untouched;
+ * bvhc_move_instances_in_frame moves instances as bvhc_move_instances does without recomputing the checksums
+ * (bvhc_write does; bvhc_verify fails until then). Refusals as above, and a one-level file or a missing mesh. */
+bvhc_status bvhc_refit_mesh(bvhc_file *file, uint32_t mesh, const float *positions, size_t triangle_count,
+                            unsigned threads);
+bvhc_status bvhc_move_instances_in_frame(bvhc_file *file, const uint32_t *instances, const float *transforms,
+                                         size_t count);
 bvhc_status bvhc_rebuild_top_trees(bvhc_file *file);
 bvhc_status bvhc_top_tree_cost(const bvhc_file *file, double *cost); /* BVHC_ERROR_NOT_IN_FILE if one-level */
 /* A tree chosen for an animation (bvhc --animation, docs/animation.md): the largest cost_ratio a refit to one of

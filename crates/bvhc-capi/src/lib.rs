@@ -10,7 +10,8 @@
 //! rule) except by the `_unchecked` calls; the message of the last error is per thread and stays valid until
 //! the next failing call on it (`bvhc_last_error_message`, or copied with `bvhc_error_message`); every status
 //! has a name (`bvhc_status_name`). A `bvhc_file` changes only through the refit calls (`bvhc_refit_triangles`,
-//! `bvhc_refit_source_vertices`, `bvhc_move_instances`, `bvhc_rebuild_top_trees`); otherwise any number of threads may trace through one at
+//! `bvhc_refit_source_vertices`, `bvhc_refit_mesh`, `bvhc_move_instances`, `bvhc_move_instances_in_frame`,
+//! `bvhc_rebuild_top_trees`); otherwise any number of threads may trace through one at
 //! the same time; only `bvhc_close` and the refit calls must not race with them.
 
 mod batch;
@@ -44,8 +45,9 @@ pub use filtered_batch::{
 pub use open::{bvhc_close, bvhc_open, bvhc_open_memory, bvhc_verify};
 pub use records::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};
 pub use refit::{
-    BvhcRefitReport, bvhc_move_instances, bvhc_planned_cost_ratio, bvhc_rebuild_top_trees, bvhc_refit_source_vertices,
-    bvhc_refit_triangles, bvhc_top_tree_cost, bvhc_write,
+    BvhcRefitReport, bvhc_move_instances, bvhc_move_instances_in_frame, bvhc_planned_cost_ratio,
+    bvhc_rebuild_top_trees, bvhc_refit_mesh, bvhc_refit_source_vertices, bvhc_refit_triangles, bvhc_top_tree_cost,
+    bvhc_write,
 };
 pub use scene::{
     bvhc_get_instance, bvhc_get_mesh, bvhc_instance_count, bvhc_mesh_count, bvhc_metadata_json, bvhc_scene_bounds,

@@ -1,6 +1,6 @@
 //! Moving geometry from C: refitting an open file to moved triangles (`bvhc_refit_triangles`, per record;
 //! `bvhc_refit_source_vertices`, per source vertex of each primitive), moving instances of a two-level file
-//! (`bvhc_move_instances`), rebuilding a moved file's top trees (`bvhc_rebuild_top_trees`, `bvhc_top_tree_cost`),
+//! (`bvhc_move_instances`; per frame `bvhc_refit_mesh` and `bvhc_move_instances_in_frame`), rebuilding a moved file's top trees (`bvhc_rebuild_top_trees`, `bvhc_top_tree_cost`),
 //! and writing the result (`bvhc_write`, its costs and checksums recomputed so that it verifies).
 //! These change the file: they must not race with any other call on it (as `bvhc_close` must not); each makes
 //! the file's tracer again, so the next trace sees the new geometry.
@@ -157,9 +157,10 @@ pub unsafe extern "C" fn bvhc_refit_source_vertices(
 
 /// Places the `count` instances named by `instances` anew, each by the 3x4 row-major object-to-world map at
 /// `transforms + 12 k` (rows `[a b c d]`: `p'_i = a p_x + b p_y + c p_z + d`, as `bvhc_instance` stores them):
-/// the inverse and world box computed as the converter computes them, the top trees refit. Refused, with the
-/// file unchanged: a one-level file, an index out of range, a map that is not finite and invertible (rule V42)
-/// or whose world box does not fit f32, naming the instance.
+/// the inverse and world box computed as the converter computes them, the top trees refit, the checksums
+/// recomputed (so `bvhc_verify` passes). Refused, with the file unchanged: a one-level file, an index out of
+/// range, a map that is not finite and invertible (rule V42) or whose world box does not fit f32, naming the
+/// instance.
 ///
 /// # Safety
 ///
@@ -172,23 +173,99 @@ pub unsafe extern "C" fn bvhc_move_instances(
     transforms: *const f32,
     count: usize,
 ) -> c_int {
+    // SAFETY: the caller's contract is `move_instances`'.
+    guarded(|| unsafe { move_instances("bvhc_move_instances", file, instances, transforms, count, true) })
+}
+
+/// `bvhc_move_instances` for a frame: the same moves and refusals, the checksums left as a refit leaves them
+/// (hashing a large file's sections costs more than moving its instances; `bvhc_write` recomputes them, and
+/// `bvhc_verify` fails until then), so a frame that moves instances costs the moves and the top trees' refit.
+///
+/// # Safety
+///
+/// As `bvhc_move_instances`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_move_instances_in_frame(
+    file: *mut BvhcFile,
+    instances: *const u32,
+    transforms: *const f32,
+    count: usize,
+) -> c_int {
+    // SAFETY: the caller's contract is `move_instances`'.
+    guarded(|| unsafe { move_instances("bvhc_move_instances_in_frame", file, instances, transforms, count, false) })
+}
+
+/// The instances named by `instances` placed by `transforms` (see `bvhc_move_instances`), the checksums
+/// recomputed when `checksums`; errors name `call`.
+///
+/// # Safety
+///
+/// `file` is null or a live file no other call uses now; `instances` and `transforms` are null or point to
+/// `count` indices and `12 * count` floats.
+unsafe fn move_instances(
+    call: &str,
+    file: *mut BvhcFile,
+    instances: *const u32,
+    transforms: *const f32,
+    count: usize,
+    checksums: bool,
+) -> Result<c_int, (c_int, String)> {
+    // SAFETY: the caller's contract is `file_mut`'s.
+    let file = unsafe { file_mut(call, file) }?;
+    if count > 0 && (instances.is_null() || transforms.is_null()) {
+        return Err(argument(&format!("{call}: instances and transforms must not be null")));
+    }
+    let len = count.checked_mul(12).ok_or_else(|| argument(&format!("{call}: count too large")))?;
+    let (indices, floats) = if count == 0 {
+        (&[][..], &[][..])
+    } else {
+        // SAFETY: both are non-null and, by the contract, point to `count` indices and `12 * count` floats.
+        unsafe { (std::slice::from_raw_parts(instances, count), std::slice::from_raw_parts(transforms, len)) }
+    };
+    let maps: &[Affine3x4] = floats.as_chunks::<4>().0.as_chunks::<3>().0;
+    let moves: Vec<(u32, Affine3x4)> = indices.iter().copied().zip(maps.iter().copied()).collect();
+    let result = file.traced.edit_file(|file| match checksums {
+        true => file.move_instances(&moves),
+        false => file.move_instances_in_frame(&moves),
+    });
+    result.map_err(|e| (status_of(&e), format!("{call}: {e}")))?;
+    Ok(BVHC_OK)
+}
+
+/// Moves the records of mesh `mesh` of a two-level file to `positions` (9 floats a record, `v0`, `v1`, `v2` in
+/// the mesh's own space and record order: `bvhc_get_mesh`'s `first_triangle` .. `+ triangle_count`; the file's
+/// `triangle_count` records of that mesh) and refits that mesh's trees, its instances' world boxes and the top
+/// trees on up to `threads` threads, leaving every other mesh untouched: a frame's work is the deforming mesh's,
+/// whatever rigid meshes (moved by `bvhc_move_instances_in_frame`) the file holds. The checksums are left as a
+/// refit leaves them. Refused, with the file unchanged: a one-level file (`bvhc_refit_triangles` refits it
+/// whole), a mesh that does not exist, another count, a coordinate that is not finite, an instance whose world
+/// box would not fit f32, each named.
+///
+/// # Safety
+///
+/// `file` is null or a live file no other call uses now; `positions` is null or points to `9 * triangle_count`
+/// readable floats.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_refit_mesh(
+    file: *mut BvhcFile,
+    mesh: u32,
+    positions: *const f32,
+    triangle_count: usize,
+    threads: c_uint,
+) -> c_int {
     guarded(|| {
-        let call = "bvhc_move_instances";
+        let call = "bvhc_refit_mesh";
         // SAFETY: the caller's contract is `file_mut`'s.
         let file = unsafe { file_mut(call, file) }?;
-        if count > 0 && (instances.is_null() || transforms.is_null()) {
-            return Err(argument("bvhc_move_instances: instances and transforms must not be null"));
+        if positions.is_null() {
+            return Err(argument("bvhc_refit_mesh: positions must not be null"));
         }
-        let len = count.checked_mul(12).ok_or_else(|| argument("bvhc_move_instances: count too large"))?;
-        let (indices, floats) = if count == 0 {
-            (&[][..], &[][..])
-        } else {
-            // SAFETY: both are non-null and, by the contract, point to `count` indices and `12 * count` floats.
-            unsafe { (std::slice::from_raw_parts(instances, count), std::slice::from_raw_parts(transforms, len)) }
-        };
-        let maps: &[Affine3x4] = floats.as_chunks::<4>().0.as_chunks::<3>().0;
-        let moves: Vec<(u32, Affine3x4)> = indices.iter().copied().zip(maps.iter().copied()).collect();
-        let result = file.traced.edit_file(|file| file.move_instances(&moves));
+        let len = triangle_count.checked_mul(9).ok_or_else(|| argument("bvhc_refit_mesh: count too large"))?;
+        // SAFETY: `positions` is not null and, by the contract, points to `9 * triangle_count` readable floats,
+        // unchanged during the call.
+        let floats = unsafe { std::slice::from_raw_parts(positions, len) };
+        let triangles = floats.as_chunks::<3>().0.as_chunks::<3>().0;
+        let result = file.traced.edit_file(|file| file.refit_mesh(mesh, triangles, threads as usize));
         result.map_err(|e| (status_of(&e), format!("{call}: {e}")))?;
         Ok(BVHC_OK)
     })
