@@ -13,7 +13,8 @@
 //! With `BVHC_ANIMATION_PARTS=N` (2 or more), a fourth tree: one tree per part, the clip cut into `N` equal parts,
 //! each converted with `--animation CLIP --animation-window` for its part and stored in the pose of its part's
 //! middle (`--pose`), each time measured with the tree of the part it falls in (the last part's at the clip's
-//! end), as a renderer that switches trees as the clip plays would.
+//! end; at a boundary between parts, the costlier of the two), as a renderer that switches trees as the clip
+//! plays would; with more parts than poses, the times are as many more as measure each part's middle and ends.
 //!
 //! `cargo bench --bench animation`; `BVHC_ANIMATION_POSES` (default the converter's 8) poses a clip,
 //! `BVHC_ANIMATION_SCENES` picks scenes, `BVHC_ANIMATION_PLOT` names the SVG (default `target/animation.svg`),
@@ -149,7 +150,10 @@ fn main() {
                 convert(path, &dir.path().join(format!("part{i}.bvh")), Some(middle), Some(part))
             })
             .collect();
-        let steps = 2 * poses as usize;
+        // The sampled poses and the times between them; with more parts than poses, as many more times as it
+        // takes to measure every part's middle and ends.
+        let per_pose = part_count.div_ceil(poses as usize).max(1);
+        let steps = 2 * poses as usize * per_pose;
         let mut rows = Vec::new();
         for j in 0..=steps {
             let at = j as f64 / steps as f64;
@@ -179,7 +183,7 @@ fn main() {
                 .max_by(|a, b| a.0.total_cmp(&b.0));
             let row = Row {
                 at,
-                sampled: j % 2 == 1,
+                sampled: j % (2 * per_pose) == per_pose,
                 rest: rest_cost / fresh_cost,
                 animation: animated_cost / fresh_cost,
                 part: part.map(|p| p.0),

@@ -8,8 +8,14 @@
 //! animated PNG; the refit time, the refit tree's cost ratio and whether `RebuildPolicy` would convert anew (it
 //! reads the ratio the clip's sampled poses were planned to reach) are printed per frame.
 //!
+//! With `--parts N` the clip is cut into `N` equal parts and converted once per part (`--animation-window` of
+//! the part, stored in the pose of its middle): each frame refits and traces the tree of the part its time falls
+//! in, switching trees as the clip plays (for deformations too large for one tree: `docs/animation.md`). The
+//! frames are the same images: every tree holds the same triangles, and ties between hits are decided by the
+//! format's rule, not by the tree.
+//!
 //! ```sh
-//! cargo run --release --example skinned -- Fox/Fox.gltf frames/ [--clip 1] [--frames 24] [--width 320] [--height 240]
+//! cargo run --release --example skinned -- Fox/Fox.gltf frames/ [--clip 1] [--frames 24] [--parts 1] [--width 320] [--height 240]
 //! ```
 
 mod pose;
@@ -17,8 +23,8 @@ mod pose;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use bvhc::animation::Animation;
-use bvhc::import::ClipSelector;
+use bvhc::animation::{Animation, TimeWindow};
+use bvhc::import::{ClipSelector, PoseSelector};
 use bvhc::loader::{BvhFile, Hit, Ray, RebuildPolicy, RefitPositions, Trace};
 use bvhc::options::Overrides;
 
@@ -27,6 +33,7 @@ struct Options {
     output: PathBuf,
     clip: usize,
     frames: usize,
+    parts: usize,
     width: usize,
     height: usize,
     threads: usize,
@@ -40,6 +47,7 @@ fn options() -> Result<Options, String> {
         output: PathBuf::new(),
         clip: 0,
         frames: 24,
+        parts: 1,
         width: 320,
         height: 240,
         threads,
@@ -52,6 +60,7 @@ fn options() -> Result<Options, String> {
         match arg.as_str() {
             "--clip" => options.clip = number("--clip")?,
             "--frames" => options.frames = number("--frames")?,
+            "--parts" => options.parts = number("--parts")?,
             "--width" => options.width = number("--width")?,
             "--height" => options.height = number("--height")?,
             "--threads" => options.threads = number("--threads")?,
@@ -59,10 +68,10 @@ fn options() -> Result<Options, String> {
         }
     }
     let [input, output] = <[String; 2]>::try_from(positional).map_err(
-        |_| "usage: skinned SCENE.gltf OUTPUT_DIR [--clip K] [--frames N] [--width W] [--height H] [--threads T]",
+        |_| "usage: skinned SCENE.gltf OUTPUT_DIR [--clip K] [--frames N] [--parts N] [--width W] [--height H] [--threads T]",
     )?;
-    if options.frames == 0 || options.width == 0 || options.height == 0 {
-        return Err("--frames, --width and --height must be at least 1".to_string());
+    if options.frames == 0 || options.parts == 0 || options.width == 0 || options.height == 0 {
+        return Err("--frames, --parts, --width and --height must be at least 1".to_string());
     }
     Ok(Options { input: input.into(), output: output.into(), ..options })
 }
@@ -129,20 +138,48 @@ fn write_frame(path: &Path, pixels: &[u8], width: usize, height: usize) -> Resul
     encoder.write_header().and_then(|mut w| w.write_image_data(pixels)).map_err(|e| e.to_string())
 }
 
+/// The scene converted for its clip: one tree for the whole clip, or with `parts > 1` one per equal part of it
+/// (the part's window sampled, stored in the pose of its middle), with each part's first time.
+fn convert(options: &Options) -> Result<Vec<(f64, BvhFile)>, Box<dyn std::error::Error>> {
+    let clip = ClipSelector::Index(options.clip);
+    let whole = Animation { clips: vec![clip.clone()], ..Animation::default() };
+    if options.parts == 1 {
+        let bvh = options.output.join("scene.bvh");
+        let overrides = Overrides { animation: Some(whole), ..Overrides::default() };
+        bvhc::Conversion::new(&options.input, &bvh).overrides(overrides).run()?;
+        return Ok(vec![(f64::NEG_INFINITY, BvhFile::read(&bvh)?)]);
+    }
+    let clips = bvhc::import::animation_clips(&options.input, &Default::default())?;
+    let span = clips.get(options.clip).ok_or(format!("the file has {} animation clips", clips.len()))?;
+    let time = |share: f64| span.start + (span.end - span.start) * share;
+    let mut parts = Vec::with_capacity(options.parts);
+    for k in 0..options.parts {
+        let window = TimeWindow {
+            start: time(k as f64 / options.parts as f64),
+            end: time((k + 1) as f64 / options.parts as f64),
+        };
+        let middle = PoseSelector { clip: clip.clone(), seconds: (window.start + window.end) / 2.0 };
+        let animation = Animation { window: Some(window), ..whole.clone() };
+        let overrides = Overrides { animation: Some(animation), pose: Some(middle), ..Overrides::default() };
+        let bvh = options.output.join(format!("scene-part{k}.bvh"));
+        bvhc::Conversion::new(&options.input, &bvh).overrides(overrides).run()?;
+        parts.push((if k == 0 { f64::NEG_INFINITY } else { window.start }, BvhFile::read(&bvh)?));
+    }
+    Ok(parts)
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let options = options()?;
     std::fs::create_dir_all(&options.output)?;
-    let bvh = options.output.join("scene.bvh");
-    let animation = Animation { clips: vec![ClipSelector::Index(options.clip)], ..Animation::default() };
-    let overrides = Overrides { animation: Some(animation), ..Overrides::default() };
-    bvhc::Conversion::new(&options.input, &bvh).overrides(overrides).run()?;
-    let mut file = BvhFile::read(&bvh)?;
+    let mut parts = convert(&options)?;
     let scene = pose::Scene::read(&options.input, options.clip)?;
     if let Some(note) = &scene.note {
         println!("note: {note}");
     }
-    let ranges = file.view().source_table().ok_or("the file has no source table")?.to_vec();
-    let triangle_count = file.view().triangles().len();
+    // Every part's file holds the same triangles from the same source ranges, so one set of positions per source
+    // vertex refits any of them.
+    let ranges = parts[0].1.view().source_table().ok_or("the file has no source table")?.to_vec();
+    let triangle_count = parts[0].1.view().triangles().len();
     // Every frame's positions first: the camera frames the whole animation.
     let mut poses = Vec::with_capacity(options.frames);
     for frame in 0..options.frames {
@@ -163,6 +200,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut frames = Vec::with_capacity(options.frames);
     let mut refit_times = Vec::with_capacity(options.frames);
     for (frame, (time, positions)) in poses.iter().enumerate() {
+        // The tree of the part this time falls in: the last part that starts at or before it.
+        let part = parts.iter().rposition(|(start, _)| *start <= f64::from(*time)).unwrap_or(0);
+        let file = &mut parts[part].1;
         let slices: Vec<Option<&[[f32; 3]]>> = positions.iter().map(|p| p.as_deref()).collect();
         let start = Instant::now();
         let report = file.refit(RefitPositions::SourceVertices(&slices), options.threads)?;
@@ -175,8 +215,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let render_ms = start.elapsed().as_secs_f64() * 1e3;
         write_frame(&options.output.join(format!("frame-{frame:03}.png")), &pixels, options.width, options.height)?;
         let rebuild = if RebuildPolicy::DEFAULT.should_rebuild(&report) { ", rebuild" } else { "" };
+        let of_part = if options.parts > 1 { format!(" part {part}:") } else { String::new() };
         println!(
-            "frame {frame:3} (t = {time:.2} s): refit {refit_ms:.3} ms (cost ratio {:.3}, planned {:.3}{rebuild}), \
+            "frame {frame:3} (t = {time:.2} s):{of_part} refit {refit_ms:.3} ms (cost ratio {:.3}, planned {:.3}{rebuild}), \
              render {render_ms:.1} ms",
             report.cost_ratio(),
             report.planned_cost_ratio.unwrap_or(1.0)

@@ -1,6 +1,7 @@
 //! The skinned-animation example (`examples/skinned`) on the shared Fox: it converts the scene, refits it to
 //! each posed frame (positions per source vertex), and writes the frames and an animated PNG of them; the
-//! frames differ (the fox runs) and each shows it. SKIPPED without the shared scenes.
+//! frames differ (the fox runs) and each shows it; with a tree per part of the clip (`--parts`), switched as it
+//! plays, the same images. SKIPPED without the shared scenes.
 
 use std::process::Command;
 
@@ -41,4 +42,25 @@ fn the_skinned_example_refits_and_renders_each_frame_of_the_fox() {
     let (info, first) = decode(&dir.path().join("animation.png"));
     assert_eq!(info.animation_control().map(|a| a.num_frames), Some(4));
     assert_eq!(first, frames[0]);
+    // A tree per third of the clip, switched as it plays: each frame names its part, and the images are the
+    // same (the same triangles in every tree; ties decided by the format's rule, not by the tree).
+    let parts = tempfile::tempdir().unwrap();
+    let run = Command::new(&example)
+        .arg(&fox)
+        .arg(parts.path())
+        .args(["--clip", "2", "--frames", "4", "--parts", "3", "--width", "64", "--height", "48"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{}{stdout}", String::from_utf8_lossy(&run.stderr));
+    let used: Vec<&str> =
+        stdout.lines().filter_map(|l| l.split(": part ").nth(1)).filter_map(|l| l.split(':').next()).collect();
+    assert_eq!(used, ["0", "0", "1", "2"], "{stdout}");
+    for k in 0..3 {
+        let part = bvhc::loader::BvhFile::read(parts.path().join(format!("scene-part{k}.bvh"))).unwrap();
+        let metadata: serde_json::Value = serde_json::from_str(part.view().metadata_str().unwrap().unwrap()).unwrap();
+        assert!(metadata["build"]["animation"]["window"].is_object(), "part {k} records its window");
+    }
+    let switched: Vec<Vec<u8>> = (0..4).map(|k| decode(&parts.path().join(format!("frame-{k:03}.png"))).1).collect();
+    assert_eq!(switched, frames, "the same images with the parts' trees");
 }
