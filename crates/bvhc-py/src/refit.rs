@@ -130,22 +130,43 @@ fn posed(error: &bvhc::posed::PosedError, message: String) -> PyErr {
     }
 }
 
-/// `Scene.move_instances`: `instances` (uint32, `(k,)`) placed by `transforms` (`(k, 3, 4)` float32 rows).
+/// `Scene.refit_mesh`: mesh `mesh` of a two-level file refit to `positions` (`(n, 3, 3)`, its records in its own
+/// space), the other meshes untouched.
+pub fn refit_mesh(
+    py: Python<'_>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+    mesh: u32,
+    positions: PyReadonlyArrayDyn<'_, f32>,
+    threads: usize,
+) -> PyResult<()> {
+    let values = floats(&positions, "positions", &[3, 3])?;
+    let triangles = values.as_chunks::<3>().0.as_chunks::<3>().0;
+    with_view_mut(py, bytes, path, "refit_mesh", |view| view.refit_mesh(mesh, triangles, threads))?;
+    Ok(())
+}
+
+/// `Scene.move_instances` (`checksums`) and `Scene.move_instances_in_frame`: `instances` (uint32, `(k,)`) placed
+/// by `transforms` (`(k, 3, 4)` float32 rows); `what` names the call in errors.
 pub fn move_instances(
     py: Python<'_>,
     bytes: &Py<PyArray1<u8>>,
     path: &str,
-    instances: Vec<u32>,
-    transforms: PyReadonlyArrayDyn<'_, f32>,
+    (instances, transforms): (Vec<u32>, PyReadonlyArrayDyn<'_, f32>),
+    what: &str,
+    checksums: bool,
 ) -> PyResult<()> {
     let values = floats(&transforms, "transforms", &[3, 4])?;
     let maps = values.as_chunks::<4>().0.as_chunks::<3>().0;
     if maps.len() != instances.len() {
         let (given, count) = (maps.len(), instances.len());
-        return Err(InvalidInputError::new_err(format!("move_instances: {given} transforms for {count} instances")));
+        return Err(InvalidInputError::new_err(format!("{what}: {given} transforms for {count} instances")));
     }
     let moves: Vec<(u32, Affine3x4)> = instances.into_iter().zip(maps.iter().copied()).collect();
-    with_view_mut(py, bytes, path, "move_instances", |view| view.move_instances(&moves))
+    with_view_mut(py, bytes, path, what, |view| match checksums {
+        true => view.move_instances(&moves),
+        false => view.move_instances_in_frame(&moves),
+    })
 }
 
 /// `Scene.write`: the file written atomically to `output` with its stated costs recomputed.

@@ -346,6 +346,20 @@ impl Scene {
         crate::refit::pose(py, &self.bytes, &self.path, asset, pose, threads, max_cost_ratio)
     }
 
+    /// Refits mesh `mesh` of a two-level file (opened writable) to `positions` (`(n, 3, 3)` float32, its
+    /// records in its own space), its instances' boxes and the top trees; the other meshes are left untouched.
+    #[pyo3(signature = (mesh, positions, threads=None))]
+    fn refit_mesh(
+        &self,
+        py: Python<'_>,
+        mesh: u32,
+        positions: numpy::PyReadonlyArrayDyn<'_, f32>,
+        threads: Option<usize>,
+    ) -> PyResult<()> {
+        let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+        crate::refit::refit_mesh(py, &self.bytes, &self.path, mesh, positions, threads)
+    }
+
     /// Places `instances` (a two-level file's, opened writable) by `transforms` (`(k, 3, 4)` float32 rows).
     fn move_instances(
         &self,
@@ -353,7 +367,19 @@ impl Scene {
         instances: Vec<u32>,
         transforms: numpy::PyReadonlyArrayDyn<'_, f32>,
     ) -> PyResult<()> {
-        crate::refit::move_instances(py, &self.bytes, &self.path, instances, transforms)
+        let moves = (instances, transforms);
+        crate::refit::move_instances(py, &self.bytes, &self.path, moves, "move_instances", true)
+    }
+
+    /// `move_instances` without recomputing the checksums (`write` does), for a frame.
+    fn move_instances_in_frame(
+        &self,
+        py: Python<'_>,
+        instances: Vec<u32>,
+        transforms: numpy::PyReadonlyArrayDyn<'_, f32>,
+    ) -> PyResult<()> {
+        let moves = (instances, transforms);
+        crate::refit::move_instances(py, &self.bytes, &self.path, moves, "move_instances_in_frame", false)
     }
 
     /// The file with its top trees built anew over its instances as they stand, as a new byte array.

@@ -664,6 +664,42 @@ def test_pose_from_the_asset_equals_bvhc_refit(tmp_path):
         bvhc.open(bvh).pose(truck, "Wheels@0.6")
 
 
+def test_a_frame_refits_one_mesh_and_moves_instances_without_hashing(tmp_path):
+    # The milk truck's body flattened into mesh 0, its wheels moving instances of a shared mesh.
+    truck = scene("khr-cesium-milk-truck/CesiumMilkTruck.gltf")
+    bvh = tmp_path / "truck.bvh"
+    cli(truck, "--animation", "--instancing", "always", "-o", bvh, "-q")
+    whole, frame = bvhc.open(bvh, writable=True), bvhc.open(bvh, writable=True)
+    # Mesh 0 (the flattened body) lifted in its own space, and instance 1 (a wheel) carried forward.
+    records = np.array(whole.triangles)
+    meshes = whole.meshes
+    first, count = int(meshes["first_triangle"][0]), int(meshes["triangle_count"][0])
+    lifted = records.copy()
+    lifted[first : first + count, :, 1] += np.float32(0.25)
+    transform = np.array(whole.instances["object_to_world"][1:2], dtype=np.float32)
+    transform[0, 0, 3] += np.float32(0.5)
+    whole.refit(lifted, threads=2)
+    whole.move_instances([1], transform)
+    frame.refit_mesh(0, lifted[first : first + count], threads=2)
+    frame.move_instances_in_frame([1], transform)
+    with pytest.raises(bvhc.InvalidFileError):
+        frame.verify()  # the checksums wait for write
+    whole.write(tmp_path / "whole.bvh")
+    frame.write(tmp_path / "frame.bvh")
+    assert (tmp_path / "frame.bvh").read_bytes() == (tmp_path / "whole.bvh").read_bytes()
+    assert np.array_equal(np.array(frame.triangles), lifted)
+    with pytest.raises(bvhc.InvalidInputError, match=f"mesh {len(meshes)}: the file has {len(meshes)} meshes"):
+        frame.refit_mesh(len(meshes), lifted[first : first + count])
+    with pytest.raises(bvhc.InvalidInputError, match="mesh 0: 1 positions for"):
+        frame.refit_mesh(0, lifted[first : first + 1])
+    with pytest.raises(bvhc.InvalidInputError, match="move_instances_in_frame: 1 transforms for 2 instances"):
+        frame.move_instances_in_frame([0, 1], transform)
+    flat = tmp_path / "flat.bvh"
+    cli(TEAPOT, "--no-splits", "-o", flat, "-q")
+    with pytest.raises(bvhc.InvalidInputError, match="one-level file has no meshes"):
+        bvhc.open(flat, writable=True).refit_mesh(0, np.zeros((1, 3, 3), dtype=np.float32))
+
+
 def test_refit_refuses_what_does_not_fit(tmp_path):
     bvh = tmp_path / "t.bvh"
     cli(TEAPOT, "--no-splits", "-o", bvh, "-q")

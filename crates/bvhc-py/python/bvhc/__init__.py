@@ -276,6 +276,15 @@ class Scene:
         return self._typed("triangle_flags", "u1")
 
     @property
+    def meshes(self) -> Optional[np.ndarray]:
+        """A two-level file's meshes, or ``None``: each one's ``first_node``, ``node_count``, ``first_triangle``,
+        ``triangle_count`` (its records, in :attr:`triangles`), ``first_wide_node``, ``wide_node_count``,
+        ``first_packet``, ``packet_count`` (uint32)."""
+        fields = ["first_node", "node_count", "first_triangle", "triangle_count"]
+        fields += ["first_wide_node", "wide_node_count", "first_packet", "packet_count"]
+        return self._typed("meshes", np.dtype([(field, "<u4") for field in fields]))
+
+    @property
     def instances(self) -> Optional[np.ndarray]:
         """A two-level file's placements, or ``None``: ``object_to_world`` and ``world_to_object`` (3x4 float32
         rows ``[a, b, c, d]``: ``p' = a.p + d``), ``mesh_index``, ``node_index`` (glTF), ``gpu_instance_index``."""
@@ -478,6 +487,24 @@ class Scene:
         self._info = None
         indices = [int(i) for i in np.asarray(instances, dtype=np.int64).reshape(-1)]
         self._native.move_instances(indices, np.ascontiguousarray(transforms, dtype=np.float32))
+
+    def move_instances_in_frame(self, instances: Any, transforms: Any) -> None:
+        """:meth:`move_instances` without recomputing the checksums, for a frame of an animation: hashing a large
+        file's sections costs more than moving its instances. :meth:`verify` fails until :meth:`write` (which
+        recomputes them) or :meth:`move_instances`."""
+        self._info = None
+        indices = [int(i) for i in np.asarray(instances, dtype=np.int64).reshape(-1)]
+        self._native.move_instances_in_frame(indices, np.ascontiguousarray(transforms, dtype=np.float32))
+
+    def refit_mesh(self, mesh: int, positions: Any, *, threads: Optional[int] = None) -> None:
+        """Refit one mesh of a two-level file in place (opened ``writable=True``): ``positions`` (``(n, 3, 3)``
+        float32, C-contiguous, read in place) are its records in its own space and record order (``n`` its
+        triangle count), and its instances' world boxes and the top trees follow; every other mesh is left
+        untouched, so a frame that deforms one mesh beside large rigid ones costs that mesh's refit. Checksums are
+        left as :meth:`refit` leaves them. Raises :class:`InvalidInputError` for a one-level file, a mesh that
+        does not exist or positions that do not fit, with the file unchanged."""
+        self._info = None
+        self._native.refit_mesh(int(mesh), np.ascontiguousarray(positions, dtype=np.float32), threads)
 
     @property
     def top_tree_cost(self) -> Optional[float]:
