@@ -166,13 +166,14 @@ fn main() {
             let uniform = rays::uniform_rays(&fresh.view().nodes()[0], 200_000, 11);
             // The part the time falls in; at a boundary between two parts, the costlier of their trees (one is in
             // use just before the switch, the other just after).
-            let scaled = at * part_count as f64;
-            let candidates: Vec<usize> = if part_count == 0 {
-                Vec::new()
-            } else if scaled.fract() == 0.0 && scaled > 0.0 && (scaled as usize) < part_count {
-                vec![scaled as usize - 1, scaled as usize]
-            } else {
-                vec![(scaled as usize).min(part_count - 1)]
+            // (In whole steps: time j lies in part j * N / steps, on a boundary when that divides exactly.)
+            let (part, remainder) = (j * part_count / steps, j * part_count % steps);
+            let candidates: Vec<usize> = match part {
+                _ if part_count == 0 => Vec::new(),
+                0 => vec![0],
+                _ if part == part_count => vec![part_count - 1],
+                _ if remainder == 0 => vec![part - 1, part],
+                _ => vec![part],
             };
             let part = candidates
                 .iter()

@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "../../crates/bvhc-capi/include/bvhc.h"
+#include "test_io.h"
 
 _Static_assert(sizeof(void *) != 8 || sizeof(bvhc_candidate) == 56, "bvhc_candidate as Rust lays it out");
 _Static_assert(sizeof(void *) != 8 || sizeof(bvhc_sections) == 56, "bvhc_sections as Rust lays it out");
@@ -42,12 +43,6 @@ static int source_fields_agree(const counts *c, const bvhc_candidate *candidate)
     for (int k = 0; k < 3; k++)
         if (candidate->source_vertices[k] != (vertices ? vertices[k] : BVHC_NO_INDEX)) return 0;
     return 1;
-}
-
-static unsigned bits(float f) {
-    unsigned u;
-    memcpy(&u, &f, 4);
-    return u;
 }
 
 static int accepts(void *user_data, const bvhc_candidate *candidate) {

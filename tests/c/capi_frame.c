@@ -10,24 +10,7 @@
 #include <string.h>
 
 #include "../../crates/bvhc-capi/include/bvhc.h"
-
-static void *read_all(const char *path, size_t *len) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    *len = (size_t)ftell(f);
-    rewind(f);
-    void *bytes = malloc(*len + 1);
-    if (!bytes || fread(bytes, 1, *len, f) != *len) return NULL;
-    fclose(f);
-    return bytes;
-}
-
-static unsigned bits(float f) {
-    unsigned u;
-    memcpy(&u, &f, 4);
-    return u;
-}
+#include "test_io.h"
 
 int main(int argc, char **argv) {
     if (argc < 7) return 100;
@@ -63,13 +46,7 @@ int main(int argc, char **argv) {
         return 111;
     }
     printf("verify %s\n", bvhc_verify(two) == BVHC_OK ? "passes" : "fails");
-    for (size_t i = 0; i < ray_count; i++) {
-        bvhc_hit hit;
-        if (bvhc_closest_hit(two, &rays[i], &hit) == 1)
-            printf("hit %08x %u %d\n", bits(hit.t), hit.triangle_index, (int)hit.instance_index);
-        else
-            printf("miss\n");
-    }
+    print_closest_hits(two, rays, ray_count);
     if (bvhc_write(two, argv[5]) != BVHC_OK) {
         fprintf(stderr, "write: %s\n", bvhc_last_error_message());
         return 112;

@@ -11,34 +11,7 @@
 #include <string.h>
 
 #include "../../crates/bvhc-capi/include/bvhc.h"
-
-static void *read_all(const char *path, size_t *len) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    *len = (size_t)ftell(f);
-    rewind(f);
-    void *bytes = malloc(*len + 1);
-    if (!bytes || fread(bytes, 1, *len, f) != *len) return NULL;
-    fclose(f);
-    return bytes;
-}
-
-static unsigned bits(float f) {
-    unsigned u;
-    memcpy(&u, &f, 4);
-    return u;
-}
-
-static void trace(const bvhc_file *file, const bvhc_ray *rays, size_t count) {
-    for (size_t i = 0; i < count; i++) {
-        bvhc_hit hit;
-        if (bvhc_closest_hit(file, &rays[i], &hit) == 1)
-            printf("hit %08x %u %d\n", bits(hit.t), hit.triangle_index, (int)hit.instance_index);
-        else
-            printf("miss\n");
-    }
-}
+#include "test_io.h"
 
 int main(int argc, char **argv) {
     if (argc < 7) return 100;
@@ -78,7 +51,7 @@ int main(int argc, char **argv) {
     if (bvhc_refit_source_vertices(one, keep, counts, 2, 1, NULL) != BVHC_ERROR_ARGUMENT) return 110;
     printf("refused: %s\n", bvhc_last_error_message());
     if (bvhc_verify(one) == BVHC_OK) return 111; /* the stated costs describe the converted pose */
-    trace(one, rays, ray_count);
+    print_closest_hits(one, rays, ray_count);
     if (bvhc_write(one, argv[4]) != BVHC_OK) {
         fprintf(stderr, "write: %s\n", bvhc_last_error_message());
         return 112;
@@ -92,7 +65,7 @@ int main(int argc, char **argv) {
         return 114;
     }
     if (bvhc_verify(two) != BVHC_OK) return 115;
-    trace(two, rays, ray_count);
+    print_closest_hits(two, rays, ray_count);
     /* The top trees built anew over the moved instances: their cost before and after, then the same rays. */
     double before, after;
     if (bvhc_top_tree_cost(one, &before) != BVHC_ERROR_NOT_IN_FILE) return 116;
@@ -100,7 +73,7 @@ int main(int argc, char **argv) {
     if (bvhc_top_tree_cost(two, &before) != BVHC_OK || bvhc_rebuild_top_trees(two) != BVHC_OK) return 118;
     if (bvhc_top_tree_cost(two, &after) != BVHC_OK || bvhc_verify(two) != BVHC_OK) return 119;
     printf("top %.17g %.17g\n", before, after);
-    trace(two, rays, ray_count);
+    print_closest_hits(two, rays, ray_count);
     bvhc_close(one);
     bvhc_close(two);
     free(positions);

@@ -11,12 +11,7 @@
 #include <string.h>
 
 #include "../../crates/bvhc-capi/include/bvhc.h"
-
-static unsigned bits(float f) {
-    unsigned u;
-    memcpy(&u, &f, 4);
-    return u;
-}
+#include "test_io.h"
 
 static int failed(const char *what) {
     fprintf(stderr, "check failed: %s (last message: %s)\n", what, bvhc_last_error_message());

@@ -7,12 +7,7 @@
 #include <string.h>
 
 #include "../../crates/bvhc-capi/include/bvhc.h"
-
-static unsigned bits(float f) {
-    unsigned u;
-    memcpy(&u, &f, 4);
-    return u;
-}
+#include "test_io.h"
 
 int main(int argc, char **argv) {
     printf("sizeof_ray %zu\nsizeof_hit %zu\nsizeof_source_corners %zu\n", sizeof(bvhc_ray), sizeof(bvhc_hit),
