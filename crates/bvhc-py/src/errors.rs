@@ -68,3 +68,12 @@ pub fn loader(error: &bvhc::loader::Error, message: String) -> PyErr {
         _ => InvalidFileError::new_err(message),
     }
 }
+
+/// The exception for an asset whose positions cannot be given to a file, with `message`: an unreadable asset is
+/// an `IoError`, the rest (a broken asset, another topology, a file without ids) `InvalidInputError`.
+pub fn posed(error: &bvhc::posed::PosedError, message: String) -> PyErr {
+    match error {
+        bvhc::posed::PosedError::Import(e) if e.kind == ErrorKind::Unreadable => IoError::new_err(message),
+        _ => InvalidInputError::new_err(message),
+    }
+}

@@ -9,7 +9,7 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods}
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::errors::{InvalidInputError, loader};
+use crate::errors::{InvalidInputError, loader, posed};
 
 /// The scene's bytes borrowed writable, opened; `what` names the call in errors.
 fn with_view_mut<R: Send>(
@@ -117,17 +117,6 @@ pub fn pose<'py>(
     let dict = report_dict(py, &report, max_cost_ratio)?;
     dict.set_item("instances_placed", placed.instances.len())?;
     Ok(dict)
-}
-
-/// The exception for an asset whose positions cannot be given to a file: an unreadable asset is an `IoError`,
-/// the rest (a broken asset, another topology, a file without ids) `InvalidInputError`.
-fn posed(error: &bvhc::posed::PosedError, message: String) -> PyErr {
-    match error {
-        bvhc::posed::PosedError::Import(e) if e.kind == bvhc::import::ErrorKind::Unreadable => {
-            crate::errors::IoError::new_err(message)
-        }
-        _ => InvalidInputError::new_err(message),
-    }
 }
 
 /// `Scene.refit_mesh`: mesh `mesh` of a two-level file refit to `positions` (`(n, 3, 3)`, its records in its own
