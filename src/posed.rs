@@ -50,6 +50,9 @@ pub struct PlacedPose {
     /// A two-level file's instances that a glTF node places, each with the node's transform in the pose, in
     /// instance order (empty for a one-level file; the flattened mesh's identity instance is not among them).
     pub instances: Vec<(u32, Affine3x4)>,
+    /// Every file the asset's import read, the asset first (a glTF's buffers after it): what a refit must not
+    /// write over.
+    pub files_read: Vec<std::path::PathBuf>,
 }
 
 impl PlacedPose {
@@ -163,6 +166,7 @@ pub fn placed_pose(
         ..ImportOptions::default()
     };
     let imported = import(asset, &options).map_err(PosedError::Import)?;
+    let files_read = imported.files_read;
     let soup = imported.soup;
     same_ranges_as_file(ranges, &soup.sources)?;
     let id_count = ranges.last().map_or(0, |r| r.first_source_triangle as usize + r.source_triangle_count as usize);
@@ -194,7 +198,7 @@ pub fn placed_pose(
         None => Vec::new(),
         Some(sections) => instance_transforms(&sections, &imported.instanced)?,
     };
-    Ok(PlacedPose { positions, instances })
+    Ok(PlacedPose { positions, instances, files_read })
 }
 
 /// The transform in the pose of each of the file's instances that a glTF node places (`instanced`: the asset's

@@ -75,7 +75,7 @@ pub struct RefitArgs {
     /// default pose: a pipeline refits the converted file to each pose of the clip it needs.
     #[arg(long, value_name = "CLIP@SECONDS")]
     pub pose: Option<bvhc::import::PoseSelector>,
-    /// The refit .bvh file to write (atomically; may be FILE itself).
+    /// The refit .bvh file to write (atomically; may be FILE itself, never MESH or a buffer it reads).
     #[arg(short, long, value_name = "OUTPUT.bvh")]
     pub output: PathBuf,
     /// Say that converting anew would pay once the refit tree's cost exceeds the converted one's by this factor
@@ -168,7 +168,7 @@ pub struct OptionArgs {
     /// Choose the tree for the scene's animation: sample poses across these clips (comma-separated indices or
     /// names; every clip when none is given) and keep the tree, stored in the default pose, whose cost averaged
     /// over the poses after a refit is lowest. Flattens the scene and makes no split references.
-    #[arg(long, value_name = "CLIPS", num_args = 0..=1, default_missing_value = "", help_heading = "Animation")]
+    #[arg(long, value_name = "CLIPS", num_args = 0..=1, default_missing_value = "", value_parser = parse_animation_clips, help_heading = "Animation")]
     pub animation: Option<String>,
     /// Poses sampled in each clip with --animation, at the middles of equal parts of its span [default: 8].
     #[arg(long, value_name = "N", requires = "animation", help_heading = "Animation")]
@@ -345,6 +345,13 @@ fn parse_seconds(text: &str) -> Result<std::time::Duration, String> {
         return Err(format!("'{text}': expected seconds from 0 to {MAX_SECONDS} (a year)"));
     }
     Ok(std::time::Duration::from_secs_f64(seconds))
+}
+
+/// `--animation`'s list, checked when the command line is read (an empty name is a usage error) and kept as
+/// written (the conversion's options parse it again).
+fn parse_animation_clips(text: &str) -> Result<String, String> {
+    bvhc::animation::Animation::parse_clips(text)?;
+    Ok(text.to_string())
 }
 
 fn parse_split_budget(text: &str) -> Result<f64, String> {

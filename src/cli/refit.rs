@@ -16,9 +16,10 @@ use super::{Exit, fail, loader_exit};
 
 /// Runs the refit; prints a summary (or JSON) on stdout unless `--quiet`.
 pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
-    if !(args.max_cost_ratio >= 1.0 && args.max_cost_ratio.is_finite()) {
-        return fail(Exit::Usage, format!("--max-cost-ratio {}: a finite ratio of at least 1", args.max_cost_ratio));
-    }
+    let policy = match RebuildPolicy::new(args.max_cost_ratio) {
+        Ok(policy) => policy,
+        Err(why) => return fail(Exit::Usage, format!("--{}", why.replace('_', "-"))),
+    };
     let file = match read_verified(&args.file) {
         Ok(file) => file,
         Err(exit) => return exit,
@@ -33,6 +34,10 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
             return fail(Exit::InvalidInput, format!("{}: {error}", args.positions.display()));
         }
     };
+    // The output may be FILE itself (a refit in place), never the asset or a buffer it read.
+    if let Err(error) = bvhc::convert::files::refuse_output_among(&args.output, &pose.files_read) {
+        return fail(Exit::Io, error);
+    }
     let threads = threads.map_or_else(|| std::thread::available_parallelism().map_or(1, usize::from), usize::from);
     let mut refit = file;
     let start = Instant::now();
@@ -48,7 +53,7 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
     if let Err(error) = bvhc::loader::write::write_atomic(&args.output, shipped.as_bytes()) {
         return fail(Exit::Io, error);
     }
-    let rebuild = RebuildPolicy { max_cost_ratio: args.max_cost_ratio }.should_rebuild(&report);
+    let rebuild = policy.should_rebuild(&report);
     let mut out = String::new();
     if args.json {
         let json = serde_json::json!({

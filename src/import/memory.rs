@@ -54,8 +54,15 @@ impl MemoryLimit {
 
     /// Refuses `triangles` placed triangles whose conversion needs more than the budget at `bytes_per_triangle`.
     pub fn check(self, triangles: u64, bytes_per_triangle: u64) -> Result<(), String> {
+        self.check_with(triangles, bytes_per_triangle, 0)
+    }
+
+    /// [`MemoryLimit::check`] for a conversion whose import also holds `decoded_bytes` of decoded input (a glTF's
+    /// accessors: a file can declare many vertices for few triangles).
+    pub fn check_with(self, triangles: u64, bytes_per_triangle: u64, decoded_bytes: u64) -> Result<(), String> {
         let Some(budget) = self.budget() else { return Ok(()) };
-        let needed = BASE_BYTES.saturating_add(triangles.saturating_mul(bytes_per_triangle));
+        let needed =
+            BASE_BYTES.saturating_add(triangles.saturating_mul(bytes_per_triangle)).saturating_add(decoded_bytes);
         if needed <= budget {
             return Ok(());
         }
@@ -63,8 +70,12 @@ impl MemoryLimit {
             MemoryLimit::Bytes(_) => "--max-memory allows",
             _ => "this process may use (available memory, address-space and cgroup limits)",
         };
+        let decoded = match decoded_bytes {
+            0 => String::new(),
+            bytes => format!(" + {} of decoded accessors", size(bytes)),
+        };
         Err(format!(
-            "{triangles} placed triangles need about {} to convert ({} + {bytes_per_triangle} bytes a triangle), \
+            "{triangles} placed triangles need about {} to convert ({} + {bytes_per_triangle} bytes a triangle{decoded}), \
              more than the {} {source} (raise the budget with --max-memory, e.g. --max-memory {})",
             size(needed),
             size(BASE_BYTES),

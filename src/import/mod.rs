@@ -269,8 +269,7 @@ pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportErro
 pub fn animation_clips(path: &Path, options: &ImportOptions) -> Result<Vec<ClipSpan>, ImportError> {
     let error =
         |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let Some((SceneFormat::Gltf | SceneFormat::Glb, gzipped)) = SceneFormat::from_file_name(&name) else {
+    let Some((SceneFormat::Gltf | SceneFormat::Glb, gzipped)) = input_format(path).map_err(error)? else {
         return Err(error(Located::new(
             "animations",
             "only a glTF file has animation clips (.gltf or .glb)".to_string(),
@@ -278,6 +277,19 @@ pub fn animation_clips(path: &Path, options: &ImportOptions) -> Result<Vec<ClipS
     };
     let bytes = limits::read_regular_file(path, gzipped, options.limits.max_input_bytes).map_err(error)?;
     gltf::clips(path, &bytes, options).map_err(error)
+}
+
+/// The format of the input at `path` from its file name (`None`: not a scene extension), after checking that
+/// it is a file that can be read at all: a missing input, or one that is a directory, is an unreadable input
+/// whatever its name says (exit 3 on the command line), not an unsupported file type.
+fn input_format(path: &Path) -> Result<Option<(SceneFormat, bool)>, Located> {
+    let metadata = std::fs::metadata(path)
+        .map_err(|e| Located::of_kind(ErrorKind::Unreadable, "file", format!("cannot read: {e}")))?;
+    if metadata.is_dir() {
+        return Err(Located::of_kind(ErrorKind::Unreadable, "file", "cannot read: a directory".to_string()));
+    }
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    Ok(SceneFormat::from_file_name(&name))
 }
 
 /// Room the parsers need beyond the file's bytes before they start (checked by a probe, see [`import_for_peak`]).
@@ -293,8 +305,7 @@ pub fn import_for_peak(
 ) -> Result<Import, ImportError> {
     let error =
         |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let (format, gzipped) = SceneFormat::from_file_name(&name).ok_or_else(|| {
+    let (format, gzipped) = input_format(path).map_err(error)?.ok_or_else(|| {
         error(Located::new(
             "file name",
             "unsupported file type (expected .gltf, .glb, .obj, .ply, .obj.gz or .ply.gz)".to_string(),

@@ -164,6 +164,12 @@ impl SoupBuilder {
         self.memory.check(triangles, self.peak_bytes_per_triangle)
     }
 
+    /// [`SoupBuilder::check_memory`] for an import that also holds `decoded_bytes` of decoded input (a glTF's
+    /// accessors, kept while its meshes are placed).
+    pub fn check_memory_with(&self, triangles: u64, decoded_bytes: u64) -> Result<(), String> {
+        self.memory.check_with(triangles, self.peak_bytes_per_triangle, decoded_bytes)
+    }
+
     /// Adds one primitive instance. Fails when the scene outgrows the triangle budget or u32 ids or indices,
     /// or memory for it cannot be had; the budget is checked before anything is allocated.
     pub fn add<S, P>(&mut self, primitive: PrimitiveInstance<'_, S, P>) -> Result<(), (ErrorKind, String)>

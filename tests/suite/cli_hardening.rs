@@ -86,10 +86,17 @@ fn unreadable_inputs_are_exit_3() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("x.bvh");
     std::fs::create_dir(dir.path().join("folder.obj")).unwrap();
-    for input in [dir.path().join("missing.obj"), dir.path().join("folder.obj")] {
+    std::fs::create_dir(dir.path().join("some folder")).unwrap();
+    for input in [dir.path().join("missing.obj"), dir.path().join("missing.xyz")] {
         let run = bvhc(&[&input, &"-o", &output]);
         assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
         assert!(stderr(&run).contains("cannot read"), "{}", stderr(&run));
+    }
+    // A folder is unreadable whatever its name: with or without a scene extension, named a directory.
+    for input in [dir.path().join("folder.obj"), dir.path().join("some folder")] {
+        let run = bvhc(&[&input, &"-o", &output]);
+        assert_eq!(run.status.code(), Some(3), "{}", stderr(&run));
+        assert!(stderr(&run).contains("cannot read: a directory"), "{}", stderr(&run));
     }
     assert!(!output.exists());
 }
@@ -219,6 +226,9 @@ fn bad_option_values_are_usage_errors() {
         ["--time-budget", "1e300"],
         ["--threads", "100000"],
         ["--threads", "0"],
+        ["--animation=,", ""],
+        ["--animation=0,", ""],
+        ["--animation=,0", ""],
     ] {
         let args: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![&scene, &"-o", &output, &bad[0], &bad[1]];
         let args: Vec<&dyn AsRef<std::ffi::OsStr>> = args.into_iter().filter(|a| !a.as_ref().is_empty()).collect();
@@ -227,6 +237,9 @@ fn bad_option_values_are_usage_errors() {
         assert!(stderr(&run).contains("invalid value"), "{bad:?}: {}", stderr(&run));
     }
     assert!(!output.exists());
+    let run = bvhc(&[&"options", &"--animation", &","]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("an empty clip name"), "{}", stderr(&run));
 }
 
 #[test]

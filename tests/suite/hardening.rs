@@ -35,13 +35,22 @@ fn hostile_declared_counts_are_refused_before_allocating() {
         "{error}"
     );
     assert_eq!(error.location, "node 0");
-    // Three accessors of 44.7M zero vertices each: the decoded-values budget is a total, not per accessor.
+    // Three accessors of 44.7M zero vertices each (no bufferView): the values of such accessors are held to an
+    // eighth of the decoded-values budget, summed over every accessor the scene reads, before any is decoded.
     let error = import_error(&repro("zero-accessors-3.gltf"), &with_limits(memory_unlimited.clone()));
     assert_eq!(error.kind, ErrorKind::Limit);
-    assert!(error.message.contains("--max-decoded-values") && error.location.contains("mesh 1"), "{error}");
-    let small = ImportLimits { max_decoded_values: 1_000_000, ..memory_unlimited };
+    assert!(error.message.contains("--max-decoded-values") && error.location == "accessor 0", "{error}");
+    assert!(error.message.contains("exceed the import limit of 16777216"), "{error}");
+    let small = ImportLimits { max_decoded_values: 1_000_000, ..memory_unlimited.clone() };
     let error = import_error(&repro("zero-accessors-1.gltf"), &with_limits(small));
     assert!(error.message.contains("exceed the import limit of 1000000"), "{error}");
+    // With room for one of them, the second crosses the limit: a total over the accessors the scene reads.
+    let roomy = ImportLimits { max_decoded_values: 1 << 30, ..memory_unlimited };
+    let error = import_error(&repro("zero-accessors-3.gltf"), &with_limits(roomy));
+    assert!(
+        error.message.contains("exceed the import limit of 134217728") && error.location == "accessor 1",
+        "{error}"
+    );
     // The triangle budget counts placed triangles, before degenerate ones are dropped.
     let few = ImportLimits { max_triangles: 100, ..Default::default() };
     let error =

@@ -85,7 +85,7 @@ fn edits() -> impl Strategy<Value = Vec<(prop::sample::Index, u8)>> {
 }
 
 /// Replaces the `n`-th number of a JSON tree (document order) by `replacement`; returns how many it passed.
-fn replace_number(value: &mut serde_json::Value, n: usize, replacement: &serde_json::Value) -> usize {
+pub(crate) fn replace_number(value: &mut serde_json::Value, n: usize, replacement: &serde_json::Value) -> usize {
     match value {
         serde_json::Value::Number(_) => {
             if n == 0 {
@@ -104,7 +104,7 @@ fn replace_number(value: &mut serde_json::Value, n: usize, replacement: &serde_j
 }
 
 /// Numbers that probe bounds: zero, small, boundary and huge values, negative and fractional ones.
-fn probe_numbers() -> impl Strategy<Value = serde_json::Value> {
+pub(crate) fn probe_numbers() -> impl Strategy<Value = serde_json::Value> {
     prop_oneof![
         (0i64..64).prop_map(serde_json::Value::from),
         Just(serde_json::Value::from(-1)),

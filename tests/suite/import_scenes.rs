@@ -76,6 +76,16 @@ fn every_shared_scene_imports_with_its_readme_counts() {
     for row in &rows {
         let path = dir.join(&row.file);
         let result = import(Path::new(&path), &ImportOptions::default());
+        // OpenUSD stages are listed for the USD importer still to come (issue 61); until then they are refused
+        // as a file type bvhc does not read, which is what a user gets.
+        let usd = [".usd", ".usda", ".usdc", ".usdz"].iter().any(|e| row.file.ends_with(e));
+        if usd {
+            match &result {
+                Err(error) if error.to_string().contains("unsupported file type") => {}
+                other => failures.push(format!("{}: a USD stage gave {:?}", row.file, other.as_ref().map(|_| ()))),
+            }
+            continue;
+        }
         match (&result, row.draco) {
             (Err(error), true) => {
                 if !error.to_string().contains("Draco") {

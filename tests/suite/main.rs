@@ -1,6 +1,8 @@
 //! The integration test suite: one binary, one module per subject.
 
 mod animation;
+mod animation_hostile;
+mod animation_mutation;
 mod animation_instances;
 mod box_test;
 mod c_header;

@@ -250,7 +250,7 @@ pub fn convert(
     let conversion =
         Conversion::new(&src, &dst).preset(self::preset(preset)?).overrides(overrides(options)?).force(force);
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.unwrap_or(0))
+        .num_threads(crate::tracing::threads_keyword(threads)?.unwrap_or(0))
         .build()
         .map_err(|e| crate::errors::InternalError::new_err(format!("cannot start threads: {e}")))?;
     let callback: Option<Py<PyAny>> = progress.map(Bound::unbind);

@@ -9,7 +9,7 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods}
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::errors::{InvalidInputError, loader, posed};
+use crate::errors::{InvalidInputError, OptionsError, loader, posed};
 
 /// The scene's bytes borrowed writable, opened; `what` names the call in errors.
 fn with_view_mut<R: Send>(
@@ -41,10 +41,15 @@ fn floats<'a>(array: &'a PyReadonlyArrayDyn<'_, f32>, name: &str, last: &[usize]
     array.as_slice().map_err(|_| InvalidInputError::new_err(format!("{name}: a C-contiguous float32 array")))
 }
 
+/// `max_cost_ratio` as a policy, refused as the command line refuses `--max-cost-ratio` (`OptionsError`).
+fn rebuild_policy(max_cost_ratio: f64) -> PyResult<RebuildPolicy> {
+    RebuildPolicy::new(max_cost_ratio).map_err(OptionsError::new_err)
+}
+
 /// The report as a dict: the four costs (`None` where the file states none), `cost_ratio`,
 /// `planned_cost_ratio` (a tree chosen for an animation: the largest ratio its sampled poses reach, else `None`)
-/// and `rebuild_recommended` by `max_cost_ratio` (times the planned ratio where there is one).
-fn report_dict<'py>(py: Python<'py>, report: &RefitReport, max_cost_ratio: f64) -> PyResult<Bound<'py, PyDict>> {
+/// and `rebuild_recommended` by `policy` (its ratio times the planned ratio where there is one).
+fn report_dict<'py>(py: Python<'py>, report: &RefitReport, policy: RebuildPolicy) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     dict.set_item("cost", report.cost)?;
     dict.set_item("file_cost", report.file_cost)?;
@@ -52,7 +57,7 @@ fn report_dict<'py>(py: Python<'py>, report: &RefitReport, max_cost_ratio: f64) 
     dict.set_item("file_wide_cost", report.file_wide_cost)?;
     dict.set_item("cost_ratio", report.cost_ratio())?;
     dict.set_item("planned_cost_ratio", report.planned_cost_ratio)?;
-    dict.set_item("rebuild_recommended", RebuildPolicy { max_cost_ratio }.should_rebuild(report))?;
+    dict.set_item("rebuild_recommended", policy.should_rebuild(report))?;
     Ok(dict)
 }
 
@@ -67,6 +72,7 @@ pub fn refit<'py>(
     threads: usize,
     max_cost_ratio: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let policy = rebuild_policy(max_cost_ratio)?;
     let report = match (&positions, &source_vertices) {
         (Some(positions), None) => {
             let values = floats(positions, "positions", &[3, 3])?;
@@ -83,15 +89,18 @@ pub fn refit<'py>(
                 view.refit(RefitPositions::SourceVertices(&slices), threads)
             })?
         }
-        _ => return Err(InvalidInputError::new_err("refit: give positions or source_vertices, not both")),
+        (None, None) => return Err(OptionsError::new_err("refit: give positions or source_vertices")),
+        (Some(_), Some(_)) => {
+            return Err(OptionsError::new_err("refit: give positions or source_vertices, not both"));
+        }
     };
-    report_dict(py, &report, max_cost_ratio)
+    report_dict(py, &report, policy)
 }
 
 /// `Scene.pose`: the scene's records and instances placed as `asset` places them in its default pose or at
 /// `pose` (`CLIP@SECONDS`), imported as the conversion imported it (`bvhc::posed::placed_pose`), then applied in
 /// place (`PlacedPose::apply_in_place`: the deforming geometry refit, the moving instances placed); the refit's
-/// report with `instances_placed`.
+/// report with `instances_placed`, and the files the asset's import read.
 pub fn pose<'py>(
     py: Python<'py>,
     bytes: &Py<PyArray1<u8>>,
@@ -100,7 +109,8 @@ pub fn pose<'py>(
     pose: Option<String>,
     threads: usize,
     max_cost_ratio: f64,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<(Bound<'py, PyDict>, Vec<std::path::PathBuf>)> {
+    let policy = rebuild_policy(max_cost_ratio)?;
     let pose: Option<bvhc::import::PoseSelector> = pose
         .map(|text| text.parse().map_err(|why: String| InvalidInputError::new_err(format!("pose: {why}"))))
         .transpose()?;
@@ -114,9 +124,9 @@ pub fn pose<'py>(
         })?
     };
     let report = with_view_mut(py, bytes, path, "pose", |view| placed.apply_in_place(view, threads))?;
-    let dict = report_dict(py, &report, max_cost_ratio)?;
+    let dict = report_dict(py, &report, policy)?;
     dict.set_item("instances_placed", placed.instances.len())?;
-    Ok(dict)
+    Ok((dict, placed.files_read))
 }
 
 /// `Scene.refit_mesh`: mesh `mesh` of a two-level file refit to `positions` (`(n, 3, 3)`, its records in its own

@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 
-use crate::errors::{InvalidFileError, InvalidInputError, loader};
+use crate::errors::{InternalError, InvalidFileError, InvalidInputError, loader};
 use crate::filters::{FilterArgs, source_id_count};
 use crate::hits::{CHUNK, NONE};
 use crate::rays::{Bound1, RayArguments, RayArrays, Vectors};
@@ -22,6 +22,8 @@ use crate::tracing::{on_pool, pool};
 pub struct Scene {
     bytes: Py<PyArray1<u8>>,
     path: String,
+    /// The files `pose` has read (each asset and its buffers), which `write` refuses to overwrite.
+    posed_from: std::sync::Mutex<Vec<std::path::PathBuf>>,
 }
 
 /// Runs `f` on the file's view, the array borrowed read-only.
@@ -52,7 +54,7 @@ impl Scene {
             }
             Ok(())
         })?;
-        Ok(Scene { bytes, path })
+        Ok(Scene { bytes, path, posed_from: Default::default() })
     }
 
     /// The file's path as given.
@@ -324,7 +326,7 @@ impl Scene {
         threads: Option<usize>,
         max_cost_ratio: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+        let threads = crate::tracing::threads_or_all(threads)?;
         crate::refit::refit(py, &self.bytes, &self.path, positions, source_vertices, threads, max_cost_ratio)
     }
 
@@ -342,8 +344,11 @@ impl Scene {
         threads: Option<usize>,
         max_cost_ratio: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
-        crate::refit::pose(py, &self.bytes, &self.path, asset, pose, threads, max_cost_ratio)
+        let threads = crate::tracing::threads_or_all(threads)?;
+        let (report, files_read) =
+            crate::refit::pose(py, &self.bytes, &self.path, asset, pose, threads, max_cost_ratio)?;
+        self.posed_from.lock().map_err(|_| InternalError::new_err("a poisoned lock"))?.extend(files_read);
+        Ok(report)
     }
 
     /// Refits mesh `mesh` of a two-level file (opened writable) to `positions` (`(n, 3, 3)` float32, its
@@ -356,7 +361,7 @@ impl Scene {
         positions: numpy::PyReadonlyArrayDyn<'_, f32>,
         threads: Option<usize>,
     ) -> PyResult<()> {
-        let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+        let threads = crate::tracing::threads_or_all(threads)?;
         crate::refit::refit_mesh(py, &self.bytes, &self.path, mesh, positions, threads)
     }
 
@@ -395,6 +400,8 @@ impl Scene {
 
     /// Writes the file to `output` atomically, its stated costs recomputed (so a refit file verifies).
     fn write(&self, py: Python<'_>, output: std::path::PathBuf) -> PyResult<()> {
+        let posed_from = self.posed_from.lock().map_err(|_| InternalError::new_err("a poisoned lock"))?.clone();
+        bvhc::convert::files::refuse_output_among(&output, &posed_from).map_err(crate::errors::conversion)?;
         crate::refit::write(py, &self.bytes, &self.path, output)
     }
 }

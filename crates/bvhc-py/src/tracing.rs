@@ -9,18 +9,34 @@ use bvhc::loader::{BatchRayError, BvhView, Crossings, Hit, Order, Ray, Tracer};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
-use crate::errors::InvalidInputError;
+use crate::errors::{InvalidInputError, OptionsError};
 use crate::filters::{FilterArgs, WithCallback};
 use crate::hits::{AllHitColumns, CHUNK, EMPTY_RAY, HitColumns, RayHits};
 use crate::rays::{RayArrays, Vectors};
 
-/// A pool of `threads` threads, or `None` for rayon's global pool (all cores).
+/// The most threads a call takes, as the command line's `--threads` (1 to 1024).
+const MAX_THREADS: usize = 1024;
+
+/// A `threads` keyword checked as the command line checks `--threads` (1 to 1024; `OptionsError`, a usage
+/// error, otherwise), `None` when not given.
+pub fn threads_keyword(threads: Option<usize>) -> PyResult<Option<usize>> {
+    match threads {
+        Some(n) if !(1..=MAX_THREADS).contains(&n) => {
+            Err(OptionsError::new_err(format!("threads {n}: expected 1 to {MAX_THREADS}, as --threads")))
+        }
+        other => Ok(other),
+    }
+}
+
+/// A `threads` keyword checked ([`threads_keyword`]), or all cores when not given.
+pub fn threads_or_all(threads: Option<usize>) -> PyResult<usize> {
+    Ok(threads_keyword(threads)?.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from)))
+}
+
+/// A pool of `threads` threads ([`threads_keyword`]), or `None` for rayon's global pool (all cores).
 pub fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
-    threads
+    threads_keyword(threads)?
         .map(|n| {
-            if n == 0 {
-                return Err(InvalidInputError::new_err("threads: expected at least 1"));
-            }
             rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
                 .build()

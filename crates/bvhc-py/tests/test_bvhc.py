@@ -719,7 +719,79 @@ def test_refit_refuses_what_does_not_fit(tmp_path):
             scene.refit(source_vertices=[np.full((3000, 3), np.inf, dtype=np.float32)])
         with pytest.raises(bvhc.InvalidInputError, match="one-level file has no instances"):
             scene.move_instances([0], np.zeros((1, 3, 4), dtype=np.float32))
+        # The command line's refusals: --max-cost-ratio below 1, --threads outside 1..1024, neither input.
+        with pytest.raises(bvhc.OptionsError, match="max_cost_ratio -1: a finite ratio of at least 1"):
+            scene.refit(records, max_cost_ratio=-1)
+        for bad in [0, 5000]:
+            with pytest.raises(bvhc.OptionsError, match=f"threads {bad}: expected 1 to 1024"):
+                scene.refit(records, threads=bad)
+            with pytest.raises(bvhc.OptionsError, match=f"threads {bad}"):
+                scene.pose(TEAPOT, threads=bad)
+        with pytest.raises(bvhc.OptionsError, match="give positions or source_vertices$"):
+            scene.refit()
+        with pytest.raises(bvhc.OptionsError, match="not both"):
+            scene.refit(records, source_vertices=[None])
         assert scene._native.data.tobytes() == bvh.read_bytes(), "a refused call changes nothing"
+    with pytest.raises(bvhc.OptionsError, match="threads 0"):
+        bvhc.convert(TEAPOT, tmp_path / "zero.bvh", threads=0)
+    # A scene posed from an asset never writes over it (nor over a buffer it read).
+    asset = tmp_path / "asset.obj"
+    asset.write_bytes(TEAPOT.read_bytes())
+    cli(asset, "--no-splits", "-o", tmp_path / "asset.bvh", "-q")
+    posed = bvhc.open(tmp_path / "asset.bvh", writable=True)
+    posed.pose(asset)
+    with pytest.raises(bvhc.IoError, match="the output is one of the inputs"):
+        posed.write(asset)
+    assert asset.read_bytes() == TEAPOT.read_bytes()
+
+
+def nan_keyframes_gltf(path):
+    """One triangle whose translation clip has keyframe times [NaN, 0.5, NaN] (a panic before bvhc 0.1's fix)."""
+    import base64
+    import struct
+
+    data = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<3f", float("nan"), 0.5, float("nan"))
+    data += struct.pack("<9f", *([0.0] * 9))
+    gltf = {
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": len(data), "uri": "data:;base64," + base64.b64encode(data).decode()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 12},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 36},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "SCALAR"},
+            {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC3"},
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}],
+        "scene": 0,
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}],
+                        "samplers": [{"input": 1, "output": 2}]}],
+    }
+    path.write_text(json.dumps(gltf))
+    return path
+
+
+def test_a_broken_clip_is_an_error_not_a_panic(tmp_path):
+    asset = nan_keyframes_gltf(tmp_path / "nan.gltf")
+    message = "animation 0 sampler 0 input accessor 1: keyframe time 0 is NaN"
+    with pytest.raises(bvhc.InvalidInputError, match=message):
+        bvhc.convert(asset, tmp_path / "posed.bvh", pose="0@0")
+    with pytest.raises(bvhc.InvalidInputError, match=message):
+        bvhc.convert(asset, tmp_path / "animated.bvh", animation=True)
+    # The default pose reads no keyframe: it converts; posing that file from the asset is refused the same way.
+    bvhc.convert(asset, tmp_path / "rest.bvh", splits=False)
+    scene = bvhc.open(tmp_path / "rest.bvh", writable=True)
+    try:
+        scene.pose(asset, "0@0")
+    except Exception as error:  # what a caller catches: an Exception, never a PanicException
+        assert isinstance(error, bvhc.InvalidInputError) and message in str(error), error
+    else:
+        raise AssertionError("posed from a clip with NaN keyframe times")
 
 
 def test_moved_instances_and_meshes_trace_where_they_stand(tmp_path):

@@ -29,10 +29,6 @@ impl Decoded {
     }
 }
 
-/// Largest number of values an accessor without a bufferView may declare (its elements are all zero, so the
-/// count is not bounded by any buffer's size).
-const MAX_VALUES_WITHOUT_BUFFER: usize = 1 << 27;
-
 /// Buffers loaded so far and accessors decoded so far, for one glTF file.
 pub(super) struct Buffers<'a> {
     root: &'a Root,
@@ -46,6 +42,9 @@ pub(super) struct Buffers<'a> {
     decoded_budget: Meter,
     max_input_bytes: u64,
     allow_outside: bool,
+    /// The most values an accessor without a bufferView may declare: its elements are zeros, so no buffer bounds
+    /// its count (an eighth of the decoded-values limit, as `plan.rs` holds their sum to).
+    max_zero_filled: u64,
 }
 
 impl<'a> Buffers<'a> {
@@ -61,6 +60,7 @@ impl<'a> Buffers<'a> {
             decoded_budget: Meter::new(options.limits.max_decoded_values, "accessor values", "--max-decoded-values"),
             max_input_bytes: options.limits.max_input_bytes,
             allow_outside: options.allow_buffers_outside_input_folder,
+            max_zero_filled: options.limits.max_decoded_values / 8,
         }
     }
 
@@ -177,8 +177,18 @@ impl<'a> Buffers<'a> {
                 self.read_view(view.value(), offset, count, &layout, true)?
             }
             None => {
-                let len = count.checked_mul(components).filter(|&n| n <= MAX_VALUES_WITHOUT_BUFFER);
-                vec![0.0; len.ok_or_else(|| format!("count {count} is too large for an accessor without bufferView"))?]
+                let len = count.checked_mul(components).filter(|&n| n as u64 <= self.max_zero_filled);
+                let len = len.ok_or_else(|| {
+                    Problem::limit(format!(
+                        "count {count} is too large for an accessor without bufferView (at most {} values, an eighth \
+                         of the decoded-values limit; raise it with --max-decoded-values)",
+                        self.max_zero_filled
+                    ))
+                })?;
+                let mut zeros = Vec::new();
+                zeros.try_reserve_exact(len).map_err(|_| Problem::limit(format!("out of memory for {len} values")))?;
+                zeros.resize(len, 0.0);
+                zeros
             }
         };
         if let Some(sparse) = &accessor.sparse {
@@ -227,7 +237,9 @@ impl<'a> Buffers<'a> {
             }
         }
         let data = &bytes[view_start as usize..view_end as usize];
-        let mut values = Vec::with_capacity(count * layout.components);
+        let mut values = Vec::new();
+        let len = count * layout.components;
+        values.try_reserve_exact(len).map_err(|_| Problem::limit(format!("out of memory for {len} values")))?;
         for i in 0..count {
             let start = offset as usize + i * stride as usize;
             for c in 0..layout.components {
@@ -323,7 +335,7 @@ impl Layout {
     }
 }
 
-fn components_of(kind: Type) -> usize {
+pub(super) fn components_of(kind: Type) -> usize {
     match kind {
         Type::Scalar => 1,
         Type::Vec2 => 2,

@@ -10,8 +10,8 @@ use gltf::json::Root;
 use gltf::json::animation::{Interpolation, Property};
 use gltf::json::validation::Checked;
 
-use super::buffers::Buffers;
-use super::pose::{Pose, node_trs, quaternion};
+use super::buffers::{Buffers, Decoded};
+use super::pose::{Pose, node_trs, unit_quaternion};
 use crate::import::Problem;
 
 /// Which clip a pose samples: by index in the file's `animations`, or by name.
@@ -59,12 +59,9 @@ pub(super) fn apply_clip(
         let Checked::Valid(interpolation) = sampler.interpolation else {
             return Err(at("invalid interpolation".into()));
         };
-        let times = buffers
-            .accessor(sampler.input.value())
-            .map_err(|e| e.prefixed(&format!("animation {clip} channel {c} input ")))?;
-        let outputs = buffers
-            .accessor(sampler.output.value())
-            .map_err(|e| e.prefixed(&format!("animation {clip} channel {c} output ")))?;
+        let s = channel.sampler.value();
+        let times = keyframe_times(buffers, clip, s, sampler.input.value())?;
+        let outputs = keyframe_values(buffers, clip, s, sampler.output.value())?;
         let width = match property {
             Property::Translation | Property::Scale => 3,
             Property::Rotation => 4,
@@ -81,8 +78,9 @@ pub(super) fn apply_clip(
                 outputs.values.len()
             )));
         }
-        let value =
-            sample(&times.values, &outputs.values, width, interpolation, property == Property::Rotation, seconds);
+        let rotation = property == Property::Rotation;
+        let value = sample(&times.values, &outputs.values, width, interpolation, rotation, seconds)
+            .map_err(|why| at(format!("sampler {s} output accessor {}: {why}", sampler.output.value())))?;
         let Some(value) = value else { continue };
         if property == Property::MorphTargetWeights {
             pose.weights[node] = Some(value);
@@ -91,7 +89,7 @@ pub(super) fn apply_clip(
         let entry = trs[node].get_or_insert_with(|| node_trs(json_node));
         match property {
             Property::Translation => entry.0 = DVec3::new(value[0], value[1], value[2]),
-            Property::Rotation => entry.1 = quaternion([value[0], value[1], value[2], value[3]]),
+            Property::Rotation => entry.1 = DQuat::from_array([value[0], value[1], value[2], value[3]]),
             _ => entry.2 = DVec3::new(value[0], value[1], value[2]),
         }
     }
@@ -104,7 +102,59 @@ pub(super) fn apply_clip(
     Ok(())
 }
 
-/// The sampler's value at `time` (clamped to its keyframes), `width` values, or `None` without keyframes.
+/// Sampler `sampler`'s keyframe times (its `input`, accessor `accessor`) of animation `clip`: finite and in
+/// order, as glTF 2.0 requires (section 3.11: strictly increasing; equal neighbours are let through, the later
+/// one winning), or an error naming the sampler, the accessor and the first time that breaks the rule.
+pub(super) fn keyframe_times(
+    buffers: &mut Buffers<'_>,
+    clip: usize,
+    sampler: usize,
+    accessor: usize,
+) -> Result<std::rc::Rc<Decoded>, Problem> {
+    let at =
+        |why: String| Problem::from(format!("animation {clip} sampler {sampler} input accessor {accessor}: {why}"));
+    let times =
+        buffers.accessor(accessor).map_err(|e| e.prefixed(&format!("animation {clip} sampler {sampler} input ")))?;
+    if times.components != 1 {
+        return Err(at(format!("{} components a keyframe time, not SCALAR", times.components)));
+    }
+    for (k, &time) in times.values.iter().enumerate() {
+        if !time.is_finite() {
+            return Err(at(format!("keyframe time {k} is {time}, not a finite number of seconds")));
+        }
+        if let Some(&previous) = k.checked_sub(1).and_then(|p| times.values.get(p))
+            && time < previous
+        {
+            return Err(at(format!("keyframe time {k} ({time} s) is before keyframe {}'s ({previous} s)", k - 1)));
+        }
+    }
+    Ok(times)
+}
+
+/// Sampler `sampler`'s keyframe values (its `output`, accessor `accessor`) of animation `clip`, every one finite,
+/// or an error naming the sampler, the accessor and the first value that is not.
+fn keyframe_values(
+    buffers: &mut Buffers<'_>,
+    clip: usize,
+    sampler: usize,
+    accessor: usize,
+) -> Result<std::rc::Rc<Decoded>, Problem> {
+    let values =
+        buffers.accessor(accessor).map_err(|e| e.prefixed(&format!("animation {clip} sampler {sampler} output ")))?;
+    if let Some(i) = values.values.iter().position(|v| !v.is_finite()) {
+        return Err(Problem::from(format!(
+            "animation {clip} sampler {sampler} output accessor {accessor}: value {i} (element {}, component {}) is {}, not finite",
+            i / values.components.max(1),
+            i % values.components.max(1),
+            values.values[i]
+        )));
+    }
+    Ok(values)
+}
+
+/// The sampler's value at `time` (clamped to its keyframes), `width` values, or `None` without keyframes; an
+/// error for a rotation keyframe of length 0, which names no rotation. The times are finite and in order
+/// ([`keyframe_times`]), the outputs finite.
 fn sample(
     times: &[f64],
     outputs: &[f64],
@@ -112,9 +162,9 @@ fn sample(
     interpolation: Interpolation,
     rotation: bool,
     time: f64,
-) -> Option<Vec<f64>> {
-    let (first, last) = (*times.first()?, *times.last()?);
-    let time = time.clamp(first.min(last), last.max(first));
+) -> Result<Option<Vec<f64>>, String> {
+    let (Some(&first), Some(&last)) = (times.first(), times.last()) else { return Ok(None) };
+    let time = time.max(first).min(last);
     // The last keyframe at or before the time, and the one after it (itself at the last keyframe).
     let previous = times.partition_point(|&t| t <= time).saturating_sub(1);
     let next = (previous + 1).min(times.len() - 1);
@@ -125,12 +175,14 @@ fn sample(
         let per_key = if interpolation == Interpolation::CubicSpline { 3 * width } else { width };
         &outputs[k * per_key + part * width..k * per_key + (part + 1) * width]
     };
+    let unit = |k: usize, part: usize| {
+        let v = key(k, part);
+        unit_quaternion([v[0], v[1], v[2], v[3]]).ok_or_else(|| format!("rotation keyframe {k} has length 0"))
+    };
     let value: Vec<f64> = match interpolation {
+        Interpolation::Step if rotation => unit(previous, 0)?.to_array().to_vec(),
         Interpolation::Step => key(previous, 0).to_vec(),
-        Interpolation::Linear if rotation => {
-            let q = |v: &[f64]| quaternion([v[0], v[1], v[2], v[3]]);
-            q(key(previous, 0)).slerp(q(key(next, 0)), s).to_array().to_vec()
-        }
+        Interpolation::Linear if rotation => unit(previous, 0)?.slerp(unit(next, 0)?, s).to_array().to_vec(),
         Interpolation::Linear => key(previous, 0).iter().zip(key(next, 0)).map(|(a, b)| a + (b - a) * s).collect(),
         Interpolation::CubicSpline => {
             // Keyframe k's parts: in-tangent 0, value 1, out-tangent 2.
@@ -146,7 +198,14 @@ fn sample(
                 .collect()
         }
     };
-    Some(if rotation { quaternion([value[0], value[1], value[2], value[3]]).to_array().to_vec() } else { value })
+    if !rotation {
+        return Ok(Some(value));
+    }
+    // A cubic spline's rotation is normalized after the blend (glTF 2.0, appendix C); one that blends to length 0
+    // names no rotation.
+    let blended = unit_quaternion([value[0], value[1], value[2], value[3]])
+        .ok_or_else(|| format!("the rotation between keyframes {previous} and {next} has length 0"))?;
+    Ok(Some(blended.to_array().to_vec()))
 }
 
 /// One animation clip of a glTF file: its index, name and the span of its keyframes.
@@ -170,11 +229,9 @@ pub(super) fn clip_spans(root: &Root, buffers: &mut Buffers<'_>) -> Result<Vec<C
     for (index, animation) in root.animations.iter().enumerate() {
         let (mut start, mut end) = (f64::INFINITY, f64::NEG_INFINITY);
         for (s, sampler) in animation.samplers.iter().enumerate() {
-            let times = buffers
-                .accessor(sampler.input.value())
-                .map_err(|e| e.prefixed(&format!("animation {index} sampler {s} input ")))?;
-            for &t in &times.values {
-                (start, end) = (start.min(t), end.max(t));
+            let times = keyframe_times(buffers, index, s, sampler.input.value())?;
+            if let (Some(&first), Some(&last)) = (times.values.first(), times.values.last()) {
+                (start, end) = (start.min(first), end.max(last));
             }
         }
         if !(start.is_finite() && end.is_finite()) {

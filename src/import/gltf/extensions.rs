@@ -5,7 +5,7 @@ use gltf::json::Root;
 
 use super::Located;
 use super::buffers::Buffers;
-use super::pose::quaternion;
+use super::pose::unit_quaternion;
 use crate::import::Problem;
 use crate::import::limits::Meter;
 
@@ -86,7 +86,7 @@ pub(super) fn instance_transforms(
         .find_map(|name| attributes.get(*name).and_then(|v| v.as_u64()))
         .and_then(|index| buffers.declared_count(index as usize));
     placements.take(declared.unwrap_or(1)).map_err(|e| Problem::limit(format!("EXT_mesh_gpu_instancing: {e}")))?;
-    let mut read = |name: &str, components: usize| -> Result<Option<Vec<f64>>, Problem> {
+    let mut read = |name: &str, components: usize| -> Result<Option<std::rc::Rc<super::buffers::Decoded>>, Problem> {
         let Some(value) = attributes.get(name) else { return Ok(None) };
         let index = value.as_u64().ok_or_else(|| format!("EXT_mesh_gpu_instancing {name} is not an accessor index"))?;
         let decoded =
@@ -98,14 +98,14 @@ pub(super) fn instance_transforms(
             )
             .into());
         }
-        Ok(Some(decoded.values.clone()))
+        Ok(Some(decoded))
     };
     let translation = read("TRANSLATION", 3)?;
     let rotation = read("ROTATION", 4)?;
     let scale = read("SCALE", 3)?;
     let counts: Vec<usize> = [(&translation, 3), (&rotation, 4), (&scale, 3)]
         .iter()
-        .filter_map(|(values, n)| values.as_ref().map(|v| v.len() / n))
+        .filter_map(|(values, n)| values.as_ref().map(|v| v.values.len() / n))
         .collect();
     let Some(&count) = counts.first() else {
         return Err("EXT_mesh_gpu_instancing has none of TRANSLATION, ROTATION, SCALE".to_string().into());
@@ -113,15 +113,24 @@ pub(super) fn instance_transforms(
     if counts.iter().any(|&c| c != count) {
         return Err(format!("EXT_mesh_gpu_instancing attributes have different counts {counts:?}").into());
     }
-    let transforms = (0..count)
-        .map(|i| {
-            let t = translation.as_ref().map_or(DVec3::ZERO, |v| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]));
-            let r = rotation
-                .as_ref()
-                .map_or(glam::DQuat::IDENTITY, |v| quaternion([v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3]]));
-            let s = scale.as_ref().map_or(DVec3::ONE, |v| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]));
-            DMat4::from_scale_rotation_translation(s, r, t)
-        })
-        .collect();
+    let vector = |values: &Option<std::rc::Rc<super::buffers::Decoded>>, i: usize, default: DVec3| {
+        values.as_ref().map_or(default, |v| DVec3::new(v.values[3 * i], v.values[3 * i + 1], v.values[3 * i + 2]))
+    };
+    let mut transforms = Vec::with_capacity(count);
+    for i in 0..count {
+        let r = match &rotation {
+            None => glam::DQuat::IDENTITY,
+            Some(v) => {
+                unit_quaternion([v.values[4 * i], v.values[4 * i + 1], v.values[4 * i + 2], v.values[4 * i + 3]])
+                    .ok_or_else(|| {
+                        format!(
+                            "EXT_mesh_gpu_instancing ROTATION: instance {i}'s rotation has length 0 or is not finite"
+                        )
+                    })?
+            }
+        };
+        let (t, s) = (vector(&translation, i, DVec3::ZERO), vector(&scale, i, DVec3::ONE));
+        transforms.push(DMat4::from_scale_rotation_translation(s, r, t));
+    }
     Ok(Some(transforms))
 }

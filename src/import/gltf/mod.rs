@@ -10,8 +10,10 @@
 mod buffers;
 mod clip;
 mod extensions;
+mod plan;
 mod pose;
 mod primitive;
+mod skin;
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -24,7 +26,8 @@ use bvhc_loader::{format::Affine3x4, format::InstanceRecord};
 
 use self::buffers::Buffers;
 pub use self::clip::{ClipSelector, ClipSpan};
-use self::pose::{Placing, Pose, posed_positions};
+use self::pose::Pose;
+use self::skin::{Placing, posed_positions};
 use super::instancing::{InstancedMesh, MeshPlacement, choose_instanced, stored_triangles};
 use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
 use super::{ErrorKind, ImportOptions, Instancing, Located, SceneSelector};
@@ -39,12 +42,15 @@ pub(super) fn read(
 ) -> Result<(Vec<PathBuf>, Vec<InstancedMesh>), Located> {
     let scene = options.scene.as_ref();
     let (root, bin) = parse(bytes)?;
+    pose::check_hierarchy(&root)?;
     let roots = scene_roots(&root, scene)?;
     builder.report.file_mesh_triangles = primitive::file_mesh_triangles(&root);
     // The triangles the scene will store, counted from the JSON before any accessor is decoded, against the
     // memory budget: a small file that places a large mesh many times (and does not instance it) is refused
     // here, in a moment.
-    let placements = mesh_placements(&root, &roots);
+    let reached = reached_nodes(&root, &roots);
+    check_placements(&root, &reached, options.limits.max_placements)?;
+    let placements = mesh_placements(&root, &reached);
     let triangles: Vec<u64> = root.meshes.iter().map(|mesh| primitive::mesh_triangles(&root, mesh)).collect();
     let clip =
         options.pose.as_ref().map(|p| clip::clip_index(&root, &p.clip)).transpose().map_err(|e| e.at("animations"))?;
@@ -71,8 +77,14 @@ pub(super) fn read(
             *flag = false;
         }
     }
+    // Every accessor the import will decode, summed and held to the limits before the first is read, and their
+    // decoded values counted in the memory estimate beside the triangles.
+    let decoded_values = plan::DecodePlan::of_scene(&root, &reached, &clip.into_iter().collect::<Vec<_>>())
+        .check(&root, options.limits.max_decoded_values)?;
     let stored = stored_triangles(&placements, &triangles, &instanced);
-    builder.check_memory(stored).map_err(|e| Located::of_kind(ErrorKind::Limit, "scene", e))?;
+    builder
+        .check_memory_with(stored, decoded_values.saturating_mul(plan::BYTES_PER_DECODED_VALUE))
+        .map_err(|e| Located::of_kind(ErrorKind::Limit, "scene", e))?;
     let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
     let mut pose = Pose::rest(&root);
     if let (Some(selector), Some(clip)) = (&options.pose, clip) {
@@ -111,6 +123,9 @@ fn parse(bytes: &[u8]) -> Result<(Root, Option<Vec<u8>>), Located> {
 /// Every animation clip of a `.gltf` or `.glb` file's bytes, with the span of its keyframes.
 pub(super) fn clips(path: &Path, bytes: &[u8], options: &ImportOptions) -> Result<Vec<ClipSpan>, Located> {
     let (root, bin) = parse(bytes)?;
+    pose::check_hierarchy(&root)?;
+    let every_clip: Vec<usize> = (0..root.animations.len()).collect();
+    plan::DecodePlan::of_clips(&root, &every_clip).check(&root, options.limits.max_decoded_values)?;
     let mut buffers = Buffers::new(&root, path, bin.as_deref(), options);
     clip::clip_spans(&root, &mut buffers).map_err(|e| e.at("animations"))
 }
@@ -148,22 +163,45 @@ fn scene_roots(root: &Root, selector: Option<&SceneSelector>) -> Result<Vec<usiz
     }
 }
 
-/// How many times the scene under `roots` places each mesh: each reachable node's mesh once, or its instances
-/// (`EXT_mesh_gpu_instancing`'s declared count), from declared counts only. Nodes reached twice or missing
-/// are skipped here; the walk reports them.
-fn mesh_placements(root: &Root, roots: &[usize]) -> Vec<u64> {
-    let mut visited = vec![false; root.nodes.len()];
+/// Per node: whether the scene's walk from `roots` reaches it (nodes reached twice, or missing, the walk
+/// reports).
+fn reached_nodes(root: &Root, roots: &[usize]) -> Vec<bool> {
+    let mut reached = vec![false; root.nodes.len()];
     let mut stack = roots.to_vec();
-    let mut placements = vec![0u64; root.meshes.len()];
     while let Some(index) = stack.pop() {
         let Some(node) = root.nodes.get(index) else { continue };
-        if std::mem::replace(&mut visited[index], true) {
+        if !std::mem::replace(&mut reached[index], true) {
+            stack.extend(node.children.iter().flatten().map(|c| c.value()));
+        }
+    }
+    reached
+}
+
+/// The mesh placements the reached nodes declare (a node with a mesh one, or its `EXT_mesh_gpu_instancing`
+/// instances), held to `max_placements` before anything is decoded, as the walk holds them (same message).
+fn check_placements(root: &Root, reached: &[bool], max_placements: u64) -> Result<(), Located> {
+    let mut meter = crate::import::limits::Meter::new(max_placements, "mesh placements", "--max-placements");
+    for (index, node) in root.nodes.iter().enumerate().filter(|&(i, _)| reached.get(i).copied().unwrap_or(false)) {
+        if node.mesh.is_none() {
             continue;
         }
+        let declared = extensions::declared_instances(root, node);
+        meter.take(declared.unwrap_or(1)).map_err(|e| {
+            let e = if declared.is_some() { format!("EXT_mesh_gpu_instancing: {e}") } else { e };
+            Located::of_kind(ErrorKind::Limit, &format!("node {index}"), e)
+        })?;
+    }
+    Ok(())
+}
+
+/// How many times the scene places each mesh: each node that `reached` flags places its mesh once, or its
+/// instances (`EXT_mesh_gpu_instancing`'s declared count), from declared counts only.
+fn mesh_placements(root: &Root, reached: &[bool]) -> Vec<u64> {
+    let mut placements = vec![0u64; root.meshes.len()];
+    for (node, _) in root.nodes.iter().zip(reached).filter(|(_, reached)| **reached) {
         if let Some(count) = node.mesh.and_then(|m| placements.get_mut(m.value())) {
             *count = count.saturating_add(extensions::declared_instances(root, node).unwrap_or(1));
         }
-        stack.extend(node.children.iter().flatten().map(|c| c.value()));
     }
     placements
 }
@@ -277,7 +315,7 @@ impl Walker<'_, '_> {
         let weights = self.pose.morph_weights(self.root, provenance_node, mesh_index);
         let skin =
             provenance_node.and_then(|n| self.root.nodes.get(n)).and_then(|n| n.skin).map(|s| (s.value(), self.pose));
-        let placing = Placing { weights: &weights, skin, world };
+        let placing = Placing { node, weights: &weights, skin, world };
         let mut world_positions: Vec<[f32; 3]> = Vec::new();
         for (p, json_primitive) in mesh.primitives.iter().enumerate() {
             let at = format!("mesh {mesh_index} primitive {p}");
@@ -286,22 +324,17 @@ impl Walker<'_, '_> {
             else {
                 continue;
             };
-            let (posed, skinned) =
-                posed_positions(self.root, self.buffers, json_primitive, &geometry.positions, &placing)
-                    .map_err(|e| e.at(&at))?;
+            let skinned = posed_positions(
+                self.root,
+                self.buffers,
+                json_primitive,
+                &geometry.positions,
+                &placing,
+                &mut world_positions,
+            )
+            .map_err(|e| e.at(&at))?;
             // A skinned primitive's winding is its own (its node's transform is ignored).
             let flip_winding = !skinned && world.determinant() < 0.0;
-            world_positions.clear();
-            for (i, w) in posed.iter().enumerate() {
-                let w = w.as_vec3().to_array();
-                if !w.iter().all(|c| c.is_finite()) {
-                    return Err(Located::new(
-                        &at,
-                        format!("vertex {i}: world position {w:?} is not finite (node {node})"),
-                    ));
-                }
-                world_positions.push(w);
-            }
             let provenance = Provenance {
                 node_index: provenance_node.map_or(NO_INDEX, |n| n as u32),
                 mesh_index: mesh_index as u32,

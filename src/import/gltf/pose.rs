@@ -1,20 +1,14 @@
 //! A glTF scene posed as glTF 2.0 says (sections 3.7.3 and 3.8): every node's local transform (its `matrix`, or
 //! its translation, rotation and scale, the latter three possibly set by an animation clip sampled at a time,
-//! `clip.rs`) and morph weights, world matrices down the hierarchy, and a primitive's positions as a viewer shows
-//! them: first morphed (`POSITION + sum_k weight_k * target_k.POSITION`, the weights the node's, else the mesh's,
-//! else zero), then, for a node with a skin, skinned by linear blending over every influence set
-//! (`JOINTS_n`, `WEIGHTS_n`): `sum_i w_i * (world(joint_i) * inverseBind_i) * p`, where the skinned mesh node's
-//! own transform is ignored as the spec requires; other nodes' primitives are placed by the node's world matrix.
-//! All in f64; accessors through [`Buffers`], so sparse and quantized (normalized integer) ones decode too.
+//! `clip.rs`), its morph weights, and world matrices down the hierarchy, in f64. How a primitive's vertices
+//! follow a pose (morph targets, skins) is `skin.rs`.
 
 use glam::{DMat4, DQuat, DVec3};
 use gltf::json::Root;
 use gltf::json::animation::Property;
-use gltf::json::mesh::Semantic;
 use gltf::json::validation::Checked;
 
-use super::buffers::{Buffers, Decoded};
-use crate::import::Problem;
+use crate::import::Located;
 
 /// Every node's local transform, morph weights and world matrix at one pose.
 pub(super) struct Pose {
@@ -75,6 +69,47 @@ impl Pose {
         };
         of_node.or_else(of_mesh).unwrap_or_default()
     }
+}
+
+/// Checks that the nodes form disjoint strict trees, as glTF 2.0 requires (section 3.5.3): every child exists,
+/// no node is the child of two nodes, and no node is its own ancestor, whether or not the scene reaches it (a
+/// skin's joints are posed down their ancestors, which need not be in the scene). The error names the node.
+pub(super) fn check_hierarchy(root: &Root) -> Result<(), Located> {
+    let count = root.nodes.len();
+    let mut parent = vec![usize::MAX; count];
+    for (index, node) in root.nodes.iter().enumerate() {
+        for child in node.children.iter().flatten().map(|c| c.value()) {
+            let Some(slot) = parent.get_mut(child) else {
+                let why = format!("child {child} does not exist (the file has {count} nodes)");
+                return Err(Located::new(&format!("node {index}"), why));
+            };
+            if *slot != usize::MAX {
+                let why = format!("is a child of node {} and of node {index}: the node hierarchy is not a tree", *slot);
+                return Err(Located::new(&format!("node {child}"), why));
+            }
+            *slot = index;
+        }
+    }
+    // With one parent at most, a node lies on a cycle or below one exactly when following its parents never
+    // reaches a node without one. Each node is settled once: 1 on the path being followed, 2 settled.
+    let mut state = vec![0u8; count];
+    let mut path = Vec::new();
+    for start in 0..count {
+        let mut node = start;
+        while node != usize::MAX && state[node] == 0 {
+            state[node] = 1;
+            path.push(node);
+            node = parent[node];
+        }
+        if node != usize::MAX && state[node] == 1 {
+            let why = "the node hierarchy has a cycle: the node is its own ancestor".to_string();
+            return Err(Located::new(&format!("node {node}"), why));
+        }
+        for settled in path.drain(..) {
+            state[settled] = 2;
+        }
+    }
+    Ok(())
 }
 
 /// Per glTF mesh: whether some node poses it for itself (a skin, morph weights of its own, or morph weights that
@@ -157,171 +192,16 @@ pub(super) fn node_trs(node: &gltf::json::Node) -> (DVec3, DQuat, DVec3) {
     (t, r, s)
 }
 
-/// A rotation from `[x, y, z, w]`, normalized (files often store slightly denormalized quaternions).
+/// A rotation from `[x, y, z, w]`, normalized (files often store slightly denormalized quaternions); the
+/// identity for a node's own rotation of length 0 or not finite (JSON cannot hold NaN; such a node is refused
+/// later, its world transform not finite, or keeps no rotation).
 pub(super) fn quaternion(xyzw: [f64; 4]) -> DQuat {
+    unit_quaternion(xyzw).unwrap_or(DQuat::IDENTITY)
+}
+
+/// `[x, y, z, w]` normalized, or `None` when its length is 0 or not finite (it names no rotation).
+pub(super) fn unit_quaternion(xyzw: [f64; 4]) -> Option<DQuat> {
     let q = DQuat::from_array(xyzw);
     let length = q.length();
-    if length > 0.0 && length.is_finite() { q / length } else { DQuat::IDENTITY }
-}
-
-/// How one placement of a primitive is posed.
-pub(super) struct Placing<'p> {
-    /// The morph weights (empty: none).
-    pub weights: &'p [f64],
-    /// The skin of the placing node, with the pose, where the node has one: the node's own transform is then
-    /// ignored.
-    pub skin: Option<(usize, &'p Pose)>,
-    /// The placement's world matrix, for a primitive that is not skinned.
-    pub world: DMat4,
-}
-
-/// The positions of `primitive` (whose `POSITION` decoded to `base`) placed as `placing` says, and whether
-/// skinning placed them. Errors name the accessor, joint or vertex at fault.
-pub(super) fn posed_positions(
-    root: &Root,
-    buffers: &mut Buffers<'_>,
-    primitive: &gltf::json::mesh::Primitive,
-    base: &Decoded,
-    placing: &Placing<'_>,
-) -> Result<(Vec<DVec3>, bool), Problem> {
-    let mut positions: Vec<DVec3> = base.values.chunks_exact(3).map(|v| DVec3::new(v[0], v[1], v[2])).collect();
-    morph(buffers, primitive, placing.weights, &mut positions)?;
-    let influences = influence_sets(buffers, primitive, positions.len())?;
-    match placing.skin {
-        Some((skin, pose)) if !influences.is_empty() => {
-            let matrices = joint_matrices(root, buffers, skin, pose)?;
-            skin_positions(&matrices, &influences, &mut positions)?;
-            Ok((positions, true))
-        }
-        _ => {
-            positions.iter_mut().for_each(|p| *p = placing.world.transform_point3(*p));
-            Ok((positions, false))
-        }
-    }
-}
-
-/// Adds each morph target's `POSITION` displacements times its weight (targets without one, or at weight 0,
-/// add nothing).
-fn morph(
-    buffers: &mut Buffers<'_>,
-    primitive: &gltf::json::mesh::Primitive,
-    weights: &[f64],
-    positions: &mut [DVec3],
-) -> Result<(), Problem> {
-    let targets = primitive.targets.as_deref().unwrap_or(&[]);
-    if weights.len() > targets.len() {
-        return Err(format!("{} morph weights for {} morph targets", weights.len(), targets.len()).into());
-    }
-    for (k, (target, &weight)) in targets.iter().zip(weights).enumerate() {
-        let Some(accessor) = target.positions.filter(|_| weight != 0.0) else { continue };
-        let decoded = buffers.accessor(accessor.value()).map_err(|e| e.prefixed(&format!("morph target {k}: ")))?;
-        if decoded.components != 3 || decoded.count() != positions.len() {
-            return Err(format!(
-                "morph target {k}: POSITION accessor {} has {} elements of {} components, not {} VEC3",
-                accessor.value(),
-                decoded.count(),
-                decoded.components,
-                positions.len()
-            )
-            .into());
-        }
-        for (p, d) in positions.iter_mut().zip(decoded.values.chunks_exact(3)) {
-            *p += weight * DVec3::new(d[0], d[1], d[2]);
-        }
-    }
-    Ok(())
-}
-
-/// One influence set: per vertex four joint indices (into the skin's joints) and four weights.
-struct Influences {
-    joints: std::rc::Rc<Decoded>,
-    weights: std::rc::Rc<Decoded>,
-}
-
-/// The primitive's influence sets `JOINTS_n`, `WEIGHTS_n` for n = 0, 1, ... while both exist, each checked to
-/// hold a VEC4 a vertex.
-fn influence_sets(
-    buffers: &mut Buffers<'_>,
-    primitive: &gltf::json::mesh::Primitive,
-    vertex_count: usize,
-) -> Result<Vec<Influences>, Problem> {
-    let mut sets = Vec::new();
-    for n in 0u32.. {
-        let joints = primitive.attributes.get(&Checked::Valid(Semantic::Joints(n)));
-        let weights = primitive.attributes.get(&Checked::Valid(Semantic::Weights(n)));
-        let (Some(joints), Some(weights)) = (joints, weights) else { break };
-        let decode = |buffers: &mut Buffers<'_>, accessor: usize, name: &str| {
-            let decoded = buffers.accessor(accessor).map_err(|e| e.prefixed(&format!("{name}_{n} ")))?;
-            if decoded.components != 4 || decoded.count() != vertex_count {
-                return Err(Problem::from(format!(
-                    "{name}_{n} accessor {accessor}: {} elements of {} components, not {vertex_count} VEC4",
-                    decoded.count(),
-                    decoded.components
-                )));
-            }
-            Ok(decoded)
-        };
-        sets.push(Influences {
-            joints: decode(buffers, joints.value(), "JOINTS")?,
-            weights: decode(buffers, weights.value(), "WEIGHTS")?,
-        });
-    }
-    Ok(sets)
-}
-
-/// Each joint's skinning matrix, `world(joint) * inverseBind` (the inverse bind matrices identity where the skin
-/// has none).
-fn joint_matrices(root: &Root, buffers: &mut Buffers<'_>, skin: usize, pose: &Pose) -> Result<Vec<DMat4>, Problem> {
-    let json = root.skins.get(skin).ok_or_else(|| format!("skin {skin} does not exist"))?;
-    let inverse = match json.inverse_bind_matrices {
-        Some(accessor) => {
-            let decoded = buffers.accessor(accessor.value()).map_err(|e| e.prefixed("inverseBindMatrices "))?;
-            if decoded.components != 16 || decoded.count() < json.joints.len() {
-                return Err(format!(
-                    "skin {skin}: inverseBindMatrices accessor {} has {} MAT4 for {} joints",
-                    accessor.value(),
-                    decoded.count(),
-                    json.joints.len()
-                )
-                .into());
-            }
-            decoded.values.chunks_exact(16).map(|m| DMat4::from_cols_slice(m)).collect()
-        }
-        None => vec![DMat4::IDENTITY; json.joints.len()],
-    };
-    let mut matrices = Vec::with_capacity(json.joints.len());
-    for (j, joint) in json.joints.iter().enumerate() {
-        if joint.value() >= root.nodes.len() {
-            return Err(format!("skin {skin}: joint {j} is node {}, which does not exist", joint.value()).into());
-        }
-        matrices.push(pose.world(joint.value()) * inverse[j]);
-    }
-    Ok(matrices)
-}
-
-/// Moves each vertex by the blend of its joints' matrices, its weights over every set normalized to sum 1 (a
-/// vertex whose weights sum to 0 follows the first joint of its first set).
-fn skin_positions(matrices: &[DMat4], sets: &[Influences], positions: &mut [DVec3]) -> Result<(), Problem> {
-    for (v, p) in positions.iter_mut().enumerate() {
-        let mut blended = DMat4::ZERO;
-        let mut total = 0.0;
-        for (n, set) in sets.iter().enumerate() {
-            for i in 0..4 {
-                let (joint, weight) = (set.joints.values[4 * v + i], set.weights.values[4 * v + i]);
-                if weight == 0.0 {
-                    continue;
-                }
-                let matrix = usize::try_from(joint as i64).ok().and_then(|j| matrices.get(j)).ok_or_else(|| {
-                    format!("vertex {v}: JOINTS_{n} names joint {joint}, but the skin has {} joints", matrices.len())
-                })?;
-                blended += *matrix * weight;
-                total += weight;
-            }
-        }
-        let first = sets.first().map_or(0.0, |set| set.joints.values[4 * v]) as usize;
-        let blended =
-            if total > 0.0 { blended * (1.0 / total) } else { matrices.get(first).copied().unwrap_or_default() };
-        *p = blended.transform_point3(*p);
-    }
-    Ok(())
+    (length > 0.0 && length.is_finite()).then(|| q / length)
 }

@@ -136,6 +136,16 @@ impl RebuildPolicy {
     /// animation's curve with the benchmark's method where the choice matters.
     pub const DEFAULT: RebuildPolicy = RebuildPolicy { max_cost_ratio: 1.2 };
 
+    /// The policy of `max_cost_ratio`, checked: a finite ratio of at least 1 (a smaller one would call every
+    /// refit tree, even an unchanged one, worth rebuilding). The command line's `--max-cost-ratio` and the
+    /// bindings refuse the same values with this message.
+    pub fn new(max_cost_ratio: f64) -> Result<RebuildPolicy, String> {
+        match max_cost_ratio >= 1.0 && max_cost_ratio.is_finite() {
+            true => Ok(RebuildPolicy { max_cost_ratio }),
+            false => Err(format!("max_cost_ratio {max_cost_ratio}: a finite ratio of at least 1")),
+        }
+    }
+
     /// Whether the tree `report` describes should be rebuilt: its cost ratio exceeds `max_cost_ratio`, or for a
     /// tree chosen for an animation, `max_cost_ratio` times the ratio its poses were planned to reach
     /// ([`RefitReport::planned_cost_ratio`], when above 1). Such a file stores one pose and measured the others:

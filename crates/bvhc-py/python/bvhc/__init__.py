@@ -452,7 +452,9 @@ class Scene:
         ``wide_cost``, ``file_wide_cost`` (``None`` where the file states none), ``cost_ratio`` and
         ``rebuild_recommended`` (the ratio above ``max_cost_ratio``: converting the posed geometry anew would
         trace faster). Raises :class:`InvalidInputError` for positions that do not fit (naming the record, range
-        or vertex), with the file unchanged. :attr:`triangles` and the other views show the new values; call
+        or vertex), and :class:`OptionsError` where ``bvhc refit`` refuses its flags (``max_cost_ratio`` below 1
+        or not finite, ``threads`` outside 1 to 1024, neither or both of ``positions`` and ``source_vertices``),
+        with the file unchanged. :attr:`triangles` and the other views show the new values; call
         :meth:`write` to ship the posed file."""
         self._info = None
         return self._native.refit(positions, source_vertices, threads, max_cost_ratio)
@@ -475,8 +477,9 @@ class Scene:
 
         Returns :meth:`refit`'s dict (a two-level file states no costs, so they are ``None``) with
         ``instances_placed``. Raises :class:`InvalidInputError` for an asset that is not the file's (another
-        topology, a clip it does not have) and :class:`IoError` for one that cannot be read, with the file
-        unchanged."""
+        topology, a clip it does not have), :class:`IoError` for one that cannot be read and
+        :class:`OptionsError` for ``threads`` or ``max_cost_ratio`` as :meth:`refit`, with the file unchanged.
+        :meth:`write` then refuses to write over the asset or a buffer it read (:class:`IoError`)."""
         self._info = None
         return self._native.pose(os.fspath(asset), pose, threads, max_cost_ratio)
 
