@@ -13,6 +13,8 @@ use std::path::Path;
 use bvhc_loader::format::{Affine3x4, NO_INDEX, SourceRange};
 use bvhc_loader::{BvhFile, BvhView, BvhViewMut, RefitPositions, RefitReport, TwoLevelSections};
 
+use crate::convert::files::input_entries;
+use crate::convert::metadata::InputEntry;
 use crate::import::{
     ImportError, ImportLimits, ImportOptions, InstancedMesh, Instancing, PoseSelector, SceneSelector, import,
 };
@@ -53,6 +55,43 @@ pub struct PlacedPose {
     /// Every file the asset's import read, the asset first (a glTF's buffers after it): what a refit must not
     /// write over.
     pub files_read: Vec<std::path::PathBuf>,
+    /// Where the positions came from, as a refit file's metadata records it ([`PlacedPose::rewritten`]).
+    pub record: RefitRecord,
+}
+
+/// bvhc's metadata key `refit` (`format-spec/bvh-1.md` 5.5): the asset a refit file's records were posed from,
+/// while the file's `inputs` and `build` still describe the conversion its tree was built for.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RefitRecord {
+    /// The asset's files as a conversion records its inputs (names relative to the asset's folder, content
+    /// hashes), the asset first.
+    pub inputs: Vec<InputEntry>,
+    /// The clip and time, absent for the asset's default pose.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pose: Option<PoseSelector>,
+}
+
+impl RefitRecord {
+    /// `view` (refit to this record's pose) laid out anew as `BvhView::rewritten` lays it out (costs
+    /// recomputed, checksums made, verified), its metadata recording the pose as the key `refit` (a `refit` the
+    /// file had goes): what `bvhc refit` and Python's `Scene.write` after `Scene.pose` ship. A pose that is the
+    /// conversion's own (the same files with the same hashes as `inputs`, and the pose of `build.import.pose`,
+    /// or the default one where that is absent) records nothing, so a file refit back to its own asset has its
+    /// converted bytes again.
+    pub fn rewritten(&self, view: &BvhView<'_>) -> Result<BvhFile, bvhc_loader::Error> {
+        let unwritable = |e: serde_json::Error| bvhc_loader::Error::Unwritable(format!("metadata refit: {e}"));
+        let record = serde_json::to_value(self).map_err(unwritable)?;
+        let converted: Option<serde_json::Value> =
+            view.metadata_str().and_then(|text| text.ok()).and_then(|text| serde_json::from_str(text).ok());
+        let own = converted.is_some_and(|metadata| {
+            let null = serde_json::Value::Null;
+            let pose = metadata.pointer("/build/import/pose").unwrap_or(&null);
+            metadata.get("inputs") == record.get("inputs") && pose == record.get("pose").unwrap_or(&null)
+        });
+        // Members in the order the struct declares them (a `Value` would sort them).
+        let text = serde_json::to_string(self).map_err(unwritable)?;
+        view.rewritten_recording("refit", (!own).then_some(text.as_str()))
+    }
 }
 
 impl PlacedPose {
@@ -66,6 +105,12 @@ impl PlacedPose {
     /// report (a two-level file's states no cost).
     pub fn apply(&self, file: &mut BvhFile, threads: usize) -> Result<RefitReport, bvhc_loader::Error> {
         self.apply_in_place(&mut file.view_mut(), threads)
+    }
+
+    /// `view` (refit to this pose by [`PlacedPose::apply`]) laid out anew, the pose recorded
+    /// ([`RefitRecord::rewritten`]): what `bvhc refit` ships.
+    pub fn rewritten(&self, view: &BvhView<'_>) -> Result<BvhFile, bvhc_loader::Error> {
+        self.record.rewritten(view)
     }
 
     /// [`PlacedPose::apply`] on a file's bytes borrowed in place (a binding's writable array, a private map).
@@ -167,6 +212,9 @@ pub fn placed_pose(
     };
     let imported = import(asset, &options).map_err(PosedError::Import)?;
     let files_read = imported.files_read;
+    let inputs = input_entries(asset, &files_read)
+        .map_err(|e| PosedError::File(format!("{}: its files cannot be hashed: {e}", asset.display())))?;
+    let record = RefitRecord { inputs, pose: pose.cloned() };
     let soup = imported.soup;
     same_ranges_as_file(ranges, &soup.sources)?;
     let id_count = ranges.last().map_or(0, |r| r.first_source_triangle as usize + r.source_triangle_count as usize);
@@ -198,7 +246,7 @@ pub fn placed_pose(
         None => Vec::new(),
         Some(sections) => instance_transforms(&sections, &imported.instanced)?,
     };
-    Ok(PlacedPose { positions, instances, files_read })
+    Ok(PlacedPose { positions, instances, files_read, record })
 }
 
 /// The transform in the pose of each of the file's instances that a glTF node places (`instanced`: the asset's

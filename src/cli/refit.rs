@@ -1,7 +1,8 @@
 //! `bvhc refit FILE --positions MESH -o OUTPUT`: a converted file refit to a moved pose of its asset
 //! ([`bvhc::posed::placed_pose`]: its records refit and, in a two-level file, the instances a glTF node places
-//! moved to the node's transform in that pose), its costs recomputed
-//! (`BvhFile::rewritten`, so that `bvhc verify` passes) and written atomically.
+//! moved to the node's transform in that pose), its costs recomputed and the pose recorded as the metadata key
+//! `refit` (`PlacedPose::rewritten`, so that `bvhc verify` passes and the file says what its records hold) and
+//! written atomically.
 
 use std::time::Instant;
 
@@ -46,7 +47,7 @@ pub fn refit(args: &RefitArgs, threads: Option<u16>) -> Exit {
         Err(error) => return fail(loader_exit(&error), format!("{}: {error}", args.file.display())),
     };
     let refit_ms = start.elapsed().as_secs_f64() * 1e3;
-    let shipped = match refit.rewritten() {
+    let shipped = match pose.rewritten(&refit.view()) {
         Ok(shipped) => shipped,
         Err(error) => return fail(loader_exit(&error), format!("{}: {error}", args.output.display())),
     };

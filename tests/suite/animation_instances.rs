@@ -270,7 +270,15 @@ fn the_cli_refits_a_two_level_animation_file_as_the_library_does() {
     let placed = bvhc::posed::placed_pose(&file.view(), &asset, &Default::default(), Some(&pose)).unwrap();
     let mut moved = BvhFile::from_bytes(file.as_bytes()).unwrap();
     placed.apply(&mut moved, 1).unwrap();
-    assert!(moved.rewritten().unwrap().as_bytes() == written.as_bytes(), "the CLI writes the library's refit");
+    let shipped = placed.rewritten(&moved.view()).unwrap();
+    assert!(shipped.as_bytes() == written.as_bytes(), "the CLI writes the library's refit");
+    // The metadata says where the records came from (spec 5.5 `refit`), while `inputs` keeps the conversion's.
+    let metadata = crate::common::assert_metadata_matches_schema(&written);
+    let hash = bvhc::convert::files::content_hash(&std::fs::read(&asset).unwrap());
+    let name = asset.file_name().unwrap().to_str().unwrap();
+    assert_eq!(metadata["refit"]["inputs"][0], serde_json::json!({"file_name": name, "content_hash": hash}));
+    assert_eq!(metadata["refit"]["pose"], serde_json::json!({"clip": {"name": "Swing"}, "seconds": 1.3}));
+    assert_eq!(metadata["inputs"], crate::common::assert_metadata_matches_schema(&file)["inputs"]);
     // One-level callers of record_positions are told what a two-level file needs.
     let error = bvhc::posed::record_positions(&file.view(), &asset, &Default::default(), None).unwrap_err();
     assert!(error.to_string().contains("placed_pose"), "{error}");

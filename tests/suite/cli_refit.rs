@@ -100,6 +100,35 @@ fn a_refit_to_a_moved_gltf_gives_each_triangle_a_fresh_conversions_positions() {
     // Both placements (the mirrored one's corners swapped by the importer) moved as a fresh import places them.
     assert_eq!(records_by_id(&refit), records_by_id(&BvhFile::read(&fresh).unwrap()));
     let before = BvhFile::read(&file).unwrap();
+    // The metadata records the asset the records now hold (`refit`, spec 5.5: its files and their hashes, no
+    // pose for the default one); `inputs` and `build` still describe the conversion.
+    let metadata = crate::common::assert_metadata_matches_schema(&refit);
+    let original = crate::common::assert_metadata_matches_schema(&before);
+    let hash = |name: &str| bvhc::convert::files::content_hash(&std::fs::read(dir.path().join(name)).unwrap());
+    let moved_inputs = serde_json::json!([
+        {"file_name": "moved.gltf", "content_hash": hash("moved.gltf")},
+        {"file_name": "moved.bin", "content_hash": hash("moved.bin")},
+    ]);
+    assert_eq!(metadata["refit"], serde_json::json!({"inputs": moved_inputs}));
+    assert_eq!((&metadata["inputs"], &metadata["build"]), (&original["inputs"], &original["build"]));
+    // Refit again, in place: the last refit is recorded, once; back at the conversion's own asset and pose, the
+    // file records none and has its converted bytes.
+    let again = dir.path().join("again.bvh");
+    std::fs::copy(&output, &again).unwrap();
+    let other = grid_gltf(dir.path(), "other", 0.2);
+    for asset in [&other, &rest] {
+        let run = bvhc(&[&"refit", &again, &"--positions", asset, &"-o", &again, &"--quiet"]);
+        assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    }
+    let run = bvhc(&[&"refit", &output, &"--positions", &other, &"-o", &again, &"--quiet"]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    let twice = BvhFile::read(&again).unwrap();
+    let text = twice.view().metadata_str().unwrap().unwrap().to_string();
+    assert_eq!(text.matches("\"refit\"").count(), 1, "{text}");
+    assert_eq!(crate::common::assert_metadata_matches_schema(&twice)["refit"]["inputs"][0]["file_name"], "other.gltf");
+    let run = bvhc(&[&"refit", &again, &"--positions", &rest, &"-o", &again, &"--quiet"]);
+    assert_eq!(run.status.code(), Some(0), "{}", stderr(&run));
+    assert!(std::fs::read(&again).unwrap() == std::fs::read(&file).unwrap(), "back at the rest pose: its bytes");
     assert_eq!(refit.view().nodes().len(), before.view().nodes().len(), "the same tree");
     assert_eq!(refit.view().triangle_ids(), before.view().triangle_ids(), "the same record order");
     // The JSON report.
@@ -147,9 +176,9 @@ fn a_refit_to_a_moved_obj_equals_the_librarys_and_traces_the_moved_triangles() {
     let rest = dir.path().join("rest.bvh");
     convert(&teapot(), &rest, &["--no-splits"]);
     let mut library = BvhFile::read(&rest).unwrap();
-    let positions = bvhc::posed::record_positions(&library.view(), &moved, &Default::default(), None).unwrap();
-    library.refit(RefitPositions::Triangles(&positions), 1).unwrap();
-    assert!(library.rewritten().unwrap().as_bytes() == refit.as_bytes(), "the CLI and the library");
+    let placed = bvhc::posed::placed_pose(&library.view(), &moved, &Default::default(), None).unwrap();
+    library.refit(RefitPositions::Triangles(&placed.positions), 1).unwrap();
+    assert!(placed.rewritten(&library.view()).unwrap().as_bytes() == refit.as_bytes(), "the CLI and the library");
     // The hits are the moved triangles'.
     let moved_triangles: Vec<Triangle> = refit.view().triangles().iter().map(|t| t.vertices).collect();
     let rays = random_rays(5, 1500, 6.0);

@@ -434,3 +434,37 @@ fn a_refit_of_corrupted_bytes_never_panics() {
         let _ = file.refit(RefitPositions::Triangles(&moved), 1 + round % 3);
     }
 }
+
+/// `rewritten_recording` (what `bvhc refit` writes its `refit` key with): the member set once and last, any
+/// earlier one of that name gone, the costs recomputed as `rewritten` does, every other member kept; a file
+/// without metadata gets an object of that member alone; a value that is not one JSON value, or a name JSON
+/// cannot hold unescaped, refused with nothing built.
+#[test]
+fn a_recorded_member_replaces_its_namesake_and_the_rest_is_rewritten() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = teapot(dir.path(), false);
+    let mut refit = BvhFile::from_bytes(file.as_bytes()).unwrap();
+    refit.refit(RefitPositions::Triangles(&bent(&positions(&file))), 1).unwrap();
+    let once = refit.rewritten_recording("refit", Some(r#"{"inputs":[]}"#)).unwrap();
+    let twice = once.rewritten_recording("refit", Some(r#" {"inputs":[{"file_name":"a.gltf","content_hash":"x"}]} "#));
+    let twice = twice.unwrap();
+    let text = |f: &BvhFile| f.view().metadata_str().unwrap().unwrap().to_string();
+    assert!(text(&twice).ends_with(r#","refit":{"inputs":[{"file_name":"a.gltf","content_hash":"x"}]}}"#));
+    assert_eq!(text(&twice).matches(r#""refit""#).count(), 1);
+    let plain = refit.rewritten().unwrap();
+    let without = text(&twice).replace(r#","refit":{"inputs":[{"file_name":"a.gltf","content_hash":"x"}]}"#, "");
+    assert_eq!(without, text(&plain), "the rest is what rewritten writes, costs recomputed");
+    let removed = twice.rewritten_recording("refit", None).unwrap();
+    assert!(removed.as_bytes() == plain.as_bytes(), "removing the member gives rewritten's bytes");
+    twice.view().verify().unwrap();
+    assert_eq!(twice.view().triangles(), plain.view().triangles());
+
+    let bare = bvhc::loader::write::BvhWriter::from_view(&file.view()).metadata("{ }").build();
+    let recorded = bare.unwrap().rewritten_recording("note", Some("[1, 2]")).unwrap();
+    assert_eq!(text(&recorded), r#"{"note":[1, 2] }"#);
+    for (name, value) in [("refit", "{"), ("refit", "1 2"), ("refit", ""), ("a\"b", "1"), ("a\\b", "1")] {
+        let error = refit.rewritten_recording(name, Some(value)).unwrap_err();
+        assert!(matches!(error, Error::Unwritable(_)), "{name} {value}: {error}");
+        assert!(error.to_string().contains("metadata member"), "{error}");
+    }
+}

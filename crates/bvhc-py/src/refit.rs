@@ -100,7 +100,8 @@ pub fn refit<'py>(
 /// `Scene.pose`: the scene's records and instances placed as `asset` places them in its default pose or at
 /// `pose` (`CLIP@SECONDS`), imported as the conversion imported it (`bvhc::posed::placed_pose`), then applied in
 /// place (`PlacedPose::apply_in_place`: the deforming geometry refit, the moving instances placed); the refit's
-/// report with `instances_placed`, and the files the asset's import read.
+/// report with `instances_placed`, the files the asset's import read and the metadata `refit` record of the pose
+/// (for `write`).
 pub fn pose<'py>(
     py: Python<'py>,
     bytes: &Py<PyArray1<u8>>,
@@ -109,7 +110,7 @@ pub fn pose<'py>(
     pose: Option<String>,
     threads: usize,
     max_cost_ratio: f64,
-) -> PyResult<(Bound<'py, PyDict>, Vec<std::path::PathBuf>)> {
+) -> PyResult<(Bound<'py, PyDict>, Vec<std::path::PathBuf>, bvhc::posed::RefitRecord)> {
     let policy = rebuild_policy(max_cost_ratio)?;
     let pose: Option<bvhc::import::PoseSelector> = pose
         .map(|text| text.parse().map_err(|why: String| InvalidInputError::new_err(format!("pose: {why}"))))
@@ -126,7 +127,7 @@ pub fn pose<'py>(
     let report = with_view_mut(py, bytes, path, "pose", |view| placed.apply_in_place(view, threads))?;
     let dict = report_dict(py, &report, policy)?;
     dict.set_item("instances_placed", placed.instances.len())?;
-    Ok((dict, placed.files_read))
+    Ok((dict, placed.files_read, placed.record))
 }
 
 /// `Scene.refit_mesh`: mesh `mesh` of a two-level file refit to `positions` (`(n, 3, 3)`, its records in its own
@@ -168,13 +169,24 @@ pub fn move_instances(
     })
 }
 
-/// `Scene.write`: the file written atomically to `output` with its stated costs recomputed.
-pub fn write(py: Python<'_>, bytes: &Py<PyArray1<u8>>, path: &str, output: std::path::PathBuf) -> PyResult<()> {
+/// `Scene.write`: the file written atomically to `output` with its stated costs recomputed and, after a
+/// `Scene.pose`, the pose recorded in its metadata (`RefitRecord::rewritten`, as `bvhc refit` records it).
+pub fn write(
+    py: Python<'_>,
+    bytes: &Py<PyArray1<u8>>,
+    path: &str,
+    output: std::path::PathBuf,
+    refit: Option<&bvhc::posed::RefitRecord>,
+) -> PyResult<()> {
     let array = bytes.bind(py).readonly();
     let slice = array.as_slice().map_err(|e| InvalidInputError::new_err(format!("{path}: {e}")))?;
     py.detach(|| {
         let view = bvhc::loader::BvhView::open(slice)?;
-        bvhc::loader::write::write_atomic(&output, view.rewritten()?.as_bytes())
+        let shipped = match refit {
+            Some(record) => record.rewritten(&view)?,
+            None => view.rewritten()?,
+        };
+        bvhc::loader::write::write_atomic(&output, shipped.as_bytes())
     })
     .map_err(|e| loader(&e, format!("{}: {e}", output.display())))
 }

@@ -22,8 +22,25 @@ use crate::tracing::{on_pool, pool};
 pub struct Scene {
     bytes: Py<PyArray1<u8>>,
     path: String,
+    /// What `pose` left for `write`.
+    posed: std::sync::Mutex<Posed>,
+}
+
+/// What `Scene.pose` leaves for `Scene.write`.
+#[derive(Default)]
+struct Posed {
     /// The files `pose` has read (each asset and its buffers), which `write` refuses to overwrite.
-    posed_from: std::sync::Mutex<Vec<std::path::PathBuf>>,
+    files_read: Vec<std::path::PathBuf>,
+    /// The last pose's metadata `refit` record, while the records and instances are that pose's: a refit or
+    /// move from the program's own values drops it.
+    record: Option<bvhc::posed::RefitRecord>,
+}
+
+impl Scene {
+    /// The state `pose` left, locked.
+    fn posed(&self) -> PyResult<std::sync::MutexGuard<'_, Posed>> {
+        self.posed.lock().map_err(|_| InternalError::new_err("a poisoned lock"))
+    }
 }
 
 /// Runs `f` on the file's view, the array borrowed read-only.
@@ -54,7 +71,7 @@ impl Scene {
             }
             Ok(())
         })?;
-        Ok(Scene { bytes, path, posed_from: Default::default() })
+        Ok(Scene { bytes, path, posed: Default::default() })
     }
 
     /// The file's path as given.
@@ -327,7 +344,10 @@ impl Scene {
         max_cost_ratio: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let threads = crate::tracing::threads_or_all(threads)?;
-        crate::refit::refit(py, &self.bytes, &self.path, positions, source_vertices, threads, max_cost_ratio)
+        let report =
+            crate::refit::refit(py, &self.bytes, &self.path, positions, source_vertices, threads, max_cost_ratio)?;
+        self.posed()?.record = None;
+        Ok(report)
     }
 
     /// Poses the file (opened writable) as the asset it was converted from stands in its default pose or at
@@ -345,9 +365,11 @@ impl Scene {
         max_cost_ratio: f64,
     ) -> PyResult<Bound<'py, PyDict>> {
         let threads = crate::tracing::threads_or_all(threads)?;
-        let (report, files_read) =
+        let (report, files_read, record) =
             crate::refit::pose(py, &self.bytes, &self.path, asset, pose, threads, max_cost_ratio)?;
-        self.posed_from.lock().map_err(|_| InternalError::new_err("a poisoned lock"))?.extend(files_read);
+        let mut posed = self.posed()?;
+        posed.files_read.extend(files_read);
+        posed.record = Some(record);
         Ok(report)
     }
 
@@ -362,7 +384,9 @@ impl Scene {
         threads: Option<usize>,
     ) -> PyResult<()> {
         let threads = crate::tracing::threads_or_all(threads)?;
-        crate::refit::refit_mesh(py, &self.bytes, &self.path, mesh, positions, threads)
+        crate::refit::refit_mesh(py, &self.bytes, &self.path, mesh, positions, threads)?;
+        self.posed()?.record = None;
+        Ok(())
     }
 
     /// Places `instances` (a two-level file's, opened writable) by `transforms` (`(k, 3, 4)` float32 rows).
@@ -373,7 +397,9 @@ impl Scene {
         transforms: numpy::PyReadonlyArrayDyn<'_, f32>,
     ) -> PyResult<()> {
         let moves = (instances, transforms);
-        crate::refit::move_instances(py, &self.bytes, &self.path, moves, "move_instances", true)
+        crate::refit::move_instances(py, &self.bytes, &self.path, moves, "move_instances", true)?;
+        self.posed()?.record = None;
+        Ok(())
     }
 
     /// `move_instances` without recomputing the checksums (`write` does), for a frame.
@@ -384,7 +410,9 @@ impl Scene {
         transforms: numpy::PyReadonlyArrayDyn<'_, f32>,
     ) -> PyResult<()> {
         let moves = (instances, transforms);
-        crate::refit::move_instances(py, &self.bytes, &self.path, moves, "move_instances_in_frame", false)
+        crate::refit::move_instances(py, &self.bytes, &self.path, moves, "move_instances_in_frame", false)?;
+        self.posed()?.record = None;
+        Ok(())
     }
 
     /// The file with its top trees built anew over its instances as they stand, as a new byte array.
@@ -398,11 +426,15 @@ impl Scene {
         crate::refit::top_tree_cost(py, &self.bytes, &self.path)
     }
 
-    /// Writes the file to `output` atomically, its stated costs recomputed (so a refit file verifies).
+    /// Writes the file to `output` atomically, its stated costs recomputed (so a refit file verifies) and, when
+    /// its records and instances are still the last `pose`'s, that pose recorded as the metadata key `refit`.
     fn write(&self, py: Python<'_>, output: std::path::PathBuf) -> PyResult<()> {
-        let posed_from = self.posed_from.lock().map_err(|_| InternalError::new_err("a poisoned lock"))?.clone();
-        bvhc::convert::files::refuse_output_among(&output, &posed_from).map_err(crate::errors::conversion)?;
-        crate::refit::write(py, &self.bytes, &self.path, output)
+        let (files_read, record) = {
+            let posed = self.posed()?;
+            (posed.files_read.clone(), posed.record.clone())
+        };
+        bvhc::convert::files::refuse_output_among(&output, &files_read).map_err(crate::errors::conversion)?;
+        crate::refit::write(py, &self.bytes, &self.path, output, record.as_ref())
     }
 }
 

@@ -622,7 +622,16 @@ def test_refit_in_place_equals_bvhc_refit_of_the_moved_asset(tmp_path):
     assert report["cost_ratio"] > 1.0 and report["wide_cost"] is not None and not report["rebuild_recommended"]
     assert report["planned_cost_ratio"] is None, "converted without animation=True"
     scene.write(tmp_path / "py.bvh")
-    assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
+    # The same sections; the command line's metadata also records the asset it took the positions from, which
+    # a refit from the program's own positions cannot know.
+    py_file, cli_file = bvhc.open(tmp_path / "py.bvh"), bvhc.open(tmp_path / "cli.bvh")
+    names = [entry["name"] for entry in cli_file.info()["sections"]]
+    assert names == [entry["name"] for entry in py_file.info()["sections"]]
+    for name in (n for n in names if n != "metadata"):
+        assert np.array_equal(py_file.section(name), cli_file.section(name)), name
+    cli_metadata = cli_file.info()["metadata"]
+    assert cli_metadata.pop("refit")["inputs"][0]["file_name"] == "moved.obj"
+    assert py_file.info()["metadata"] == cli_metadata
     assert "every rule" in bvhc.verify(tmp_path / "py.bvh")
     assert bvh.read_bytes() == bvhc.open(bvh)._native.data.tobytes(), "the file on disk never changes"
     # The views show the new records; per record, the same positions give the same bytes back.
@@ -651,9 +660,20 @@ def test_pose_from_the_asset_equals_bvhc_refit(tmp_path):
         assert report["instances_placed"] == (2 if instancing == "always" else 0)
         posed.write(tmp_path / "py.bvh")
         assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes(), instancing
-        # Posed back to the default pose, the records are the file's own again.
+        # The metadata says which pose the records hold; `inputs` is still the conversion's.
+        record = bvhc.open(tmp_path / "py.bvh").info()["metadata"]["refit"]
+        assert record["pose"] == {"clip": {"name": "Wheels"}, "seconds": 0.6}
+        assert record["inputs"] == bvhc.open(bvh).info()["metadata"]["inputs"]
+        # Posed back to the default pose, the records are the file's own again, and so are its bytes.
         posed.pose(truck)
         assert np.array_equal(np.array(posed.triangles), np.array(bvhc.open(bvh).triangles))
+        posed.write(tmp_path / "back.bvh")
+        assert (tmp_path / "back.bvh").read_bytes() == bvh.read_bytes(), instancing
+        # A refit from the program's own positions after a pose: the pose is no longer what the records hold.
+        posed.pose(truck, "Wheels@0.6")
+        posed.refit(np.array(posed.triangles))
+        posed.write(tmp_path / "own.bvh")
+        assert "refit" not in bvhc.open(tmp_path / "own.bvh").info()["metadata"]
     with pytest.raises(bvhc.InvalidInputError, match="Fly"):
         posed.pose(truck, "Fly@1")
     with pytest.raises(bvhc.InvalidInputError, match="pose: 'Wheels' is not CLIP@SECONDS"):

@@ -80,6 +80,13 @@ impl Map {
             (None, None) => span.clone(),
         })
     }
+
+    /// Where a new last member goes in the parsed text, and whether it needs a comma before it: after the last
+    /// member, or after the opening brace of an empty object (`None` there: the caller finds the brace).
+    #[cfg_attr(not(feature = "write"), allow(dead_code))]
+    pub(crate) fn end_of_members(&self) -> Option<usize> {
+        self.0.last().map(|(.., span)| span.end)
+    }
 }
 
 impl Value {

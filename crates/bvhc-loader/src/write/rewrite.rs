@@ -1,6 +1,7 @@
 //! A file written anew after an edit ([`BvhFile::edit`] changes boxes and vertices in place, so the costs the
 //! metadata states go stale): [`BvhFile::rewritten`] recomputes them, lays the file out again around the
-//! metadata's new length, and verifies the result.
+//! metadata's new length, and verifies the result; [`BvhView::rewritten_recording`] also records, in a top-level
+//! metadata member, where the edit came from (`bvhc refit --positions` records its asset as `refit`).
 
 use crate::error::{Error, violation};
 use crate::open::file::BvhFile;
@@ -25,6 +26,11 @@ impl BvhFile {
     pub fn rewritten(&self) -> Result<BvhFile, Error> {
         self.view().rewritten()
     }
+
+    /// [`BvhView::rewritten_recording`] of this file.
+    pub fn rewritten_recording(&self, name: &str, value: Option<&str>) -> Result<BvhFile, Error> {
+        self.view().rewritten_recording(name, value)
+    }
 }
 
 impl BvhView<'_> {
@@ -41,6 +47,49 @@ impl BvhView<'_> {
         }
         writer.build()
     }
+
+    /// [`BvhView::rewritten`] with the top-level metadata member `name` set to `value` (JSON text), or with
+    /// `None` removed: every member of that name the metadata had is removed and the new one goes last, so a
+    /// file edited twice records the last edit; a file without metadata gets `{name: value}` (and stays without
+    /// for `None`). bvhc records a refit to an asset's pose as `refit` (`format-spec/bvh-1.md` 5.5). Refused: a
+    /// `value` that is not one JSON value, a name that JSON cannot hold as written (a quote, a backslash or a
+    /// control character in it).
+    pub fn rewritten_recording(&self, name: &str, value: Option<&str>) -> Result<BvhFile, Error> {
+        let unwritable = |why: String| Error::Unwritable(format!("metadata member {name:?}: {why}"));
+        if name.chars().any(|c| c == '"' || c == '\\' || c.is_control()) {
+            return Err(unwritable("a name JSON cannot hold without escapes".into()));
+        }
+        let member = value.map(|value| format!("\"{name}\":{}", value.trim()));
+        if let Some(member) = &member {
+            parse_object(&format!("{{{member}}}")).map_err(|e| unwritable(format!("not one JSON value: {e}")))?;
+        }
+        let text = match (self.metadata_str(), &member) {
+            (Some(text), _) => metadata_with_costs(self, text?)?,
+            (None, Some(_)) => "{}".to_string(),
+            (None, None) => return self.rewritten(),
+        };
+        let metadata = with_member(&text, name, member.as_deref())?;
+        BvhWriter::from_view(self).metadata(&metadata).build()
+    }
+}
+
+/// `text` (a JSON object) without its members named `name` and with `member` (`"name":value`), if any, last.
+fn with_member(text: &str, name: &str, member: Option<&str>) -> Result<String, Error> {
+    let unreadable = |e: String| violation(crate::error::Rule::Metadata, format!("metadata section: {e}"));
+    let mut edited = text.to_string();
+    while let Some(span) = parse_object(&edited).map_err(unreadable)?.removal_span(name) {
+        edited.replace_range(span, "");
+    }
+    let Some(member) = member else { return Ok(edited) };
+    match parse_object(&edited).map_err(unreadable)?.end_of_members() {
+        Some(end) => edited.insert_str(end, &format!(",{member}")),
+        None => {
+            // An empty object: the member goes after its brace (parse_object found one first).
+            let brace = edited.find('{').map_or(0, |at| at + 1);
+            edited.insert_str(brace, member);
+        }
+    }
+    Ok(edited)
 }
 
 /// `text`, the metadata of `view`, with its stated costs replaced by the file's and, when one changed, its

@@ -526,7 +526,11 @@ class Scene:
 
     def write(self, path: PathLike) -> None:
         """Write the file to ``path`` atomically with the costs its metadata states and its checksums recomputed
-        (a refit leaves both stale, so :meth:`verify` fails on the scene itself), so that it passes ``bvhc verify``."""
+        (a refit leaves both stale, so :meth:`verify` fails on the scene itself), so that it passes ``bvhc verify``.
+        After :meth:`pose`, while no :meth:`refit`, :meth:`refit_mesh` or instance move has followed it, the
+        metadata records the pose as ``bvhc refit`` does (the key ``refit``: the asset's files with their hashes,
+        and the clip and time), so the file says which geometry its records hold; posed back to the asset and
+        pose it was converted from, it records none."""
         self._native.write(os.fspath(path))
 
     def __repr__(self) -> str:
