@@ -31,8 +31,44 @@ pub struct Exact {
     pub depth: f64,
 }
 
-/// Steps 1-7 for `ray` and `triangle`, hits within `[t_min, t_max]`; ill-conditioned hits take the exact values.
+/// Steps 1-8 for `ray` and `triangle`: [`steps_1_to_7`], then the box condition ([`meets_box_condition`]).
 pub fn reference_hit(ray: &Ray, triangle: &[[f32; 3]; 3]) -> Option<ReferenceHit> {
+    steps_1_to_7(ray, triangle).filter(|hit| meets_box_condition(ray, triangle, hit.t))
+}
+
+/// Step 8, written from the spec: the ray meets the record's box (its vertices' per-axis minima and maxima)
+/// within the window `[max(t_min, t - w), t + w]`, `w = (t + Z' |sz|) 2^-12`, `Z'` the spread of the record's
+/// coordinates along the major axis, by 11.2's robust slab test (the exit through the reciprocal padded by
+/// `1 + 2 gamma(3)`, compare-selects that keep the accumulator on NaN).
+pub fn meets_box_condition(ray: &Ray, triangle: &[[f32; 3]; 3], t: f32) -> bool {
+    let d = ray.direction;
+    let kz = major_axis(&d);
+    let sz = 1.0 / d[kz];
+    let z = [triangle[0][kz], triangle[1][kz], triangle[2][kz]];
+    let spread = z[0].max(z[1]).max(z[2]) - z[0].min(z[1]).min(z[2]);
+    let w = (t + spread * sz.abs()) * (1.0 / 4096.0);
+    let (mut near, mut far) = if t == f32::INFINITY { (ray.t_min, t) } else { ((t - w).max(ray.t_min), t + w) };
+    let eps = f32::EPSILON / 2.0;
+    let padding = 1.0 + 2.0 * (3.0 * eps) / (1.0 - 3.0 * eps);
+    for a in 0..3 {
+        let lo = triangle[0][a].min(triangle[1][a]).min(triangle[2][a]);
+        let hi = triangle[0][a].max(triangle[1][a]).max(triangle[2][a]);
+        let inverse = 1.0 / d[a];
+        let (entry, exit) = if d[a].is_sign_negative() { (hi, lo) } else { (lo, hi) };
+        let t_entry = (entry - ray.origin[a]) * inverse;
+        let t_exit = (exit - ray.origin[a]) * (inverse * padding);
+        if t_entry > near {
+            near = t_entry;
+        }
+        if t_exit < far {
+            far = t_exit;
+        }
+    }
+    near <= far
+}
+
+/// Steps 1-7 for `ray` and `triangle`, hits within `[t_min, t_max]`; ill-conditioned hits take the exact values.
+pub fn steps_1_to_7(ray: &Ray, triangle: &[[f32; 3]; 3]) -> Option<ReferenceHit> {
     let d = ray.direction;
     let kz = major_axis(&d);
     let (mut kx, mut ky) = ((kz + 1) % 3, (kz + 2) % 3);

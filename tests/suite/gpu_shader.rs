@@ -274,3 +274,31 @@ fn the_wgsl_exact_edge_function_equals_the_f64_recomputation() {
     );
     assert!(nonzero > operands.len() / 2 && clamped > 0, "{nonzero} nonzero, {clamped} clamped");
 }
+
+/// Ties on the device (11.1's key, 11.4): a triangle stored three times in the source, two coplanar triangles
+/// overlapping and a grid, converted with and without split references; on the rays inside those triangles
+/// (where the f32 edge test is the CPU's) the kernel names the hit the brute force does, with split
+/// references the copy of lowest source id (binding 5).
+#[test]
+fn the_wgsl_kernel_decides_ties_by_record_or_by_coordinates_then_id() {
+    use crate::ties::{converted, expected, key_of, marked_split, rays_at, tie_scene};
+    let dir = tempfile::tempdir().unwrap();
+    let (input, _, interior_targets) = tie_scene(dir.path());
+    let rays = rays_at(&interior_targets, 52);
+    let converted = converted(&input, &dir.path().join("ties.bvh"), false);
+    let files = [
+        ("split references", marked_split(&converted.view(), false).0),
+        ("ids reversed", marked_split(&converted.view(), true).0),
+        ("records", converted),
+    ];
+    for (name, file) in &files {
+        let view = file.view();
+        let Some(tracer) = gpu_tracer(&view) else { return };
+        let trace = tracer.trace(&rays, false).unwrap();
+        for (r, (ray, record)) in rays.iter().zip(&trace.records).enumerate() {
+            let want = expected(&view, ray).map(|((t, _, key), _)| (t, key));
+            let got = (record.triangle != u32::MAX).then(|| (record.t.to_bits(), key_of(&view, record.triangle)));
+            assert_eq!(got, want, "{name}: ray {r} {ray:?}");
+        }
+    }
+}

@@ -12,6 +12,7 @@ mod capi_refit;
 mod cli;
 mod cli_hardening;
 mod cli_refit;
+mod closest_hit;
 mod clusters;
 mod common;
 mod compat;

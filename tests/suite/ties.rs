@@ -6,7 +6,8 @@
 //! asked about every candidate, the GPU layout's CPU model), against a brute force over every record that keeps
 //! the lexicographic minimum of `(t, instance, key)` with the spec's own hit test, the key being the record, or
 //! in a file with split references (where a triangle has several records, any of which a walk may meet) the
-//! record's coordinates.
+//! record's coordinates and then its source id (revision 1.5.8: of a triangle stored three times in the source,
+//! the copy of lowest id).
 
 use std::path::Path;
 
@@ -21,20 +22,24 @@ use crate::instances_exact::spec_object_ray;
 
 type Triangle = [[f32; 3]; 3];
 
-/// A record's place among hits at one `t` (spec 11.1): its index, or with split references its coordinates.
-type Key = ([u32; 9], u32);
+/// A record's place among hits at one `t` (spec 11.1): its index, or with split references its coordinates and
+/// source id (0 without ids).
+pub(crate) type Key = ([u32; 9], u32);
 
-fn key_of(view: &BvhView<'_>, record: u32) -> Key {
+pub(crate) fn key_of(view: &BvhView<'_>, record: u32) -> Key {
     match view.has_split_references() {
-        true => (view.triangles()[record as usize].coordinate_bits(), 0),
+        true => {
+            let id = view.triangle_ids().map_or(0, |ids| ids[record as usize]);
+            (view.triangles()[record as usize].coordinate_bits(), id)
+        }
         false => ([0; 9], record),
     }
 }
 
 /// A closest hit as the spec names it: `t`'s bits, the instance (two-level) and the key.
-type Named = (u32, Option<u32>, Key);
+pub(crate) type Named = (u32, Option<u32>, Key);
 
-fn named(view: &BvhView<'_>, hit: &Hit) -> Named {
+pub(crate) fn named(view: &BvhView<'_>, hit: &Hit) -> Named {
     (hit.t.to_bits(), hit.instance_index, key_of(view, hit.triangle_index))
 }
 
@@ -58,7 +63,7 @@ fn lowest_in(view: &BvhView<'_>, first: u32, count: u32, ray: &Ray) -> Option<(f
 
 /// The brute force over a file: one-level, its records; two-level, every instance's mesh records in the
 /// object-space ray of 11.3, instances in index order. The expected closest hit and whether it is a tie.
-fn expected(view: &BvhView<'_>, ray: &Ray) -> Option<(Named, bool)> {
+pub(crate) fn expected(view: &BvhView<'_>, ray: &Ray) -> Option<(Named, bool)> {
     let Some(sections) = view.two_level() else {
         let count = view.triangles().len() as u32;
         return lowest_in(view, 0, count, ray).map(|(t, key, n)| ((t.to_bits(), None, key), n > 1));
@@ -113,7 +118,7 @@ fn assert_every_entry_point(view: &BvhView<'_>, rays: &[Ray], name: &str) -> usi
 
 /// Rays at `targets` from above: straight down (the plane's `t` the same for every triangle there), and
 /// oblique from jittered origins.
-fn rays_at(targets: &[[f32; 3]], seed: u64) -> Vec<Ray> {
+pub(crate) fn rays_at(targets: &[[f32; 3]], seed: u64) -> Vec<Ray> {
     use rand::RngExt;
     let mut rng = rng(seed);
     let mut rays = Vec::new();
@@ -137,7 +142,7 @@ fn rays_at(targets: &[[f32; 3]], seed: u64) -> Vec<Ray> {
 /// three times, two coplanar triangles overlapping, and a floor at z = -1; the targets at the grid's vertices and
 /// edge midpoints, and inside the triple triangle and the overlap (where the GPU's f32 edge test agrees with
 /// the CPU's, so it is checked too).
-fn tie_scene(dir: &Path) -> (std::path::PathBuf, Vec<[f32; 3]>, Vec<[f32; 3]>) {
+pub(crate) fn tie_scene(dir: &Path) -> (std::path::PathBuf, Vec<[f32; 3]>, Vec<[f32; 3]>) {
     let mut obj = String::new();
     // The grid's 25 vertices come first.
     let mut vertex = 25usize;
@@ -181,7 +186,7 @@ fn tie_scene(dir: &Path) -> (std::path::PathBuf, Vec<[f32; 3]>, Vec<[f32; 3]>) {
     (path, edge_targets, interior_targets)
 }
 
-fn converted(input: &Path, output: &Path, splits: bool) -> BvhFile {
+pub(crate) fn converted(input: &Path, output: &Path, splits: bool) -> BvhFile {
     let overrides = Overrides { splits: Some(splits), gpu_layout: Some(true), ..Overrides::default() };
     bvhc::Conversion::new(input, output).preset(Preset::Balanced).overrides(overrides).run().unwrap();
     BvhFile::read(output).unwrap()
@@ -193,7 +198,11 @@ fn ties_go_to_the_lowest_record_on_every_kernel_and_entry_point() {
     let (input, edge_targets, interior_targets) = tie_scene(dir.path());
     for splits in [false, true] {
         let file = converted(&input, &dir.path().join(format!("ties-{splits}.bvh")), splits);
+        // A scene this small has no triangle worth cutting: marked split, its hits at one `t` are ordered by
+        // coordinates and ids all the same.
+        let file = if splits { marked_split(&file.view(), false).0 } else { file };
         let view = file.view();
+        assert_eq!(view.has_split_references(), splits);
         let name = format!("tie scene (splits {splits})");
         let mut rays = rays_at(&edge_targets, 51);
         let interior = rays_at(&interior_targets, 52);
@@ -211,6 +220,77 @@ fn ties_go_to_the_lowest_record_on_every_kernel_and_entry_point() {
             let record = model.record(ray, false);
             let got = (record.triangle != u32::MAX).then(|| key_of(&view, record.triangle));
             assert_eq!(got, want.map(|(_, _, key)| key), "{name}: GPU model's record, ray {r}");
+        }
+    }
+}
+
+/// `view` (a converted file with ids, whose source holds coincident triangles) with the `SPLIT_REFERENCES` flag
+/// set (so that hits at one `t` are ordered by coordinates and ids, as in a file whose triangles were cut: a
+/// small scene's conversion cuts none) and, with `reverse`, the ids of each set of coincident triangles
+/// reversed (their records' source vertices with them, so the file stays consistent): the copy that had the
+/// lowest id then has the highest, so a kernel that took the first copy it met in one file names a copy that is
+/// not the lowest in the other. Also how many records coincide with another triangle of another id.
+pub(crate) fn marked_split(view: &BvhView<'_>, reverse: bool) -> (BvhFile, usize) {
+    use std::collections::BTreeMap;
+    let ids = view.triangle_ids().expect("ids");
+    let corners = view.source_vertices().expect("source vertices");
+    let mut by_coordinates: BTreeMap<[u32; 9], Vec<u32>> = BTreeMap::new();
+    for (record, triangle) in view.triangles().iter().enumerate() {
+        let copies = by_coordinates.entry(triangle.coordinate_bits()).or_default();
+        if !copies.contains(&ids[record]) {
+            copies.push(ids[record]);
+        }
+    }
+    let corners_of: BTreeMap<u32, _> = ids.iter().zip(corners).map(|(&id, &c)| (id, c)).collect();
+    let (mut new_ids, mut new_corners) = (ids.to_vec(), corners.to_vec());
+    let mut coinciding = 0;
+    for (record, triangle) in view.triangles().iter().enumerate() {
+        let mut copies = by_coordinates[&triangle.coordinate_bits()].clone();
+        if copies.len() < 2 {
+            continue;
+        }
+        coinciding += 1;
+        if reverse {
+            copies.sort_unstable();
+            let k = copies.iter().position(|&id| id == ids[record]).unwrap();
+            new_ids[record] = copies[copies.len() - 1 - k];
+            new_corners[record] = corners_of[&new_ids[record]];
+        }
+    }
+    let file = bvhc::loader::write::BvhWriter::from_view(view)
+        .split_references(true)
+        .triangle_ids(&new_ids)
+        .source_vertices(&new_corners)
+        .build()
+        .expect("the marked file verifies");
+    (file, coinciding)
+}
+
+/// Revision 1.5.8: with split references, of coincident triangles (the triangle stored three times in the
+/// source) the hit names the one of lowest source id, whichever record of it and whichever copy a walk meets
+/// first: checked on the converted file marked split and on the same file with those triangles' ids reversed, so
+/// that a kernel which kept the first copy it met fails on one of the two.
+#[test]
+fn coincident_triangles_go_to_the_lowest_source_id_on_every_kernel() {
+    let dir = tempfile::tempdir().unwrap();
+    let (input, _, interior_targets) = tie_scene(dir.path());
+    let converted = converted(&input, &dir.path().join("ties.bvh"), true);
+    let (file, coinciding) = marked_split(&converted.view(), false);
+    assert_eq!(coinciding, 3, "the triangle stored three times");
+    let (reversed, _) = marked_split(&converted.view(), true);
+    let rays = rays_at(&interior_targets, 52);
+    let files = [("split references", &file), ("ids reversed", &reversed)];
+    for (name, file) in files {
+        let ties = assert_every_entry_point(&file.view(), &rays, name);
+        assert!(ties > rays.len() / 4, "{name}: only {ties} of {} rays are ties", rays.len());
+    }
+    for (name, file) in files {
+        let view = file.view();
+        let model = view.gpu_layout_tracer().expect("converted with the GPU layout");
+        for (r, ray) in rays.iter().enumerate() {
+            let want = expected(&view, ray).map(|(n, _)| n);
+            let got = model.closest_hit(ray).as_ref().map(|hit| named(&view, hit));
+            assert_eq!(got, want, "{name}: GPU model, ray {r} {ray:?}");
         }
     }
 }

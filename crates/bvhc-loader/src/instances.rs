@@ -13,7 +13,8 @@ use crate::format::{LEAF_BIT, MeshRecord, PackedNode};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::hit::{Hit, TraversalCounter};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::{Query, precedes};
+use crate::ray::query::{Query, TieOrder, precedes};
+use crate::ray::reach::tree_scale;
 use crate::ray::transform::{object_ray, world_normal};
 use crate::simd::{Isa, Kernel};
 use crate::wide::walk::{Sections, Walk, WideLeaves, new_stack};
@@ -52,16 +53,36 @@ fn tie_keys(hit: &Hit, best: &Hit) -> ((Option<u32>, u32), (Option<u32>, u32)) {
 #[inline(always)]
 pub(crate) fn walk_instances<C: TraversalCounter, Q: Query>(
     sections: &TwoLevelSections<'_>,
+    stretch: f32,
     ray: &Ray,
     counter: &mut C,
     trace_mesh: impl FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 ) -> Option<Hit> {
-    walk::<Q, _, _>(sections.top_nodes, ray, counter, InstanceLeaves { sections, trace_mesh })
+    walk::<Q, _, _>(sections.top_nodes, ray, counter, InstanceLeaves { sections, stretch, trace_mesh })
+}
+
+/// How much an instance of `sections` can stretch a record's depth along a ray, relative to the world's: the
+/// largest `||W||_inf ||L||_inf` of its instances (row sums of the linear parts of `world_to_object` and
+/// `object_to_world`), which bounds a record's spread along the object-space ray's major axis over that axis's
+/// direction component by the world extent over the world ray's largest component (`crate::ray::reach`: the
+/// top trees' reach is scaled by it). At least 1; computed once for a tracer (`Tracer::with_instances`), in f64
+/// and rounded up.
+pub(crate) fn instance_stretch(sections: &TwoLevelSections<'_>) -> f32 {
+    let norm = |m: &crate::format::Affine3x4| {
+        m.iter().map(|row| row[..3].iter().map(|&c| f64::from(c).abs()).sum::<f64>()).fold(0.0, f64::max)
+    };
+    let largest =
+        sections.instances.iter().map(|i| norm(&i.world_to_object) * norm(&i.object_to_world)).fold(1.0f64, f64::max);
+    // Rounded up to f32 (a NaN map, which a verified file has not, gives NaN: the walk then culls nothing).
+    let rounded = largest as f32;
+    if f64::from(rounded) < largest { rounded.next_up() } else { rounded }
 }
 
 /// The leaves of a two-level file's binary top tree: one instance each (`index` the instance, `count` 1).
 struct InstanceLeaves<'s, 'a, F> {
     sections: &'s TwoLevelSections<'a>,
+    /// [`instance_stretch`] of `sections`.
+    stretch: f32,
     trace_mesh: F,
 }
 
@@ -71,6 +92,10 @@ where
     F: FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 {
     type Found = Hit;
+
+    fn depth_scale(&self) -> f32 {
+        self.stretch
+    }
 
     #[inline(always)]
     fn test_leaf<Q: Query>(
@@ -99,6 +124,8 @@ where
 /// hit. The binary top root's box is tested first (a ray that misses it misses every instance).
 pub(crate) struct WideInstanceWalk<'a, 'r, C, F, Q: Query> {
     pub sections: &'a TwoLevelSections<'a>,
+    /// [`instance_stretch`] of `sections`.
+    pub stretch: f32,
     pub ray: &'r Ray,
     pub counter: &'r mut C,
     pub trace_mesh: F,
@@ -114,9 +141,11 @@ where
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) -> Option<Hit> {
-        let WideInstanceWalk { sections, ray, counter, trace_mesh, .. } = self;
+        let WideInstanceWalk { sections, stretch, ray, counter, trace_mesh, .. } = self;
         let root = *sections.top_nodes.first()?;
-        let top = Sections { nodes: sections.top_wide_nodes, packets: &[], root, split_references: false };
+        let reach_scale = tree_scale(&root, stretch);
+        let top =
+            Sections { nodes: sections.top_wide_nodes, packets: &[], root, tie: TieOrder::default(), reach_scale };
         let mut walk = Walk::start(&top, ray).filter(|walk| walk.enters(&root))?;
         let mut stack = new_stack();
         let mut leaves = WideInstanceLeaves { sections, ray, trace_mesh };

@@ -1,5 +1,5 @@
 //! One walk of a binary tree (`format-spec/bvh-1.md` 11.2 and, for the top tree, 11.3): depth first, nearer
-//! child first, boxes culled against the closest hit so far times [`CULL_PADDING`], with a fixed stack of
+//! child first, boxes culled beyond the reach of the closest hit so far (`crate::ray::reach`), with a fixed stack of
 //! [`MAX_DEPTH`] entries (the depth rules V20 and V43 make it enough) and no heap allocation.
 //!
 //! What a leaf holds is the [`Leaves`] parameter: [`TriangleLeaves`] (a mesh's triangle records, the candidates
@@ -12,14 +12,21 @@
 
 use crate::format::{MAX_DEPTH, PackedNode, PackedTriangle};
 use crate::ray::candidates::Candidates;
-use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit};
+use crate::ray::hit::{TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::{Query, TieKey, precedes};
+use crate::ray::query::{Query, TieKey, TieOrder, precedes};
+use crate::ray::reach::{cull_distance, tree_scale};
 
 /// What the walk does at a leaf.
 pub(crate) trait Leaves<C: TraversalCounter> {
     /// What a hit in a leaf is.
     type Found;
+
+    /// How much the records below a leaf can stretch a depth beyond the tree's own boxes (the reach's scale,
+    /// `crate::ray::reach`): 1 for triangles; for a top tree's instances, their largest stretch.
+    fn depth_scale(&self) -> f32 {
+        1.0
+    }
 
     /// Tests leaf `node` for hits with `t <= *t_max` of `ray` (prepared as `prepared`): each hit that precedes
     /// `*found` ([`precedes`]: a smaller `t`, or the same and a lower key) replaces it and lowers `*t_max` to its
@@ -41,8 +48,8 @@ pub(crate) trait Leaves<C: TraversalCounter> {
 pub(crate) struct TriangleLeaves<'t, 'c, F> {
     pub triangles: &'t [PackedTriangle],
     pub candidates: &'c F,
-    /// The triangles section's `SPLIT_REFERENCES` flag: which [`TieKey`] orders hits at one `t`.
-    pub split_references: bool,
+    /// Which [`TieKey`] orders hits at one `t`.
+    pub tie: TieOrder<'t>,
 }
 
 impl<F> TriangleLeaves<'_, '_, F> {
@@ -50,9 +57,7 @@ impl<F> TriangleLeaves<'_, '_, F> {
     #[inline(never)]
     fn tie_keys(&self, record: u32, best: u32) -> (TieKey, TieKey) {
         let key = |r: u32| {
-            TieKey::of(self.split_references, r, || {
-                self.triangles.get(r as usize).map_or([u32::MAX; 9], PackedTriangle::coordinate_bits)
-            })
+            self.tie.key(r, || self.triangles.get(r as usize).map_or([u32::MAX; 9], PackedTriangle::coordinate_bits))
         };
         (key(record), key(best))
     }
@@ -103,8 +108,10 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
     counter: &mut C,
     mut leaves: L,
 ) -> Option<L::Found> {
-    let prepared = PreparedRay::new(ray);
-    prepared.enter_box(nodes.first()?, ray.t_max * CULL_PADDING)?;
+    let root = nodes.first()?;
+    let prepared = PreparedRay::new(ray).in_tree(tree_scale(root, leaves.depth_scale()));
+    let mut t_cull = cull_distance(&prepared, ray.t_max);
+    prepared.enter_box(root, t_cull)?;
     let mut t_max = ray.t_max;
     let mut found = None;
     // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
@@ -124,6 +131,7 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
                 if leaves.test_leaf::<Q>(node, ray, &prepared, &mut t_max, &mut found, counter) {
                     return found;
                 }
+                t_cull = cull_distance(&prepared, t_max);
                 break 'visit;
             }
             let first = node.index;
@@ -133,7 +141,6 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
             let (Some(left), Some(right)) = (nodes.get(first as usize), nodes.get(second as usize)) else {
                 break 'visit;
             };
-            let t_cull = t_max * CULL_PADDING;
             match (prepared.enter_box(left, t_cull), prepared.enter_box(right, t_cull)) {
                 (Some(t_left), Some(t_right)) => {
                     let (near, far, t_far) =
@@ -165,7 +172,7 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
             // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
             // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
             let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
-            if t_entry <= t_max * CULL_PADDING {
+            if t_entry <= t_cull {
                 current = node;
                 break;
             }

@@ -58,8 +58,9 @@ pub struct GpuTracer<'a> {
     layout: wgpu::BindGroupLayout,
     closest: wgpu::ComputePipeline,
     any: wgpu::ComputePipeline,
-    /// The two sections' buffers; `None` for an empty scene (bindings cannot be empty: every ray misses).
-    sections: Option<(wgpu::Buffer, wgpu::Buffer)>,
+    /// The two sections' buffers and the records' source ids (binding 5: the `triangle_ids` section, or one 0
+    /// without one); `None` for an empty scene (bindings cannot be empty: every ray misses).
+    sections: Option<(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer)>,
     triangles: &'a [PackedTriangle],
     triangle_ids: Option<&'a [u32]>,
     /// The kernel's CPU model, which traces the rays the kernel leaves to the CPU.
@@ -150,7 +151,8 @@ impl<'a> GpuTracer<'a> {
         view: &BvhView<'a>,
     ) -> Result<GpuTracer<'a>, GpuError> {
         let gpu = view.gpu_sections().ok_or(GpuError::NoGpuSections)?;
-        GpuTracer::build(device, queue, gpu, view.triangles(), view.triangle_ids())
+        Ok(GpuTracer::build(device, queue, gpu, view.triangles(), view.triangle_ids())?
+            .with_split_references(view.has_split_references()))
     }
 
     fn build(
@@ -180,8 +182,16 @@ impl<'a> GpuTracer<'a> {
                 usage: wgpu::BufferUsages::STORAGE,
             })
         };
-        let sections = (!gpu.nodes.is_empty())
-            .then(|| (storage("gpu_nodes", node_bytes), storage("gpu_triangles", triangle_bytes)));
+        // The ids order hits at one `t` after the coordinates with split references (11.1's tie key); 4 bytes a
+        // record, uploaded whenever the file has them.
+        let id_bytes: &[u8] = bytemuck::cast_slice(triangle_ids.filter(|ids| !ids.is_empty()).unwrap_or(&[0]));
+        let sections = (!gpu.nodes.is_empty()).then(|| {
+            (
+                storage("gpu_nodes", node_bytes),
+                storage("gpu_triangles", triangle_bytes),
+                storage("triangle_ids", id_bytes),
+            )
+        });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("bvhc gpu.wgsl"),
             source: wgpu::ShaderSource::Wgsl(GPU_TRAVERSAL_WGSL.into()),
@@ -201,6 +211,7 @@ impl<'a> GpuTracer<'a> {
                 entry(2, read),
                 entry(3, wgpu::BufferBindingType::Storage { read_only: false }),
                 entry(4, wgpu::BufferBindingType::Uniform),
+                entry(5, read),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -274,7 +285,7 @@ impl<'a> GpuTracer<'a> {
     /// One batch: upload, dispatch, copy, read back; the records and the kernel's seconds from timestamps.
     fn dispatch(
         &self,
-        (nodes, triangles): &(wgpu::Buffer, wgpu::Buffer),
+        (nodes, triangles, ids): &(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer),
         rays: &[Ray],
         any_hit: bool,
     ) -> Result<(Vec<GpuHitRecord>, Option<f64>), GpuError> {
@@ -288,7 +299,9 @@ impl<'a> GpuTracer<'a> {
             usage: wgpu::BufferUsages::STORAGE,
         });
         let split_references = u32::from(self.model.splits_references());
-        let params = GpuParams { ray_count: rays.len() as u32, split_references, reserved: [0; 2] };
+        let tie_by_ids = u32::from(self.model.splits_references() && self.triangle_ids.is_some());
+        let reach_scale = self.model.reach_scale();
+        let params = GpuParams { ray_count: rays.len() as u32, split_references, reach_scale, tie_by_ids };
         let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("params"),
             contents: bytemuck::bytes_of(&params),
@@ -316,6 +329,7 @@ impl<'a> GpuTracer<'a> {
                 binding(2, &ray_buffer),
                 binding(3, &hits),
                 binding(4, &params_buffer),
+                binding(5, ids),
             ],
         });
         let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {

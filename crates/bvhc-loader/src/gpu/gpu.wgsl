@@ -33,8 +33,11 @@ struct Params {
     ray_count: u32,
     // 1 when the triangles section has SPLIT_REFERENCES: hits at one t are then ordered by coordinates.
     split_references: u32,
-    reserved1: u32,
-    reserved2: u32,
+    // The tree's part in the reach (format-spec/bvh-1.md 11.2): 2^-11 times the largest side of the root's boxes.
+    reach_scale: f32,
+    // 1 with split_references when binding 5 holds the records' source ids: equal coordinates are then ordered
+    // by id.
+    tie_by_ids: u32,
 }
 
 @group(0) @binding(0) var<storage, read> gpu_nodes: array<vec4<u32>>;
@@ -42,13 +45,18 @@ struct Params {
 @group(0) @binding(2) var<storage, read> rays: array<Ray>;
 @group(0) @binding(3) var<storage, read_write> hits: array<HitRecord>;
 @group(0) @binding(4) var<uniform> params: Params;
+@group(0) @binding(5) var<storage, read> triangle_ids: array<u32>;
 
 const NO_HIT: u32 = 0xffffffffu;
 // Slab exit distances are padded by 1 + 2^-19: Ize's bound for three correctly rounded operations, widened for
 // WGSL's division (2.5 ulp) and one more rounding.
 const EXIT_PADDING: f32 = 1.0000019073486328;
-// Boxes are culled at the closest hit so far (or t_max) times 1 + 2^-18, as on the CPU.
-const CULL_PADDING: f32 = 1.000003814697265625;
+// Boxes are culled beyond the reach of the closest hit so far (or t_max), as on the CPU (11.2):
+// t (1 + 2^-11) + reach_scale |sz|.
+const REACH_SCALE: f32 = 1.00048828125;
+// 2^-18: an edge function above 2^-18 rho (rho + R) has the sign exact arithmetic gives it (11.2, the box
+// condition's shortcut).
+const EXACT_SIGNS: f32 = 3.814697265625e-06;
 const MIN_NORMAL: f32 = 1.1754943508222875e-38;
 const F32_MAX: f32 = 3.4028234663852886e38;
 const STACK_SIZE: u32 = 64u;
@@ -337,6 +345,14 @@ fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
     if (!(t >= ray.t_min && t <= t_max)) {
         return miss;
     }
+    // The box condition (11.1): a hit whose edge functions are all clear of their rounding is a hit of the exact
+    // ray inside the triangle, which meets it; another (a ray within rounding of an edge) is left to the CPU, which
+    // tests the record's box with its exact arithmetic: w = 2, both bounds t.
+    let smallest = min(min(abs(e_u), abs(e_v)), abs(e_w));
+    let depth = max(max(abs(az), abs(bz)), abs(cz));
+    if (!(smallest > rho * (rho + depth) * EXACT_SIGNS && t <= F32_MAX)) {
+        return vec4<f32>(t, t, 0.0, 2.0);
+    }
     let inverse_det = 1.0 / det;
     return vec4<f32>(t, e_v * inverse_det, e_w * inverse_det, 1.0);
 }
@@ -345,7 +361,7 @@ fn intersect_triangle(g: u32, ray: Prepared, t_max: f32) -> vec4<f32> {
 // record, for any hit the first found.
 // Whether, of two hits at one t, the one on GPU triangle g (record `triangle`) comes before the one on best_g
 // (record `best`): the lower record, or with split references the lower coordinates (nine bit patterns compared
-// as unsigned integers in order), as format-spec/bvh-1.md 11.1 orders them.
+// as unsigned integers in order) and then the lower source id, as format-spec/bvh-1.md 11.1 orders them.
 fn precedes_at_tie(g: u32, triangle: u32, best_g: u32, best: u32) -> bool {
     if (params.split_references == 0u) {
         return triangle < best;
@@ -356,6 +372,9 @@ fn precedes_at_tie(g: u32, triangle: u32, best_g: u32, best: u32) -> bool {
         if (a != b) {
             return a < b;
         }
+    }
+    if (params.tie_by_ids != 0u) {
+        return triangle_ids[triangle] < triangle_ids[best];
     }
     return false;
 }
@@ -396,9 +415,10 @@ fn trace(ray_in: Ray, any_hit: bool) -> HitRecord {
             if (index >= node_count || visits > node_count) {
                 break;
             }
-            // Culled at the closest hit so far (or t_max), padded: a box's entry distance can round above the t
-            // of a hit inside it. Kept finite: WGSL may assume that no infinity occurs.
-            let far = select(best_t * CULL_PADDING, best_t, best_t > F32_MAX / CULL_PADDING);
+            // Culled beyond the reach of the closest hit so far (or t_max), as on the CPU. Kept finite: WGSL may
+            // assume that no infinity occurs.
+            let reach = best_t * REACH_SCALE + params.reach_scale * abs(ray.shear.z);
+            let far = select(F32_MAX, reach, reach <= F32_MAX);
             let visited = visit_node(index, ray, inv, far);
             node_group = vec2<u32>(visited.y, (visited.x & INNER_MASK) | visited.w);
             triangle_group = vec2<u32>(visited.z, visited.x & ~INNER_MASK);

@@ -16,21 +16,23 @@
 //! padded reciprocal, compare-selects that ignore a NaN) on the decoded boxes, with a wider padding
 //! ([`GPU_EXIT_PADDING`]: WGSL's division is within 2.5 ulp, not correctly rounded), except that a direction
 //! component below the smallest normal f32 is treated as zero (GPUs flush subnormals): that slab holds the
-//! origin or nothing, decided by comparisons, so no infinity is formed; boxes are culled against the closest
-//! hit (or `t_max`) times the CPU kernels' padding. Triangles: Woop et al.'s watertight test in f32 only: WGSL has
+//! origin or nothing, decided by comparisons, so no infinity is formed; boxes are culled beyond the reach of the
+//! closest hit (or `t_max`), as on the CPU (`crate::ray::reach`: the tree's part from the root's decoded boxes). Triangles: Woop et al.'s watertight test in f32 only: WGSL has
 //! no f64, so where an edge function is exactly 0 the CPU kernels' f64 recomputation of all three is replaced by
 //! that edge's exact value (computed here in f64, which is exact for it; the shader gets the same bits from
 //! integer arithmetic), the other two keeping their f32 values, whose signs are exact already. Every hit-or-miss
 //! decision is then the CPU kernels' for the same arithmetic; `t`, `u`, `v` can differ by a few ulps on rays with
 //! such an edge (`format-spec/bvh-1.md` 11.4).
 
+use crate::format::PackedNode;
 use crate::format::{GPU_MAX_DEPTH, GPU_WIDE, GpuNode, GpuTriangle, PackedTriangle};
 use crate::gpu::shader::GpuHitRecord;
 use crate::open::sections::GpuSections;
 use crate::open::view::BvhView;
-use crate::ray::hit::{CULL_PADDING, Hit, TraversalCounter, TriangleHit};
+use crate::ray::hit::{Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::{AnyHit, ClosestHit, Query, TieKey};
+use crate::ray::query::{AnyHit, ClosestHit, Query, TieOrder};
+use crate::ray::reach::{self, tree_scale};
 use crate::trace::Trace;
 
 /// Traces rays through a file's GPU sections on the CPU, exactly as the WGSL kernel does (see the module
@@ -43,6 +45,8 @@ pub struct GpuLayoutTracer<'a> {
     triangle_ids: Option<&'a [u32]>,
     /// The triangles section's `SPLIT_REFERENCES` flag: hits at one `t` ordered by coordinates, not records.
     split_references: bool,
+    /// The tree's part in the walk's reach (`crate::ray::reach::tree_scale`: of the root's decoded slot boxes).
+    reach_scale: f32,
 }
 
 impl<'a> BvhView<'a> {
@@ -75,11 +79,19 @@ impl<'a> GpuLayoutTracer<'a> {
             triangles,
             triangle_ids,
             split_references: false,
+            reach_scale: gpu.nodes.first().map_or(0.0, root_reach_scale),
         }
     }
 
+    /// The tree's part in the walk's reach, which the shader reads from `Params::reach_scale`.
+    #[cfg_attr(not(feature = "wgpu"), allow(dead_code))]
+    pub(crate) fn reach_scale(&self) -> f32 {
+        self.reach_scale
+    }
+
     /// This tracer over a triangles section with the `SPLIT_REFERENCES` flag (`split`): of hits at one `t` the
-    /// closest is then the one of lowest coordinates, not of lowest record (`format-spec/bvh-1.md` 11.1), as the
+    /// closest is then the one of lowest coordinates and source id, not of lowest record (`format-spec/bvh-1.md`
+    /// 11.1), as the
     /// shader does with `Params::split_references` set.
     pub fn with_split_references(self, split: bool) -> Self {
         GpuLayoutTracer { split_references: split, ..self }
@@ -95,8 +107,9 @@ impl<'a> GpuLayoutTracer<'a> {
     /// `record` and `best_record`): the shader's `precedes_at_tie`.
     #[inline(never)]
     fn precedes_at_tie(&self, (g, record): (u32, u32), (best, best_record): (u32, u32)) -> bool {
+        let tie = TieOrder::new(self.split_references, self.triangle_ids);
         let key = |g: u32, record: u32| {
-            TieKey::of(self.split_references, record, || {
+            tie.key(record, || {
                 let triangle = self.gpu_triangles.get(g as usize);
                 triangle.map_or([u32::MAX; 9], |t| PackedTriangle { vertices: t.vertices }.coordinate_bits())
             })
@@ -152,9 +165,9 @@ impl<'a> GpuLayoutTracer<'a> {
                 let node = self.nodes.get(index as usize)?;
                 visits_left = visits_left.checked_sub(1)?;
                 counter.node_visited();
-                // Culled at the closest hit so far, or `t_max` before one is found, padded (a box's entry
-                // distance can round above the `t` of a hit inside it); kept finite for WGSL.
-                let far = if best_t > f32::MAX / CULL_PADDING { best_t } else { best_t * CULL_PADDING };
+                // Culled beyond the reach of the closest hit so far, or of `t_max` before one is found
+                // (`crate::ray::reach`); kept finite for WGSL.
+                let far = gpu_cull(best_t, self.reach_scale * prepared.shear().1[2].abs());
                 let hits = node_hits(node, &prepared, &ray.direction, inv, far);
                 node_group = (node.child_base, (hits & INNER_MASK) | u32::from(node.inner_mask));
                 triangle_group = (node.triangle_base, hits & !INNER_MASK);
@@ -207,6 +220,27 @@ impl Trace for GpuLayoutTracer<'_> {
     fn any_hit_counted(&self, ray: &Ray, counter: &mut impl TraversalCounter) -> bool {
         self.walk::<AnyHit>(ray, counter).is_some()
     }
+}
+
+/// The reach's tree scale of a GPU tree whose root node is `root`: of the union of its slots' decoded boxes, which
+/// hold every record below it (V50).
+fn root_reach_scale(root: &GpuNode) -> f32 {
+    let (mut min, mut max) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for slot in (0..GPU_WIDE).filter(|&slot| root.meta[slot] != 0) {
+        let (lo, hi) = root.slot_box(slot);
+        for a in 0..3 {
+            (min[a], max[a]) = (min[a].min(lo[a]), max[a].max(hi[a]));
+        }
+    }
+    let root = PackedNode { min, max, index: 0, count: 0 };
+    if min[0] > max[0] { 0.0 } else { tree_scale(&root, 1.0) }
+}
+
+/// The cull distance of the GPU walks: [`reach::cull`] of `t` with `2^-11 D = offset`, kept finite (WGSL may
+/// assume that no infinity occurs): `f32::MAX` where it would overflow or is NaN.
+pub(crate) fn gpu_cull(t: f32, offset: f32) -> f32 {
+    let far = reach::cull(t, offset);
+    if far <= f32::MAX { far } else { f32::MAX }
 }
 
 /// `inv`: bit 2, 1, 0 set when the direction's x, y, z is `>= 0` (so `-0.0` counts as positive).

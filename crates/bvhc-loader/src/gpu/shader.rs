@@ -11,6 +11,7 @@
 //! | 2 | `storage, read` | the rays, [`GpuRay`] each |
 //! | 3 | `storage, read_write` | the results, [`GpuHitRecord`] each, one per ray |
 //! | 4 | `uniform` | [`GpuParams`] |
+//! | 5 | `storage, read` | the `triangle_ids` section's bytes (with split references, hits at one `t` with equal coordinates go to the lower id, `format-spec/bvh-1.md` 11.1); one `u32` of any value for a file without ids, with [`GpuParams::tie_by_ids`] 0 |
 //!
 //! Entry points `closest_hit` and `any_hit`, workgroups of [`GPU_WORKGROUP_SIZE`] invocations, one ray each:
 //! dispatch `ceil(ray_count / 64)` workgroups in x. The sections need no conversion: a program uploads the bytes
@@ -95,19 +96,23 @@ impl GpuHitRecord {
 
 /// The kernel's uniform parameters (binding 4), 16 bytes.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GpuParams {
     /// Rays in binding 2 (and results in binding 3).
     pub ray_count: u32,
     /// 1 when the file's triangles section has `SPLIT_REFERENCES` (hits at one `t` are then ordered by their
     /// triangles' coordinates, `format-spec/bvh-1.md` 11.1), else 0.
     pub split_references: u32,
-    /// Zero.
-    pub reserved: [u32; 2],
+    /// The tree's part in the walk's reach (`crate::ray::reach`: 2^-11 times the largest side of the root's
+    /// decoded boxes), from `GpuLayoutTracer`.
+    pub reach_scale: f32,
+    /// 1 with `split_references` when binding 5 holds the records' source ids (the file has `triangle_ids`): hits
+    /// at one `t` with the same coordinates are then ordered by id; else 0.
+    pub tie_by_ids: u32,
 }
 
 crate::format::plain_data::plain_data! {
     GpuRay { [f32; 3], f32, [f32; 3], f32 }
     GpuHitRecord { f32, f32, f32, u32 }
-    GpuParams { u32, u32, [u32; 2] }
+    GpuParams { u32, u32, f32, u32 }
 }

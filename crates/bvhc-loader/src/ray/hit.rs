@@ -1,5 +1,6 @@
-//! What every kernel returns and reports: the [`TriangleHit`] of one triangle test, the [`Hit`] record, the
-//! traversal counters, and the cull padding all kernels share (so that they find the same closest hit).
+//! What every kernel returns and reports: the [`TriangleHit`] of one triangle test, the [`Hit`] record and the
+//! traversal counters. (How far beyond a hit the kernels keep looking, so that they find the same closest hit,
+//! is `crate::ray::reach`.)
 
 use crate::format::{PACKET_LANES, PackedTriangle, TrianglePacket4};
 
@@ -13,12 +14,6 @@ pub struct TriangleHit {
     /// Weight of `v2`.
     pub v: f32,
 }
-
-/// Boxes are culled against the closest hit so far padded by this factor (`1 + 2^-18`). The triangle test's `t`
-/// carries a rounding error of a few ulps (different triangles through the same point, such as the fan around
-/// a shared vertex, report `t`s an ulp or two apart), so culling at the exact best `t` could skip a box whose
-/// triangle reports a `t` an ulp smaller. With the pad, the closest hit equals a brute-force scan exactly.
-pub(crate) const CULL_PADDING: f32 = 1.0 + 1.0 / 262_144.0;
 
 /// The closest hit of a ray: what shading needs of the triangle it met.
 ///

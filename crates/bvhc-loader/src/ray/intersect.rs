@@ -21,9 +21,10 @@
 use crate::format::{PackedNode, PackedTriangle, WIDE};
 use crate::ray::exact_hit::exact_hit;
 use crate::ray::hit::TriangleHit;
+use crate::ray::reach::BoxRay;
 use crate::ray::watertight::{
-    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions,
-    edge_functions_f64, has_zero_edge, ill_conditioned, outside, sheared, zero_edges_exact,
+    EXACT_SIGNS, ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, conditioning, determinant, distance,
+    edge_functions, edge_functions_f64, has_zero_edge, outside, sheared, zero_edges_exact,
 };
 use crate::simd::SlabRay;
 
@@ -93,6 +94,9 @@ pub struct PreparedRay {
     /// `3 * WIDE` for the `max` row. Only [`PreparedRay::new`] writes them, so they are always such offsets.
     wide_plane_offsets: ([usize; 3], [usize; 3]),
     pub(crate) t_min: f32,
+    /// The walk's reach offset `2^-11 D` over its tree (`crate::ray::reach`), set by [`PreparedRay::in_tree`];
+    /// 0 before.
+    pub(crate) reach_offset: f32,
     kx: usize,
     ky: usize,
     kz: usize,
@@ -153,12 +157,31 @@ impl PreparedRay {
                 std::array::from_fn(|axis| row(axis, !d[axis].is_sign_negative())),
             ),
             t_min: ray.t_min,
+            reach_offset: 0.0,
             kx,
             ky,
             kz,
             sx: d[kx] / d[kz],
             sy: d[ky] / d[kz],
             sz: 1.0 / d[kz],
+        }
+    }
+
+    /// This ray as a walk over a tree of `crate::ray::reach::tree_scale` `tree` prepares it: its reach offset
+    /// `tree |sz|` set.
+    #[inline(always)]
+    pub(crate) fn in_tree(self, tree: f32) -> PreparedRay {
+        PreparedRay { reach_offset: tree * self.sz.abs(), ..self }
+    }
+
+    /// What the box tests need of this ray.
+    #[inline(always)]
+    pub(crate) fn box_ray(&self) -> BoxRay {
+        BoxRay {
+            origin: self.origin,
+            inverse: self.inverse_direction,
+            exit_inverse: self.exit_inverse,
+            negative: self.negative,
         }
     }
 
@@ -194,11 +217,12 @@ impl PreparedRay {
     }
 
     /// The exact `t`, `u`, `v` of a hit on `triangle` that the watertight test found ill-conditioned
-    /// ([`exact_hit`]), as the hit within `[t_min, t_max]` or `Some(None)` when that `t` is outside; `None` when
-    /// there are none (the weights sum to zero), so that the test's own values stand.
+    /// ([`exact_hit`]), as the hit within `[t_min, t_max]` that meets the box condition or `Some(None)` when it
+    /// is not one; `None` when there are none (the weights sum to zero), so that the test's own values stand.
     pub(crate) fn exact_hit(&self, triangle: &PackedTriangle, t_max: f32) -> Option<Option<TriangleHit>> {
         let hit = exact_hit(&self.origin, &self.direction, self.kz, &triangle.vertices)?;
-        Some((hit.t >= self.t_min && hit.t <= t_max).then_some(hit))
+        let counts = hit.t >= self.t_min && hit.t <= t_max && self.meets_record_box(triangle, hit.t);
+        Some(counts.then_some(hit))
     }
 
     /// The triangle's vertices relative to the origin, in the ray's permuted axes.
@@ -213,7 +237,8 @@ impl PreparedRay {
         RelativeTriangle { a: [a[kx], a[ky], a[kz]], b: [b[kx], b[ky], b[kz]], c: [c[kx], c[ky], c[kz]] }
     }
 
-    /// The watertight test: a hit with `t_min <= t <= t_max`, from either side of the triangle.
+    /// The watertight test: a hit with `t_min <= t <= t_max`, from either side of the triangle, that meets the box
+    /// condition (`format-spec/bvh-1.md` 11.1: the ray meets the record's bounding box near `t`).
     #[inline(always)]
     pub fn intersect_triangle(&self, triangle: &PackedTriangle, t_max: f32) -> Option<TriangleHit> {
         self.intersect_triangle_with::<true>(triangle, t_max)
@@ -246,13 +271,17 @@ impl PreparedRay {
         if det == 0.0 {
             return None;
         }
-        if ill_conditioned(p, &r, det, ILL_CONDITIONED, TINY_EXTENT)
-            && let Some(hit) = self.exact_hit(triangle, t_max)
-        {
+        let (ill, exact_signs) = conditioning(e, p, &r, det, (ILL_CONDITIONED, TINY_EXTENT, EXACT_SIGNS));
+        if ill && let Some(hit) = self.exact_hit(triangle, t_max) {
             return hit;
         }
         let t = distance(e, &r, self.sz, det);
         if !(t >= self.t_min && t <= t_max) {
+            return None;
+        }
+        // The box condition, which a well-conditioned hit of the exact ray inside the triangle meets.
+        let inside = !ill && t < f32::INFINITY && exact_signs;
+        if !inside && !self.meets_record_box(triangle, t) {
             return None;
         }
         let (u, v) = barycentrics(e, det, 1.0);

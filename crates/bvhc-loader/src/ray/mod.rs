@@ -10,6 +10,7 @@ pub(crate) mod exact_int;
 pub(crate) mod hit;
 pub(crate) mod intersect;
 pub(crate) mod query;
+pub(crate) mod reach;
 pub(crate) mod spawn;
 pub(crate) mod transform;
 pub(crate) mod watertight;

@@ -57,25 +57,44 @@ pub(crate) const ILL_CONDITIONED: f32 = 1.0 / 64.0;
 /// relative precision: such hits are ill-conditioned too. `2^-100` (biased exponent 27, zero fraction).
 pub(crate) const TINY_EXTENT: f32 = f32::from_bits(27 << 23);
 
-/// The lanes whose hit, if they hit, is ill-conditioned (see [`ILL_CONDITIONED`]), from the sheared vertices
-/// `p`, the relative ones `r` (for the depths) and the determinant. `rho` is the largest of the six sheared
-/// coordinates' magnitudes (taken in this order with [`Lanes::max_or`]) and `Z = max(a_z, b_z, c_z) - min(a_z,
-/// b_z, c_z)`. Lanes that miss may come out either way; callers mask them.
+/// What step 5 and the box condition ask of the lanes that hit: `(ill, exact_signs)`.
+///
+/// `ill`: the lanes whose hit is ill-conditioned (see [`ILL_CONDITIONED`]): `|det| < fraction * rho (rho + Z)`
+/// or `rho (rho + Z) < tiny`, with `rho` the largest of the six sheared coordinates' magnitudes (taken in this
+/// order with [`Lanes::max_or`]) and `Z = max(a_z, b_z, c_z) - min(a_z, b_z, c_z)` (11.1 step 5).
+///
+/// `exact_signs`: the lanes whose three edge functions are each farther from 0 than their rounding error can
+/// reach, so that exact arithmetic on the same binary32 inputs gives each the same sign: `min(|U|, |V|, |W|) >
+/// factor rho (rho + R)`, `R = max(|a_z|, |b_z|, |c_z|)`. An edge function's error is at most `2^-24 (|U| + 10
+/// rho^2 + 16 rho R)` to first order (`docs/stability.md`, "Accuracy of `t`", steps 1-2), and with `factor =`
+/// [`EXACT_SIGNS`] the threshold is over twice that. A well-conditioned hit of such a lane is a hit of the exact
+/// ray inside the triangle, so it meets the box condition (`crate::ray::reach`) and the kernels need not test
+/// it; other lanes (a ray within rounding of an edge) they test. Products that underflow break the first-order
+/// bound, so this holds for well-conditioned hits only (their `rho (rho + R) >= rho (rho + Z) / 2 >= 2^-101`,
+/// far above the underflow of a product).
+///
+/// Lanes that miss may come out either way; callers mask them.
 #[inline(always)]
-pub(crate) fn ill_conditioned<L: Lanes>(
-    p: [[L; 2]; 3],
+pub(crate) fn conditioning<L: Lanes>(
+    e: [L; 3],
+    [[ax, ay], [bx, by], [cx, cy]]: [[L; 2]; 3],
     r: &RelativeTriangle<L>,
     det: L,
-    fraction: L,
-    tiny: L,
-) -> L::Mask {
-    let [[ax, ay], [bx, by], [cx, cy]] = p;
+    (fraction, tiny, factor): (L, L, L),
+) -> (L::Mask, L::Mask) {
     let rho = ax.abs().max_or(ay.abs()).max_or(bx.abs()).max_or(by.abs()).max_or(cx.abs()).max_or(cy.abs());
     let (az, bz, cz) = (r.a[2], r.b[2], r.c[2]);
-    let spread = az.max_or(bz).max_or(cz).sub(az.min_or(bz).min_or(cz));
-    let extent = rho.mul(rho.add(spread));
-    det.abs().lt(extent.mul(fraction)).or(extent.lt(tiny))
+    let (high, low) = (az.max_or(bz).max_or(cz), az.min_or(bz).min_or(cz));
+    let extent = rho.mul(rho.add(high.sub(low)));
+    let ill = det.abs().lt(extent.mul(fraction)).or(extent.lt(tiny));
+    let [u, v, w] = e;
+    let smallest = u.abs().min_or(v.abs()).min_or(w.abs());
+    let depth = high.abs().max_or(low.abs());
+    (ill, smallest.gt(rho.mul(rho.add(depth)).mul(factor)))
 }
+
+/// `2^-18`: the factor of [`conditioning`]'s exact-sign threshold.
+pub(crate) const EXACT_SIGNS: f32 = 1.0 / 262_144.0;
 
 /// The lanes where the edge functions have mixed signs: the ray passes outside the triangle. Some edge function
 /// is below 0 exactly when their minimum is, and some above 0 exactly when their maximum is (zeros of either sign

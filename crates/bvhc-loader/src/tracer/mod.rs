@@ -14,13 +14,13 @@ pub use traced::TracedFile;
 
 use crate::binary::walk::{TriangleLeaves, walk};
 use crate::format::{MeshRecord, PackedNode, PackedTriangle};
-use crate::instances::{WideInstanceWalk, walk_instances};
+use crate::instances::{WideInstanceWalk, instance_stretch, walk_instances};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::candidates::{Candidates, Unfiltered};
 use crate::ray::check::BatchRayError;
 use crate::ray::hit::{ForeignHit, Hit, TraversalCounter};
 use crate::ray::intersect::Ray;
-use crate::ray::query::{AnyHit, ClosestHit, Query};
+use crate::ray::query::{AnyHit, ClosestHit, Query, TieOrder};
 use crate::ray::spawn::SurfacePoint;
 use crate::simd::KernelPath;
 use crate::trace::{BatchResult, Order, Trace, refused};
@@ -48,6 +48,9 @@ pub struct Tracer<'a> {
     triangle_flags: Option<&'a [u8]>,
     wide: Option<WideTracer<'a>>,
     instances: Option<TwoLevelSections<'a>>,
+    /// How much the instances stretch a record's depth (`crate::instances::instance_stretch`), for the top
+    /// walks' reach; 1 without instances.
+    instance_stretch: f32,
     /// Whether the tracing calls skip the ray check ([`Tracer::trusting_rays`]).
     trusts_rays: bool,
     /// The triangles section's `SPLIT_REFERENCES` flag ([`Tracer::with_split_references`]).
@@ -76,6 +79,7 @@ impl<'a> Tracer<'a> {
             triangle_flags: None,
             wide: None,
             instances: None,
+            instance_stretch: 1.0,
             trusts_rays: false,
             split_references: false,
         }
@@ -154,7 +158,7 @@ impl<'a> Tracer<'a> {
     /// `sections` place; rays walk the top-level tree and are traced through each mesh they reach in its object
     /// space (`format-spec/bvh-1.md` 11.3).
     pub fn with_instances(self, sections: TwoLevelSections<'a>) -> Self {
-        Tracer { instances: Some(sections), ..self }
+        Tracer { instances: Some(sections), instance_stretch: instance_stretch(&sections), ..self }
     }
 
     /// The two-level sections this tracer walks, if any.
@@ -302,11 +306,17 @@ impl<'a> Tracer<'a> {
         };
         match self.wide.filter(|_| !sections.top_wide_nodes.is_empty()) {
             Some(wide) => {
-                let walk =
-                    WideInstanceWalk::<_, _, ClosestHit> { sections, ray, counter, trace_mesh, query: PhantomData };
+                let walk = WideInstanceWalk::<_, _, ClosestHit> {
+                    sections,
+                    stretch: self.instance_stretch,
+                    ray,
+                    counter,
+                    trace_mesh,
+                    query: PhantomData,
+                };
                 crate::simd::run(wide.avx2(), walk)
             }
-            None => walk_instances::<_, ClosestHit>(sections, ray, counter, trace_mesh),
+            None => walk_instances::<_, ClosestHit>(sections, self.instance_stretch, ray, counter, trace_mesh),
         }
     }
 
@@ -327,6 +337,7 @@ impl<'a> Tracer<'a> {
             Some(wide) => {
                 let walk = WideInstanceWalk::<_, _, AnyHit> {
                     sections,
+                    stretch: self.instance_stretch,
                     ray,
                     counter,
                     trace_mesh: occluding,
@@ -334,7 +345,7 @@ impl<'a> Tracer<'a> {
                 };
                 crate::simd::run(wide.avx2(), walk).is_some()
             }
-            None => walk_instances::<_, AnyHit>(sections, ray, counter, occluding).is_some(),
+            None => walk_instances::<_, AnyHit>(sections, self.instance_stretch, ray, counter, occluding).is_some(),
         }
     }
 
@@ -350,7 +361,11 @@ impl<'a> Tracer<'a> {
             self.nodes,
             ray,
             counter,
-            TriangleLeaves { triangles: self.triangles, candidates, split_references: self.split_references },
+            TriangleLeaves {
+                triangles: self.triangles,
+                candidates,
+                tie: TieOrder::new(self.split_references, self.triangle_ids),
+            },
         )
     }
 }

@@ -26,12 +26,13 @@ use std::mem::MaybeUninit;
 
 use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
 use crate::ray::candidates::Unfiltered;
-use crate::ray::hit::{CULL_PADDING, TriangleHit, lane_address};
+use crate::ray::hit::{TriangleHit, lane_address};
 use crate::ray::intersect::{EXIT_PADDING, PreparedRay, Ray, shear_axes};
 use crate::ray::query::Query;
+use crate::ray::reach::{self, BoxRay, cull as reach_cull};
 use crate::ray::watertight::{
-    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
-    hits, ill_conditioned, outside, sheared,
+    EXACT_SIGNS, ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, conditioning, determinant, distance,
+    edge_functions, has_zero_edge, hits, outside, sheared,
 };
 use crate::simd::{Isa, LaneMask, Lanes};
 use crate::wide::packets::closest_in_packet;
@@ -56,6 +57,8 @@ struct RayLanes {
     /// Per axis and lane: -1 where the ray's direction has its sign bit set (it enters through `max`), else 1.
     sign: [[f32; PACKET_RAYS]; 3],
     t_min: [f32; PACKET_RAYS],
+    /// Per lane: the reach's `2^-11 D` (`crate::ray::reach`), as the single-ray walk computes it.
+    reach_offset: [f32; PACKET_RAYS],
     /// Woop et al.'s shear per lane, and whether every ray of the packet has the same axes `[kx, ky, kz]`
     /// (those of the first ray), so that a triangle can be tested against all of them in lanes.
     shear: [[f32; PACKET_RAYS]; 3],
@@ -79,14 +82,10 @@ impl Found {
         }
     }
 
-    /// Each ray's `t_max` padded as the walk culls with it (`CULL_PADDING`).
+    /// Each ray's cull distance, the reach of its `t_max` (`crate::ray::reach`), as the single-ray walk culls.
     #[inline(always)]
-    fn t_far(&self) -> [f32; PACKET_RAYS] {
-        let mut t_far = self.t_max;
-        for t in &mut t_far {
-            *t *= CULL_PADDING;
-        }
-        t_far
+    fn t_far(&self, reach_offset: &[f32; PACKET_RAYS]) -> [f32; PACKET_RAYS] {
+        std::array::from_fn(|l| reach_cull(self.t_max[l], reach_offset[l]))
     }
 
     /// Ray `l`'s new closest hit.
@@ -114,6 +113,7 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
         exit_inverse: [[0.0; PACKET_RAYS]; 3],
         sign: [[1.0; PACKET_RAYS]; 3],
         t_min: [0.0; PACKET_RAYS],
+        reach_offset: [0.0; PACKET_RAYS],
         shear: [[0.0; PACKET_RAYS]; 3],
         shared_axes: rays.first().map(|ray| shear_axes(ray.direction)),
     };
@@ -160,8 +160,11 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
             }
         }
     }
+    // Each ray's reach over the tree, in lanes: the single-ray walk's.
+    let inverse = [0, 1, 2].map(|a| isa.f8(&lanes.inverse_direction[a]));
+    lanes.reach_offset = reach::offset(inverse, isa.f8_splat(sections.reach_scale)).to_array();
     if !sections.nodes.is_empty() {
-        let t_far = found.t_far();
+        let t_far = found.t_far(&lanes.reach_offset);
         let root_box = (sections.root.min, sections.root.max);
         let (hit, t_near) = box_test_lanes(isa, root_box, &lanes, &t_far);
         root.rays = hit & ((1u32 << rays.len()) - 1) as u8;
@@ -189,7 +192,7 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
                 }
             } else if let Some(node) = sections.nodes.get(entry.child as usize).filter(|_| visits_left > 0) {
                 visits_left -= 1;
-                let t_far = found.t_far();
+                let t_far = found.t_far(&lanes.reach_offset);
                 let leader = active.trailing_zeros() as usize & (PACKET_RAYS - 1);
                 // The hit slots, nearest first for the leader (the first active ray), ties in slot order.
                 let mut order = [Entry { child: 0, rays: 0, t_near: [0.0; PACKET_RAYS] }; WIDE];
@@ -226,20 +229,20 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
                 }
             }
         }
-        next = pop(&mut stack, &mut stack_len, &found.t_max, pending);
+        next = pop(&mut stack, &mut stack_len, &found.t_far(&lanes.reach_offset), pending);
     }
     for (l, hit) in found.hit.iter().enumerate().take(rays.len()) {
         done(l, *hit);
     }
 }
 
-/// The next entry that still has rays in `pending` whose closest hit is not nearer than its box.
+/// The next entry that still has rays in `pending` whose closest hit's reach (`t_far`) is not before its box.
 #[inline(always)]
 #[allow(unsafe_code)] // reading the stack, see the SAFETY note
 fn pop(
     stack: &mut [MaybeUninit<Entry>; STACK_LEN],
     stack_len: &mut usize,
-    t_max: &[f32; PACKET_RAYS],
+    t_far: &[f32; PACKET_RAYS],
     pending: u8,
 ) -> Option<Entry> {
     while *stack_len > 0 {
@@ -247,8 +250,8 @@ fn pop(
         // SAFETY: entries below `stack_len` were written by the push in `trace_packet` before `stack_len` passed
         // them, and `stack_len` only moves down by one here, so this entry is initialized.
         let mut entry = unsafe { stack[*stack_len].assume_init() };
-        for (l, (&t_near, &t_best)) in entry.t_near.iter().zip(t_max).enumerate() {
-            if t_near > t_best * CULL_PADDING {
+        for (l, (&t_near, &cull)) in entry.t_near.iter().zip(t_far).enumerate() {
+            if t_near > cull {
                 entry.rays &= !(1 << l);
             }
         }
@@ -337,28 +340,42 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
             let valid = hits(outside, det, t, zero, t_min, t_max);
             let inside = det.is_number().and_not(outside);
             let mut redo_rays = has_zero_edge(e, zero).bits() as u8 & active;
+            let mut exact_signs = 0u8;
             if inside.bits() as u8 & active != 0 {
                 // Ill-conditioned hits get their exact values from the scalar test.
-                let ill = ill_conditioned(projected, &r, det, isa.f8_splat(ILL_CONDITIONED), isa.f8_splat(TINY_EXTENT));
+                let thresholds = (isa.f8_splat(ILL_CONDITIONED), isa.f8_splat(TINY_EXTENT), isa.f8_splat(EXACT_SIGNS));
+                let (ill, exact) = conditioning(e, projected, &r, det, thresholds);
                 redo_rays |= ill.and(inside).bits() as u8 & active;
+                exact_signs = exact.bits() as u8;
             }
             let valid_rays = valid.bits() as u8 & active & !redo_rays;
             let address = lane_address(first + p, tri);
+            let mut refused = false;
             if valid_rays != 0 {
-                // A taken hit sets its ray's `t_max` to its `t`; a valid one not taken is a tie lost at that very
-                // `t`. So the lanes' minimum with the valid `t`s is what `found` now holds in every active lane
-                // that no redo touches (the other lanes' tests are masked off).
-                t_max = t_max.min_or(I::F8::select(valid, t, isa.f8_splat(f32::INFINITY)));
                 let (u, v) = barycentrics(e, det, one);
-                let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
+                let (t_lanes, u, v) = (t.to_array(), u.to_array(), v.to_array());
                 let mut rays = valid_rays;
                 while rays != 0 {
                     let l = rays.trailing_zeros() as usize & (PACKET_RAYS - 1);
                     rays &= rays - 1;
-                    if Q::FIRST_HIT_ENDS || found.taken_by(sections, l, t[l], address) {
-                        found.take(l, address, TriangleHit { t: t[l], u: u[l], v: v[l] });
+                    // A hit counts where it meets the box condition, which a lane with its edge functions' exact
+                    // signs does (rare not to: the lanes are then reloaded).
+                    let sure = exact_signs & (1 << l) != 0 && t_lanes[l] < f32::INFINITY;
+                    let ray = (lanes.t_min[l], kz, lanes.shear[2][l]);
+                    if !sure && !lanes.box_ray(l).meets_record_box(&packet.triangle(tri), t_lanes[l], ray) {
+                        refused = true;
+                        continue;
+                    }
+                    if Q::FIRST_HIT_ENDS || found.taken_by(sections, l, t_lanes[l], address) {
+                        found.take(l, address, TriangleHit { t: t_lanes[l], u: u[l], v: v[l] });
                         hit_rays |= 1 << l;
                     }
+                }
+                // A taken hit sets its ray's `t_max` to its `t`; a valid one not taken is a tie lost at that very
+                // `t`. So the lanes' minimum with the valid `t`s is what `found` now holds in every active lane
+                // that no redo touches (the other lanes' tests are masked off), unless a lane was refused.
+                if !refused {
+                    t_max = t_max.min_or(I::F8::select(valid, t, isa.f8_splat(f32::INFINITY)));
                 }
             }
             let mut redo = redo_rays;
@@ -373,7 +390,7 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
                     hit_rays |= 1 << l;
                 }
             }
-            if redo_rays != 0 {
+            if redo_rays != 0 || refused {
                 t_max = isa.f8(&found.t_max);
             }
         }
@@ -385,6 +402,19 @@ fn leaf_in_lanes<Q: Query, I: Isa>(
         }
     }
     hit_rays
+}
+
+impl RayLanes {
+    /// Lane `l`'s ray as the box tests read it (the bits `PreparedRay::new` computes for that ray).
+    #[inline(always)]
+    fn box_ray(&self, l: usize) -> BoxRay {
+        BoxRay {
+            origin: [0, 1, 2].map(|a| self.origin[a][l]),
+            inverse: [0, 1, 2].map(|a| self.inverse_direction[a][l]),
+            exit_inverse: [0, 1, 2].map(|a| self.exit_inverse[a][l]),
+            negative: [0, 1, 2].map(|a| self.sign[a][l] < 0.0),
+        }
+    }
 }
 
 /// Vertex `vertex` of the packet's triangle in lane `tri` minus each ray's origin (`origin`, in the permuted
@@ -419,9 +449,8 @@ fn leaf_ray_by_ray<Q: Query, I: Isa>(
     for l in (0..PACKET_RAYS).filter(|l| active & (1 << l) != 0) {
         let Some(ray) = &prepared[l] else { continue };
         for (p, packet) in packets.iter().enumerate() {
-            let split = sections.split_references;
             if let Some((lane, hit)) =
-                closest_in_packet::<Q, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered, split)
+                closest_in_packet::<Q, I, _>(isa, packet, ray, found.t_max[l], &Unfiltered, sections.tie)
             {
                 let address = lane_address(first + p, lane);
                 if Q::FIRST_HIT_ENDS || found.taken_by(sections, l, hit.t, address) {

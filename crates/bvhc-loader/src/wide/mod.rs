@@ -18,7 +18,8 @@ use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
 use crate::ray::candidates::{Candidates, Unfiltered};
 use crate::ray::hit::{Hit, TraversalCounter, TriangleHit};
 use crate::ray::intersect::Ray;
-use crate::ray::query::{AnyHit, ClosestHit, Query};
+use crate::ray::query::{AnyHit, ClosestHit, Query, TieOrder};
+use crate::ray::reach::tree_scale;
 use crate::simd::{Avx2, Isa, Kernel, KernelPath};
 use crate::trace::{BatchResult, Order, Trace};
 use crate::verify::wide::{WideContext, verify_wide};
@@ -129,7 +130,8 @@ impl<'a> WideTracer<'a> {
         };
         let root = PackedNode { min: root_box.0, max: root_box.1, index: 0, count: 0 };
         let interleave = size_of_val(nodes) + size_of_val(packets) > INTERLEAVE_ABOVE_BYTES;
-        let sections = Sections { nodes, packets, root, split_references: false };
+        let reach_scale = tree_scale(&root, 1.0);
+        let sections = Sections { nodes, packets, root, tie: TieOrder::default(), reach_scale };
         WideTracer { sections, triangle_ids, avx2, interleave }
     }
 
@@ -147,13 +149,15 @@ impl<'a> WideTracer<'a> {
         let nodes = self.sections.nodes.get(range(mesh.first_wide_node, mesh.wide_node_count))?;
         let packets = self.sections.packets.get(range(mesh.first_packet, mesh.packet_count))?;
         let tracer = WideTracer::over(nodes, packets, root_box, triangle_ids, self.path());
-        Some(tracer.with_split_references(self.sections.split_references))
+        Some(tracer.with_split_references(self.sections.tie.by_coordinates()))
     }
 
     /// This tracer over packets whose triangles section has the `SPLIT_REFERENCES` flag (`split`): hits at one
-    /// `t` are then ordered by their triangles' coordinates, not by record (`format-spec/bvh-1.md` 11.1).
+    /// `t` are then ordered by their triangles' coordinates and source ids, not by record
+    /// (`format-spec/bvh-1.md` 11.1).
     pub fn with_split_references(self, split: bool) -> WideTracer<'a> {
-        WideTracer { sections: Sections { split_references: split, ..self.sections }, ..self }
+        let tie = TieOrder::new(split, self.triangle_ids);
+        WideTracer { sections: Sections { tie, ..self.sections }, ..self }
     }
 
     /// The AVX2 token when the tracer runs the AVX2 path (for walks of other wide trees on the same path).

@@ -2,16 +2,17 @@
 //! the watertight test ([`crate::ray::watertight`]) on all four lanes at once, in the instruction set's four lanes
 //! (SSE2 on the AVX2 path, portable arrays otherwise). Each lane gives the scalar test's `t`, `u`, `v` bit for
 //! bit; a lane where an edge function is exactly 0 is redone by the scalar test (its f64 recomputation), and so
-//! is a lane whose hit is ill-conditioned (its exact `t`, `u`, `v`); unused lanes (NaN vertices) never hit.
+//! is a lane whose hit is ill-conditioned (its exact `t`, `u`, `v`); unused lanes (NaN vertices) never hit. A
+//! lane's hit counts where it meets the box condition (`crate::ray::reach`), checked for the lane taken.
 
 use crate::format::{PACKET_LANES as LANES, TrianglePacket4};
 use crate::ray::candidates::Candidates;
 use crate::ray::hit::TriangleHit;
 use crate::ray::intersect::PreparedRay;
-use crate::ray::query::{Query, TieKey};
+use crate::ray::query::{Query, TieOrder};
 use crate::ray::watertight::{
-    ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, determinant, distance, edge_functions, has_zero_edge,
-    hits, ill_conditioned, outside, sheared,
+    EXACT_SIGNS, ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, conditioning, determinant, distance,
+    edge_functions, has_zero_edge, hits, outside, sheared,
 };
 use crate::simd::{Isa, LaneMask, Lanes};
 
@@ -26,6 +27,9 @@ struct PacketLanes {
     redo: u32,
     valid: u32,
     nearest: u32,
+    /// Lanes whose edge functions have their exact signs ([`conditioning`]): a well-conditioned hit there
+    /// meets the box condition without testing it.
+    exact_signs: u32,
 }
 
 /// The closest hit among the packet's lanes within `t_max` (ties: the first lane in spec 11.1's order), as
@@ -41,7 +45,7 @@ pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
     ray: &PreparedRay,
     t_max: f32,
     candidates: &C,
-    split_references: bool,
+    tie: TieOrder<'_>,
 ) -> Option<(usize, TriangleHit)> {
     let lanes = packet_lanes::<Q, I>(isa, packet, ray, t_max)?;
     let hit_in = |lane: usize| {
@@ -51,37 +55,49 @@ pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
     // A filter is consulted only when a lane that may hit is one it asks about (in practice: a lane of a
     // not-opaque triangle); otherwise every hit is accepted and the plain choice below is the filtered one.
     if C::ACTIVE && asks_in_packet(packet, lanes.valid | lanes.redo, candidates) {
-        return accepted_in_packet::<Q, C>(packet, ray, (t_max, split_references), &lanes, &hit_in, candidates);
+        return accepted_in_packet::<Q, C>(packet, ray, (t_max, tie), &lanes, &hit_in, candidates);
     }
     if lanes.redo == 0 {
-        // No lane needs the scalar redo: the loop below would end on the first in tie order at the smallest t.
+        // No lane needs the scalar redo: the loop below would end on the first in tie order at the smallest t,
+        // once the lane taken meets the box condition (a lane that does not is rare: the loop then decides).
         // An any-hit query only needs to know that a lane hits: its `u` and `v` are not computed (0).
         if Q::FIRST_HIT_ENDS {
-            let last = 31usize.checked_sub(lanes.valid.leading_zeros() as usize)?;
-            return Some((last, TriangleHit { t: lanes.t[last & (LANES - 1)], u: 0.0, v: 0.0 }));
+            let mut valid = lanes.valid;
+            while valid != 0 {
+                let last = (31 - valid.leading_zeros()) as usize & (LANES - 1);
+                if counts(ray, packet, (last, lanes.t[last]), lanes.exact_signs) {
+                    return Some((last, TriangleHit { t: lanes.t[last], u: 0.0, v: 0.0 }));
+                }
+                valid &= !(1 << last);
+            }
+            return None;
         }
         let last = 31usize.checked_sub(lanes.nearest.leading_zeros() as usize)? & (LANES - 1);
         // Two lanes at the nearest `t` (rare) are ordered out of line.
         let lane = match lanes.nearest == 1 << last {
             true => last,
-            false => first_in_tie_order(packet, lanes.nearest, split_references),
+            false => first_in_tie_order(packet, lanes.nearest, tie),
         };
-        return Some((lane, hit_in(lane)));
+        if counts(ray, packet, (lane, lanes.t[lane]), lanes.exact_signs) {
+            return Some((lane, hit_in(lane)));
+        }
     }
     let mut best: Option<(usize, TriangleHit)> = None;
     let mut limit = t_max;
     for lane in 0..LANES {
         let hit = if lanes.redo & (1 << lane) != 0 {
             ray.intersect_triangle(&packet.triangle(lane), limit)
-        } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
+        } else if lanes.valid & (1 << lane) != 0
+            && lanes.t[lane] <= limit
+            && counts(ray, packet, (lane, lanes.t[lane]), lanes.exact_signs)
+        {
             Some(hit_in(lane))
         } else {
             None
         };
         if let Some(hit) = hit
-            && best.is_none_or(|(best, _)| {
-                hit.t < limit || (hit.t == limit && lane_first_at_tie(packet, lane, best, split_references))
-            })
+            && best
+                .is_none_or(|(best, _)| hit.t < limit || (hit.t == limit && lane_first_at_tie(packet, lane, best, tie)))
         {
             limit = hit.t;
             best = Some((lane, hit));
@@ -90,18 +106,33 @@ pub(crate) fn closest_in_packet<Q: Query, I: Isa, C: Candidates>(
     best
 }
 
+/// Whether the well-conditioned hit of lane `lane` at `t` meets the box condition (`crate::ray::reach`): at once
+/// where the lane's edge functions have their exact signs and `t` is finite, else by the test; a lane the scalar
+/// test redoes is checked there.
+#[inline(always)]
+fn counts(ray: &PreparedRay, packet: &TrianglePacket4, (lane, t): (usize, f32), exact_signs: u32) -> bool {
+    (exact_signs & (1 << lane) != 0 && t < f32::INFINITY) || lane_meets_record_box(ray, packet, lane, t)
+}
+
+/// [`PreparedRay::meets_record_box`] for lane `lane`: out of line, as it rarely runs.
+#[cold]
+#[inline(never)]
+fn lane_meets_record_box(ray: &PreparedRay, packet: &TrianglePacket4, lane: usize, t: f32) -> bool {
+    ray.meets_record_box(&packet.triangle(lane), t)
+}
+
 /// Of the lanes in `mask` (two or more hit lanes at the smallest `t`), the first in the tie order ([`TieKey`]:
-/// the lowest record, or with split references the lowest coordinates; the first lane of equal keys). Cold: one
+/// the lowest record, or with split references the lowest coordinates and id; the first lane of equal keys). Cold: one
 /// lane, the usual case, needs no key.
 #[cold]
 #[inline(never)]
-fn first_in_tie_order(packet: &TrianglePacket4, mask: u32, split_references: bool) -> usize {
+fn first_in_tie_order(packet: &TrianglePacket4, mask: u32, tie: TieOrder<'_>) -> usize {
     let mut lowest = mask.trailing_zeros() as usize & (LANES - 1);
     let mut rest = mask & mask.wrapping_sub(1);
     while rest != 0 {
         let lane = rest.trailing_zeros() as usize & (LANES - 1);
         rest &= rest - 1;
-        if lane_first_at_tie(packet, lane, lowest, split_references) {
+        if lane_first_at_tie(packet, lane, lowest, tie) {
             lowest = lane;
         }
     }
@@ -111,9 +142,8 @@ fn first_in_tie_order(packet: &TrianglePacket4, mask: u32, split_references: boo
 /// Whether, of two hits at one `t`, lane `lane`'s comes before lane `best`'s in spec 11.1's order.
 #[cold]
 #[inline(never)]
-fn lane_first_at_tie(packet: &TrianglePacket4, lane: usize, best: usize, split_references: bool) -> bool {
-    let key =
-        |l: usize| TieKey::of(split_references, packet.triangle_index[l], || packet.triangle(l).coordinate_bits());
+fn lane_first_at_tie(packet: &TrianglePacket4, lane: usize, best: usize, tie: TieOrder<'_>) -> bool {
+    let key = |l: usize| tie.key(packet.triangle_index[l], || packet.triangle(l).coordinate_bits());
     key(lane) < key(best)
 }
 
@@ -137,7 +167,7 @@ fn asks_in_packet<C: Candidates>(packet: &TrianglePacket4, mask: u32, candidates
 fn accepted_in_packet<Q: Query, C: Candidates>(
     packet: &TrianglePacket4,
     ray: &PreparedRay,
-    (t_max, split_references): (f32, bool),
+    (t_max, tie): (f32, TieOrder<'_>),
     lanes: &PacketLanes,
     hit_in: &impl Fn(usize) -> TriangleHit,
     candidates: &C,
@@ -147,7 +177,10 @@ fn accepted_in_packet<Q: Query, C: Candidates>(
     for lane in 0..LANES {
         let hit = if lanes.redo & (1 << lane) != 0 {
             ray.intersect_triangle(&packet.triangle(lane), limit)
-        } else if lanes.valid & (1 << lane) != 0 && lanes.t[lane] <= limit {
+        } else if lanes.valid & (1 << lane) != 0
+            && lanes.t[lane] <= limit
+            && counts(ray, packet, (lane, lanes.t[lane]), lanes.exact_signs)
+        {
             Some(hit_in(lane))
         } else {
             None
@@ -158,9 +191,9 @@ fn accepted_in_packet<Q: Query, C: Candidates>(
             if Q::FIRST_HIT_ENDS {
                 return Some((lane, hit));
             }
-            if best.is_none_or(|(best, _)| {
-                hit.t < limit || (hit.t == limit && lane_first_at_tie(packet, lane, best, split_references))
-            }) {
+            if best
+                .is_none_or(|(best, _)| hit.t < limit || (hit.t == limit && lane_first_at_tie(packet, lane, best, tie)))
+            {
                 limit = hit.t;
                 best = Some((lane, hit));
             }
@@ -200,10 +233,12 @@ fn packet_lanes<Q: Query, I: Isa>(
     if inside.or(on_edge).bits() == 0 {
         return None;
     }
-    let ill = ill_conditioned(p, &r, det, isa.f4_splat(ILL_CONDITIONED), isa.f4_splat(TINY_EXTENT));
+    let thresholds = (isa.f4_splat(ILL_CONDITIONED), isa.f4_splat(TINY_EXTENT), isa.f4_splat(EXACT_SIGNS));
+    let (ill, exact_signs) = conditioning(e, p, &r, det, thresholds);
     let redo = on_edge.or(ill.and(inside));
     let t = distance(e, &r, sz, det);
     let valid = hits(outside, det, t, zero, isa.f4_splat(t_min), isa.f4_splat(t_max));
+    let exact_signs = exact_signs.bits();
     let nearest = if Q::FIRST_HIT_ENDS {
         0 // an any-hit query takes any valid lane
     } else {
@@ -218,5 +253,6 @@ fn packet_lanes<Q: Query, I: Isa>(
         redo: redo.bits(),
         valid: valid.bits(),
         nearest,
+        exact_signs,
     })
 }

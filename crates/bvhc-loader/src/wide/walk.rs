@@ -8,7 +8,7 @@
 //! padded reciprocal, compare-selects that ignore the NaN of an origin on the slab plane of a zero direction
 //! component; nothing fused). For a closest hit the hit children go nearest first: one or two without a sort, more by insertion
 //! sort; the others are pushed with their entry distance and skipped on pop when a closer hit was found (with
-//! the binary kernel's cull padding). For any hit the order does not matter: the hit children are pushed in
+//! the binary kernel's reach, `crate::ray::reach`). For any hit the order does not matter: the hit children are pushed in
 //! slot order and the walk goes on with the last, with no distance compared (Embree's occlusion traversal does
 //! the same), and a leaf ends the walk at its first hit. On the AVX2 path pushed children are prefetched, so
 //! their misses overlap with the work on the nearer ones. A step at a leaf tests its packets four triangles at
@@ -22,9 +22,10 @@ use std::mem::MaybeUninit;
 
 use crate::format::{LEAF_BIT, MAX_DEPTH, PACKET_LANES, PackedNode, TrianglePacket4, WIDE, WideNode8};
 use crate::ray::candidates::Candidates;
-use crate::ray::hit::{CULL_PADDING, TraversalCounter, TriangleHit, lane_address, lane_record};
+use crate::ray::hit::{TraversalCounter, TriangleHit, lane_address, lane_record};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::query::{Query, TieKey};
+use crate::ray::query::{Query, TieKey, TieOrder};
+use crate::ray::reach::cull_distance;
 use crate::simd::Isa;
 use crate::wide::packets::closest_in_packet;
 
@@ -47,8 +48,11 @@ pub(crate) struct Sections<'a> {
     pub packets: &'a [TrianglePacket4],
     /// The binary root's box, tested first (as an inner node for the binary kernel's box test).
     pub root: PackedNode,
-    /// The triangles section's `SPLIT_REFERENCES` flag: which [`TieKey`] orders hits at one `t`.
-    pub split_references: bool,
+    /// Which [`TieKey`] orders hits at one `t`.
+    pub tie: TieOrder<'a>,
+    /// The tree's part in its walks' reach (`crate::ray::reach::tree_scale` of `root`, with the stretch of a
+    /// top tree's instances).
+    pub reach_scale: f32,
 }
 
 impl Sections<'_> {
@@ -56,9 +60,7 @@ impl Sections<'_> {
     fn tie_key(&self, address: u32) -> TieKey {
         let (packet, lane) = (address as usize / PACKET_LANES, address as usize % PACKET_LANES);
         let record = lane_record(self.packets, address);
-        TieKey::of(self.split_references, record, || {
-            self.packets.get(packet).map_or([u32::MAX; 9], |p| p.triangle(lane).coordinate_bits())
-        })
+        self.tie.key(record, || self.packets.get(packet).map_or([u32::MAX; 9], |p| p.triangle(lane).coordinate_bits()))
     }
 
     /// Whether, of two hits at one `t`, the one in the lane at `address` comes before the one at `best` in spec
@@ -160,7 +162,7 @@ impl<F: Copy> Walk<F> {
         if sections.nodes.is_empty() {
             return None;
         }
-        let prepared = PreparedRay::new(ray);
+        let prepared = PreparedRay::new(ray).in_tree(sections.reach_scale);
         Some(Walk {
             ray: prepared,
             t_max: ray.t_max,
@@ -171,10 +173,10 @@ impl<F: Copy> Walk<F> {
         })
     }
 
-    /// Whether the ray enters `node`'s box within its `t_max` (the padded cull of the walk).
+    /// Whether the ray enters `node`'s box within the reach of its `t_max` (the walk's cull).
     #[inline(always)]
     pub(crate) fn enters(&self, node: &PackedNode) -> bool {
-        self.ray.enter_box(node, self.t_max * CULL_PADDING).is_some()
+        self.ray.enter_box(node, cull_distance(&self.ray, self.t_max)).is_some()
     }
 
     /// The closest hit so far (any hit, for an any-hit query).
@@ -207,7 +209,8 @@ impl<F: Copy> Walk<F> {
         } else if let Some(node) = sections.nodes.get(current as usize).filter(|_| self.visits_left > 0) {
             self.visits_left -= 1;
             counter.node_visited();
-            let (mask, t_near) = isa.box_test(node, &self.ray.slab_ray(), self.t_max * CULL_PADDING);
+            let t_cull = cull_distance(&self.ray, self.t_max);
+            let (mask, t_near) = isa.box_test(node, &self.ray.slab_ray(), t_cull);
             let first = mask.trailing_zeros() as usize;
             let rest = mask & mask.wrapping_sub(1);
             if rest == 0 {
@@ -287,12 +290,13 @@ impl<F: Copy> Walk<F> {
     #[inline(always)]
     #[allow(unsafe_code)] // reading the stack, see the SAFETY note
     fn pop(&mut self, stack: &Stack) -> bool {
+        let t_cull = cull_distance(&self.ray, self.t_max);
         while self.stack_len > 0 {
             self.stack_len -= 1;
             // SAFETY: every index below `stack_len` was written by `push` before `stack_len` passed it (on this
             // stack, as `step` requires), and `stack_len` only moves down by one here, so the entry is initialized.
             let (next, t_entry) = unsafe { stack[self.stack_len].assume_init() };
-            if t_entry <= self.t_max * CULL_PADDING {
+            if t_entry <= t_cull {
                 self.current = next;
                 return true;
             }
@@ -321,7 +325,7 @@ fn leaf_hit<Q: Query, I: Isa, C: Candidates>(
     for (p, packet) in packets.iter().enumerate() {
         counter.triangle_tested();
         if let Some((lane, hit)) =
-            closest_in_packet::<Q, I, C>(isa, packet, ray, limit, candidates, sections.split_references)
+            closest_in_packet::<Q, I, C>(isa, packet, ray, limit, candidates, sections.tie)
             // A nearer hit is taken at once; the first hit at `t_max` or a tie is decided out of line.
             && (Q::FIRST_HIT_ENDS
                 || hit.t < limit
