@@ -13,8 +13,7 @@ use std::path::Path;
 use bvhc_loader::format::{Affine3x4, NO_INDEX, SourceRange};
 use bvhc_loader::{BvhFile, BvhView, BvhViewMut, RefitPositions, RefitReport, TwoLevelSections};
 
-use crate::convert::files::input_entries;
-use crate::convert::metadata::InputEntry;
+use crate::import::inputs::{InputEntry, input_entries};
 use crate::import::{
     ImportError, ImportLimits, ImportOptions, InstancedMesh, Instancing, PoseSelector, SceneSelector, import,
 };

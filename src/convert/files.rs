@@ -7,44 +7,11 @@ use std::path::{Path, PathBuf};
 
 use bvhc_loader::BvhFile;
 use serde_json::Value;
-use xxhash_rust::xxh3::xxh3_64;
 
-use super::metadata::{BuildRecord, InputEntry};
+use super::metadata::BuildRecord;
 use super::report::ConvertError;
-
-/// `xxh3-64:<16 hex digits>` of a file's bytes.
-pub fn content_hash(bytes: &[u8]) -> String {
-    format!("xxh3-64:{:016x}", xxh3_64(bytes))
-}
-
-/// The `inputs` metadata entry of every file read: its name relative to the main input's directory (never an
-/// absolute path) and its content hash.
-pub fn input_entries(main_input: &Path, files_read: &[PathBuf]) -> std::io::Result<Vec<InputEntry>> {
-    let base = main_input.parent().unwrap_or(Path::new(""));
-    files_read
-        .iter()
-        .map(|file| {
-            let bytes = std::fs::read(file)?;
-            Ok(InputEntry { file_name: relative_name(base, file), content_hash: content_hash(&bytes) })
-        })
-        .collect()
-}
-
-/// `file` relative to `base` with `/` separators (`..` kept for a buffer beside the input's folder), or its
-/// bare file name when no relative path exists (an absolute path, which never reaches the metadata).
-fn relative_name(base: &Path, file: &Path) -> String {
-    use std::path::Component;
-    let relative = file.strip_prefix(base).unwrap_or(file);
-    let is_relative =
-        relative.components().all(|c| matches!(c, Component::Normal(_) | Component::CurDir | Component::ParentDir));
-    let relative = if is_relative { relative } else { Path::new(file.file_name().unwrap_or_default()) };
-    relative
-        .components()
-        .filter(|c| !matches!(c, Component::CurDir))
-        .map(|c| c.as_os_str().to_string_lossy())
-        .collect::<Vec<_>>()
-        .join("/")
-}
+use crate::import::inputs::relative_name;
+pub use crate::import::inputs::{content_hash, input_entries};
 
 /// Whether `output` is a valid `.bvh` file whose metadata records `build` options equal to `build`, the
 /// format version this writer gives such a build (1.1 with wide sections, 1.0 without), and inputs whose files

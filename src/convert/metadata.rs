@@ -12,6 +12,7 @@ use serde::Serialize;
 use super::report::{Choice, WideSummary};
 use crate::builders::Builder;
 use crate::cost::SahCost;
+pub use crate::import::inputs::InputEntry;
 use crate::import::{ImportReport, Instancing, Opacity, PoseSelector, SceneSelector};
 use crate::layout::{GpuCosts, WideCosts};
 use crate::optimize::OptimizeParams;
@@ -94,15 +95,6 @@ impl Metadata<'_> {
     pub fn to_json(&self) -> String {
         serde_json::to_value(self).map(|value| value.to_string()).unwrap_or_default()
     }
-}
-
-/// One file read.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct InputEntry {
-    /// Relative to the main input's folder, `/`-separated; never absolute.
-    pub file_name: String,
-    /// `xxh3-64:<16 hex digits>` of the file's bytes.
-    pub content_hash: String,
 }
 
 /// The schema's `build` object: the resolved options as recorded, and the up-to-date key.

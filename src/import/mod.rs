@@ -11,6 +11,7 @@
 //! ```
 
 mod gltf;
+pub mod inputs;
 mod instancing;
 mod opacity;
 mod limits;

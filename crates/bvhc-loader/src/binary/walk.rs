@@ -15,7 +15,7 @@ use crate::ray::candidates::Candidates;
 use crate::ray::hit::{TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::query::{Query, TieKey, TieOrder, precedes};
-use crate::ray::reach::{cull_distance, tree_scale};
+use crate::ray::reach::tree_scale;
 
 /// What the walk does at a leaf.
 pub(crate) trait Leaves<C: TraversalCounter> {
@@ -110,7 +110,7 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
 ) -> Option<L::Found> {
     let root = nodes.first()?;
     let prepared = PreparedRay::new(ray).in_tree(tree_scale(root, leaves.depth_scale()));
-    let mut t_cull = cull_distance(&prepared, ray.t_max);
+    let mut t_cull = prepared.cull_distance(ray.t_max);
     prepared.enter_box(root, t_cull)?;
     let mut t_max = ray.t_max;
     let mut found = None;
@@ -131,7 +131,7 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
                 if leaves.test_leaf::<Q>(node, ray, &prepared, &mut t_max, &mut found, counter) {
                     return found;
                 }
-                t_cull = cull_distance(&prepared, t_max);
+                t_cull = prepared.cull_distance(t_max);
                 break 'visit;
             }
             let first = node.index;

@@ -21,35 +21,13 @@
 use crate::format::{PackedNode, PackedTriangle, WIDE};
 use crate::ray::exact_hit::exact_hit;
 use crate::ray::hit::TriangleHit;
-use crate::ray::reach::BoxRay;
+use crate::ray::reach::{BoxRay, cull};
+use crate::ray::slab::{EXIT_PADDING, slab};
 use crate::ray::watertight::{
     EXACT_SIGNS, ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, conditioning, determinant, distance,
     edge_functions, edge_functions_f64, has_zero_edge, outside, sheared, zero_edges_exact,
 };
 use crate::simd::SlabRay;
-
-/// Machine epsilon for f32 rounding, 2^-24.
-const EPSILON: f32 = f32::EPSILON * 0.5;
-/// Ize's padding of the slab exit distance, `1 + 2 gamma(3)`.
-pub(crate) const EXIT_PADDING: f32 = 1.0 + 2.0 * (3.0 * EPSILON) / (1.0 - 3.0 * EPSILON);
-
-/// One slab of the robust box test: the distances to the entry and exit planes of one axis (the exit through the
-/// padded reciprocal `exit_inverse`) narrow the interval `near..far`. Compare-selects keep the accumulator when
-/// the new value is NaN (an origin on a slab plane of a zero direction component), as `f32::max`/`min` would, in
-/// one instruction each. The SIMD box tests perform exactly these operations in lanes.
-#[inline(always)]
-pub(crate) fn slab(
-    entry_plane: f32,
-    exit_plane: f32,
-    origin: f32,
-    (inverse, exit_inverse): (f32, f32),
-    near: f32,
-    far: f32,
-) -> (f32, f32) {
-    let t_entry = (entry_plane - origin) * inverse;
-    let t_exit = (exit_plane - origin) * exit_inverse;
-    (if t_entry > near { t_entry } else { near }, if t_exit < far { t_exit } else { far })
-}
 
 /// A ray: points `origin + t * direction` for `t` in `[t_min, t_max]`.
 ///
@@ -174,6 +152,20 @@ impl PreparedRay {
         PreparedRay { reach_offset: tree * self.sz.abs(), ..self }
     }
 
+    /// The distance beyond which a walk culls boxes when its closest hit so far (or its `t_max`) is `t`, for a
+    /// ray prepared for its tree ([`PreparedRay::in_tree`]): `crate::ray::reach::cull` with the ray's `2^-11 D`.
+    #[inline(always)]
+    pub(crate) fn cull_distance(&self, t: f32) -> f32 {
+        cull(t, self.reach_offset)
+    }
+
+    /// The box condition of a hit at `t` on `triangle` (`crate::ray::reach`, "The box condition").
+    #[inline]
+    pub(crate) fn meets_record_box(&self, triangle: &PackedTriangle, t: f32) -> bool {
+        let ([_, _, kz], [_, _, sz]) = self.shear();
+        self.box_ray().meets_record_box(triangle, t, (self.t_min, kz, sz))
+    }
+
     /// What the box tests need of this ray.
     #[inline(always)]
     pub(crate) fn box_ray(&self) -> BoxRay {
@@ -291,7 +283,8 @@ impl PreparedRay {
 
 #[cfg(test)]
 mod tests {
-    use super::{PreparedRay, Ray, shear_axes};
+    use super::{PreparedRay, Ray, cull, shear_axes};
+    use crate::format::{PackedNode, PackedTriangle};
 
     /// `shear_axes` (the coherent packets' set-up) and `PreparedRay::new` (which writes the same choice out)
     /// choose the same axes: every direction whose components are drawn from values with equal magnitudes,
@@ -308,5 +301,27 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_box_condition_takes_hits_of_the_exact_ray_and_drops_records_the_ray_passes_by() {
+        let triangle = PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
+        let down = PreparedRay::new(&Ray::new([0.25, 0.25, 5.0], [0.0, 0.0, -1.0]));
+        assert!(down.meets_record_box(&triangle, 5.0));
+        // A `t` far outside the window (as no hit of this ray has) is refused, and a ray that passes beside the
+        // record's box never meets it.
+        assert!(!down.meets_record_box(&triangle, 4.0));
+        let beside = PreparedRay::new(&Ray::new([2.0, 0.25, 5.0], [0.0, 0.0, -1.0]));
+        assert!(!beside.meets_record_box(&triangle, 5.0));
+    }
+
+    #[test]
+    fn a_prepared_ray_reaches_past_its_tree_along_its_major_axis() {
+        let root = PackedNode { min: [-1.0, -2.0, -3.0], max: [1.0, 2.0, 3.0], index: 0, count: 0 };
+        let tree = crate::ray::reach::tree_scale(&root, 1.0);
+        // D = 6 * 0.25: a record spread over the root's longest side, along a ray of |d|_inf = 4.
+        let ray = PreparedRay::new(&Ray::new([0.0; 3], [1.0, 2.0, -4.0])).in_tree(tree);
+        assert_eq!(ray.cull_distance(1.0), cull(1.0, 1.5 * crate::ray::reach::REACH));
+        assert_eq!(ray.cull_distance(f32::INFINITY), f32::INFINITY);
     }
 }

@@ -11,6 +11,7 @@ pub(crate) mod hit;
 pub(crate) mod intersect;
 pub(crate) mod query;
 pub(crate) mod reach;
+pub(crate) mod slab;
 pub(crate) mod spawn;
 pub(crate) mod transform;
 pub(crate) mod watertight;

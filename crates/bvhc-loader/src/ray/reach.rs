@@ -20,7 +20,7 @@
 //! kernel (11.2 has the proof).
 
 use crate::format::{PackedNode, PackedTriangle};
-use crate::ray::intersect::{PreparedRay, slab};
+use crate::ray::slab::slab;
 use crate::simd::Lanes;
 
 /// The window's half-width relative to `t + Z |sz|`: `2^-12`, above the accuracy bound's `(48 * 64 + 11) 2^-24`
@@ -117,13 +117,6 @@ pub(crate) fn tree_scale(root: &PackedNode, scale: f32) -> f32 {
     largest * scale * REACH
 }
 
-/// The distance beyond which a walk culls boxes when its closest hit so far (or its `t_max`) is `t`, for a ray
-/// prepared for its tree ([`PreparedRay::in_tree`]): [`cull`] with the ray's `2^-11 D`.
-#[inline(always)]
-pub(crate) fn cull_distance(ray: &PreparedRay, t: f32) -> f32 {
-    cull(t, ray.reach_offset)
-}
-
 /// The reach of `t` for a ray whose `2^-11 D` is `offset`: `t (1 + 2^-11) + 2^-11 D` (`+inf` for `t = +inf`;
 /// NaN for a tree whose root is not finite, which culls nothing).
 #[inline(always)]
@@ -138,19 +131,9 @@ pub(crate) fn offset<L: Lanes>(inverse: [L; 3], tree: L) -> L {
     inverse[0].abs().min_or(inverse[1].abs()).min_or(inverse[2].abs()).mul(tree)
 }
 
-impl PreparedRay {
-    /// The box condition of a hit at `t` on `triangle` (see the module documentation).
-    #[inline]
-    pub(crate) fn meets_record_box(&self, triangle: &PackedTriangle, t: f32) -> bool {
-        let ([_, _, kz], [_, _, sz]) = self.shear();
-        self.box_ray().meets_record_box(triangle, t, (self.t_min, kz, sz))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ray::intersect::Ray;
     use crate::simd::PortableLanes;
 
     #[test]
@@ -165,27 +148,14 @@ mod tests {
     }
 
     #[test]
-    fn the_box_condition_takes_hits_of_the_exact_ray_and_drops_records_the_ray_passes_by() {
-        let triangle = PackedTriangle { vertices: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
-        let down = PreparedRay::new(&Ray::new([0.25, 0.25, 5.0], [0.0, 0.0, -1.0]));
-        assert!(down.meets_record_box(&triangle, 5.0));
-        // A `t` far outside the window (as no hit of this ray has) is refused, and a ray that passes beside the
-        // record's box never meets it.
-        assert!(!down.meets_record_box(&triangle, 4.0));
-        let beside = PreparedRay::new(&Ray::new([2.0, 0.25, 5.0], [0.0, 0.0, -1.0]));
-        assert!(!beside.meets_record_box(&triangle, 5.0));
-    }
-
-    #[test]
     fn the_reach_bounds_every_records_depth_and_the_lanes_agree() {
         let root = PackedNode { min: [-1.0, -2.0, -3.0], max: [1.0, 2.0, 3.0], index: 0, count: 0 };
         let tree = tree_scale(&root, 1.0);
         assert_eq!(tree, 6.0 * REACH);
         // D = 6 * 0.25: a record spread over the root's longest side, along a ray of |d|_inf = 4.
-        let ray = PreparedRay::new(&Ray::new([0.0; 3], [1.0, 2.0, -4.0])).in_tree(tree);
-        assert_eq!(cull_distance(&ray, 1.0), 1.0 * (1.0 + REACH) + 1.5 * REACH);
-        assert!(cull_distance(&ray, 1.0) > 1.0 + (1.0 + 1.5) * WINDOW);
-        assert_eq!(cull_distance(&ray, f32::INFINITY), f32::INFINITY);
+        assert_eq!(cull(1.0, 1.5 * REACH), 1.0 * (1.0 + REACH) + 1.5 * REACH);
+        assert!(cull(1.0, 1.5 * REACH) > 1.0 + (1.0 + 1.5) * WINDOW);
+        assert_eq!(cull(f32::INFINITY, 1.5 * REACH), f32::INFINITY);
         let splat = |x: f32| PortableLanes([x; 8]);
         assert_eq!(offset([splat(1.0), splat(0.5), splat(-0.25)], splat(tree)).to_array(), [1.5 * REACH; 8]);
         let hostile = PackedNode { min: [f32::NAN, 0.0, 0.0], ..root };

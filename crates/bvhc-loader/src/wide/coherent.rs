@@ -27,9 +27,10 @@ use std::mem::MaybeUninit;
 use crate::format::{EMPTY_SLOT, LEAF_BIT, TrianglePacket4, WIDE, WideNode8};
 use crate::ray::candidates::Unfiltered;
 use crate::ray::hit::{TriangleHit, lane_address};
-use crate::ray::intersect::{EXIT_PADDING, PreparedRay, Ray, shear_axes};
+use crate::ray::intersect::{PreparedRay, Ray, shear_axes};
 use crate::ray::query::Query;
 use crate::ray::reach::{self, BoxRay, cull as reach_cull};
+use crate::ray::slab::EXIT_PADDING;
 use crate::ray::watertight::{
     EXACT_SIGNS, ILL_CONDITIONED, RelativeTriangle, TINY_EXTENT, barycentrics, conditioning, determinant, distance,
     edge_functions, has_zero_edge, hits, outside, sheared,

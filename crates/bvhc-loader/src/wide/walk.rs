@@ -25,7 +25,6 @@ use crate::ray::candidates::Candidates;
 use crate::ray::hit::{TraversalCounter, TriangleHit, lane_address, lane_record};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::query::{Query, TieKey, TieOrder};
-use crate::ray::reach::cull_distance;
 use crate::simd::Isa;
 use crate::wide::packets::closest_in_packet;
 
@@ -176,7 +175,7 @@ impl<F: Copy> Walk<F> {
     /// Whether the ray enters `node`'s box within the reach of its `t_max` (the walk's cull).
     #[inline(always)]
     pub(crate) fn enters(&self, node: &PackedNode) -> bool {
-        self.ray.enter_box(node, cull_distance(&self.ray, self.t_max)).is_some()
+        self.ray.enter_box(node, self.ray.cull_distance(self.t_max)).is_some()
     }
 
     /// The closest hit so far (any hit, for an any-hit query).
@@ -209,7 +208,7 @@ impl<F: Copy> Walk<F> {
         } else if let Some(node) = sections.nodes.get(current as usize).filter(|_| self.visits_left > 0) {
             self.visits_left -= 1;
             counter.node_visited();
-            let t_cull = cull_distance(&self.ray, self.t_max);
+            let t_cull = self.ray.cull_distance(self.t_max);
             let (mask, t_near) = isa.box_test(node, &self.ray.slab_ray(), t_cull);
             let first = mask.trailing_zeros() as usize;
             let rest = mask & mask.wrapping_sub(1);
@@ -290,7 +289,7 @@ impl<F: Copy> Walk<F> {
     #[inline(always)]
     #[allow(unsafe_code)] // reading the stack, see the SAFETY note
     fn pop(&mut self, stack: &Stack) -> bool {
-        let t_cull = cull_distance(&self.ray, self.t_max);
+        let t_cull = self.ray.cull_distance(self.t_max);
         while self.stack_len > 0 {
             self.stack_len -= 1;
             // SAFETY: every index below `stack_len` was written by `push` before `stack_len` passed it (on this
