@@ -288,6 +288,48 @@ fn rays_leaving_surfaces_get_the_brute_force_hit_on_every_entry_point() {
     }
 }
 
+/// The wall's plane, `x = WALL_X`: a kitchen wall's coordinate, whose binary32 rounding matters.
+const WALL_X: f32 = 150.2299;
+
+/// A wall in the plane `x = WALL_X`: `panels` pairs of large triangles (40 by 10.3 units) from `y = 120` on, and
+/// `decals` small coplanar triangles on them, each at a corner drawn in `y_range` (and `z` 0.5 to 8) with the
+/// sides `(a, b)` that `sides` gives.
+fn wall(
+    r: &mut rand_pcg::Pcg64Mcg,
+    (panels, decals): (usize, usize),
+    y_range: std::ops::Range<f32>,
+    mut sides: impl FnMut(&mut rand_pcg::Pcg64Mcg) -> (f32, f32),
+) -> Vec<Triangle> {
+    use rand::RngExt;
+    let x = WALL_X;
+    let mut wall: Vec<Triangle> = Vec::new();
+    for k in 0..panels {
+        let y = 120.0 + 40.0 * k as f32;
+        wall.push([[x, y, 0.0], [x, y + 40.0, 0.0], [x, y + 13.0, 10.3]]);
+        wall.push([[x, y + 40.0, 0.0], [x, y + 40.0, 10.3], [x, y + 13.0, 10.3]]);
+    }
+    for _ in 0..decals {
+        let (y, z): (f32, f32) = (r.random_range(y_range.clone()), r.random_range(0.5..8.0));
+        let (a, b) = sides(r);
+        wall.push([[x, y, z], [x, y, z + b], [x, y - a, z]]);
+    }
+    wall
+}
+
+/// `count` rays leaving points 0.001 to 0.05 in front of the wall (at `y` in `y_range`), mostly along it.
+fn rays_along_the_wall(r: &mut rand_pcg::Pcg64Mcg, count: usize, y_range: std::ops::Range<f32>) -> Vec<Ray> {
+    use rand::RngExt;
+    (0..count)
+        .map(|_| {
+            let (y, z): (f32, f32) = (r.random_range(y_range.clone()), r.random_range(0.5..9.0));
+            let h: f32 = 10f32.powf(r.random_range(-3.0..-1.3));
+            let d = [r.random_range(0.2..0.7), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0)];
+            let t: f32 = h / d[0];
+            Ray::new([WALL_X - h, y - d[1] * t, z - d[2] * t], d)
+        })
+        .collect()
+}
+
 /// The kitchen's case made here: a wall of large triangles (40 by 10 units) in the plane `x = 150.2299`, with
 /// smaller coplanar ones on it (panels, decals), and rays leaving points 0.001 to 0.05 in front of it whose
 /// direction lies mostly along the wall, so that a wall triangle's depth along the ray's major axis is a thousand
@@ -297,29 +339,11 @@ fn rays_leaving_surfaces_get_the_brute_force_hit_on_every_entry_point() {
 #[test]
 fn rays_along_a_wall_get_the_nearest_of_its_coplanar_records() {
     use rand::RngExt;
-    let x = 150.2299f32;
     let mut r = crate::common::rng(11);
-    let mut wall: Vec<Triangle> = Vec::new();
-    for k in 0..4 {
-        let y = 120.0 + 40.0 * k as f32;
-        wall.push([[x, y, 0.0], [x, y + 40.0, 0.0], [x, y + 13.0, 10.3]]);
-        wall.push([[x, y + 40.0, 0.0], [x, y + 40.0, 10.3], [x, y + 13.0, 10.3]]);
-    }
-    for _ in 0..60 {
-        let (y, z): (f32, f32) = (r.random_range(121.0..275.0), r.random_range(0.5..8.0));
-        let (a, b): (f32, f32) = (r.random_range(1.0..8.0), r.random_range(1.0..4.0));
-        wall.push([[x, y, z], [x, y, z + b], [x, y - a, z]]);
-    }
+    let sides = |r: &mut rand_pcg::Pcg64Mcg| (r.random_range(1.0..8.0), r.random_range(1.0..4.0));
+    let wall = wall(&mut r, (4, 60), 121.0..275.0, sides);
     let file = write_wide_file(&wall, 1);
-    let rays: Vec<Ray> = (0..100_000)
-        .map(|_| {
-            let (y, z): (f32, f32) = (r.random_range(125.0..275.0), r.random_range(0.5..9.0));
-            let h: f32 = 10f32.powf(r.random_range(-3.0..-1.3));
-            let d = [r.random_range(0.2..0.7), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0)];
-            let t: f32 = h / d[0];
-            Ray::new([x - h, y - d[1] * t, z - d[2] * t], d)
-        })
-        .collect();
+    let rays = rays_along_the_wall(&mut r, 100_000, 125.0..275.0);
     let hits = assert_every_entry_point("wall", &file.view(), &rays);
     assert!(hits > 80_000, "{hits}");
 }
@@ -329,19 +353,8 @@ fn rays_along_a_wall_get_the_nearest_of_its_coplanar_records() {
 /// kernel returns the brute force's hit over all instances.
 #[test]
 fn rays_along_a_wall_through_instances_get_the_nearest_record_of_every_instance() {
-    use rand::RngExt;
-    let x = 150.2299f32;
     let mut r = crate::common::rng(12);
-    let mut wall: Vec<Triangle> = Vec::new();
-    for k in 0..2 {
-        let y = 120.0 + 40.0 * k as f32;
-        wall.push([[x, y, 0.0], [x, y + 40.0, 0.0], [x, y + 13.0, 10.3]]);
-        wall.push([[x, y + 40.0, 0.0], [x, y + 40.0, 10.3], [x, y + 13.0, 10.3]]);
-    }
-    for _ in 0..20 {
-        let (y, z): (f32, f32) = (r.random_range(121.0..195.0), r.random_range(0.5..8.0));
-        wall.push([[x, y, z], [x, y, z + 4.0], [x, y - 6.0, z]]);
-    }
+    let wall = wall(&mut r, (2, 20), 121.0..195.0, |_| (6.0, 4.0));
     let turned = rotation_z(1e-3);
     let mirrored = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]];
     let stretched = [[1.0, 0.0, 0.0], [0.0, 3.0, 0.0], [0.0, 0.0, 1.0]];
@@ -352,17 +365,9 @@ fn rays_along_a_wall_through_instances_get_the_nearest_record_of_every_instance(
         placement(0, affine(stretched, [0.0, -310.0, 0.0])),
     ];
     for wide in [false, true] {
-        let (scene, sources) = two_level(&[wall.clone()], &placements, wide);
+        let (scene, sources) = two_level(std::slice::from_ref(&wall), &placements, wide);
         let file = write_two_level(&scene, &sources).unwrap();
-        let rays: Vec<Ray> = (0..20_000)
-            .map(|_| {
-                let (y, z): (f32, f32) = (r.random_range(125.0..195.0), r.random_range(0.5..9.0));
-                let h: f32 = 10f32.powf(r.random_range(-3.0..-1.3));
-                let d = [r.random_range(0.2..0.7), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0)];
-                let t: f32 = h / d[0];
-                Ray::new([x - h, y - d[1] * t, z - d[2] * t], d)
-            })
-            .collect();
+        let rays = rays_along_the_wall(&mut r, 20_000, 125.0..195.0);
         let hits = assert_every_entry_point(&format!("wall instances (wide {wide})"), &file.view(), &rays);
         assert!(hits > 15_000, "{hits}");
     }

@@ -53,12 +53,18 @@ fn tie_keys(hit: &Hit, best: &Hit) -> ((Option<u32>, u32), (Option<u32>, u32)) {
 #[inline(always)]
 pub(crate) fn walk_instances<C: TraversalCounter, Q: Query>(
     sections: &TwoLevelSections<'_>,
-    stretch: f32,
+    reach_scale: f32,
     ray: &Ray,
     counter: &mut C,
     trace_mesh: impl FnMut(u32, &MeshRecord, &Ray, &mut C) -> Option<Hit>,
 ) -> Option<Hit> {
-    walk::<Q, _, _>(sections.top_nodes, ray, counter, InstanceLeaves { sections, stretch, trace_mesh })
+    walk::<Q, _, _>(sections.top_nodes, ray, counter, InstanceLeaves { sections, reach_scale, trace_mesh })
+}
+
+/// The top trees' part in their walks' reach: [`tree_scale`] of the binary top root with [`instance_stretch`]
+/// (0 without a top tree), computed once for a tracer (`Tracer::with_instances`).
+pub(crate) fn top_reach_scale(sections: &TwoLevelSections<'_>) -> f32 {
+    sections.top_nodes.first().map_or(0.0, |root| tree_scale(root, instance_stretch(sections)))
 }
 
 /// How much an instance of `sections` can stretch a record's depth along a ray, relative to the world's: the
@@ -67,7 +73,7 @@ pub(crate) fn walk_instances<C: TraversalCounter, Q: Query>(
 /// direction component by the world extent over the world ray's largest component (`crate::ray::reach`: the
 /// top trees' reach is scaled by it). At least 1; computed once for a tracer (`Tracer::with_instances`), in f64
 /// and rounded up.
-pub(crate) fn instance_stretch(sections: &TwoLevelSections<'_>) -> f32 {
+fn instance_stretch(sections: &TwoLevelSections<'_>) -> f32 {
     let norm = |m: &crate::format::Affine3x4| {
         m.iter().map(|row| row[..3].iter().map(|&c| f64::from(c).abs()).sum::<f64>()).fold(0.0, f64::max)
     };
@@ -81,8 +87,8 @@ pub(crate) fn instance_stretch(sections: &TwoLevelSections<'_>) -> f32 {
 /// The leaves of a two-level file's binary top tree: one instance each (`index` the instance, `count` 1).
 struct InstanceLeaves<'s, 'a, F> {
     sections: &'s TwoLevelSections<'a>,
-    /// [`instance_stretch`] of `sections`.
-    stretch: f32,
+    /// The top tree's part in the reach: [`top_reach_scale`] of `sections`.
+    reach_scale: f32,
     trace_mesh: F,
 }
 
@@ -93,8 +99,8 @@ where
 {
     type Found = Hit;
 
-    fn depth_scale(&self) -> f32 {
-        self.stretch
+    fn reach_scale(&self) -> f32 {
+        self.reach_scale
     }
 
     #[inline(always)]
@@ -124,8 +130,8 @@ where
 /// hit. The binary top root's box is tested first (a ray that misses it misses every instance).
 pub(crate) struct WideInstanceWalk<'a, 'r, C, F, Q: Query> {
     pub sections: &'a TwoLevelSections<'a>,
-    /// [`instance_stretch`] of `sections`.
-    pub stretch: f32,
+    /// The top tree's part in the reach: [`top_reach_scale`] of `sections`.
+    pub reach_scale: f32,
     pub ray: &'r Ray,
     pub counter: &'r mut C,
     pub trace_mesh: F,
@@ -141,9 +147,8 @@ where
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) -> Option<Hit> {
-        let WideInstanceWalk { sections, stretch, ray, counter, trace_mesh, .. } = self;
+        let WideInstanceWalk { sections, reach_scale, ray, counter, trace_mesh, .. } = self;
         let root = *sections.top_nodes.first()?;
-        let reach_scale = tree_scale(&root, stretch);
         let top =
             Sections { nodes: sections.top_wide_nodes, packets: &[], root, tie: TieOrder::default(), reach_scale };
         let mut walk = Walk::start(&top, ray).filter(|walk| walk.enters(&root))?;

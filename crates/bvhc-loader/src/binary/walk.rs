@@ -15,18 +15,15 @@ use crate::ray::candidates::Candidates;
 use crate::ray::hit::{TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::query::{Query, TieKey, TieOrder, precedes};
-use crate::ray::reach::tree_scale;
 
 /// What the walk does at a leaf.
 pub(crate) trait Leaves<C: TraversalCounter> {
     /// What a hit in a leaf is.
     type Found;
 
-    /// How much the records below a leaf can stretch a depth beyond the tree's own boxes (the reach's scale,
-    /// `crate::ray::reach`): 1 for triangles; for a top tree's instances, their largest stretch.
-    fn depth_scale(&self) -> f32 {
-        1.0
-    }
+    /// The tree's part in the walk's reach (`crate::ray::reach::tree_scale` of its root, for a top tree with
+    /// its instances' largest stretch), computed once by the tracer.
+    fn reach_scale(&self) -> f32;
 
     /// Tests leaf `node` for hits with `t <= *t_max` of `ray` (prepared as `prepared`): each hit that precedes
     /// `*found` ([`precedes`]: a smaller `t`, or the same and a lower key) replaces it and lowers `*t_max` to its
@@ -50,6 +47,8 @@ pub(crate) struct TriangleLeaves<'t, 'c, F> {
     pub candidates: &'c F,
     /// Which [`TieKey`] orders hits at one `t`.
     pub tie: TieOrder<'t>,
+    /// [`Leaves::reach_scale`].
+    pub reach_scale: f32,
 }
 
 impl<F> TriangleLeaves<'_, '_, F> {
@@ -66,6 +65,10 @@ impl<F> TriangleLeaves<'_, '_, F> {
 impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F> {
     /// The record index and its hit.
     type Found = (u32, TriangleHit);
+
+    fn reach_scale(&self) -> f32 {
+        self.reach_scale
+    }
 
     #[inline(always)]
     fn test_leaf<Q: Query>(
@@ -109,7 +112,7 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
     mut leaves: L,
 ) -> Option<L::Found> {
     let root = nodes.first()?;
-    let prepared = PreparedRay::new(ray).in_tree(tree_scale(root, leaves.depth_scale()));
+    let prepared = PreparedRay::new(ray).in_tree(leaves.reach_scale());
     let mut t_cull = prepared.cull_distance(ray.t_max);
     prepared.enter_box(root, t_cull)?;
     let mut t_max = ray.t_max;

@@ -14,13 +14,14 @@ pub use traced::TracedFile;
 
 use crate::binary::walk::{TriangleLeaves, walk};
 use crate::format::{MeshRecord, PackedNode, PackedTriangle};
-use crate::instances::{WideInstanceWalk, instance_stretch, walk_instances};
+use crate::instances::{WideInstanceWalk, top_reach_scale, walk_instances};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::candidates::{Candidates, Unfiltered};
 use crate::ray::check::BatchRayError;
 use crate::ray::hit::{ForeignHit, Hit, TraversalCounter};
 use crate::ray::intersect::Ray;
 use crate::ray::query::{AnyHit, ClosestHit, Query, TieOrder};
+use crate::ray::reach::tree_scale;
 use crate::ray::spawn::SurfacePoint;
 use crate::simd::KernelPath;
 use crate::trace::{BatchResult, Order, Trace, refused};
@@ -48,9 +49,10 @@ pub struct Tracer<'a> {
     triangle_flags: Option<&'a [u8]>,
     wide: Option<WideTracer<'a>>,
     instances: Option<TwoLevelSections<'a>>,
-    /// How much the instances stretch a record's depth (`crate::instances::instance_stretch`), for the top
-    /// walks' reach; 1 without instances.
-    instance_stretch: f32,
+    /// The binary tree's part in its walks' reach (`crate::ray::reach::tree_scale` of `nodes[0]`).
+    reach_scale: f32,
+    /// The top trees' part in their walks' reach (`crate::instances::top_reach_scale`); 0 without instances.
+    top_reach_scale: f32,
     /// Whether the tracing calls skip the ray check ([`Tracer::trusting_rays`]).
     trusts_rays: bool,
     /// The triangles section's `SPLIT_REFERENCES` flag ([`Tracer::with_split_references`]).
@@ -79,7 +81,8 @@ impl<'a> Tracer<'a> {
             triangle_flags: None,
             wide: None,
             instances: None,
-            instance_stretch: 1.0,
+            reach_scale: nodes.first().map_or(0.0, |root| tree_scale(root, 1.0)),
+            top_reach_scale: 0.0,
             trusts_rays: false,
             split_references: false,
         }
@@ -158,7 +161,7 @@ impl<'a> Tracer<'a> {
     /// `sections` place; rays walk the top-level tree and are traced through each mesh they reach in its object
     /// space (`format-spec/bvh-1.md` 11.3).
     pub fn with_instances(self, sections: TwoLevelSections<'a>) -> Self {
-        Tracer { instances: Some(sections), instance_stretch: instance_stretch(&sections), ..self }
+        Tracer { instances: Some(sections), top_reach_scale: top_reach_scale(&sections), ..self }
     }
 
     /// The two-level sections this tracer walks, if any.
@@ -308,7 +311,7 @@ impl<'a> Tracer<'a> {
             Some(wide) => {
                 let walk = WideInstanceWalk::<_, _, ClosestHit> {
                     sections,
-                    stretch: self.instance_stretch,
+                    reach_scale: self.top_reach_scale,
                     ray,
                     counter,
                     trace_mesh,
@@ -316,7 +319,7 @@ impl<'a> Tracer<'a> {
                 };
                 crate::simd::run(wide.avx2(), walk)
             }
-            None => walk_instances::<_, ClosestHit>(sections, self.instance_stretch, ray, counter, trace_mesh),
+            None => walk_instances::<_, ClosestHit>(sections, self.top_reach_scale, ray, counter, trace_mesh),
         }
     }
 
@@ -337,7 +340,7 @@ impl<'a> Tracer<'a> {
             Some(wide) => {
                 let walk = WideInstanceWalk::<_, _, AnyHit> {
                     sections,
-                    stretch: self.instance_stretch,
+                    reach_scale: self.top_reach_scale,
                     ray,
                     counter,
                     trace_mesh: occluding,
@@ -345,7 +348,7 @@ impl<'a> Tracer<'a> {
                 };
                 crate::simd::run(wide.avx2(), walk).is_some()
             }
-            None => walk_instances::<_, AnyHit>(sections, self.instance_stretch, ray, counter, occluding).is_some(),
+            None => walk_instances::<_, AnyHit>(sections, self.top_reach_scale, ray, counter, occluding).is_some(),
         }
     }
 
@@ -365,6 +368,7 @@ impl<'a> Tracer<'a> {
                 triangles: self.triangles,
                 candidates,
                 tie: TieOrder::new(self.split_references, self.triangle_ids),
+                reach_scale: self.reach_scale,
             },
         )
     }
