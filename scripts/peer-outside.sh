@@ -5,6 +5,10 @@
 # unchecked, against Embree's C API). Medians of interleaved rounds in each; docs/kernel-peer.md reads them.
 #
 #   scripts/peer-outside.sh [SCENES] [RAYS]      # e.g. kitchen,engine 200000 (defaults: kitchen,engine,toy car)
+#   PEER_TABLES=batches scripts/peer-outside.sh   # only the batch table (single, batches, in-process: any set)
+#
+# The batch table (benches/c/embree_batches.c) times bvhc's batch calls against Embree's best call on camera,
+# ambient-occlusion, shadow and incoherent workloads made from each scene's box.
 #
 # Needs a C compiler, pkg-config and python3 (for scripts/embree4.sh); installs the C library into
 # target/c-library/prefix and Embree into target/embree4 when they are not there. Not used by tests or CI.
@@ -21,17 +25,21 @@ if [ ! -f "$prefix/lib/libbvhc.so" ] \
   PREFIX="$prefix" scripts/install-c-library.sh >/dev/null
 fi
 mkdir -p "$out"
-cc -O2 -std=c11 -Wall -Wextra -o "$out/embree_peer" benches/c/embree_peer.c \
-  $(PKG_CONFIG_PATH="$prefix/lib/pkgconfig" pkg-config --cflags --libs bvhc) \
-  -L target/embree4/lib -Wl,-rpath,"$PWD/target/embree4/lib" -lembree4 -lm
+tables="${PEER_TABLES:-single,batches,in-process}"
+for program in embree_peer embree_batches; do
+  cc -O2 -std=c11 -Wall -Wextra -o "$out/$program" "benches/c/$program.c" \
+    $(PKG_CONFIG_PATH="$prefix/lib/pkgconfig" pkg-config --cflags --libs bvhc) \
+    -L target/embree4/lib -Wl,-rpath,"$PWD/target/embree4/lib" -lembree4 -lm
+done
 # The benchmark's conversions, triangles and ray sets, written instead of timed.
 BVHC_PEER_WRITE="$out" BVHC_PEER_SCENES="$scenes" BVHC_BENCH_RAYS="$rays" BVHC_PEER_CAMERA=512x384 \
   cargo bench --quiet --bench peer --features embree4 >/dev/null
+IFS=',' read -ra names <<< "$scenes"
+if [[ ",$tables," == *,single,* ]]; then
 echo "## From outside: benches/c/embree_peer.c (C API, one call a ray) against Embree's C API"
 echo
 echo "| scene | rays | query | bvhc | bvhc unchecked | Embree | bvhc / Embree | unchecked / Embree | answered differently |"
 echo "|---|---|---|---|---|---|---|---|---|"
-IFS=',' read -ra names <<< "$scenes"
 for name in "${names[@]}"; do
   stem="${name// /-}"
   for set in incoherent primary; do
@@ -46,6 +54,26 @@ for line in sys.stdin:
   done
 done
 echo
+fi
+if [[ ",$tables," == *,batches,* ]]; then
+echo "## From outside: benches/c/embree_batches.c (C batch calls) against Embree's calls, Mrays/s"
+echo
+echo "| scene | workload | query | rays | bvhc | bvhc coherent | Embree 1 | Embree 8 | Embree 8 coherent | best / best | calls differ | answered differently |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+for name in "${names[@]}"; do
+  stem="${name// /-}"
+  "$out/embree_batches" "$out/$stem.bvh" "$out/$stem-triangles.bin" | python3 -c '
+import json, sys
+for line in sys.stdin:
+    r = json.loads(line)
+    row = [sys.argv[1], r["workload"], r["query"], str(r["rays"])]
+    row += ["%.2f" % r[k] for k in ("bvhc", "bvhc coherent", "Embree 1", "Embree 8", "Embree 8 coherent", "ratio")]
+    print("| " + " | ".join(row + [str(r["bvhc_calls_differ"]), str(r["answered_differently"])]) + " |", flush=True)
+' "$name"
+done
+echo
+fi
+[[ ",$tables," == *,in-process,* ]] || exit 0
 echo "## In process: benches/peer.rs (Rust API, trusting rays) against Embree through FFI"
 echo
 BVHC_PEER_SCENES="$scenes" BVHC_BENCH_RAYS="$rays" BVHC_PEER_CAMERA=512x384 \

@@ -13,97 +13,15 @@
  *   RAYS.bin       a ray file (format-spec/rays-and-hits.md)
  * scripts/peer-outside.sh builds it against the installed library and target/embree4 and runs it.
  *
- * Embree 4.4.0's C API is declared here from its headers (RenderKit/embree, tag v4.4.0, include/embree4/
- * rtcore_*.h), as the Rust benchmarks declare it, so no Embree header is needed: the library of the embreex
- * wheel (scripts/embree4.sh) is built with one instance level. */
-#define _GNU_SOURCE
+ * Embree 4.4.0's C API is declared in embree4_peer.h, shared with embree_batches.c. */
+#include "embree4_peer.h" /* first: it defines _GNU_SOURCE */
+
 #include <math.h>
 #include <pmmintrin.h>
-#include <sched.h>
-#include <stdint.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <time.h>
 #include <xmmintrin.h>
 
-#include <bvhc.h>
-
-/* Embree 4.4.0, rtcore_device.h, rtcore_scene.h, rtcore_geometry.h, rtcore_buffer.h, rtcore_ray.h. */
-typedef struct RTCDeviceTy *RTCDevice;
-typedef struct RTCSceneTy *RTCScene;
-typedef struct RTCGeometryTy *RTCGeometry;
-enum { RTC_GEOMETRY_TYPE_TRIANGLE = 0, RTC_BUFFER_TYPE_INDEX = 0, RTC_BUFFER_TYPE_VERTEX = 1 };
-enum { RTC_FORMAT_UINT3 = 0x5003, RTC_FORMAT_FLOAT3 = 0x9003, RTC_BUILD_QUALITY_HIGH = 2 };
-struct __attribute__((aligned(16))) RTCRay {
-    float org_x, org_y, org_z, tnear, dir_x, dir_y, dir_z, time, tfar;
-    unsigned mask, id, flags;
-};
-struct __attribute__((aligned(16))) RTCHit {
-    float Ng_x, Ng_y, Ng_z, u, v;
-    unsigned primID, geomID, instID[1], instPrimID[1];
-};
-struct __attribute__((aligned(16))) RTCRayHit {
-    struct RTCRay ray;
-    struct RTCHit hit;
-};
-RTCDevice rtcNewDevice(const char *config);
-void rtcReleaseDevice(RTCDevice device);
-int rtcGetDeviceError(RTCDevice device);
-RTCScene rtcNewScene(RTCDevice device);
-void rtcSetSceneBuildQuality(RTCScene scene, int quality);
-RTCGeometry rtcNewGeometry(RTCDevice device, int type);
-void rtcSetGeometryBuildQuality(RTCGeometry geometry, int quality);
-void *rtcSetNewGeometryBuffer(RTCGeometry geometry, int type, unsigned slot, int format, size_t byte_stride,
-                              size_t item_count);
-void rtcCommitGeometry(RTCGeometry geometry);
-unsigned rtcAttachGeometry(RTCScene scene, RTCGeometry geometry);
-void rtcReleaseGeometry(RTCGeometry geometry);
-void rtcCommitScene(RTCScene scene);
-void rtcReleaseScene(RTCScene scene);
-void rtcIntersect1(RTCScene scene, struct RTCRayHit *rayhit, void *arguments);
-void rtcOccluded1(RTCScene scene, struct RTCRay *ray, void *arguments);
-
-#define RTC_INVALID_GEOMETRY_ID 0xffffffffu
 #define ROUNDS_DEFAULT 5
 #define CONTENDERS 3
-
-static double now(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-/* The whole of `path`, and its length; exits with a message naming the file when it cannot be read. */
-static void *read_all(const char *path, size_t *len) {
-    FILE *f = fopen(path, "rb");
-    if (!f || fseek(f, 0, SEEK_END) != 0) {
-        fprintf(stderr, "embree_peer: %s: cannot be read\n", path);
-        exit(1);
-    }
-    long size = ftell(f);
-    void *bytes = malloc(size > 0 ? (size_t)size : 1);
-    if (size < 0 || !bytes || fseek(f, 0, SEEK_SET) != 0 || fread(bytes, 1, (size_t)size, f) != (size_t)size) {
-        fprintf(stderr, "embree_peer: %s: cannot be read\n", path);
-        exit(1);
-    }
-    fclose(f);
-    *len = (size_t)size;
-    return bytes;
-}
-
-/* The ray as Embree's users set one up: each field Embree reads written once (a memset of the whole record
- * first stalls Embree's wide loads of it: Embree ran 15-25% slower, which flattered bvhc's ratios). */
-static struct RTCRayHit embree_ray(const bvhc_ray *r) {
-    struct RTCRayHit rh;
-    rh.ray.org_x = r->origin[0], rh.ray.org_y = r->origin[1], rh.ray.org_z = r->origin[2];
-    rh.ray.dir_x = r->direction[0], rh.ray.dir_y = r->direction[1], rh.ray.dir_z = r->direction[2];
-    rh.ray.tnear = r->t_min, rh.ray.tfar = r->t_max, rh.ray.time = 0.0f;
-    rh.ray.mask = ~0u, rh.ray.id = 0, rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID, rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    return rh;
-}
 
 /* One timed pass of contender `c` (0: bvhc, 1: bvhc unchecked, 2: Embree) over the rays; seconds. The hits'
  * distances are summed into *sink, so no call can be dropped. */
@@ -137,11 +55,6 @@ static double pass(int c, int any, const bvhc_file *file, RTCScene scene, const 
     return seconds;
 }
 
-static int by_value(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 int main(int argc, char **argv) {
     if (argc < 4) {
         fprintf(stderr, "usage: embree_peer FILE.bvh TRIANGLES.bin RAYS.bin [ROUNDS]\n");
@@ -149,11 +62,7 @@ int main(int argc, char **argv) {
     }
     int rounds = argc > 4 ? atoi(argv[4]) : ROUNDS_DEFAULT;
     if (rounds < 1 || rounds > 99) rounds = ROUNDS_DEFAULT;
-    /* One core for the whole run: the one this process starts on. */
-    cpu_set_t one;
-    CPU_ZERO(&one);
-    CPU_SET(sched_getcpu(), &one);
-    sched_setaffinity(0, sizeof one, &one);
+    pin_to_one_core();
 
     bvhc_file *file;
     if (bvhc_open(argv[1], &file) != BVHC_OK) {
@@ -170,22 +79,7 @@ int main(int argc, char **argv) {
     }
 
     RTCDevice device = rtcNewDevice("threads=1,isa=avx2");
-    RTCScene scene = rtcNewScene(device);
-    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
-    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_HIGH);
-    float *v = rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, 3 * triangles);
-    unsigned *index = rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, triangles);
-    if (!v || !index) {
-        fprintf(stderr, "embree_peer: Embree error %d\n", rtcGetDeviceError(device));
-        return 1;
-    }
-    memcpy(v, vertices, 36 * triangles);
-    for (size_t k = 0; k < 3 * triangles; k++) index[k] = (unsigned)k;
-    rtcCommitGeometry(geometry);
-    rtcAttachGeometry(scene, geometry);
-    rtcReleaseGeometry(geometry);
-    rtcCommitScene(scene);
+    RTCScene scene = embree_scene(device, vertices, triangles);
 
     const char *names[CONTENDERS] = {"bvhc", "bvhc unchecked", "Embree"};
     for (int any = 0; any < 2; any++) {
