@@ -273,14 +273,28 @@ fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
 }
 
 /// The stream entry points (rays interleaved, and one by one) give each ray's single-ray answer, on every path,
-/// for more rays than a stream keeps in flight, rays that miss the root among them.
+/// for more rays than a stream keeps in flight, rays that miss the root among them, and groups of 8 rays that
+/// share their origin bit for bit, which the stream traces as packets: from one point in mixed directions (so
+/// mixed shear axes in a packet, as ambient-occlusion rays), a camera's fan whose last group takes in a ray
+/// from elsewhere, then rays from everywhere.
 #[test]
 fn streams_of_rays_equal_single_rays_on_every_path() {
+    use bvhc::loader::Ray;
     for (seed, count) in [(21u64, 1usize), (22, 500), (23, 3000)] {
         let triangles = random_triangles(seed, count, 10.0);
         let file = crate::common::write_wide_file(&triangles, 4);
         let view = file.view();
-        let mut rays = crate::common::random_rays(seed + 7, 1500, 15.0);
+        let mut rays = Vec::new();
+        for (p, point) in crate::common::random_rays(seed + 5, 20, 8.0).iter().enumerate() {
+            let directions = crate::common::random_rays(seed + 100 + p as u64, 16, 1.0);
+            rays.extend(directions.iter().map(|d| Ray::new(point.origin, d.direction)));
+        }
+        for y in 0..23 {
+            for x in 0..41 {
+                rays.push(Ray::new([0.5, 0.25, 25.0], [x as f32 / 20.0 - 1.0, y as f32 / 11.0 - 1.0, -1.0]));
+            }
+        }
+        rays.extend(crate::common::random_rays(seed + 7, 1500, 15.0));
         rays.push(bvhc::loader::Ray::new([100.0, 100.0, 100.0], [1.0, 0.0, 0.0])); // misses the root's box
         for path in crate::common::kernel_paths() {
             for interleave in [true, false] {

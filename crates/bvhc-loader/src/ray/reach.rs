@@ -124,6 +124,15 @@ pub(crate) fn cull(t: f32, offset: f32) -> f32 {
     t * REACH_SCALE + offset
 }
 
+/// [`cull`] in lanes: each lane the same two IEEE operations, so the same bits.
+#[inline(always)]
+pub(crate) fn cull_lanes<L: Lanes>(t: L, offset: L, reach_scale: L) -> L {
+    t.mul(reach_scale).add(offset)
+}
+
+/// [`cull`]'s factor `1 + 2^-11`, for [`cull_lanes`].
+pub(crate) const CULL_FACTOR: f32 = REACH_SCALE;
+
 /// `2^-11 D = tree |sz|` for the rays of `L`'s lanes (one ray, or a coherent packet's eight) from their
 /// reciprocal directions by axis, over a tree of [`tree_scale`] `tree`.
 #[inline(always)]

@@ -248,16 +248,22 @@ impl<'a> WideTracer<'a> {
         WideTracer { interleave, ..self }
     }
 
-    /// The stream on the tracer's path; `done(i, found)` receives ray `i`'s result.
+    /// The stream call ([`Order::Stream`]) on the tracer's path; `done(i, found)` receives ray `i`'s result.
+    /// Each group of 8 consecutive rays (counted from the first) whose origins are equal bit for bit (a pinhole
+    /// camera's rays, a point light's shadow rays, one hit's ambient-occlusion rays) is traced as a coherent
+    /// packet, the other rays one by one or interleaved ([`WideTracer::interleaves_streams`]): the same hits
+    /// either way, and such packets ran 1.3-2.8x faster than single rays (`docs/kernel-peer.md`).
     fn stream<Q: Query>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
-        if !self.interleaves_streams() {
-            for (i, ray) in rays.iter().enumerate() {
-                done(i, self.dispatch::<Q, _>(ray, &mut (), &Unfiltered));
-            }
-            return;
-        }
-        crate::simd::run(self.avx2, Stream::<_, Q> { sections: &self.sections, rays, done, query: PhantomData });
+        let (sections, interleave) = (&self.sections, self.interleave);
+        crate::simd::run(self.avx2, Batch::<_, Q> { sections, rays, done, interleave, query: PhantomData });
     }
+}
+
+/// Whether the rays all start at the same point, bit for bit.
+#[inline]
+fn shares_origin(rays: &[Ray]) -> bool {
+    let bits = |ray: &Ray| ray.origin.map(f32::to_bits);
+    rays.split_first().is_some_and(|(first, rest)| rest.iter().all(|ray| bits(ray) == bits(first)))
 }
 
 /// The single-ray calls, and the batch calls as a stream of interleaved rays ([`WideTracer::interleaves_streams`])
@@ -308,6 +314,55 @@ impl<C: TraversalCounter, A: Candidates, Q: Query> Kernel for SingleRay<'_, '_, 
         let mut leaves = PacketLeaves(self.candidates);
         while walk.step::<Q, I, C, _>(isa, self.sections, &mut stack, self.counter, &mut leaves) {}
         walk.found()
+    }
+}
+
+/// The stream call's rays: groups of [`PACKET_RAYS`] that share their origin as packets, the others apart.
+struct Batch<'s, 'r, D, Q: Query> {
+    sections: &'s Sections<'s>,
+    rays: &'r [Ray],
+    done: &'r mut D,
+    interleave: bool,
+    query: PhantomData<Q>,
+}
+
+impl<D: FnMut(usize, Option<(u32, TriangleHit)>), Q: Query> Kernel for Batch<'_, '_, D, Q> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) {
+        let Batch { sections, rays, done, interleave, .. } = self;
+        let mut start = 0;
+        for (g, group) in rays.chunks_exact(PACKET_RAYS).enumerate() {
+            if !shares_origin(group) {
+                continue;
+            }
+            let at = g * PACKET_RAYS;
+            trace_apart::<Q, I>(isa, sections, (&rays[start..at], start), interleave, done);
+            trace_packet::<Q, I>(isa, sections, group, &mut |l, found| done(at + l, found));
+            start = at + PACKET_RAYS;
+        }
+        trace_apart::<Q, I>(isa, sections, (&rays[start..], start), interleave, done);
+    }
+}
+
+/// `rays` (ray `first` of the batch and those after it) traced one by one, or interleaved.
+#[inline(always)]
+fn trace_apart<Q: Query, I: Isa>(
+    isa: I,
+    sections: &Sections<'_>,
+    (rays, first): (&[Ray], usize),
+    interleave: bool,
+    done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>),
+) {
+    if interleave {
+        let done = &mut |i: usize, found: Option<(u32, TriangleHit)>| done(first + i, found);
+        Stream::<_, Q> { sections, rays, done, query: PhantomData }.run(isa);
+        return;
+    }
+    for (i, ray) in rays.iter().enumerate() {
+        let (counter, candidates) = (&mut (), &Unfiltered);
+        done(first + i, SingleRay::<_, _, Q> { sections, ray, counter, candidates, query: PhantomData }.run(isa));
     }
 }
 
