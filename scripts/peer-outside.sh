@@ -58,8 +58,8 @@ fi
 if [[ ",$tables," == *,batches,* ]]; then
 echo "## From outside: benches/c/embree_batches.c (C batch calls) against Embree's calls, Mrays/s"
 echo
-echo "| scene | workload | query | rays | bvhc | bvhc coherent | Embree 1 | Embree 8 | Embree 8 coherent | best / best | calls differ | answered differently |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| scene | workload | query | rays | bvhc | bvhc coherent | bvhc columns | Embree 1 | Embree 8 | Embree 8 coherent | best / best | calls differ | answered differently |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for name in "${names[@]}"; do
   stem="${name// /-}"
   "$out/embree_batches" "$out/$stem.bvh" "$out/$stem-triangles.bin" | python3 -c '
@@ -67,7 +67,8 @@ import json, sys
 for line in sys.stdin:
     r = json.loads(line)
     row = [sys.argv[1], r["workload"], r["query"], str(r["rays"])]
-    row += ["%.2f" % r[k] for k in ("bvhc", "bvhc coherent", "Embree 1", "Embree 8", "Embree 8 coherent", "ratio")]
+    keys = ("bvhc", "bvhc coherent", "bvhc columns", "Embree 1", "Embree 8", "Embree 8 coherent", "ratio")
+    row += ["%.2f" % r[k] if r[k] else "-" for k in keys]
     print("| " + " | ".join(row + [str(r["bvhc_calls_differ"]), str(r["answered_differently"])]) + " |", flush=True)
 ' "$name"
 done

@@ -1,6 +1,7 @@
 /* bvhc's batch calls against Embree 4's best call for each workload, from outside, as a C program using both
  * would compare them: the installed bvhc library (bvhc.h: bvhc_closest_hits / bvhc_any_hits, one call for all
- * rays, and their _coherent forms, which trace each 8 consecutive rays together) beside Embree 4.4's C API (one
+ * rays, their _coherent forms, which trace each 8 consecutive rays together, and bvhc_closest_hit_columns, the
+ * lean hand-off of t, record, u, v as columns) beside Embree 4.4's C API (one
  * rtcIntersect1 / rtcOccluded1 call a ray; rtcIntersect8 / rtcOccluded8 on each 8 consecutive rays, without and
  * with RTC_RAY_QUERY_FLAG_COHERENT), isa=avx2, threads=1, HIGH quality, plain scene flags, flush-to-zero and
  * denormals-are-zero around Embree's passes as it asks; one thread pinned to one core; the same triangles and the
@@ -17,7 +18,7 @@
  *   incoherent  1M rays, origins uniform in the scene box, directions uniform, unsorted, closest and any hit.
  * Each round times every contender of a workload in turn; medians of the rounds are printed as Mrays/s, one JSON
  * line a workload and query, with bvhc's best over Embree's best, and the count of rays whose answer differs
- * between bvhc's two calls (must be 0: the same hits bit for bit) and between bvhc and rtcIntersect1 (hit against
+ * between bvhc's calls (must be 0: the same hits bit for bit) and between bvhc and rtcIntersect1 (hit against
  * miss, or t more than 1e-4 apart relative).
  *
  * Usage: embree_batches FILE.bvh TRIANGLES.bin [ROUNDS]
@@ -31,14 +32,16 @@
 #include <xmmintrin.h>
 
 #define ROUNDS_DEFAULT 5
-#define CONTENDERS 5
+#define CONTENDERS 6
 #define CAMERA_WIDTH 1024
 #define CAMERA_HEIGHT 768
 #define AO_POINTS 65536
 #define AO_RAYS 16
 #define INCOHERENT_RAYS 1000000
 
-static const char *NAMES[CONTENDERS] = {"bvhc", "bvhc coherent", "Embree 1", "Embree 8", "Embree 8 coherent"};
+static const char *NAMES[CONTENDERS] = {"bvhc", "bvhc coherent", "bvhc columns", "Embree 1", "Embree 8",
+                                        "Embree 8 coherent"};
+enum { BVHC = 0, BVHC_COHERENT = 1, BVHC_COLUMNS = 2, EMBREE_1 = 3, EMBREE_8 = 4, EMBREE_8_COHERENT = 5 };
 
 /* xorshift64*: a small fixed generator, so every run makes the same rays. */
 static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
@@ -184,22 +187,24 @@ static void embree_packet(const bvhc_ray *rays, size_t first, size_t n, struct R
 struct answers {
     bvhc_hit *hits;
     uint8_t *found;
-    float *t;
+    float *t, *u, *v;
+    uint32_t *triangle;
 };
 
 /* One timed pass of contender `c` over the rays; seconds. Each contender's answers go to `out->t`. */
 static double pass(int c, int any, const bvhc_file *file, RTCScene scene, const bvhc_ray *rays, size_t n,
                    struct answers *out) {
     unsigned csr = _mm_getcsr();
-    if (c >= 2) _mm_setcsr(csr | 0x8040); /* FTZ and DAZ, as Embree asks */
+    if (c >= EMBREE_1) _mm_setcsr(csr | 0x8040); /* FTZ and DAZ, as Embree asks */
     struct RTCQueryArguments args = {RTC_RAY_QUERY_FLAG_COHERENT, (unsigned)RTC_FEATURE_FLAG_ALL, NULL, NULL, NULL, 0.0f};
     double start = now();
     bvhc_status status = BVHC_OK;
-    if (c == 0 && any) status = bvhc_any_hits(file, rays, n, out->found);
-    if (c == 0 && !any) status = bvhc_closest_hits(file, rays, n, out->hits, out->found);
-    if (c == 1 && any) status = bvhc_any_hits_coherent(file, rays, n, out->found);
-    if (c == 1 && !any) status = bvhc_closest_hits_coherent(file, rays, n, out->hits, out->found);
-    if (c == 2)
+    if (c == BVHC && any) status = bvhc_any_hits(file, rays, n, out->found);
+    if (c == BVHC && !any) status = bvhc_closest_hits(file, rays, n, out->hits, out->found);
+    if (c == BVHC_COHERENT && any) status = bvhc_any_hits_coherent(file, rays, n, out->found);
+    if (c == BVHC_COHERENT && !any) status = bvhc_closest_hits_coherent(file, rays, n, out->hits, out->found);
+    if (c == BVHC_COLUMNS) status = bvhc_closest_hit_columns(file, rays, n, 0, out->t, out->triangle, NULL, out->u, out->v);
+    if (c == EMBREE_1)
         for (size_t i = 0; i < n; i++) {
             struct RTCRayHit rh = embree_ray(&rays[i]);
             if (any) {
@@ -210,13 +215,13 @@ static double pass(int c, int any, const bvhc_file *file, RTCScene scene, const 
                 out->t[i] = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID ? rh.ray.tfar : INFINITY;
             }
         }
-    if (c >= 3)
+    if (c >= EMBREE_8)
         for (size_t i = 0; i < n; i += 8) {
             struct RTCRayHit8 rh;
             int valid[8] __attribute__((aligned(32))); /* Embree loads the mask aligned */
             embree_packet(rays, i, n, &rh, valid);
             /* Embree's defaults (no arguments) are the incoherent flag. */
-            struct RTCQueryArguments *arguments = c == 4 ? &args : NULL;
+            struct RTCQueryArguments *arguments = c == EMBREE_8_COHERENT ? &args : NULL;
             if (any) rtcOccluded8(valid, scene, &rh.ray, arguments);
             else rtcIntersect8(valid, scene, &rh, arguments);
             for (size_t l = 0; l < 8 && i + l < n; l++) {
@@ -230,7 +235,7 @@ static double pass(int c, int any, const bvhc_file *file, RTCScene scene, const 
         fprintf(stderr, "embree_batches: %s: %s\n", bvhc_status_name(status), bvhc_last_error_message());
         exit(1);
     }
-    if (c <= 1)
+    if (c <= BVHC_COHERENT)
         for (size_t i = 0; i < n; i++) out->t[i] = !out->found[i] ? INFINITY : any ? 1.0f : out->hits[i].t;
     return seconds;
 }
@@ -253,26 +258,31 @@ static int written(const char *workload, const bvhc_ray *rays, size_t n) {
 static void run(const char *workload, int any, const bvhc_file *file, RTCScene scene, const bvhc_ray *rays,
                 size_t n, int rounds) {
     if (written(workload, rays, n)) return;
-    struct answers out = {allocate(sizeof(bvhc_hit) * n), allocate(n), NULL};
+    struct answers out = {allocate(sizeof(bvhc_hit) * n), allocate(n), NULL, allocate(sizeof(float) * n),
+                          allocate(sizeof(float) * n), allocate(sizeof(uint32_t) * n)};
     float *t[CONTENDERS];
     double samples[CONTENDERS][99], mrays[CONTENDERS];
     for (int c = 0; c < CONTENDERS; c++) t[c] = allocate(sizeof(float) * n);
+    /* The columns call answers closest hits only. */
+    int skip[CONTENDERS] = {0, 0, any, 0, 0, 0};
     for (int round = 0; round < rounds; round++)
         for (int c = 0; c < CONTENDERS; c++) {
             out.t = t[c];
-            samples[c][round] = pass(c, any, file, scene, rays, n, &out);
+            samples[c][round] = skip[c] ? 0 : pass(c, any, file, scene, rays, n, &out);
         }
     for (int c = 0; c < CONTENDERS; c++) {
         qsort(samples[c], (size_t)rounds, sizeof(double), by_value);
-        mrays[c] = (double)n / samples[c][rounds / 2] / 1e6;
+        mrays[c] = skip[c] ? 0 : (double)n / samples[c][rounds / 2] / 1e6;
     }
     size_t packets_differ = 0, differ = 0;
     for (size_t i = 0; i < n; i++) {
-        packets_differ += memcmp(&t[0][i], &t[1][i], sizeof(float)) != 0;
-        float b = t[0][i], e = t[2][i];
+        packets_differ += memcmp(&t[BVHC][i], &t[BVHC_COHERENT][i], sizeof(float)) != 0;
+        packets_differ += !any && memcmp(&t[BVHC][i], &t[BVHC_COLUMNS][i], sizeof(float)) != 0;
+        float b = t[BVHC][i], e = t[EMBREE_1][i];
         differ += isinf(b) != isinf(e) || (!isinf(b) && fabsf(b - e) > 1e-4f * fmaxf(1.0f, fabsf(b)));
     }
-    double best_bvhc = fmax(mrays[0], mrays[1]), best_embree = fmax(mrays[2], fmax(mrays[3], mrays[4]));
+    double best_bvhc = fmax(mrays[BVHC], fmax(mrays[BVHC_COHERENT], mrays[BVHC_COLUMNS]));
+    double best_embree = fmax(mrays[EMBREE_1], fmax(mrays[EMBREE_8], mrays[EMBREE_8_COHERENT]));
     printf("{\"workload\": \"%s\", \"query\": \"%s\", \"rays\": %zu, \"rounds\": %d", workload,
            any ? "any" : "closest", n, rounds);
     for (int c = 0; c < CONTENDERS; c++) printf(", \"%s\": %.3f", NAMES[c], mrays[c]);
@@ -280,8 +290,7 @@ static void run(const char *workload, int any, const bvhc_file *file, RTCScene s
            best_bvhc / best_embree, packets_differ, differ);
     fflush(stdout);
     for (int c = 0; c < CONTENDERS; c++) free(t[c]);
-    free(out.hits);
-    free(out.found);
+    free(out.hits), free(out.found), free(out.u), free(out.v), free(out.triangle);
 }
 
 int main(int argc, char **argv) {

@@ -10,7 +10,7 @@ use bvhc_loader::Order;
 use bvhc_loader::Trace;
 use std::time::Instant;
 
-use bvhc::loader::{BatchRayError, Hit, Ray};
+use bvhc::loader::{BatchRayError, Hit, HitCore, Ray};
 use rayon::prelude::*;
 
 use bvhc::sampling::{parse_rays, read_ray_file};
@@ -29,17 +29,26 @@ pub const NO_INDEX: u32 = u32::MAX;
 const CHUNK: usize = 4096;
 /// The 24-byte record of a closest-hit result.
 pub fn hit_record(hit: Option<&Hit>) -> [u8; HIT_RECORD_BYTE_LEN] {
-    let (t, triangle, source, u, v, instance) = match hit {
-        Some(h) => (
-            h.t,
-            h.triangle_index,
-            h.source_triangle_id.unwrap_or(NO_INDEX),
-            h.u,
-            h.v,
-            h.instance_index.unwrap_or(NO_INDEX),
+    match hit {
+        Some(h) => record_of(&h.core(), h.source_triangle_id.unwrap_or(NO_INDEX)),
+        None => record_of(
+            &HitCore { t: f32::INFINITY, triangle_index: NO_INDEX, u: 0.0, v: 0.0, instance_index: None },
+            NO_INDEX,
         ),
-        None => (f32::INFINITY, NO_INDEX, NO_INDEX, 0.0, 0.0, NO_INDEX),
-    };
+    }
+}
+
+/// [`hit_record`] of a hit handed off lean: its source id looked up in the file's `ids` (the triangle_ids
+/// section, parallel to the triangles), as [`Hit::source_triangle_id`] is.
+fn core_record(core: &HitCore, ids: Option<&[u32]>) -> [u8; HIT_RECORD_BYTE_LEN] {
+    let source = ids.and_then(|ids| ids.get(core.triangle_index as usize)).copied().unwrap_or(NO_INDEX);
+    record_of(core, source)
+}
+
+/// The record's bytes: `t`, record, source id, `u`, `v`, instance, little-endian.
+fn record_of(core: &HitCore, source: u32) -> [u8; HIT_RECORD_BYTE_LEN] {
+    let (t, triangle, u, v) = (core.t, core.triangle_index, core.u, core.v);
+    let instance = core.instance_index.unwrap_or(NO_INDEX);
     let mut record = [0u8; HIT_RECORD_BYTE_LEN];
     record[0..4].copy_from_slice(&t.to_le_bytes());
     record[4..8].copy_from_slice(&triangle.to_le_bytes());
@@ -148,9 +157,11 @@ fn trace_on_cpu(view: &bvhc::loader::BvhView<'_>, rays: &[Ray], args: &TraceArgs
             tracer.any_hits_with(chunk, order, |i, occluded| each(i, occluded.then_some(&[1][..])))
         })
     } else {
+        // The lean hand-off: the record needs no normal or side, and its source id is one lookup.
+        let ids = view.triangle_ids();
         traced_in_place(rays, &mut records, HIT_RECORD_BYTE_LEN, |chunk, each| {
-            tracer.closest_hits_with(chunk, order, |i, hit: Option<Hit>| {
-                each(i, hit.map(|h| hit_record(Some(&h))).as_ref().map(|r| &r[..]))
+            tracer.closest_hit_cores_with(chunk, order, |i, core: Option<HitCore>| {
+                each(i, core.map(|c| core_record(&c, ids)).as_ref().map(|r| &r[..]))
             })
         })
     };

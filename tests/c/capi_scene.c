@@ -171,6 +171,62 @@ static int check_errors(const bvhc_file *file) {
     return 0;
 }
 
+/* bvhc_closest_hit_columns gives bvhc_closest_hits's t, record, instance, u, v bit for bit, with every flag and
+ * with columns left out, on rays that share their origin in groups of 8 (traced as packets) and rays that do
+ * not; and refuses unknown flags, a null t and a bad ray. */
+static int check_columns(const bvhc_file *file) {
+    enum { N = 100 };
+    float min[3], max[3];
+    CHECK(bvhc_scene_bounds(file, min, max) == BVHC_OK);
+    bvhc_ray rays[N];
+    for (int i = 0; i < N; i++) {
+        /* Rays 0-47 from one point above the origin towards points around it (the test scenes lie about the
+         * origin), the others each from its own point above the scene's box, across it and past it. */
+        float s = (float)(i % 10) / 9.0f * 1.6f - 0.3f, r = (float)(i / 10) / 9.0f * 1.6f - 0.3f;
+        float eye[3] = {0.1f, 0.2f, 20.0f}, target[3] = {8.0f * s - 4.0f, 8.0f * r - 4.0f, 0.0f};
+        if (i >= 48) {
+            eye[0] = min[0] - 0.01f * (float)i, eye[1] = min[1], eye[2] = max[2] + 0.1f * (float)i;
+            target[0] = min[0] + s * (max[0] - min[0]), target[1] = min[1] + r * (max[1] - min[1]);
+            target[2] = min[2];
+        }
+        for (int a = 0; a < 3; a++) rays[i].origin[a] = eye[a], rays[i].direction[a] = target[a] - eye[a];
+        rays[i].t_min = 0.0f, rays[i].t_max = INFINITY;
+    }
+    bvhc_hit hits[N];
+    uint8_t found[N];
+    CHECK(bvhc_closest_hits(file, rays, N, hits, found) == BVHC_OK);
+    int some_hit = 0, some_miss = 0;
+    for (unsigned flags = 0; flags < 4; flags++) {
+        float t[N], u[N], v[N], t_only[N];
+        uint32_t triangle[N], instance[N];
+        CHECK(bvhc_closest_hit_columns(file, rays, N, flags, t, triangle, instance, u, v) == BVHC_OK);
+        CHECK(bvhc_closest_hit_columns(file, rays, N, flags, t_only, NULL, NULL, NULL, NULL) == BVHC_OK);
+        for (int i = 0; i < N; i++) {
+            CHECK(memcmp(&t[i], &t_only[i], sizeof(float)) == 0);
+            if (found[i]) {
+                some_hit = 1;
+                CHECK(memcmp(&t[i], &hits[i].t, sizeof(float)) == 0 && triangle[i] == hits[i].triangle_index);
+                CHECK(instance[i] == hits[i].instance_index);
+                CHECK(memcmp(&u[i], &hits[i].u, sizeof(float)) == 0 && memcmp(&v[i], &hits[i].v, sizeof(float)) == 0);
+            } else {
+                some_miss = 1;
+                CHECK(isinf(t[i]) && t[i] > 0 && triangle[i] == BVHC_NO_INDEX && instance[i] == BVHC_NO_INSTANCE);
+                CHECK(u[i] == 0.0f && v[i] == 0.0f);
+            }
+        }
+    }
+    CHECK(some_hit && some_miss);
+    float t[N];
+    CHECK(bvhc_closest_hit_columns(file, rays, N, 4, t, NULL, NULL, NULL, NULL) == BVHC_ERROR_ARGUMENT);
+    CHECK(contains(bvhc_last_error_message(), "bvhc_closest_hit_columns: flags 0x4"));
+    CHECK(bvhc_closest_hit_columns(file, rays, N, 0, NULL, NULL, NULL, NULL, NULL) == BVHC_ERROR_ARGUMENT);
+    CHECK(bvhc_closest_hit_columns(file, rays, 0, 0, NULL, NULL, NULL, NULL, NULL) == BVHC_OK);
+    rays[57].direction[0] = rays[57].direction[1] = rays[57].direction[2] = 0.0f;
+    CHECK(bvhc_closest_hit_columns(file, rays, N, BVHC_RAYS_COHERENT, t, NULL, NULL, NULL, NULL) == BVHC_ERROR_RAY);
+    CHECK(contains(bvhc_last_error_message(), "bvhc_closest_hit_columns: ray 57: the direction is zero"));
+    return 0;
+}
+
 int main(int argc, char **argv) {
     if (argc < 3) return 2;
     bvhc_file *file = NULL;
@@ -223,6 +279,7 @@ int main(int argc, char **argv) {
     if (!out || fwrite(json, 1, json_length, out) != json_length || fclose(out) != 0) return failed("metadata file");
     free(json);
     int status = check_errors(file);
+    if (status == 0) status = check_columns(file);
     bvhc_close(file);
     if (status == 0) printf("checks ok\n");
     return status;

@@ -331,6 +331,11 @@ fn batch_and_coherent_entry_points_equal_single_rays_through_instances() {
         assert_eq!(flags, occluded);
         tracer.any_hits_coherent(&rays, &mut flags);
         assert_eq!(flags, occluded);
+        // Handed off lean: each hit's core, its instance included.
+        let mut cores = vec![None; rays.len()];
+        tracer.closest_hit_cores_with(&rays, bvhc::loader::Order::Stream, |i, core| cores[i] = core).unwrap();
+        assert!(cores.iter().zip(&single).all(|(core, hit)| *core == hit.map(|h| h.core())));
+        assert!(cores.iter().flatten().any(|core| core.instance_index.is_some()));
     }
 }
 

@@ -117,6 +117,8 @@ fn two_level_hit_records_name_their_instance_and_its_record_gives_them_bit_for_b
         let (triangle, instance) = (u32::from_le_bytes(word(record, 4)), u32::from_le_bytes(word(record, 20)));
         let hit = view.tracer().closest_hit(ray);
         assert_eq!(instance, hit.and_then(|h| h.instance_index).unwrap_or(u32::MAX));
+        let source = u32::from_le_bytes(word(record, 8));
+        assert_eq!(source, hit.and_then(|h| h.source_triangle_id).unwrap_or(u32::MAX), "the record's source id");
         let Some(hit) = hit else { continue };
         // What a reader does with the record: map the ray into the named instance and test the named record.
         let object = crate::instances_exact::spec_object_ray(&sections.instances[instance as usize], ray);

@@ -312,6 +312,15 @@ fn streams_of_rays_equal_single_rays_on_every_path() {
                 let mut same = vec![None; rays.len()];
                 tracer.closest_hits(&rays, &mut same);
                 assert_eq!(same, hits);
+                // Handed off lean: each hit's core, from the wide tracer and through Tracer, in either order.
+                for order in [bvhc::loader::Order::Stream, bvhc::loader::Order::Coherent] {
+                    let mut cores = vec![None; rays.len()];
+                    wide.closest_hit_cores_with(&rays, order, |i, core| cores[i] = core).unwrap();
+                    assert!(cores.iter().zip(&hits).all(|(core, hit)| *core == hit.map(|h| h.core())), "{order:?}");
+                    let mut through = vec![None; rays.len()];
+                    tracer.closest_hit_cores_with(&rays, order, |i, core| through[i] = core).unwrap();
+                    assert_eq!(through, cores);
+                }
                 let mut more = vec![None; rays.len() + 3];
                 let refused = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     tracer.closest_hits(&rays, &mut more);

@@ -132,7 +132,9 @@ int bvhc_closest_hit_unchecked(const bvhc_file *file, const bvhc_ray *ray, bvhc_
 int bvhc_any_hit_unchecked(const bvhc_file *file, const bvhc_ray *ray);
 bvhc_status bvhc_check_rays(const bvhc_ray *rays, size_t count, size_t *first_invalid);
 
-/* Tracing arrays of rays: found[i] / occluded[i] is 1 or 0; hits[i] is zeroed on a miss. */
+/* Tracing arrays of rays: found[i] / occluded[i] is 1 or 0; hits[i] is zeroed on a miss. Groups of 8 consecutive
+ * rays (from the first) whose origins are equal bit for bit are traced together as a coherent packet, the others
+ * one by one (interleaved over large files): the same hits either way. */
 bvhc_status bvhc_closest_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
                               uint8_t *found);
 bvhc_status bvhc_any_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
@@ -150,6 +152,20 @@ bvhc_status bvhc_closest_hits_coherent_unchecked(const bvhc_file *file, const bv
                                                  bvhc_hit *hits, uint8_t *found);
 bvhc_status bvhc_any_hits_coherent_unchecked(const bvhc_file *file, const bvhc_ray *rays, size_t count,
                                              uint8_t *occluded);
+
+/* Closest hits handed off lean, as columns (structure of arrays) a caller keeps in its own arrays: t[i] is ray
+ * i's hit distance (INFINITY on a miss); where not NULL, triangle_index[i] its record (BVHC_NO_INDEX on a miss),
+ * instance_index[i] its instance (BVHC_NO_INSTANCE in a one-level file or on a miss), u[i] and v[i] its weights
+ * (0 on a miss). In a one-level file no normal, side or source id is computed (bvhc_closest_hit gives them, for
+ * the hits that need them); the values are those bvhc_closest_hits gives. flags: BVHC_RAYS_COHERENT (each 8
+ * consecutive rays traced together, as the _coherent calls), BVHC_RAYS_UNCHECKED (no ray check), or 0. Without
+ * the flag, groups of 8 consecutive rays that share their origin bit for bit (a camera's, a light's, one point's
+ * ambient-occlusion rays) are traced together too, as in bvhc_closest_hits. */
+#define BVHC_RAYS_COHERENT 1u
+#define BVHC_RAYS_UNCHECKED 2u
+bvhc_status bvhc_closest_hit_columns(const bvhc_file *file, const bvhc_ray *rays, size_t count, unsigned flags,
+                                     float *t, uint32_t *triangle_index, uint32_t *instance_index, float *u,
+                                     float *v);
 
 /* Hit filters (alpha testing): filter(user_data, candidate) returns nonzero to accept a candidate hit, zero to
  * reject it (traversal then goes on as if the triangle were not hit). With BVHC_FILTER_NOT_OPAQUE it is called

@@ -156,6 +156,91 @@ any_hits_entry!(
     true
 );
 
+/// `BVHC_NO_INDEX` and `BVHC_NO_INSTANCE` of `bvhc.h`: no record, no instance.
+const BVHC_NO_INDEX: u32 = u32::MAX;
+const BVHC_NO_INSTANCE: u32 = u32::MAX;
+
+/// `bvhc_closest_hit_columns`'s flag: each 8 consecutive rays traced together.
+pub const BVHC_RAYS_COHERENT: u32 = 1;
+/// `bvhc_closest_hit_columns`'s flag: the rays are not checked against the contract.
+pub const BVHC_RAYS_UNCHECKED: u32 = 2;
+
+/// Traces `count` rays for their closest hits and writes them as columns, handed off lean (`Trace::
+/// closest_hit_cores_with`: in a one-level file no normal, side or source id is computed): `t[i]` ray `i`'s hit
+/// distance (`INFINITY` on a miss), and where not null `triangle_index[i]` its record (`BVHC_NO_INDEX` on a
+/// miss), `instance_index[i]` its instance (`BVHC_NO_INSTANCE` in a one-level file or on a miss), `u[i]`, `v[i]`
+/// its weights (0 on a miss). `flags`: `BVHC_RAYS_COHERENT`, `BVHC_RAYS_UNCHECKED`, or both; the rays are
+/// checked as [`bvhc_closest_hits`] checks them unless unchecked.
+///
+/// # Safety
+///
+/// `file` is null or a live file; `rays` and `t` are null or point to `count` elements each, and so does each
+/// other column that is not null.
+#[unsafe(no_mangle)]
+#[allow(clippy::too_many_arguments)] // the C signature: the file, the rays, the flags and five columns
+pub unsafe extern "C" fn bvhc_closest_hit_columns(
+    file: *const BvhcFile,
+    rays: *const BvhcRay,
+    count: usize,
+    flags: u32,
+    t: *mut f32,
+    triangle_index: *mut u32,
+    instance_index: *mut u32,
+    u: *mut f32,
+    v: *mut f32,
+) -> c_int {
+    guarded(|| {
+        let call = "bvhc_closest_hit_columns";
+        if flags & !(BVHC_RAYS_COHERENT | BVHC_RAYS_UNCHECKED) != 0 {
+            return Err(argument(&format!("{call}: flags {flags:#x} has bits that are not BVHC_RAYS_ flags")));
+        }
+        let coherent = flags & BVHC_RAYS_COHERENT != 0;
+        let mode = Mode { call, check: flags & BVHC_RAYS_UNCHECKED == 0, coherent };
+        // SAFETY: the caller's contract is this function's.
+        let Some((tracer, rays)) = (unsafe { batch_input(mode, file, rays, count, t.is_null(), "rays and t") })? else {
+            return Ok(BVHC_OK);
+        };
+        /// `count` elements at `p`, or `None` where it is null.
+        ///
+        /// # Safety
+        ///
+        /// `p` is null or points to `count` elements that nothing else refers to during the call.
+        unsafe fn column<'c, T>(p: *mut T, count: usize) -> Option<&'c mut [T]> {
+            // SAFETY: the caller's contract.
+            (!p.is_null()).then(|| unsafe { std::slice::from_raw_parts_mut(p, count) })
+        }
+        // SAFETY: by the contract each non-null column points to `count` elements of its own; they do not
+        // overlap the rays (distinct C arrays of other types).
+        let (t, mut triangle_index, mut instance_index, mut u, mut v) = unsafe {
+            let t = column(t, count).unwrap_or_default();
+            (t, column(triangle_index, count), column(instance_index, count), column(u, count), column(v, count))
+        };
+        in_chunks(mode, rays, |first, chunk| {
+            let each = |i: usize, core: Option<bvhc_loader::HitCore>| {
+                let i = first + i;
+                let (distance, record, instance, weights) = match core {
+                    Some(c) => (c.t, c.triangle_index, c.instance_index.unwrap_or(BVHC_NO_INSTANCE), (c.u, c.v)),
+                    None => (f32::INFINITY, BVHC_NO_INDEX, BVHC_NO_INSTANCE, (0.0, 0.0)),
+                };
+                put(Some(&mut *t), i, distance);
+                put(triangle_index.as_deref_mut(), i, record);
+                put(instance_index.as_deref_mut(), i, instance);
+                put(u.as_deref_mut(), i, weights.0);
+                put(v.as_deref_mut(), i, weights.1);
+            };
+            tracer.closest_hit_cores_with(chunk, mode.order(), each)
+        })
+    })
+}
+
+/// `value` into slot `i` of `column`, where there is one.
+#[inline(always)]
+fn put<T>(column: Option<&mut [T]>, i: usize, value: T) {
+    if let Some(slot) = column.and_then(|c| c.get_mut(i)) {
+        *slot = value;
+    }
+}
+
 /// The batch closest-hit calls.
 ///
 /// # Safety

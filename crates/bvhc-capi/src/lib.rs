@@ -27,8 +27,9 @@ mod single;
 mod source;
 
 pub use batch::{
-    bvhc_any_hits, bvhc_any_hits_coherent, bvhc_any_hits_coherent_unchecked, bvhc_any_hits_unchecked,
-    bvhc_closest_hits, bvhc_closest_hits_coherent, bvhc_closest_hits_coherent_unchecked, bvhc_closest_hits_unchecked,
+    BVHC_RAYS_COHERENT, BVHC_RAYS_UNCHECKED, bvhc_any_hits, bvhc_any_hits_coherent, bvhc_any_hits_coherent_unchecked,
+    bvhc_any_hits_unchecked, bvhc_closest_hit_columns, bvhc_closest_hits, bvhc_closest_hits_coherent,
+    bvhc_closest_hits_coherent_unchecked, bvhc_closest_hits_unchecked,
 };
 pub use boundary::{
     BVHC_ERROR_ARGUMENT, BVHC_ERROR_INVALID, BVHC_ERROR_IO, BVHC_ERROR_MEMORY, BVHC_ERROR_NOT_IN_FILE,

@@ -93,7 +93,7 @@ pub use open::view::BvhView;
 pub use open::view_mut::BvhViewMut;
 pub use ray::check_rays;
 pub use ray::{
-    BatchRayError, ForeignHit, Hit, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,
+    BatchRayError, ForeignHit, Hit, HitCore, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,
 };
 pub use refit::{RebuildPolicy, RefitPositions, RefitReport};
 pub use simd::KernelPath;

@@ -5,7 +5,7 @@
 //! packets, rays checked chunk by chunk) writes its own `closest_hits_with` and `any_hits_with`.
 
 use crate::ray::check::BatchRayError;
-use crate::ray::hit::{Hit, TraversalCounter, same_length, slot_writer};
+use crate::ray::hit::{Hit, HitCore, TraversalCounter, same_length, slot_writer};
 use crate::ray::intersect::Ray;
 
 /// How a batch call traces its rays; the results are the same either way (ties are decided by spec 11.1), but
@@ -55,6 +55,21 @@ pub trait Trace {
         let _ = order;
         rays.iter().enumerate().for_each(|(i, ray)| each(i, self.closest_hit_counted(ray, &mut ())));
         Ok(())
+    }
+
+    /// [`Trace::closest_hits_with`] handing off each hit lean, as its [`HitCore`] (`t`, record, `u`, `v`,
+    /// instance: the same values as the full hit's), for callers that keep those in their own arrays and need
+    /// no normal, side or source id, or only for some hits. Where a tracer computes those apart from the walk
+    /// (a one-level file's wide kernel, [`crate::Tracer`]) they are then not computed; elsewhere this maps the
+    /// full hits.
+    #[track_caller]
+    fn closest_hit_cores_with(
+        &self,
+        rays: &[Ray],
+        order: Order,
+        mut each: impl FnMut(usize, Option<HitCore>),
+    ) -> BatchResult {
+        self.closest_hits_with(rays, order, |i, hit| each(i, hit.map(|hit| hit.core())))
     }
 
     /// Whether each ray hits anything, passed to `each(i, occluded)`, as [`Trace::closest_hits_with`].

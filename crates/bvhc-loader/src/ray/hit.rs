@@ -114,6 +114,45 @@ impl Hit {
     }
 }
 
+/// A hit as the batch calls hand it off lean ([`crate::Trace::closest_hit_cores_with`]): what the walk found
+/// (`t`, the record, `u`, `v`, the instance), without the normal, side and source id a [`Hit`] adds, which cost
+/// the kernel reads and arithmetic a hit. The same values as the ray's [`Hit`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HitCore {
+    /// [`Hit::t`].
+    pub t: f32,
+    /// [`Hit::triangle_index`].
+    pub triangle_index: u32,
+    /// [`Hit::u`].
+    pub u: f32,
+    /// [`Hit::v`].
+    pub v: f32,
+    /// [`Hit::instance_index`].
+    pub instance_index: Option<u32>,
+}
+
+impl Hit {
+    /// The hit's core: what the lean hand-off gives for it.
+    pub fn core(&self) -> HitCore {
+        HitCore {
+            t: self.t,
+            triangle_index: self.triangle_index,
+            u: self.u,
+            v: self.v,
+            instance_index: self.instance_index,
+        }
+    }
+}
+
+impl HitCore {
+    /// The hit in lane `address` ([`lane_address`]) of `packets`, as [`Hit::in_lane`] gives it, without the rest.
+    #[inline(always)]
+    pub(crate) fn in_lane(address: u32, hit: TriangleHit, packets: &[TrianglePacket4]) -> HitCore {
+        let triangle_index = lane_record(packets, address);
+        HitCore { t: hit.t, triangle_index, u: hit.u, v: hit.v, instance_index: None }
+    }
+}
+
 /// The geometric normal of a triangle record, `(v1 - v0) x (v2 - v0)` in f32: `e1 = v1 - v0`, `e2 = v2 - v0`
 /// per axis, then `n_x = e1_y * e2_z - e1_z * e2_y`, `n_y = e1_z * e2_x - e1_x * e2_z`,
 /// `n_z = e1_x * e2_y - e1_y * e2_x` (each product rounded, then the difference). Not normalized; zero for a

@@ -17,7 +17,9 @@ pub(crate) mod transform;
 pub(crate) mod watertight;
 
 pub use check::{BatchRayError, MIN_DIRECTION_COMPONENT, RayError, check_rays};
-pub use hit::{BARYCENTRIC_SLACK, ForeignHit, Hit, TraversalCounter, TraversalStats, TriangleHit, geometric_normal};
+pub use hit::{
+    BARYCENTRIC_SLACK, ForeignHit, Hit, HitCore, TraversalCounter, TraversalStats, TriangleHit, geometric_normal,
+};
 pub use intersect::{PreparedRay, Ray};
 pub use spawn::SurfacePoint;
 pub use transform::{instance_world_box, transformed_box};

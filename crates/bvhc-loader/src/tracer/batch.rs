@@ -11,7 +11,7 @@
 //! panic naming it, the `_with` calls return it as an error; results of the chunks before it have been written.
 
 use crate::ray::check::BatchRayError;
-use crate::ray::hit::Hit;
+use crate::ray::hit::{Hit, HitCore};
 use crate::ray::intersect::Ray;
 use crate::trace::Order;
 use crate::tracer::Tracer;
@@ -47,6 +47,25 @@ impl Tracer<'_> {
                 Some(wide) => wide.closest_hits_each(chunk, order, each),
                 None => chunk.iter().enumerate().for_each(|(i, ray)| each(i, self.closest_hit_trusted(ray, &mut ()))),
             }
+        }
+        Ok(())
+    }
+
+    /// Each ray's closest hit to `each`, handed off lean ([`HitCore`]): in a one-level file the wide kernel then
+    /// computes no normal, side or source id; as [`Tracer::closest_hits_each`] otherwise.
+    pub(crate) fn closest_hit_cores_each(
+        &self,
+        rays: &[Ray],
+        order: Order,
+        each: &mut impl FnMut(usize, Option<HitCore>),
+    ) -> Result<(), BatchRayError> {
+        let Some(wide) = self.one_level_wide() else {
+            return self.closest_hits_each(rays, order, &mut |i, hit| each(i, hit.map(|hit| hit.core())));
+        };
+        for (c, chunk) in rays.chunks(CHECKED_CHUNK).enumerate() {
+            let first = c * CHECKED_CHUNK;
+            self.check_chunk(chunk, first)?;
+            wide.closest_hit_cores_each(chunk, order, &mut |i: usize, hit| each(first + i, hit));
         }
         Ok(())
     }

@@ -18,7 +18,7 @@ use crate::instances::{WideInstanceWalk, top_reach_scale, walk_instances};
 use crate::open::sections::TwoLevelSections;
 use crate::ray::candidates::{Candidates, Unfiltered};
 use crate::ray::check::BatchRayError;
-use crate::ray::hit::{ForeignHit, Hit, TraversalCounter};
+use crate::ray::hit::{ForeignHit, Hit, HitCore, TraversalCounter};
 use crate::ray::intersect::Ray;
 use crate::ray::query::{AnyHit, ClosestHit, Query, TieOrder};
 use crate::ray::reach::tree_scale;
@@ -447,6 +447,17 @@ impl Trace for Tracer<'_> {
     /// chunk by chunk ([`CHECKED_CHUNK`]), each chunk just before it is traced.
     fn closest_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, Option<Hit>)) -> BatchResult {
         self.closest_hits_each(rays, order, &mut each)
+    }
+
+    /// [`Trace::closest_hits_with`] handing off each hit's core: in a one-level file the wide kernel computes no
+    /// normal, side or source id.
+    fn closest_hit_cores_with(
+        &self,
+        rays: &[Ray],
+        order: Order,
+        mut each: impl FnMut(usize, Option<HitCore>),
+    ) -> BatchResult {
+        self.closest_hit_cores_each(rays, order, &mut each)
     }
 
     /// Each ray's any-hit answer to `each`, as [`Trace::closest_hits_with`] for this tracer.

@@ -16,7 +16,7 @@ pub(crate) mod walk;
 use crate::error::Violation;
 use crate::format::{PackedNode, PackedTriangle, TrianglePacket4, WideNode8};
 use crate::ray::candidates::{Candidates, Unfiltered};
-use crate::ray::hit::{Hit, TraversalCounter, TriangleHit};
+use crate::ray::hit::{Hit, HitCore, TraversalCounter, TriangleHit};
 use crate::ray::intersect::Ray;
 use crate::ray::query::{AnyHit, ClosestHit, Query, TieOrder};
 use crate::ray::reach::tree_scale;
@@ -208,6 +208,24 @@ impl<'a> WideTracer<'a> {
         }
     }
 
+    /// Each ray's closest hit to `each(i, core)`, once per ray, handed off lean (no normal, side or source id
+    /// computed), as [`WideTracer::closest_hits_each`].
+    pub(crate) fn closest_hit_cores_each(
+        &self,
+        rays: &[Ray],
+        order: Order,
+        each: &mut impl FnMut(usize, Option<HitCore>),
+    ) {
+        let packets = self.sections.packets;
+        let mut done = |i: usize, found: Option<(u32, TriangleHit)>| {
+            each(i, found.map(|(address, hit)| HitCore::in_lane(address, hit, packets)));
+        };
+        match order == Order::Coherent {
+            true => self.packets::<ClosestHit>(rays, &mut done),
+            false => self.stream::<ClosestHit>(rays, &mut done),
+        }
+    }
+
     /// Whether each ray hits anything to `each(i, occluded)`, once per ray, as [`WideTracer::closest_hits_with`].
     pub(crate) fn any_hits_each(&self, rays: &[Ray], order: Order, each: &mut impl FnMut(usize, bool)) {
         let mut done = |i: usize, found: Option<(u32, TriangleHit)>| each(i, found.is_some());
@@ -285,6 +303,17 @@ impl Trace for WideTracer<'_> {
     /// so that one ray's cache misses overlap with the others' work, or packets of 8 ([`Order::Coherent`]).
     fn closest_hits_with(&self, rays: &[Ray], order: Order, mut each: impl FnMut(usize, Option<Hit>)) -> BatchResult {
         self.closest_hits_each(rays, order, &mut each);
+        Ok(())
+    }
+
+    /// [`Trace::closest_hits_with`] handing off each hit's core: no normal, side or source id computed.
+    fn closest_hit_cores_with(
+        &self,
+        rays: &[Ray],
+        order: Order,
+        mut each: impl FnMut(usize, Option<HitCore>),
+    ) -> BatchResult {
+        self.closest_hit_cores_each(rays, order, &mut each);
         Ok(())
     }
 
