@@ -2,6 +2,7 @@
 //! scenes traced from numpy arrays with the loader's kernels on all cores, the GIL released. The pure-Python
 //! package in `python/bvhc` wraps it (numpy views of a file's sections, keyword options, progress).
 
+mod core_hits;
 mod errors;
 mod filters;
 mod hits;

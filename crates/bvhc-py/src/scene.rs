@@ -117,7 +117,7 @@ impl Scene {
     /// Closest hits of the rays, as a dict of arrays (see the package's docs).
     #[allow(clippy::too_many_arguments)] // the rays, then the filter's four
     #[pyo3(signature = (origins, directions, t_min, t_max, threads=None, cutout=None, cutout_primitives=None,
-        filter=None, filter_scope="every", coherent=false))]
+        filter=None, filter_scope="every", coherent=false, lean=false))]
     fn closest_hits<'py>(
         &self,
         py: Python<'py>,
@@ -131,11 +131,17 @@ impl Scene {
         filter: Option<Bound<'py, PyAny>>,
         filter_scope: &str,
         coherent: bool,
+        lean: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         let arguments = RayArguments::extract(&origins, &directions, &t_min, &t_max)?;
         let rays = arguments.rays()?;
         let filter = FilterArgs::extract(cutout, cutout_primitives, filter, filter_scope)?;
         let pool = pool(threads)?;
+        if lean {
+            return with_view(py, &self.bytes, &self.path, |view| {
+                crate::tracing::closest_lean(py, view, rays, filter.as_ref(), (&pool, order(coherent)))
+            });
+        }
         let columns = with_view(py, &self.bytes, &self.path, |view| {
             crate::tracing::closest(py, view, rays, filter.as_ref(), (&pool, order(coherent)))
         })?;

@@ -7,8 +7,10 @@ use std::cell::{Cell, RefCell};
 
 use bvhc::loader::{BatchRayError, BvhView, Crossings, Hit, Order, Ray, Tracer};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use rayon::prelude::*;
 
+use crate::core_hits::CoreColumns;
 use crate::errors::{InvalidInputError, OptionsError};
 use crate::filters::{FilterArgs, WithCallback};
 use crate::hits::{AllHitColumns, CHUNK, EMPTY_RAY, HitColumns, RayHits};
@@ -96,6 +98,36 @@ pub fn closest(
         },
     };
     traced.map_err(|e| rays.error(&e))
+}
+
+/// [`closest`] handed off lean: each ray's `t`, record, `u`, `v`, instance ([`CoreColumns`]), without a normal,
+/// side or source id computed where the tracer can skip them (no callable filter). With a callable filter the
+/// full hits are traced in order and these columns kept.
+pub fn closest_lean<'py>(
+    py: Python<'py>,
+    view: &BvhView<'_>,
+    rays: RayArrays<'_>,
+    filter: Option<&FilterArgs<'_>>,
+    (pool, order): (&Option<rayon::ThreadPool>, Order),
+) -> PyResult<Bound<'py, PyDict>> {
+    let tracer = view.tracer().trusting_rays();
+    let traced = match filter {
+        None => py.detach(|| on_pool(pool, || CoreColumns::traced(rays, &tracer, order))),
+        Some(args) if args.callback.is_none() => {
+            let cutouts = args.cutouts(view)?;
+            let filtered = tracer.filtered(&cutouts, args.scope);
+            py.detach(|| on_pool(pool, || CoreColumns::traced(rays, &filtered, order)))
+        }
+        Some(_) => {
+            let full = closest(py, view, rays, filter, (pool, order))?.into_dict(py)?;
+            let lean = PyDict::new(py);
+            for key in ["t", "triangle", "u", "v", "instance"] {
+                lean.set_item(key, full.get_item(key)?)?;
+            }
+            return Ok(lean);
+        }
+    };
+    traced.map_err(|e| rays.error(&e))?.into_dict(py)
 }
 
 /// Whether each ray of `rays` hits anything (that the filter accepts); `order` as for [`closest`].

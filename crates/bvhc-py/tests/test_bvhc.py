@@ -139,6 +139,16 @@ def test_hits_equal_bvhc_trace_record_for_record(name, relative, flags, tmp_path
     assert_same_hits_up_to_records(opened, packets, single)
     assert 0.0 < (single["triangle"] != bvhc.MISS).mean()
     assert np.array_equal(opened.any_hits(eye, camera, coherent=True), single["triangle"] != bvhc.MISS)
+    # Handed off lean: the same t, triangle, u, v, instance, and nothing else; on the camera's rays too.
+    for rays, full in (((origins, directions, 0.0, t_max), hits), ((eye, camera), single)):
+        for coherent in (False, True):
+            lean = opened.closest_hits(*rays, lean=True, coherent=coherent)
+            assert sorted(lean) == ["instance", "t", "triangle", "u", "v"]
+            if coherent:  # with split references a packet may name another record of the triangle: as above
+                assert np.array_equal(lean["t"], full["t"])
+                continue
+            for key in lean:
+                assert np.array_equal(lean[key], full[key]), key
     # Normals and front faces as the records' vertices say.
     hit = np.flatnonzero(hits["triangle"] != bvhc.MISS)
     if opened.instances is None:

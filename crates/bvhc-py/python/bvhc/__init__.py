@@ -328,6 +328,7 @@ class Scene:
         filter: Optional[Callable[..., bool]] = None,
         filter_scope: str = "every",
         coherent: bool = False,
+        lean: bool = False,
     ) -> Dict[str, np.ndarray]:
         """The closest hit of each ray: ``origins`` and ``directions`` are ``(n, 3)`` float32 or float64 arrays
         (C-ordered or strided, read in place; float64 is rounded to float32), ``t_min`` and ``t_max`` numbers or
@@ -351,10 +352,17 @@ class Scene:
 
         ``coherent=True`` says the rays come in the order of neighbouring pixels (camera or shadow rays of an
         image, row by row): each 8 consecutive rays are traced together as a packet, faster on such rays and
-        with the same hits as without (a callable ``filter`` traces one ray at a time either way).
+        with the same hits as without (a callable ``filter`` traces one ray at a time either way). Without it,
+        groups of 8 consecutive rays that start at the same point bit for bit (a pinhole camera's, a point light's,
+        one point's ambient-occlusion rays) are traced together all the same.
+
+        ``lean=True`` returns only ``t``, ``triangle``, ``u``, ``v`` and ``instance``, the same values: the
+        normal, side and source id are then not computed (without a callable ``filter``), which is faster when
+        they are not needed or needed for a few hits only.
         """
         return self._native.closest_hits(
-            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope, coherent
+            origins, directions, t_min, t_max, threads, cutout, cutout_primitives, filter, filter_scope, coherent,
+            lean,
         )
 
     def any_hits(

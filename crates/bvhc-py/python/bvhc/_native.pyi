@@ -70,6 +70,7 @@ class Scene:
         filter: Optional[Callable[..., bool]] = None,
         filter_scope: str = "every",
         coherent: bool = False,
+        lean: bool = False,
     ) -> Dict[str, npt.NDArray[Any]]: ...
     def any_hits(
         self,
