@@ -338,8 +338,9 @@ fn streams_of_rays_equal_single_rays_on_every_path() {
 
 /// Coherent packets (8 consecutive rays a traversal) give every ray the single-ray kernel's closest t, a
 /// triangle hit at that t, and its any-hit answer, on every path: camera-like fans of rays, rays from inside
-/// the scene, axis-parallel rays with +0/-0 components, rays with mixed direction signs in one packet, a packet
-/// cut short, and rays that miss the root's box.
+/// the scene, axis-parallel rays with +0/-0 components, rays with mixed direction signs in one packet, packets
+/// of one octant from nearby origins (culled by their frustum), a packet cut short, and rays that miss the
+/// root's box.
 #[test]
 fn coherent_packets_equal_single_rays_on_every_path() {
     use bvhc::loader::{Ray, ray::PreparedRay};
@@ -356,6 +357,19 @@ fn coherent_packets_equal_single_rays_on_every_path() {
             }
         }
         rays.extend(crate::common::random_rays(seed + 3, 800, 15.0));
+        // Packets of one octant from eight nearby origins (the frustum's case: each group's bounds span its
+        // origins and directions), aimed at random points, so that rays graze the boxes the frustum bounds.
+        for (g, base) in crate::common::random_rays(seed + 9, 120, 12.0).iter().enumerate() {
+            if base.direction.contains(&0.0) {
+                continue;
+            }
+            for k in 0..8 {
+                let jitter = |a: usize| ((k * 3 + a * 5 + g) % 7) as f32 * 0.02 - 0.06;
+                let origin = std::array::from_fn(|a| base.origin[a] + jitter(a));
+                let direction = std::array::from_fn(|a| base.direction[a] * (1.0 + 0.01 * jitter(2 - a)));
+                rays.push(Ray::new(origin, direction));
+            }
+        }
         rays.push(Ray::new([100.0, 100.0, 100.0], [1.0, 0.0, 0.0]));
         for path in crate::common::kernel_paths() {
             let wide = view.wide_tracer(path).unwrap();

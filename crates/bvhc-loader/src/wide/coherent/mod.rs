@@ -24,10 +24,11 @@
 
 mod lanes;
 mod leaf;
+mod node;
 
 use std::mem::MaybeUninit;
 
-use crate::format::{EMPTY_SLOT, LEAF_BIT, WIDE, WideNode8};
+use crate::format::{LEAF_BIT, WideNode8};
 use crate::ray::hit::TriangleHit;
 use crate::ray::intersect::Ray;
 use crate::ray::query::Query;
@@ -37,6 +38,7 @@ use crate::wide::walk::{STACK_LEN, Sections};
 pub(crate) use lanes::PACKET_RAYS;
 use lanes::{PacketAxes, RayLanes};
 use leaf::leaf_in_lanes;
+use node::{HitSlots, box_test_lanes};
 
 /// A stack entry: a child reference, the rays that enter it, and each ray's entry distance.
 #[derive(Clone, Copy)]
@@ -69,6 +71,7 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
     let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_LEN];
     let mut stack_len = 0usize;
     let mut visits_left = sections.nodes.len();
+    let mut order = HitSlots::EMPTY;
     let mut next = Some(root);
     while let Some(entry) = next.take() {
         let active = entry.rays & pending;
@@ -91,34 +94,13 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
             } else if let Some(node) = sections.nodes.get(entry.child as usize).filter(|_| visits_left > 0) {
                 visits_left -= 1;
                 let t_far = found.t_far(isa, &lanes.reach_offset);
-                let leader = active.trailing_zeros() as usize & (PACKET_RAYS - 1);
-                // The hit slots, nearest first for the leader (the first active ray), ties in slot order: the
-                // slots' indices sorted by the leader's entry distance, each slot's lanes kept where its test
-                // wrote them (sorting 40-byte entries cost 5% of a camera pass).
-                let mut t_near = [[0.0; PACKET_RAYS]; WIDE];
-                let mut rays_in = [0u8; WIDE];
-                let (mut keys, mut slots) = ([0.0f32; WIDE], [0usize; WIDE]);
-                let mut n = 0;
-                for slot in 0..WIDE {
-                    if node.child[slot] == EMPTY_SLOT {
-                        break;
-                    }
-                    let (hit, near) = slot_test(isa, node, slot, &lanes, t_far);
-                    let hit = hit & active;
-                    if hit == 0 {
-                        continue;
-                    }
-                    (t_near[slot], rays_in[slot]) = (near, hit);
-                    let key = if hit & (1 << leader) != 0 { near[leader] } else { f32::INFINITY };
-                    let mut at = n;
-                    while at > 0 && keys[at - 1] > key {
-                        (keys[at], slots[at]) = (keys[at - 1], slots[at - 1]);
-                        at -= 1;
-                    }
-                    (keys[at], slots[at]) = (key, slot);
-                    n += 1;
-                }
-                let entry = |slot: usize| Entry { child: node.child[slot], rays: rays_in[slot], t_near: t_near[slot] };
+                order.fill(isa, node, &lanes, (t_far, active));
+                let (slots, n) = (&order.slots, order.count);
+                let entry = |slot: usize| Entry {
+                    child: node.child[slot],
+                    rays: order.rays_in[slot],
+                    t_near: order.t_near[slot],
+                };
                 if n > 0 {
                     for &slot in slots[1..n].iter().rev() {
                         if let Some(free) = stack.get_mut(stack_len) {
@@ -159,42 +141,4 @@ fn pop<I: Isa>(
         }
     }
     None
-}
-
-/// Slot `slot` of `node` against every lane: [`box_test_lanes`] of its box.
-#[inline(always)]
-fn slot_test<I: Isa>(
-    isa: I,
-    node: &WideNode8,
-    slot: usize,
-    lanes: &RayLanes,
-    t_far: I::F8,
-) -> (u8, [f32; PACKET_RAYS]) {
-    let (min, max) = ([0, 1, 2].map(|a| node.min[a][slot]), [0, 1, 2].map(|a| node.max[a][slot]));
-    box_test_lanes(isa, (min, max), lanes, t_far)
-}
-
-/// The box `(min, max)` against every lane: (bit mask of the lanes whose ray enters the box within
-/// `[t_min, t_far]`, entry distances). The single-ray slab test per lane (`PreparedRay::enter_box`).
-#[inline(always)]
-fn box_test_lanes<I: Isa>(
-    isa: I,
-    (min, max): ([f32; 3], [f32; 3]),
-    lanes: &RayLanes,
-    t_far: I::F8,
-) -> (u8, [f32; PACKET_RAYS]) {
-    let mut near = isa.f8(&lanes.t_min);
-    let mut far = t_far;
-    for axis in 0..3 {
-        let (low, high) = (isa.f8_splat(min[axis]), isa.f8_splat(max[axis]));
-        let negative = isa.f8(&lanes.sign[axis]).is_sign_negative();
-        let entry = I::F8::select(negative, high, low);
-        let exit = I::F8::select(negative, low, high);
-        let origin = isa.f8(&lanes.origin[axis]);
-        let t_entry = entry.sub(origin).mul(isa.f8(&lanes.inverse_direction[axis]));
-        let t_exit = exit.sub(origin).mul(isa.f8(&lanes.exit_inverse[axis]));
-        near = t_entry.max_or(near);
-        far = t_exit.min_or(far);
-    }
-    (near.le(far).bits() as u8, near.to_array())
 }
