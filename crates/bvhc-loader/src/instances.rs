@@ -151,8 +151,8 @@ where
         let root = *sections.top_nodes.first()?;
         let top =
             Sections { nodes: sections.top_wide_nodes, packets: &[], root, tie: TieOrder::default(), reach_scale };
-        let mut walk = Walk::start(&top, ray).filter(|walk| walk.enters(&root))?;
         let mut stack = new_stack();
+        let mut walk = Walk::start(&top, ray, &mut stack).filter(|walk| walk.enters(&root))?;
         let mut leaves = WideInstanceLeaves { sections, ray, trace_mesh };
         while walk.step::<Q, I, C, _>(isa, &top, &mut stack, counter, &mut leaves) {}
         walk.found()

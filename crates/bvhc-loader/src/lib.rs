@@ -78,6 +78,7 @@ pub mod top_tree;
 mod trace;
 pub mod tracer;
 pub mod verify;
+mod walk_stack;
 pub mod wide;
 #[cfg(feature = "write")]
 pub mod write;

@@ -15,6 +15,7 @@ use crate::ray::candidates::Candidates;
 use crate::ray::hit::{TraversalCounter, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::query::{Query, TieKey, TieOrder, precedes};
+use crate::walk_stack::WalkStack;
 
 /// What the walk does at a leaf.
 pub(crate) trait Leaves<C: TraversalCounter> {
@@ -104,7 +105,6 @@ impl<C: TraversalCounter, F: Candidates> Leaves<C> for TriangleLeaves<'_, '_, F>
 
 /// The closest hit of `ray` in the tree `nodes` (node 0 the root), or for an any-hit query the first hit found.
 #[inline(always)]
-#[allow(unsafe_code)] // reading the uninitialized-by-default stack, see the SAFETY note
 pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
     nodes: &[PackedNode],
     ray: &Ray,
@@ -117,9 +117,7 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
     prepared.enter_box(root, t_cull)?;
     let mut t_max = ray.t_max;
     let mut found = None;
-    // Not zeroed (a 2 KiB memset per ray); entries below `stack_len` are written before they are read.
-    let mut stack = [const { std::mem::MaybeUninit::<(u32, f32)>::uninit() }; MAX_DEPTH];
-    let mut stack_len = 0usize;
+    let mut stack = WalkStack::<(u32, f32), MAX_DEPTH>::new();
     let mut current = 0u32;
     let mut visits_left = nodes.len();
     'walk: loop {
@@ -148,10 +146,7 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
                 (Some(t_left), Some(t_right)) => {
                     let (near, far, t_far) =
                         if t_left <= t_right { (first, second, t_right) } else { (second, first, t_left) };
-                    if let Some(slot) = stack.get_mut(stack_len) {
-                        slot.write((far, t_far));
-                        stack_len += 1;
-                    }
+                    stack.push((far, t_far));
                     current = near;
                     continue 'walk;
                 }
@@ -168,13 +163,9 @@ pub(crate) fn walk<Q: Query, C: TraversalCounter, L: Leaves<C>>(
         }
         // Pop the nearest pending node that may still hold a closer hit.
         loop {
-            if stack_len == 0 {
+            let Some((node, t_entry)) = stack.pop() else {
                 return found;
-            }
-            stack_len -= 1;
-            // SAFETY: every index below `stack_len` was written by the push above before `stack_len` passed it,
-            // and `stack_len` only moves down by one here, so entry `stack_len` is initialized.
-            let (node, t_entry) = unsafe { stack[stack_len].assume_init() };
+            };
             if t_entry <= t_cull {
                 current = node;
                 break;

@@ -338,8 +338,8 @@ impl<C: TraversalCounter, A: Candidates, Q: Query> Kernel for SingleRay<'_, '_, 
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) -> Self::Output {
-        let mut walk = Walk::start(self.sections, self.ray)?;
         let mut stack = new_stack();
+        let mut walk = Walk::start(self.sections, self.ray, &mut stack)?;
         let mut leaves = PacketLeaves(self.candidates);
         while walk.step::<Q, I, C, _>(isa, self.sections, &mut stack, self.counter, &mut leaves) {}
         walk.found()
@@ -419,7 +419,7 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), Q: Query> Kernel for Stream<'_
                 if slot.is_none() {
                     // Start the next ray that enters the root's box; the others miss at once.
                     while next < rays.len() && slot.is_none() {
-                        match Walk::start(sections, &rays[next]) {
+                        match Walk::start(sections, &rays[next], stack) {
                             Some(walk) => {
                                 *slot = Some((next, walk));
                                 in_flight += 1;

@@ -18,26 +18,24 @@
 //! node referenced from many slots cannot make it run long); on a file that fails verification the hits are
 //! unspecified.
 
-use std::mem::MaybeUninit;
-
 use crate::format::{LEAF_BIT, MAX_DEPTH, PACKET_LANES, PackedNode, TrianglePacket4, WIDE, WideNode8};
 use crate::ray::candidates::Candidates;
 use crate::ray::hit::{TraversalCounter, TriangleHit, lane_address, lane_record};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::query::{Query, TieKey, TieOrder};
 use crate::simd::Isa;
+use crate::walk_stack::WalkStack;
 use crate::wide::packets::closest_in_packet;
 
 /// Stack entries: each visited node pushes at most 7, and a verified file is at most `MAX_DEPTH` deep.
 pub(crate) const STACK_LEN: usize = (WIDE - 1) * MAX_DEPTH + 1;
 
-/// A walk's stack of (child reference, entry distance). Never initialized as a whole: 14 KiB of memset per ray
-/// cost more than a node visit; a walk only reads entries it wrote.
-pub(crate) type Stack = [MaybeUninit<(u32, f32)>; STACK_LEN];
+/// A walk's stack of (child reference, entry distance).
+pub(crate) type Stack = WalkStack<(u32, f32), STACK_LEN>;
 
 /// A new, unwritten stack.
 pub(crate) const fn new_stack() -> Stack {
-    [const { MaybeUninit::uninit() }; STACK_LEN]
+    WalkStack::new()
 }
 
 /// The wide sections a walk runs over, and the binary root's box.
@@ -148,28 +146,21 @@ pub(crate) struct Walk<F> {
     found: Option<F>,
     visits_left: usize,
     current: u32,
-    /// Entries below this index of the walk's stack are written.
-    stack_len: usize,
 }
 
 impl<F: Copy> Walk<F> {
-    /// The walk of `ray` from the wide root, or `None` when there is no tree. The binary root's box is not
-    /// tested first: the root's slot boxes lie inside it (V32), so a ray that misses it misses them all in the
-    /// first step, and one that enters it saves a scalar box test.
+    /// The walk of `ray` from the wide root on `stack` (emptied here; [`Walk::step`] takes the same stack), or
+    /// `None` when there is no tree. The binary root's box is not tested first: the root's slot boxes lie inside
+    /// it (V32), so a ray that misses it misses them all in the first step, and one that enters it saves a
+    /// scalar box test.
     #[inline(always)]
-    pub(crate) fn start(sections: &Sections<'_>, ray: &Ray) -> Option<Walk<F>> {
+    pub(crate) fn start(sections: &Sections<'_>, ray: &Ray, stack: &mut Stack) -> Option<Walk<F>> {
         if sections.nodes.is_empty() {
             return None;
         }
+        stack.clear();
         let prepared = PreparedRay::new(ray).in_tree(sections.reach_scale);
-        Some(Walk {
-            ray: prepared,
-            t_max: ray.t_max,
-            found: None,
-            visits_left: sections.nodes.len(),
-            current: 0,
-            stack_len: 0,
-        })
+        Some(Walk { ray: prepared, t_max: ray.t_max, found: None, visits_left: sections.nodes.len(), current: 0 })
     }
 
     /// Whether the ray enters `node`'s box within the reach of its `t_max` (the walk's cull).
@@ -184,7 +175,7 @@ impl<F: Copy> Walk<F> {
     }
 
     /// Processes the current wide node or leaf and moves to the next; `false` when the walk has ended.
-    /// `stack` must be the one this walk has used since it started.
+    /// `stack` must be the one this walk started on.
     #[inline(always)]
     pub(crate) fn step<Q: Query, I: Isa, C: TraversalCounter, L: WideLeaves<C, Found = F>>(
         &mut self,
@@ -279,22 +270,14 @@ impl<F: Copy> Walk<F> {
         if I::PREFETCH && (prefetch_leaves || entry.0 & LEAF_BIT == 0) {
             prefetch(sections, entry.0);
         }
-        if let Some(slot) = stack.get_mut(self.stack_len) {
-            slot.write(entry);
-            self.stack_len += 1;
-        }
+        stack.push(entry);
     }
 
     /// Continues with the nearest pushed entry not beyond the closest hit; `false` when there is none.
     #[inline(always)]
-    #[allow(unsafe_code)] // reading the stack, see the SAFETY note
-    fn pop(&mut self, stack: &Stack) -> bool {
+    fn pop(&mut self, stack: &mut Stack) -> bool {
         let t_cull = self.ray.cull_distance(self.t_max);
-        while self.stack_len > 0 {
-            self.stack_len -= 1;
-            // SAFETY: every index below `stack_len` was written by `push` before `stack_len` passed it (on this
-            // stack, as `step` requires), and `stack_len` only moves down by one here, so the entry is initialized.
-            let (next, t_entry) = unsafe { stack[self.stack_len].assume_init() };
+        while let Some((next, t_entry)) = stack.pop() {
             if t_entry <= t_cull {
                 self.current = next;
                 return true;

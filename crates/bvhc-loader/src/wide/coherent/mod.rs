@@ -26,13 +26,12 @@ mod lanes;
 mod leaf;
 mod node;
 
-use std::mem::MaybeUninit;
-
 use crate::format::{LEAF_BIT, WideNode8};
 use crate::ray::hit::TriangleHit;
 use crate::ray::intersect::Ray;
 use crate::ray::query::Query;
 use crate::simd::{Isa, LaneMask, Lanes};
+use crate::walk_stack::WalkStack;
 use crate::wide::walk::{STACK_LEN, Sections};
 
 pub(crate) use lanes::PACKET_RAYS;
@@ -68,8 +67,7 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
     }
     // Rays still looking: all of them for closest hits; for any hit, those without a hit yet.
     let mut pending = root.rays;
-    let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_LEN];
-    let mut stack_len = 0usize;
+    let mut stack = WalkStack::<Entry, STACK_LEN>::new();
     let mut visits_left = sections.nodes.len();
     let mut order = HitSlots::EMPTY;
     let mut next = Some(root);
@@ -103,17 +101,14 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
                 };
                 if n > 0 {
                     for &slot in slots[1..n].iter().rev() {
-                        if let Some(free) = stack.get_mut(stack_len) {
-                            free.write(entry(slot));
-                            stack_len += 1;
-                        }
+                        stack.push(entry(slot));
                     }
                     next = Some(entry(slots[0]));
                     continue;
                 }
             }
         }
-        next = pop(isa, &mut stack, &mut stack_len, found.t_far(isa, &lanes.reach_offset), pending);
+        next = pop(isa, &mut stack, found.t_far(isa, &lanes.reach_offset), pending);
     }
     for (l, hit) in found.hit.iter().enumerate().take(rays.len()) {
         done(l, *hit);
@@ -122,19 +117,8 @@ pub(crate) fn trace_packet<Q: Query, I: Isa>(
 
 /// The next entry that still has rays in `pending` whose closest hit's reach (`t_far`) is not before its box.
 #[inline(always)]
-#[allow(unsafe_code)] // reading the stack, see the SAFETY note
-fn pop<I: Isa>(
-    isa: I,
-    stack: &mut [MaybeUninit<Entry>; STACK_LEN],
-    stack_len: &mut usize,
-    t_far: I::F8,
-    pending: u8,
-) -> Option<Entry> {
-    while *stack_len > 0 {
-        *stack_len -= 1;
-        // SAFETY: entries below `stack_len` were written by the push in `trace_packet` before `stack_len` passed
-        // them, and `stack_len` only moves down by one here, so this entry is initialized.
-        let mut entry = unsafe { stack[*stack_len].assume_init() };
+fn pop<I: Isa>(isa: I, stack: &mut WalkStack<Entry, STACK_LEN>, t_far: I::F8, pending: u8) -> Option<Entry> {
+    while let Some(mut entry) = stack.pop() {
         entry.rays &= !(isa.f8(&entry.t_near).gt(t_far).bits() as u8);
         if entry.rays & pending != 0 {
             return Some(entry);
