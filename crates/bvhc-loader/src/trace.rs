@@ -12,7 +12,9 @@ use crate::ray::intersect::Ray;
 /// for which record of a split triangle a hit names.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Order {
-    /// Ray by ray (interleaved over large files by the wide kernel).
+    /// Ray by ray (interleaved over large files by the wide kernel), except that the wide kernel traces each
+    /// group of 8 consecutive rays whose origins are equal bit for bit (a pinhole camera's, a point light's, one
+    /// hit's ambient-occlusion rays) as a packet: the same hits either way.
     Stream,
     /// Each 8 consecutive rays together (camera rays of neighbouring pixels), where the tracer can; ray by ray
     /// otherwise.

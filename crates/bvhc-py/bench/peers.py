@@ -4,7 +4,9 @@ and Open3D's RaycastingScene (Embree too), each building its tree in memory, aga
 For each scene: 1M incoherent rays (origins uniform in the scene's box, directions uniform on the sphere), closest
 hits. "open to last hit" is, for bvhc, `bvhc.open` (memory map and full verification) plus `closest_hits`; for
 the peers, building their scene from the mesh's arrays (the mesh loaded beforehand, not timed) plus the query.
-One thread and all threads where the peer has the choice (trimesh's embreex query is single-threaded). The
+One thread and all threads where the peer has the choice (trimesh's embreex query is single-threaded). A second
+table times the queries alone (bvhc's scene open, Open3D's built and committed): closest hits (full and
+`lean=True`) against `cast_rays`, any hits against `test_occlusions`. The
 overhead of the Python call: `closest_hits` (arrays in, arrays out) against the loader's batch call alone on the
 same rays and threads, timed inside the extension (`Scene.rust_batch_seconds`): the median of 7 alternating
 rounds' ratios. Other times are medians of 3 runs.
@@ -96,7 +98,29 @@ def bvhc_measures(bvh, count):
             rusts.append(scene._native.rust_batch_seconds(origins, directions, threads))
         ratio = statistics.median(p / r for p, r in zip(pythons, rusts))
         measures[f"overhead_{key}"] = f"{statistics.median(pythons):.3f} / {statistics.median(rusts):.3f}: {ratio:.3f}"
+        # The queries alone, on the open scene (the second table).
+        calls = {
+            "closest": lambda: scene.closest_hits(origins, directions, threads=threads),
+            "lean": lambda: scene.closest_hits(origins, directions, threads=threads, lean=True),
+            "any": lambda: scene.any_hits(origins, directions, threads=threads),
+        }
+        for query, call in calls.items():
+            measures[f"{query}_{key}"] = median_seconds(call)
     return measures
+
+
+def open3d_queries(o3d, vertices, faces, origins, directions):
+    """Open3D's scene built once (not timed), then `cast_rays` and `test_occlusions` alone on one and all threads:
+    {"closest_one": s, "any_one": s, "closest_all": s, "any_all": s}."""
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)), o3d.core.Tensor(faces.astype(np.uint32)))
+    packed = o3d.core.Tensor(np.hstack([origins, directions]).astype(np.float32))
+    scene.cast_rays(packed, nthreads=1)  # Open3D commits its scene at the first query
+    times = {}
+    for threads, key in [(1, "one"), (0, "all")]:
+        times[f"closest_{key}"] = median_seconds(lambda: scene.cast_rays(packed, nthreads=threads))
+        times[f"any_{key}"] = median_seconds(lambda: scene.test_occlusions(packed, nthreads=threads))
+    return times
 
 
 def queries(args):
@@ -227,6 +251,7 @@ def main():
         o3d = None
         print(f"note: Open3D left out ({error})", file=sys.stderr)
     cores = os.cpu_count()
+    alone = []
     print(f"{args.rays} incoherent closest-hit rays; {cores} cores; seconds from open (or the mesh's arrays) to the last hit")
     print()
     print("| scene | triangles | bvhc 1 thread | bvhc all | trimesh + embreex (1 thread) | Open3D 1 thread | Open3D all | "
@@ -287,6 +312,24 @@ def main():
             else:
                 row += ["-", "-"]
             print("| " + " | ".join(row + overhead) + " |", flush=True)
+            if o3d is not None:
+                peer = open3d_queries(o3d, vertices, faces, origins, directions)
+                for key, threads in [("one", "1"), ("all", "all")]:
+                    line = [name, threads]
+                    for mine, theirs in [("closest", "closest"), ("lean", "closest"), ("any", "any")]:
+                        m, t = bvhc_times[f"{mine}_{key}"], peer[f"{theirs}_{key}"]
+                        line.append(f"{m:.3f} ({t / m:.2f}x)")
+                    line += [f"{peer[f'closest_{key}']:.3f}", f"{peer[f'any_{key}']:.3f}"]
+                    alone.append("| " + " | ".join(line) + " |")
+    if alone:
+        print()
+        print("The queries alone (the scene open, Open3D's built and committed beforehand), seconds and Open3D's time")
+        print("over bvhc's:")
+        print()
+        print("| scene | threads | bvhc closest_hits | bvhc closest_hits lean | bvhc any_hits | Open3D cast_rays | "
+              "Open3D test_occlusions |")
+        print("|---|---|---|---|---|---|---|")
+        print("\n".join(alone))
 
 
 if __name__ == "__main__":
