@@ -274,9 +274,10 @@ fn wide_layout_refuses_lanes_that_do_not_match_the_triangles() {
 
 /// The stream entry points (rays interleaved, and one by one) give each ray's single-ray answer, on every path,
 /// for more rays than a stream keeps in flight, rays that miss the root among them, and groups of 8 rays that
-/// share their origin bit for bit, which the stream traces as packets: from one point in mixed directions (so
-/// mixed shear axes in a packet, as ambient-occlusion rays), a camera's fan whose last group takes in a ray
-/// from elsewhere, then rays from everywhere.
+/// share their origin bit for bit or start close together in one direction octant, which the stream traces as
+/// packets: from one point in mixed directions (so mixed shear axes in a packet, as ambient-occlusion rays), a
+/// camera's fan whose last group takes in a ray from elsewhere, segments from nearby points toward a light
+/// (some groups with a ray of another octant), then rays from everywhere.
 #[test]
 fn streams_of_rays_equal_single_rays_on_every_path() {
     use bvhc::loader::Ray;
@@ -292,6 +293,17 @@ fn streams_of_rays_equal_single_rays_on_every_path() {
         for y in 0..23 {
             for x in 0..41 {
                 rays.push(Ray::new([0.5, 0.25, 25.0], [x as f32 / 20.0 - 1.0, y as f32 / 11.0 - 1.0, -1.0]));
+            }
+        }
+        // Segments from a patch of nearby points toward one light (one octant, origins close but not equal),
+        // which the stream traces as packets, then the same with one ray of each group turned away.
+        for y in 0..9 {
+            for x in 0..24 {
+                let origin = [x as f32 * 0.02 - 0.3, y as f32 * 0.03 - 0.1, -6.0 + x as f32 * 0.01];
+                let direction = [2.0 - origin[0], 3.0 - origin[1], 30.0 - origin[2]];
+                let turned = y % 2 == 1 && x % 8 == 5;
+                let direction = if turned { [-direction[0], direction[1], direction[2]] } else { direction };
+                rays.push(Ray { t_max: 0.999, ..Ray::new(origin, direction) });
             }
         }
         rays.extend(crate::common::random_rays(seed + 7, 1500, 15.0));

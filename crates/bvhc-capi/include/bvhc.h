@@ -133,8 +133,9 @@ int bvhc_any_hit_unchecked(const bvhc_file *file, const bvhc_ray *ray);
 bvhc_status bvhc_check_rays(const bvhc_ray *rays, size_t count, size_t *first_invalid);
 
 /* Tracing arrays of rays: found[i] / occluded[i] is 1 or 0; hits[i] is zeroed on a miss. Groups of 8 consecutive
- * rays (from the first) whose origins are equal bit for bit are traced together as a coherent packet, the others
- * one by one (interleaved over large files): the same hits either way. */
+ * rays (from the first) whose origins are equal bit for bit, or whose directions lie in one octant and origins
+ * within a sixteenth of the scene's size of each other, are traced together as a coherent packet, the others one
+ * by one (interleaved over large files): the same hits either way. */
 bvhc_status bvhc_closest_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, bvhc_hit *hits,
                               uint8_t *found);
 bvhc_status bvhc_any_hits(const bvhc_file *file, const bvhc_ray *rays, size_t count, uint8_t *occluded);
@@ -160,7 +161,8 @@ bvhc_status bvhc_any_hits_coherent_unchecked(const bvhc_file *file, const bvhc_r
  * the hits that need them); the values are those bvhc_closest_hits gives. flags: BVHC_RAYS_COHERENT (each 8
  * consecutive rays traced together, as the _coherent calls), BVHC_RAYS_UNCHECKED (no ray check), or 0. Without
  * the flag, groups of 8 consecutive rays that share their origin bit for bit (a camera's, a light's, one point's
- * ambient-occlusion rays) are traced together too, as in bvhc_closest_hits. */
+ * ambient-occlusion rays) or start close together in one direction octant are traced together too, as in
+ * bvhc_closest_hits. */
 #define BVHC_RAYS_COHERENT 1u
 #define BVHC_RAYS_UNCHECKED 2u
 bvhc_status bvhc_closest_hit_columns(const bvhc_file *file, const bvhc_ray *rays, size_t count, unsigned flags,

@@ -14,7 +14,8 @@ use crate::ray::intersect::Ray;
 pub enum Order {
     /// Ray by ray (interleaved over large files by the wide kernel), except that the wide kernel traces each
     /// group of 8 consecutive rays whose origins are equal bit for bit (a pinhole camera's, a point light's, one
-    /// hit's ambient-occlusion rays) as a packet: the same hits either way.
+    /// hit's ambient-occlusion rays), or close together with directions in one octant, as a packet: the same
+    /// hits either way.
     Stream,
     /// Each 8 consecutive rays together (camera rays of neighbouring pixels), where the tracer can; ray by ray
     /// otherwise.

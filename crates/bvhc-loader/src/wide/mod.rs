@@ -268,9 +268,10 @@ impl<'a> WideTracer<'a> {
 
     /// The stream call ([`Order::Stream`]) on the tracer's path; `done(i, found)` receives ray `i`'s result.
     /// Each group of 8 consecutive rays (counted from the first) whose origins are equal bit for bit (a pinhole
-    /// camera's rays, a point light's shadow rays, one hit's ambient-occlusion rays) is traced as a coherent
-    /// packet, the other rays one by one or interleaved ([`WideTracer::interleaves_streams`]): the same hits
-    /// either way, and such packets ran 1.3-2.8x faster than single rays (`docs/kernel-peer.md`).
+    /// camera's rays, a point light's shadow rays, one hit's ambient-occlusion rays), or whose directions lie in
+    /// one octant and origins within a sixteenth of the scene's size (shadow rays from neighbouring hits toward
+    /// a light), is traced as a coherent packet, the other rays one by one or interleaved
+    /// ([`WideTracer::interleaves_streams`]): the same hits either way (`docs/batches-peer.md`).
     fn stream<Q: Query>(&self, rays: &[Ray], done: &mut impl FnMut(usize, Option<(u32, TriangleHit)>)) {
         let (sections, interleave) = (&self.sections, self.interleave);
         crate::simd::run(self.avx2, Batch::<_, Q> { sections, rays, done, interleave, query: PhantomData });
@@ -282,6 +283,39 @@ impl<'a> WideTracer<'a> {
 fn shares_origin(rays: &[Ray]) -> bool {
     let bits = |ray: &Ray| ray.origin.map(f32::to_bits);
     rays.split_first().is_some_and(|(first, rest)| rest.iter().all(|ray| bits(ray) == bits(first)))
+}
+
+/// Fraction of the scene's largest extent within which a group's origins count as nearby
+/// ([`goes_as_packet`]).
+const NEARBY_FRACTION: f32 = 1.0 / 16.0;
+
+/// Whether a stream traces `rays` (a group of [`PACKET_RAYS`]) as a packet: they share their origin bit for bit,
+/// or their directions lie in one octant (the same sign bits) and their origins within `nearby` of each other
+/// on every axis (shadow rays from neighbouring pixels' hits toward a light, an orthographic camera's rays).
+/// Such rays walk mostly the same nodes; rays from everywhere (an incoherent batch: 8 in one octant by chance
+/// about once in 2 million groups) would walk apart, and go one by one. Only speed depends on this: a packet
+/// gives each ray its single-ray hit.
+#[inline]
+fn goes_as_packet(rays: &[Ray], nearby: f32) -> bool {
+    if shares_origin(rays) {
+        return true;
+    }
+    let Some((first, rest)) = rays.split_first() else {
+        return false;
+    };
+    let octant = |ray: &Ray| ray.direction.map(|d| d.is_sign_negative());
+    let (mut low, mut high) = (first.origin, first.origin);
+    for ray in rest {
+        if octant(ray) != octant(first) {
+            return false;
+        }
+        for a in 0..3 {
+            low[a] = low[a].min(ray.origin[a]);
+            high[a] = high[a].max(ray.origin[a]);
+        }
+    }
+    // NaN origins (unchecked rays) fail the test and go one by one.
+    (0..3).all(|a| high[a] - low[a] <= nearby)
 }
 
 /// The single-ray calls, and the batch calls as a stream of interleaved rays ([`WideTracer::interleaves_streams`])
@@ -346,7 +380,8 @@ impl<C: TraversalCounter, A: Candidates, Q: Query> Kernel for SingleRay<'_, '_, 
     }
 }
 
-/// The stream call's rays: groups of [`PACKET_RAYS`] that share their origin as packets, the others apart.
+/// The stream call's rays: groups of [`PACKET_RAYS`] that go well together ([`goes_as_packet`]) as packets, the
+/// others apart.
 struct Batch<'s, 'r, D, Q: Query> {
     sections: &'s Sections<'s>,
     rays: &'r [Ray],
@@ -361,9 +396,11 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), Q: Query> Kernel for Batch<'_,
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) {
         let Batch { sections, rays, done, interleave, .. } = self;
+        let root = &sections.root;
+        let nearby = (0..3).map(|a| root.max[a] - root.min[a]).fold(0.0, f32::max) * NEARBY_FRACTION;
         let mut start = 0;
         for (g, group) in rays.chunks_exact(PACKET_RAYS).enumerate() {
-            if !shares_origin(group) {
+            if !goes_as_packet(group, nearby) {
                 continue;
             }
             let at = g * PACKET_RAYS;

@@ -354,7 +354,8 @@ class Scene:
         image, row by row): each 8 consecutive rays are traced together as a packet, faster on such rays and
         with the same hits as without (a callable ``filter`` traces one ray at a time either way). Without it,
         groups of 8 consecutive rays that start at the same point bit for bit (a pinhole camera's, a point light's,
-        one point's ambient-occlusion rays) are traced together all the same.
+        one point's ambient-occlusion rays), or close together with directions in one octant (shadow rays from
+        neighbouring hits toward a light), are traced together all the same.
 
         ``lean=True`` returns only ``t``, ``triangle``, ``u``, ``v`` and ``instance``, the same values: the
         normal, side and source id are then not computed (without a callable ``filter``), which is faster when
