@@ -23,9 +23,10 @@ use crate::ray::candidates::Candidates;
 use crate::ray::hit::{TraversalCounter, TriangleHit, lane_address, lane_record};
 use crate::ray::intersect::{PreparedRay, Ray};
 use crate::ray::query::{Query, TieKey, TieOrder};
-use crate::simd::Isa;
+use crate::simd::{Isa, Kernel};
 use crate::walk_stack::WalkStack;
 use crate::wide::packets::closest_in_packet;
+use std::marker::PhantomData;
 
 /// Stack entries: each visited node pushes at most 7, and a verified file is at most `MAX_DEPTH` deep.
 pub(crate) const STACK_LEN: usize = (WIDE - 1) * MAX_DEPTH + 1;
@@ -352,4 +353,26 @@ fn prefetch_lines<const LINES: usize>(start: *const i8) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = start;
+}
+
+/// One ray's walk, to its end, among the candidates `candidates` accepts.
+pub(crate) struct SingleRay<'s, 'r, C, A, Q: Query> {
+    pub(crate) sections: &'s Sections<'s>,
+    pub(crate) ray: &'r Ray,
+    pub(crate) counter: &'r mut C,
+    pub(crate) candidates: &'r A,
+    pub(crate) query: PhantomData<Q>,
+}
+
+impl<C: TraversalCounter, A: Candidates, Q: Query> Kernel for SingleRay<'_, '_, C, A, Q> {
+    type Output = Option<(u32, TriangleHit)>;
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) -> Self::Output {
+        let mut stack = new_stack();
+        let mut walk = Walk::start(self.sections, self.ray, &mut stack)?;
+        let mut leaves = PacketLeaves(self.candidates);
+        while walk.step::<Q, I, C, _>(isa, self.sections, &mut stack, self.counter, &mut leaves) {}
+        walk.found()
+    }
 }
