@@ -211,6 +211,12 @@ pub struct PackedNode {
 }
 
 impl PackedNode {
+    /// The box's largest side (the size the walks and batch calls measure a scene by).
+    #[inline]
+    pub fn largest_extent(&self) -> f32 {
+        (0..3).map(|a| self.max[a] - self.min[a]).fold(0.0, f32::max)
+    }
+
     /// Whether this node is a leaf (`count >= 1`).
     #[inline]
     pub const fn is_leaf(&self) -> bool {

@@ -122,7 +122,7 @@ impl<'a> Tracer<'a> {
             Some(sections) => sections.top_nodes.first(),
             None => self.nodes.first(),
         };
-        root.map_or(0.0, |r| (0..3).map(|a| r.max[a] - r.min[a]).fold(0.0, f32::max))
+        root.map_or(0.0, PackedNode::largest_extent)
     }
 
     /// This tracer without the ray check: a ray that breaks the contract gets an unspecified answer (never a

@@ -72,8 +72,7 @@ impl<D: FnMut(usize, Option<(u32, TriangleHit)>), Q: Query> Kernel for Batch<'_,
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) {
         let Batch { sections, rays, done, interleave, .. } = self;
-        let root = &sections.root;
-        let nearby = (0..3).map(|a| root.max[a] - root.min[a]).fold(0.0, f32::max) * NEARBY_FRACTION;
+        let nearby = sections.root.largest_extent() * NEARBY_FRACTION;
         let mut start = 0;
         for (g, group) in rays.chunks_exact(PACKET_RAYS).enumerate() {
             if !goes_as_packet(group, nearby) {
