@@ -53,6 +53,7 @@ mod move_instances;
 mod mutation;
 mod needles;
 mod optimize;
+mod points;
 mod options;
 mod optimize_property;
 mod python_package;

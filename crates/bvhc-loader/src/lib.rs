@@ -69,6 +69,7 @@ pub mod gpu;
 mod instances;
 mod open;
 mod parallel;
+pub mod point;
 mod refit;
 pub mod ray;
 mod simd;
@@ -92,6 +93,7 @@ pub use open::sections::{GpuSections, TwoLevelSections, WideSections};
 pub use open::structure::SectionInfo;
 pub use open::view::BvhView;
 pub use open::view_mut::BvhViewMut;
+pub use point::ClosestPoint;
 pub use ray::check_rays;
 pub use ray::{
     BatchRayError, ForeignHit, Hit, HitCore, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,

@@ -6,6 +6,7 @@ pub(crate) mod batch;
 pub(crate) mod crossings;
 pub mod filter;
 mod of_view;
+mod points;
 pub(crate) mod traced;
 
 pub use batch::CHECKED_CHUNK;

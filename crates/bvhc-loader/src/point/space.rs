@@ -1,0 +1,61 @@
+//! The space a point walk measures boxes in: world space for a one-level file and the top tree, an instance's
+//! object space inside its mesh. A box's squared distance from the mapped point, scaled by the square of the
+//! smallest stretch of the instance's map, is a lower bound on the world-space squared distance of anything in it.
+
+use crate::format::{InstanceRecord, PackedNode};
+use crate::point::Point3;
+
+/// How far below the f64 bound a box's lower bound is taken, against the rounding of the mapped point.
+const BOUND_SHRINK: f64 = 1.0 - 1.0 / 1_048_576.0;
+
+/// The query point in a tree's space, and the scale of that space's squared distances in world space.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Space {
+    pub point: Point3,
+    scale2: f64,
+}
+
+impl Space {
+    /// World space.
+    pub(crate) fn world(point: Point3) -> Space {
+        Space { point, scale2: 1.0 }
+    }
+
+    /// The object space of `instance`, for the world point `point`: `L^-1 (p - t)` in f64 for the linear part
+    /// `L` and translation `t` of `object_to_world` (its inverse by cofactors, not the stored `world_to_object`,
+    /// which rule V42 lets be looser), and the squared stretch bound `1 / |L^-1|_F^2 <= sigma_min(L)^2`. `None`
+    /// for a singular or non-finite map (which a verified file does not have).
+    pub(crate) fn instance(instance: &InstanceRecord, point: Point3) -> Option<Space> {
+        let m = &instance.object_to_world;
+        let a = |i: usize, j: usize| f64::from(m[i][j]);
+        let cofactor = |i: usize, j: usize| {
+            let (r0, r1, c0, c1) = ((i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3);
+            a(r0, c0) * a(r1, c1) - a(r0, c1) * a(r1, c0)
+        };
+        let det = a(0, 0) * cofactor(0, 0) + a(0, 1) * cofactor(0, 1) + a(0, 2) * cofactor(0, 2);
+        let cofactors: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cofactor(i, j)));
+        let frobenius2: f64 = cofactors.iter().flatten().map(|c| c * c).sum();
+        if !(det.is_finite() && det != 0.0 && frobenius2.is_finite()) {
+            return None;
+        }
+        let relative: Point3 = std::array::from_fn(|k| point[k] - a(k, 3));
+        // (L^-1)_ij = cofactor(j, i) / det.
+        let mapped = std::array::from_fn(|i| (0..3).map(|j| cofactors[j][i] * relative[j]).sum::<f64>() / det);
+        Some(Space { point: mapped, scale2: det * det / frobenius2 * BOUND_SHRINK })
+    }
+
+    /// A lower bound on the world-space squared distance from the query point to anything inside `node`'s box
+    /// (0 when the box is malformed, so such a box is never culled).
+    #[inline(always)]
+    pub(crate) fn box_d2(&self, node: &PackedNode) -> f64 {
+        let mut d2 = 0.0;
+        for a in 0..3 {
+            let below = f64::from(node.min[a]) - self.point[a];
+            let above = self.point[a] - f64::from(node.max[a]);
+            // `max` returns the other operand for a NaN, so a NaN bound counts as no distance.
+            let gap = below.max(above).max(0.0);
+            d2 += gap * gap;
+        }
+        if self.scale2 == 1.0 { d2 } else { d2 * self.scale2 }
+    }
+}

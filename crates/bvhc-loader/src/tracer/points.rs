@@ -1,0 +1,118 @@
+//! The tracer's point queries (`crate::point`): the closest point of the surface to a position and its
+//! distance, one point or a batch on threads, through a two-level file's instances as well.
+
+use crate::format::{MeshRecord, PackedNode};
+use crate::open::sections::TwoLevelSections;
+use crate::parallel::Workers;
+use crate::point::ClosestPoint;
+use crate::point::nearest::{Candidate, Nearest};
+use crate::point::space::Space;
+use crate::point::walk::{PointLeaves, TriangleRecords, walk_points};
+use crate::ray::query::TieOrder;
+use crate::tracer::Tracer;
+
+/// Points a thread takes at least in a batch call (fewer stay on the calling thread).
+const MIN_POINTS_A_THREAD: usize = 256;
+
+impl<'a> Tracer<'a> {
+    /// The closest point of the file's surface to `point` within `max_distance` (inclusive; `f32::INFINITY`
+    /// for no bound): the triangle record, the point on it, its distance and barycentrics, as
+    /// `format-spec/point-queries.md` defines them (ties: lowest instance, then lowest record). `None` when no
+    /// triangle is that near, the file has none, or the query is not one: a coordinate of `point` not finite,
+    /// `max_distance` negative or NaN. Safe on any file; on one that fails verification the answer is
+    /// unspecified.
+    pub fn closest_point(&self, point: [f32; 3], max_distance: f32) -> Option<ClosestPoint> {
+        if !point.iter().all(|c| c.is_finite()) || max_distance.is_nan() || max_distance < 0.0 {
+            return None;
+        }
+        let root = match &self.instances {
+            Some(sections) => sections.top_nodes.first(),
+            None => self.nodes.first(),
+        }?;
+        let mut nearest = Nearest::new(point, max_distance, (root.min, root.max));
+        let world = Space::world(nearest.point);
+        match &self.instances {
+            Some(sections) => {
+                let mut leaves = InstanceLeaves { tracer: self, sections };
+                walk_points(sections.top_nodes, &world, &mut nearest, &mut leaves);
+            }
+            None => {
+                let tie = TieOrder::new(self.split_references, self.triangle_ids);
+                let mut leaves = TriangleRecords { triangles: self.triangles, first_record: 0, instance: None, tie };
+                walk_points(self.nodes, &world, &mut nearest, &mut leaves);
+            }
+        }
+        nearest.best.map(|best| self.closest_point_of(&best))
+    }
+
+    /// The distance from `point` to the file's surface ([`Tracer::closest_point`] with no bound):
+    /// `f32::INFINITY` for a file with no triangles or a point that is not finite.
+    pub fn distance(&self, point: [f32; 3]) -> f32 {
+        self.closest_point(point, f32::INFINITY).map_or(f32::INFINITY, |found| found.distance)
+    }
+
+    /// [`Tracer::closest_point`] of each of `points` into `out` (the same length; panics otherwise, naming the
+    /// call), on up to `threads` threads (the caller's included; 0 counts as 1). The same answers whatever the
+    /// thread count.
+    pub fn closest_points(
+        &self,
+        points: &[[f32; 3]],
+        max_distance: f32,
+        out: &mut [Option<ClosestPoint>],
+        threads: usize,
+    ) {
+        crate::ray::hit::same_length("closest_points", points.len(), out.len());
+        Workers::new(threads).for_chunks(out, MIN_POINTS_A_THREAD, |first, chunk| {
+            for (slot, point) in chunk.iter_mut().zip(&points[first..]) {
+                *slot = self.closest_point(*point, max_distance);
+            }
+        });
+    }
+
+    /// The public answer for the best candidate.
+    fn closest_point_of(&self, best: &Candidate) -> ClosestPoint {
+        let found = &best.found;
+        ClosestPoint {
+            point: found.point.map(|c| c as f32),
+            distance: found.d2.sqrt() as f32,
+            triangle_index: best.record,
+            source_triangle_id: self.triangle_ids.and_then(|ids| ids.get(best.record as usize).copied()),
+            u: found.u as f32,
+            v: found.v as f32,
+            instance_index: best.instance,
+        }
+    }
+
+    /// The binary tree and triangle records of `mesh` (its ranges of this tracer's arrays), with its range of
+    /// the source ids; `None` when the ranges lie outside the arrays (a file that breaks V41).
+    fn mesh_records(&self, mesh: &MeshRecord) -> Option<(&'a [PackedNode], TriangleRecords<'a>)> {
+        let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
+        let nodes = self.nodes.get(range(mesh.first_node, mesh.node_count))?;
+        let triangle_range = range(mesh.first_triangle, mesh.triangle_count);
+        let triangles = self.triangles.get(triangle_range.clone())?;
+        let ids = self.triangle_ids.and_then(|ids| ids.get(triangle_range));
+        let tie = TieOrder::new(self.split_references, ids);
+        Some((nodes, TriangleRecords { triangles, first_record: mesh.first_triangle, instance: None, tie }))
+    }
+}
+
+/// The leaves of a top tree: instances, each walked in its mesh's tree in object space.
+struct InstanceLeaves<'t, 'a> {
+    tracer: &'t Tracer<'a>,
+    sections: &'t TwoLevelSections<'a>,
+}
+
+impl PointLeaves for InstanceLeaves<'_, '_> {
+    fn test_leaf(&mut self, node: &PackedNode, nearest: &mut Nearest) {
+        for index in node.index..node.index.saturating_add(node.count) {
+            let Some((instance, mesh)) = self.sections.placement(index) else { continue };
+            let (Some((nodes, records)), Some(space)) =
+                (self.tracer.mesh_records(mesh), Space::instance(instance, nearest.point))
+            else {
+                continue;
+            };
+            let mut records = TriangleRecords { instance: Some((index, instance)), ..records };
+            walk_points(nodes, &space, nearest, &mut records);
+        }
+    }
+}
