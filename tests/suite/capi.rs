@@ -74,6 +74,7 @@ fn the_header_declares_every_exported_function_and_nothing_else() {
     assert_eq!(size_of::<bvhc_capi::BvhcCandidate>(), 56);
     assert_eq!(size_of::<bvhc_capi::BvhcSections>(), 56);
     assert_eq!(size_of::<bvhc_capi::BvhcRefitReport>(), 40);
+    assert_eq!(size_of::<bvhc_capi::BvhcNearestPoint>(), 40);
 }
 
 /// The static library beside the test binary (target/<profile>/libbvhc_capi.a), if built.

@@ -8,6 +8,7 @@ mod box_test;
 mod c_header;
 mod c_library;
 mod capi;
+mod capi_points;
 mod capi_refit;
 mod cli;
 mod cli_hardening;

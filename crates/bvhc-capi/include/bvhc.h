@@ -169,6 +169,32 @@ bvhc_status bvhc_closest_hit_columns(const bvhc_file *file, const bvhc_ray *rays
                                      float *t, uint32_t *triangle_index, uint32_t *instance_index, float *u,
                                      float *v);
 
+/* Point queries (format-spec/point-queries.md): the closest point of the surface to a query point within
+ * max_distance (inclusive; INFINITY for no bound), by the spec's binary64 arithmetic a triangle, ties to the
+ * lowest instance then the lowest record; point and distance rounded once to float (the distance within 2^-24 of
+ * itself plus 2^-40 of the coordinates' scale). Where nothing is that near the record is empty: distance
+ * INFINITY, point NaN, indices BVHC_NO_INDEX / BVHC_NO_SOURCE_ID / BVHC_NO_INSTANCE. */
+typedef struct bvhc_nearest_point {
+    float point[3];              /* on the surface, world space */
+    float distance;              /* from the query point */
+    float u;                     /* weight of the record's v1 */
+    float v;                     /* weight of the record's v2 */
+    uint32_t triangle_index;     /* the record */
+    uint32_t source_triangle_id; /* BVHC_NO_SOURCE_ID without ids */
+    uint32_t instance_index;     /* two-level files: the instance; BVHC_NO_INSTANCE otherwise */
+    uint32_t reserved;
+} bvhc_nearest_point;
+
+/* 1 and the record in *out, or 0 and the empty record when nothing is within max_distance; BVHC_ERROR_ARGUMENT
+ * for a null argument, a point that is not finite, or max_distance below 0 or NaN. */
+bvhc_status bvhc_closest_point(const bvhc_file *file, const float point[3], float max_distance,
+                               bvhc_nearest_point *out);
+/* count points (3 floats each, x y z) into out[count], on up to threads threads (0: every core); the same
+ * records as bvhc_closest_point, whatever the thread count. BVHC_ERROR_ARGUMENT naming the first point that is
+ * not finite (nothing written then). */
+bvhc_status bvhc_closest_points(const bvhc_file *file, const float *points, size_t count, float max_distance,
+                                unsigned threads, bvhc_nearest_point *out);
+
 /* Hit filters (alpha testing): filter(user_data, candidate) returns nonzero to accept a candidate hit, zero to
  * reject it (traversal then goes on as if the triangle were not hit). With BVHC_FILTER_NOT_OPAQUE it is called
  * only for triangles the file marks not opaque (format 1.5, glTF alphaMode MASK or BLEND; bvhc_triangle_flags),

@@ -7,6 +7,7 @@ mod errors;
 mod filters;
 mod hits;
 mod options;
+mod points;
 mod rays;
 mod refit;
 mod scene;

@@ -218,6 +218,37 @@ impl Scene {
         Ok(inside.into_pyarray(py))
     }
 
+    /// The closest point of the surface to each point, as a dict of arrays (see the package's docs).
+    #[pyo3(signature = (points, max_distance=None, threads=None))]
+    fn closest_points<'py>(
+        &self,
+        py: Python<'py>,
+        points: Bound<'py, PyAny>,
+        max_distance: Option<f64>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let points = Vectors::extract("points", &points)?;
+        let max_distance = crate::points::max_distance_keyword(max_distance)?;
+        let pool = pool(threads)?;
+        with_view(py, &self.bytes, &self.path, |view| {
+            crate::points::closest_points(py, view, &points, max_distance, &pool)
+        })
+    }
+
+    /// Each point's distance from the surface, as a float32 array.
+    #[pyo3(signature = (points, threads=None))]
+    fn distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let points = Vectors::extract("points", &points)?;
+        let pool = pool(threads)?;
+        let distances = with_view(py, &self.bytes, &self.path, |view| crate::points::distances(py, view, &points, &pool))?;
+        Ok(distances.into_pyarray(py))
+    }
+
     /// Seconds the loader's batch call takes for these rays as a Rust program makes it: `Tracer::closest_hits` in
     /// chunks of 1024 on the pool, into an array of hit records (the rays gathered and checked, and the array
     /// allocated and written once, beforehand: not timed). What the benchmark compares `closest_hits`, the

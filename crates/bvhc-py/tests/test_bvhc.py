@@ -926,3 +926,98 @@ def test_animation_is_the_command_lines_flag():
         bvhc.options(animation=True, split_budget=0.2)
     with pytest.raises(bvhc.OptionsError, match="an empty clip name"):
         bvhc.options(animation="0,,1")
+
+
+def point_triangle_distances(p, tris):
+    """Distance from the point p to each triangle of tris ((m, 3, 3), float64), by Ericson's Voronoi regions
+    (Real-Time Collision Detection, 5.1.5) vectorized: an arithmetic independent of bvhc's."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+
+    def seg(x, y):
+        d = y - x
+        dd = np.einsum("ij,ij->i", d, d)
+        t = np.where(dd > 0, np.einsum("ij,ij->i", p - x, d) / np.where(dd > 0, dd, 1), 0).clip(0, 1)
+        return np.linalg.norm(p - (x + d * t[:, None]), axis=1)
+
+    edges = np.minimum(np.minimum(seg(a, b), seg(b, c)), seg(c, a))
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("ij,ij->i", n, n)
+    w = [np.einsum("ij,ij->i", np.cross(y - x, p - x), n) for x, y in ((b, c), (c, a), (a, b))]
+    inside = (nn > 0) & (w[0] >= 0) & (w[1] >= 0) & (w[2] >= 0)
+    plane = np.abs(np.einsum("ij,ij->i", p - a, n)) / np.sqrt(np.where(nn > 0, nn, 1))
+    return np.where(inside, np.minimum(plane, edges), edges)
+
+
+def test_closest_points_are_the_nearest_on_the_surface(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)
+    opened = bvhc.open(bvh)
+    tris = opened.triangles.astype(np.float64)
+    rng = np.random.default_rng(31)
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in opened.bounds)
+    size = (hi - lo).max()
+    on = tris[rng.integers(0, len(tris), 300)].mean(axis=1)
+    points = np.concatenate(
+        [
+            rng.uniform(lo - size, hi + size, (300, 3)),  # around and far
+            on + rng.normal(scale=1e-3 * size, size=on.shape),  # near the surface
+            tris[rng.integers(0, len(tris), 100), 0],  # on vertices
+        ]
+    ).astype(np.float32)
+    found = opened.closest_points(points)
+    assert set(found) == {"point", "distance", "triangle", "source_id", "u", "v", "instance"}
+    assert found["point"].shape == (len(points), 3) and found["distance"].dtype == np.float32
+    assert (found["instance"] == bvhc.MISS).all()
+    for k, p in enumerate(points.astype(np.float64)):
+        d = point_triangle_distances(p, tris)
+        exact = d.min()
+        assert abs(found["distance"][k] - exact) <= exact * 2.0**-24 + 2.0**-40 * (size + np.abs(p).max()) * 4, k
+        # The named triangle is at that distance, and the point lies on it at u, v, at that distance from p.
+        t = found["triangle"][k]
+        assert abs(d[t] - exact) <= 1e-6 * size, k
+        u, v = found["u"][k], found["v"][k]
+        on_triangle = tris[t, 0] * (1 - u - v) + tris[t, 1] * u + tris[t, 2] * v
+        assert np.abs(on_triangle - found["point"][k]).max() <= 1e-5 * size, k
+        assert abs(np.linalg.norm(found["point"][k] - p) - found["distance"][k]) <= 1e-5 * size, k
+    assert np.array_equal(opened.distance(points), found["distance"])
+    one = opened.closest_points(points, threads=1)
+    assert all(np.array_equal(one[key], found[key], equal_nan=True) for key in found)
+    # A bound: what lies beyond it gets the miss markers; the bound is inclusive.
+    bound = float(np.median(found["distance"]))
+    near = opened.closest_points(points, max_distance=bound)
+    within, beyond = found["distance"] < bound, found["distance"] > bound
+    assert within.sum() > 100 and beyond.sum() > 100
+    assert np.array_equal(near["triangle"][within], found["triangle"][within])
+    assert (near["triangle"][beyond] == bvhc.MISS).all() and np.isinf(near["distance"][beyond]).all()
+    assert np.isnan(near["point"][beyond]).all()
+    with pytest.raises(bvhc.InvalidInputError, match="point 1"):
+        opened.closest_points(np.array([[0, 0, 0], [np.nan, 0, 0]]))
+    with pytest.raises(bvhc.InvalidInputError, match="max_distance"):
+        opened.closest_points(points, max_distance=-1.0)
+    # A peer's answer, where it is installed: trimesh's closest points on the same triangles.
+    try:
+        import trimesh
+
+        mesh = trimesh.Trimesh(tris.reshape(-1, 3), np.arange(3 * len(tris)).reshape(-1, 3), process=False)
+        _, peer_distance, _ = trimesh.proximity.closest_point(mesh, points[:200].astype(np.float64))
+        assert np.allclose(found["distance"][:200], peer_distance, rtol=1e-5, atol=1e-6 * size)
+    except ImportError:
+        pass
+
+
+def test_closest_points_through_instances_are_in_world_space(tmp_path):
+    engine = scene("khr-2cylinder-engine/2CylinderEngine.gltf")
+    flat, placed = tmp_path / "flat.bvh", tmp_path / "placed.bvh"
+    bvhc.convert(engine, flat, instancing="never")
+    bvhc.convert(engine, placed, instancing="always")
+    one, two = bvhc.open(flat), bvhc.open(placed)
+    assert two.instances is not None and one.instances is None
+    rng = np.random.default_rng(32)
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in one.bounds)
+    points = rng.uniform(lo, hi, (2000, 3)).astype(np.float32)
+    a, b = one.closest_points(points), two.closest_points(points)
+    # The same surface, placed by instances or flattened: the same distances up to the world vertices'
+    # rounding (the flat file stores them in float32).
+    size = (hi - lo).max()
+    assert np.allclose(a["distance"], b["distance"], rtol=0, atol=1e-5 * size)
+    assert (b["instance"] != bvhc.MISS).all() and (a["instance"] == bvhc.MISS).all()

@@ -418,6 +418,28 @@ class Scene:
         anything; a point on the surface counts as inside."""
         return self._native.contains(points, threads)
 
+    def closest_points(
+        self, points: Any, max_distance: Optional[float] = None, *, threads: Optional[int] = None
+    ) -> Dict[str, np.ndarray]:
+        """The closest point of the surface to each of ``points`` (``(n, 3)`` float32 or float64; float64 is
+        rounded to float32), within ``max_distance`` (inclusive; ``None`` for no bound), as
+        ``format-spec/point-queries.md`` defines it: the spec's binary64 arithmetic a triangle, ties to the lowest
+        instance, then the lowest record, the distance within ``2^-24`` of itself plus ``2^-40`` of the
+        coordinates' scale. A point that is not finite, or a negative ``max_distance``, raises
+        :class:`InvalidInputError`.
+
+        Returns a dict of arrays, one row a point: ``point`` ((n, 3) float32, world space, NaN where nothing is
+        within ``max_distance``), ``distance`` (float32, ``inf`` there), ``triangle`` (uint32 record index),
+        ``source_id``, ``instance`` (uint32; :data:`MISS` where there is none, or for no ids / a one-level file),
+        ``u``, ``v`` (float32 weights of the record's ``v1`` and ``v2``, 0 where there is none). Runs on all cores
+        (or ``threads``) with the GIL released."""
+        return self._native.closest_points(points, max_distance, threads)
+
+    def distance(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
+        """The distance from each of ``points`` (``(n, 3)``) to the surface, as a float32 array: the
+        ``distance`` column of :meth:`closest_points` with no bound (``inf`` for a file with no triangles)."""
+        return self._native.distance(points, threads)
+
     def spawn(self, hits: Dict[str, np.ndarray], directions: Any) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Secondary rays leaving ``hits`` (a dict as :meth:`closest_hits` returns, misses removed) in
         ``directions`` ((n, 3)), with no epsilon to choose: the origins are moved off the surface by the hit

@@ -1,0 +1,156 @@
+//! Point queries through the C API (`bvhc_closest_point`, `bvhc_closest_points`): the loader's
+//! `Tracer::closest_point`, its answer as a `bvhc_nearest_point` record (`format-spec/point-queries.md`).
+
+use std::ffi::c_int;
+
+use bvhc_loader::ClosestPoint;
+
+use crate::boundary::{BVHC_OK, BvhcFile, argument, file_ref, guarded};
+
+/// `bvhc_nearest_point`: the closest point of the surface to a query point (`include/bvhc.h`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BvhcNearestPoint {
+    /// The point on the surface, world space.
+    pub point: [f32; 3],
+    /// Its distance from the query point.
+    pub distance: f32,
+    /// Weight of the record's `v1`.
+    pub u: f32,
+    /// Weight of the record's `v2`.
+    pub v: f32,
+    /// The triangle record.
+    pub triangle_index: u32,
+    /// Its source id, or `BVHC_NO_SOURCE_ID`.
+    pub source_triangle_id: u32,
+    /// The instance (two-level files), or `BVHC_NO_INSTANCE`.
+    pub instance_index: u32,
+    /// Zero.
+    pub reserved: u32,
+}
+
+impl From<ClosestPoint> for BvhcNearestPoint {
+    fn from(c: ClosestPoint) -> Self {
+        BvhcNearestPoint {
+            point: c.point,
+            distance: c.distance,
+            u: c.u,
+            v: c.v,
+            triangle_index: c.triangle_index,
+            source_triangle_id: c.source_triangle_id.unwrap_or(u32::MAX),
+            instance_index: c.instance_index.unwrap_or(u32::MAX),
+            reserved: 0,
+        }
+    }
+}
+
+/// The record written where nothing lies within the bound: distance `INFINITY`, point NaN, no record.
+const NOTHING: BvhcNearestPoint = BvhcNearestPoint {
+    point: [f32::NAN; 3],
+    distance: f32::INFINITY,
+    u: 0.0,
+    v: 0.0,
+    triangle_index: u32::MAX,
+    source_triangle_id: u32::MAX,
+    instance_index: u32::MAX,
+    reserved: 0,
+};
+
+/// An argument error unless `max_distance` is `>= 0` (`INFINITY` for no bound).
+fn check_bound(call: &str, max_distance: f32) -> Result<(), (c_int, String)> {
+    if max_distance.is_nan() || max_distance < 0.0 {
+        return Err(argument(&format!("{call}: max_distance {max_distance} is not >= 0 (INFINITY for no bound)")));
+    }
+    Ok(())
+}
+
+/// An argument error naming point `index` unless its coordinates are finite.
+fn check_point(call: &str, index: usize, point: [f32; 3]) -> Result<(), (c_int, String)> {
+    if !point.iter().all(|c| c.is_finite()) {
+        return Err(argument(&format!("{call}: point {index} {point:?} is not finite")));
+    }
+    Ok(())
+}
+
+/// Writes the closest point of the file's surface to `point` (3 floats) within `max_distance` (inclusive;
+/// `INFINITY` for no bound) to `out` and returns 1, or writes the empty record (distance `INFINITY`, point NaN,
+/// indices `0xFFFFFFFF`) and returns 0 when nothing is that near. A negative status for a null argument, a point
+/// that is not finite or a bound below 0 or NaN.
+///
+/// # Safety
+///
+/// `file` is null or a live file; `point` null or 3 readable floats; `out` null or a writable record.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_closest_point(
+    file: *const BvhcFile,
+    point: *const f32,
+    max_distance: f32,
+    out: *mut BvhcNearestPoint,
+) -> c_int {
+    guarded(|| {
+        let call = "bvhc_closest_point";
+        // SAFETY: the caller's contract.
+        let file = unsafe { file_ref(call, file) }?;
+        if point.is_null() || out.is_null() {
+            return Err(argument(&format!("{call}: point or out is null")));
+        }
+        // SAFETY: `point` is not null, and by the contract 3 readable floats.
+        let p = unsafe { [*point, *point.add(1), *point.add(2)] };
+        check_point(call, 0, p)?;
+        check_bound(call, max_distance)?;
+        let found = file.tracer().closest_point(p, max_distance);
+        // SAFETY: `out` is not null, and by the contract writable.
+        unsafe { *out = found.map_or(NOTHING, BvhcNearestPoint::from) };
+        Ok(c_int::from(found.is_some()))
+    })
+}
+
+/// The closest point of each of `count` points (`points`: `3 count` floats, x y z a point) within
+/// `max_distance`, into `out[i]` (the empty record where nothing is that near), on up to `threads` threads (0:
+/// every core): the same records as `bvhc_closest_point` a point, whatever the thread count. `BVHC_OK`, or an
+/// argument error naming the first point that is not finite (nothing written then).
+///
+/// # Safety
+///
+/// `file` is null or a live file; `points` null or `3 count` readable floats; `out` null or `count` writable
+/// records not overlapping `points`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_closest_points(
+    file: *const BvhcFile,
+    points: *const f32,
+    count: usize,
+    max_distance: f32,
+    threads: u32,
+    out: *mut BvhcNearestPoint,
+) -> c_int {
+    guarded(|| {
+        let call = "bvhc_closest_points";
+        // SAFETY: the caller's contract.
+        let file = unsafe { file_ref(call, file) }?;
+        check_bound(call, max_distance)?;
+        if count == 0 {
+            return Ok(BVHC_OK);
+        }
+        if points.is_null() || out.is_null() {
+            return Err(argument(&format!("{call}: points or out is null")));
+        }
+        let floats = count.checked_mul(3).ok_or_else(|| argument(&format!("{call}: count {count} overflows")))?;
+        // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` records, apart.
+        let (coordinates, out) =
+            unsafe { (std::slice::from_raw_parts(points, floats), std::slice::from_raw_parts_mut(out, count)) };
+        let rows: Vec<[f32; 3]> = coordinates.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        for (i, &p) in rows.iter().enumerate() {
+            check_point(call, i, p)?;
+        }
+        let threads = match threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n as usize,
+        };
+        let mut found = vec![None; count];
+        file.tracer().closest_points(&rows, max_distance, &mut found, threads);
+        for (slot, answer) in out.iter_mut().zip(found) {
+            *slot = answer.map_or(NOTHING, BvhcNearestPoint::from);
+        }
+        Ok(BVHC_OK)
+    })
+}

@@ -1,0 +1,107 @@
+//! Point queries from numpy arrays (`Scene.closest_points`, `Scene.distance`): the loader's
+//! `Tracer::closest_point` a point, chunks of points on the pool with the GIL released, answers into numpy
+//! columns. Points are `(n, 3)` float32 or float64 arrays (float64 rounded to float32, the precision the file's
+//! triangles and the spec's queries take); a point that is not finite raises, naming it.
+
+use bvhc::loader::{BvhView, ClosestPoint};
+use numpy::IntoPyArray;
+use numpy::ndarray::Array2;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+use crate::errors::InvalidInputError;
+use crate::hits::NONE;
+use crate::rays::Vectors;
+use crate::tracing::on_pool;
+
+/// Points a task.
+const POINT_CHUNK: usize = 1024;
+
+/// The points as rows, each finite (else the error names the first that is not).
+fn finite_rows(py: Python<'_>, points: &Vectors<'_>) -> PyResult<Vec<[f32; 3]>> {
+    let rows = points.rows(py)?;
+    if let Some(bad) = rows.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        return Err(InvalidInputError::new_err(format!("points: point {bad} {:?} is not finite", rows[bad])));
+    }
+    Ok(rows)
+}
+
+/// `max_distance` as the loader takes it: `None` for no bound; a negative or NaN bound raises.
+pub fn max_distance_keyword(max_distance: Option<f64>) -> PyResult<f32> {
+    match max_distance {
+        None => Ok(f32::INFINITY),
+        Some(d) if d >= 0.0 => Ok(d as f32),
+        Some(d) => Err(InvalidInputError::new_err(format!("max_distance: {d}, expected a number >= 0 or None"))),
+    }
+}
+
+/// Each point's closest point within `max_distance`, traced on `pool`.
+fn answers(
+    py: Python<'_>,
+    view: &BvhView<'_>,
+    rows: &[[f32; 3]],
+    max_distance: f32,
+    pool: &Option<rayon::ThreadPool>,
+) -> Vec<Option<ClosestPoint>> {
+    let tracer = view.tracer();
+    let mut out = vec![None; rows.len()];
+    py.detach(|| {
+        on_pool(pool, || {
+            out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
+                for (slot, &point) in slots.iter_mut().zip(points) {
+                    *slot = tracer.closest_point(point, max_distance);
+                }
+            })
+        })
+    });
+    out
+}
+
+/// `Scene.closest_points`: a dict of columns, a row a point: `point` ((n, 3) float32), `distance` (float32,
+/// `inf` when nothing is within `max_distance`), `triangle`, `source_id`, `instance` (uint32, the miss marker
+/// where there is none), `u`, `v` (float32, 0 where there is none).
+pub fn closest_points<'py>(
+    py: Python<'py>,
+    view: &BvhView<'_>,
+    points: &Vectors<'_>,
+    max_distance: f32,
+    pool: &Option<rayon::ThreadPool>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let rows = finite_rows(py, points)?;
+    let found = answers(py, view, &rows, max_distance, pool);
+    let n = found.len();
+    let mut point = Array2::<f32>::from_elem((n, 3), f32::NAN);
+    let (mut distance, mut triangle, mut source_id) = (vec![f32::INFINITY; n], vec![NONE; n], vec![NONE; n]);
+    let (mut u, mut v, mut instance) = (vec![0f32; n], vec![0f32; n], vec![NONE; n]);
+    for (i, answer) in found.iter().enumerate() {
+        let Some(c) = answer else { continue };
+        for (a, &x) in c.point.iter().enumerate() {
+            point[[i, a]] = x;
+        }
+        (distance[i], triangle[i], u[i], v[i]) = (c.distance, c.triangle_index, c.u, c.v);
+        source_id[i] = c.source_triangle_id.unwrap_or(NONE);
+        instance[i] = c.instance_index.unwrap_or(NONE);
+    }
+    let d = PyDict::new(py);
+    d.set_item("point", point.into_pyarray(py))?;
+    d.set_item("distance", distance.into_pyarray(py))?;
+    d.set_item("triangle", triangle.into_pyarray(py))?;
+    d.set_item("source_id", source_id.into_pyarray(py))?;
+    d.set_item("u", u.into_pyarray(py))?;
+    d.set_item("v", v.into_pyarray(py))?;
+    d.set_item("instance", instance.into_pyarray(py))?;
+    Ok(d)
+}
+
+/// `Scene.distance`: each point's distance from the surface (`inf` for a file with no triangles).
+pub fn distances(
+    py: Python<'_>,
+    view: &BvhView<'_>,
+    points: &Vectors<'_>,
+    pool: &Option<rayon::ThreadPool>,
+) -> PyResult<Vec<f32>> {
+    let rows = finite_rows(py, points)?;
+    let found = answers(py, view, &rows, f32::INFINITY, pool);
+    Ok(found.iter().map(|c| c.map_or(f32::INFINITY, |c| c.distance)).collect())
+}

@@ -1,0 +1,61 @@
+/* Point queries through the C API. Usage: capi_points FILE.bvh POINTS.bin MAX_DISTANCE, POINTS.bin holding
+ * float[3] records. Prints a line a point, "near <distance bits> <triangle> <instance> <x y z bits>" or "none",
+ * from bvhc_closest_points on 2 threads, after checking that bvhc_closest_point gives the same record a point and
+ * that the argument errors are refused; last line "checks ok". tests/suite/capi_points.rs compares with Rust. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../crates/bvhc-capi/include/bvhc.h"
+#include "test_io.h"
+
+static int failed(const char *what) {
+    fprintf(stderr, "check failed: %s (last message: %s)\n", what, bvhc_last_error_message());
+    return 1;
+}
+
+#define CHECK(condition)                             \
+    do {                                             \
+        if (!(condition)) return failed(#condition); \
+    } while (0)
+
+int main(int argc, char **argv) {
+    if (argc != 4) return failed("usage: capi_points FILE.bvh POINTS.bin MAX_DISTANCE");
+    bvhc_file *file = NULL;
+    CHECK(bvhc_open(argv[1], &file) == BVHC_OK);
+    size_t len = 0;
+    float *points = read_all(argv[2], &len);
+    CHECK(points != NULL && len % 12 == 0);
+    size_t count = len / 12;
+    float max_distance = strcmp(argv[3], "inf") == 0 ? INFINITY : strtof(argv[3], NULL);
+    bvhc_nearest_point *out = calloc(count + 1, sizeof *out);
+    CHECK(out != NULL);
+    CHECK(bvhc_closest_points(file, points, count, max_distance, 2, out) == BVHC_OK);
+    for (size_t i = 0; i < count; i++) {
+        bvhc_nearest_point one;
+        int status = bvhc_closest_point(file, &points[3 * i], max_distance, &one);
+        CHECK(status == 0 || status == 1);
+        CHECK(memcmp(&one, &out[i], sizeof one) == 0 || (status == 0 && isinf(out[i].distance)));
+        CHECK(status == (out[i].triangle_index != BVHC_NO_INDEX));
+        if (status == 1)
+            printf("near %08x %u %d %08x %08x %08x\n", bits(out[i].distance), out[i].triangle_index,
+                   (int)out[i].instance_index, bits(out[i].point[0]), bits(out[i].point[1]), bits(out[i].point[2]));
+        else
+            printf("none\n");
+    }
+    /* What the calls refuse, by name. */
+    float bad[6] = {0, 0, 0, NAN, 0, 0};
+    CHECK(bvhc_closest_points(file, bad, 2, INFINITY, 1, out) == BVHC_ERROR_ARGUMENT);
+    CHECK(strstr(bvhc_last_error_message(), "point 1") != NULL);
+    CHECK(bvhc_closest_point(file, bad, -1.0f, out) == BVHC_ERROR_ARGUMENT);
+    CHECK(strstr(bvhc_last_error_message(), "max_distance") != NULL);
+    CHECK(bvhc_closest_point(NULL, bad, 1.0f, out) == BVHC_ERROR_ARGUMENT);
+    CHECK(bvhc_closest_point(file, NULL, 1.0f, out) == BVHC_ERROR_ARGUMENT);
+    CHECK(bvhc_closest_points(file, points, 0, INFINITY, 0, NULL) == BVHC_OK);
+    free(out);
+    free(points);
+    bvhc_close(file);
+    printf("checks ok\n");
+    return 0;
+}
