@@ -1,13 +1,13 @@
 //! Point queries (`format-spec/point-queries.md`): the closest point of a file's surface to a position, within
 //! an optional distance, and the distance alone. The answer is defined by the normative f64 arithmetic of one
-//! triangle ([`triangle`]) and a tie rule, so the walks (one per layout) and an outside reader that follows the
+//! triangle ([`closest_on_triangle`]) and a tie rule, so the walks and an outside reader that follows the
 //! spec return the same triangle, point and distance bit for bit.
 //!
 //! The walks are the ray walks' shape with another node test: a box is culled when its distance from the query
 //! point (in f64, from the stored f32 bounds) exceeds the closest distance so far by more than a slack that covers
-//! rounding ([`nearest::Nearest`]); the nearer child goes first. Through a two-level file the point is mapped into
+//! rounding (`nearest::Nearest`); the nearer child goes first. Through a two-level file the point is mapped into
 //! each instance's object space, and an object-space box's distance becomes a lower bound on the world distance
-//! through the smallest stretch of the instance's map ([`space::Space`]).
+//! through the smallest stretch of the instance's map (`space::Space`).
 
 pub(crate) mod nearest;
 pub(crate) mod space;

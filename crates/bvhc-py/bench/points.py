@@ -1,0 +1,125 @@
+"""Closest points from Python, bvhc against what Python users run today: Open3D's RaycastingScene
+(`compute_closest_points`, Embree's point query inside) and trimesh's `nearest.on_surface`, on the same
+triangles and points.
+
+For each scene: N points near the surface (a random point of a random triangle moved by up to 1% of the scene's
+size) and N uniform in the scene's box. bvhc: `closest_points` on the scene opened from its `.bvh` (query alone,
+and with `bvhc.open`); Open3D: the query alone and with building its scene from the arrays, on one thread and
+on all; trimesh (single-threaded, slow): a tenth of the points, its time scaled up. The triangles are the file's
+records with duplicates removed (a split triangle's records are one triangle). Medians of `--runs` runs; the
+largest distance difference from bvhc is printed per peer (both round to float32).
+
+    python crates/bvhc-py/bench/points.py [--points N] [--scenes kitchen,dragon] [--runs 3]
+needs `pip install open3d trimesh rtree` (a peer that does not import is left out) and the shared scenes.
+"""
+
+import argparse
+import os
+import pathlib
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import bvhc
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+SCENES = pathlib.Path(os.environ.get("BVHC_SCENES", ROOT.parent / "shared" / "scenes"))
+FILES = {
+    "kitchen": "bullet-kitchen-fatihrmutfak/kitchen_merged_positions_only.obj.gz",
+    "dragon": "stanford-dragon/dragon_vrip.ply.gz",
+    "buddha": "happy-buddha-decimated/stanford-buddha.obj",
+    "engine": "khr-2cylinder-engine/2CylinderEngine.gltf",
+}
+
+
+def timed(f, runs):
+    times, result = [], None
+    for _ in range(runs):
+        start = time.perf_counter()
+        result = f()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), result
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--points", type=int, default=1_000_000)
+    parser.add_argument("--scenes", default="kitchen,dragon,buddha,engine")
+    parser.add_argument("--runs", type=int, default=3)
+    args = parser.parse_args()
+    cores = os.cpu_count() or 1
+    print(f"| scene | points | bvhc 1 / {cores} threads (s) | Open3D query 1 / {cores} (s) | Open3D with build 1 / {cores} (s) "
+          "| trimesh (s, scaled) | bvhc / Open3D query, 1 thread | max difference |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in args.scenes.split(","):
+        path = SCENES / FILES[name]
+        if not path.is_file():
+            print(f"| {name} | SKIPPED: {path} not found |")
+            continue
+        with tempfile.TemporaryDirectory() as tmp:
+            bvh = pathlib.Path(tmp) / "scene.bvh"
+            bvhc.convert(path, bvh, instancing="never")
+            opened = bvhc.open(bvh)
+            tris = np.unique(np.asarray(opened.triangles, dtype=np.float32).reshape(-1, 9), axis=0).reshape(-1, 3, 3)
+            vertices, faces = tris.reshape(-1, 3), np.arange(3 * len(tris), dtype=np.uint32).reshape(-1, 3)
+            lo, hi = (np.asarray(b, dtype=np.float64) for b in opened.bounds)
+            size = (hi - lo).max()
+            rng = np.random.default_rng(7)
+            pick = tris[rng.integers(0, len(tris), args.points)].astype(np.float64)
+            s, t = rng.random((2, args.points))
+            flip = s + t > 1
+            s[flip], t[flip] = 1 - s[flip], 1 - t[flip]
+            on = pick[:, 0] + (pick[:, 1] - pick[:, 0]) * s[:, None] + (pick[:, 2] - pick[:, 0]) * t[:, None]
+            sets = {
+                "near": (on + rng.uniform(-0.01, 0.01, on.shape) * size).astype(np.float32),
+                "uniform": rng.uniform(lo, hi, (args.points, 3)).astype(np.float32),
+            }
+            for label, points in sets.items():
+                b1, found = timed(lambda: opened.closest_points(points, threads=1), args.runs)
+                bn, _ = timed(lambda: opened.closest_points(points), args.runs)
+                row = [f"{b1:.2f} / {bn:.2f}"]
+                ratio, diffs = "-", []
+                try:
+                    import open3d as o3d
+
+                    def build(threads):
+                        scene = o3d.t.geometry.RaycastingScene(nthreads=threads)
+                        scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(faces))
+                        return scene
+
+                    query = o3d.core.Tensor(points)
+                    times = []
+                    for threads in (1, 0):
+                        scene = build(threads)
+                        scene.compute_closest_points(query[:10])  # its tree is built on the first query
+                        q, answer = timed(lambda: scene.compute_closest_points(query), args.runs)
+                        w, _ = timed(lambda: build(threads).compute_closest_points(query), args.runs)
+                        times.append((q, w))
+                        if threads == 1:
+                            peer = answer["points"].numpy()
+                            diffs.append(np.abs(np.linalg.norm(peer - points, axis=1) - found["distance"]).max())
+                    row += [f"{times[0][0]:.2f} / {times[1][0]:.2f}", f"{times[0][1]:.2f} / {times[1][1]:.2f}"]
+                    ratio = f"{times[0][0] / b1:.2f}x"
+                except ImportError:
+                    row += ["-", "-"]
+                try:
+                    import trimesh
+
+                    mesh = trimesh.Trimesh(vertices, faces, process=False)
+                    few = points[: max(1, args.points // 10)].astype(np.float64)
+                    start = time.perf_counter()
+                    _, distance, _ = trimesh.proximity.closest_point(mesh, few)
+                    row.append(f"{(time.perf_counter() - start) * len(points) / len(few):.1f}")
+                    diffs.append(np.abs(distance - found["distance"][: len(few)]).max())
+                except ImportError:
+                    row.append("-")
+                worst = max(diffs) / size if diffs else float("nan")
+                print(f"| {name} | {label} {len(points):,} | " + " | ".join(row) + f" | {ratio} | {worst:.1e} of the size |")
+                sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
