@@ -5,7 +5,10 @@
 # unchecked, against Embree's C API). Medians of interleaved rounds in each; docs/kernel-peer.md reads them.
 #
 #   scripts/peer-outside.sh [SCENES] [RAYS]      # e.g. kitchen,engine 200000 (defaults: kitchen,engine,toy car)
-#   PEER_TABLES=batches scripts/peer-outside.sh   # only the batch table (single, batches, in-process: any set)
+#   PEER_TABLES=batches scripts/peer-outside.sh   # only the batch table (single, batches, points, in-process: any set)
+#
+# The points table (benches/c/embree_points.c) times bvhc_closest_points against rtcPointQuery with a
+# closest-point callback, points near the surface and uniform in the box (PEER_POINTS of each, default 200000).
 #
 # The batch table (benches/c/embree_batches.c) times bvhc's batch calls against Embree's best call on camera,
 # ambient-occlusion, shadow and incoherent workloads made from each scene's box.
@@ -26,7 +29,7 @@ if [ ! -f "$prefix/lib/libbvhc.so" ] \
 fi
 mkdir -p "$out"
 tables="${PEER_TABLES:-single,batches,in-process}"
-for program in embree_peer embree_batches; do
+for program in embree_peer embree_batches embree_points; do
   cc -O2 -std=c11 -Wall -Wextra -o "$out/$program" "benches/c/$program.c" \
     $(PKG_CONFIG_PATH="$prefix/lib/pkgconfig" pkg-config --cflags --libs bvhc) \
     -L target/embree4/lib -Wl,-rpath,"$PWD/target/embree4/lib" -lembree4 -lm
@@ -73,6 +76,17 @@ for line in sys.stdin:
 ' "$name"
 done
 echo
+fi
+if [[ ",$tables," == *,points,* ]]; then
+echo "## From outside: benches/c/embree_points.c (bvhc_closest_points) against rtcPointQuery, one thread"
+echo
+for name in "${names[@]}"; do
+  stem="${name// /-}"
+  echo "### $name"
+  echo
+  "$out/embree_points" "$out/$stem.bvh" "$out/$stem-triangles.bin" "${PEER_POINTS:-200000}"
+  echo
+done
 fi
 [[ ",$tables," == *,in-process,* ]] || exit 0
 echo "## In process: benches/peer.rs (Rust API, trusting rays) against Embree through FFI"

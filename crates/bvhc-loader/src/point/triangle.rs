@@ -4,7 +4,8 @@
 //!
 //! The point is tested against the triangle's plane first (the signed areas of the three sub-triangles the
 //! point's projection makes, measured along the normal, all `>= 0`: the projection is inside and the plane's
-//! distance is the answer); otherwise, and for a triangle with no area, the nearest of its three edges is (Ericson,
+//! distance is the answer); otherwise the nearest of the edges the projection lies beyond (a negative area), and
+//! for a triangle with no area the nearest of its three edges, is (Ericson,
 //! "Real-Time Collision Detection", 2005, 5.1.5, states the same regions by a different arithmetic). Each edge is
 //! measured from its lexicographically smaller endpoint, so that two triangles sharing an edge (or a vertex) get
 //! the same bits for it whichever way they wind it: a point over a shared edge is an exact tie, which the tie
@@ -48,6 +49,9 @@ fn cross(a: Point3, b: Point3) -> Point3 {
 pub fn closest_on_triangle(p: Point3, [a, b, c]: [Point3; 3]) -> TrianglePoint {
     let n = cross(sub(b, a), sub(c, a));
     let nn = dot(n, n);
+    // Which edges may hold the closest point: every edge of a triangle with no area; else the edges the
+    // projection lies beyond (the weight of the opposite vertex negative), none when it lies inside.
+    let mut edges = [true; 3]; // v0v1, v1v2, v2v0
     if nn > 0.0 && nn.is_finite() {
         let weight_a = dot(cross(sub(c, b), sub(p, b)), n);
         let weight_b = dot(cross(sub(a, c), sub(p, c)), n);
@@ -58,18 +62,30 @@ pub fn closest_on_triangle(p: Point3, [a, b, c]: [Point3; 3]) -> TrianglePoint {
             let point = [p[0] - n[0] * h, p[1] - n[1] * h, p[2] - n[2] * h];
             return TrianglePoint { d2: w * h, point, u: weight_b / nn, v: weight_c / nn };
         }
+        edges = [weight_c < 0.0, weight_a < 0.0, weight_b < 0.0];
+        if edges == [false; 3] {
+            edges = [true; 3]; // NaN weights (coordinates near the f64 range's end)
+        }
     }
-    // Outside the triangle (or no area): the nearest edge, the first of v0v1, v1v2, v2v0 on a tie.
-    let (d_ab, t_ab, q_ab) = closest_on_segment(p, a, b);
-    let (d_bc, t_bc, q_bc) = closest_on_segment(p, b, c);
-    let (d_ca, t_ca, q_ca) = closest_on_segment(p, c, a);
-    if d_ab <= d_bc && d_ab <= d_ca {
-        TrianglePoint { d2: d_ab, point: q_ab, u: t_ab, v: 0.0 }
-    } else if d_bc <= d_ca {
-        TrianglePoint { d2: d_bc, point: q_bc, u: 1.0 - t_bc, v: t_bc }
-    } else {
-        TrianglePoint { d2: d_ca, point: q_ca, u: 0.0, v: 1.0 - t_ca }
+    // The nearest of those edges, the first of v0v1, v1v2, v2v0 on a tie.
+    let mut best = TrianglePoint { d2: f64::INFINITY, point: [f64::NAN; 3], u: 0.0, v: 0.0 };
+    if edges[0] {
+        let (d2, t, point) = closest_on_segment(p, a, b);
+        best = TrianglePoint { d2, point, u: t, v: 0.0 };
     }
+    if edges[1] {
+        let (d2, t, point) = closest_on_segment(p, b, c);
+        if d2 < best.d2 {
+            best = TrianglePoint { d2, point, u: 1.0 - t, v: t };
+        }
+    }
+    if edges[2] {
+        let (d2, t, point) = closest_on_segment(p, c, a);
+        if d2 < best.d2 {
+            best = TrianglePoint { d2, point, u: 0.0, v: 1.0 - t };
+        }
+    }
+    best
 }
 
 /// The closest point of the segment `x y` to `p`: squared distance, its parameter from `x` (0 at `x`, 1 at
