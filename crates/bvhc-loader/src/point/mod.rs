@@ -10,9 +10,11 @@
 //! through the smallest stretch of the instance's map (`space::Space`).
 
 pub(crate) mod nearest;
+pub(crate) mod records;
 pub(crate) mod space;
 mod triangle;
 pub(crate) mod walk;
+pub(crate) mod wide;
 
 pub use triangle::{Point3, TrianglePoint, closest_on_triangle};
 

@@ -13,12 +13,25 @@ const BOUND_SHRINK: f64 = 1.0 - 1.0 / 1_048_576.0;
 pub(crate) struct Space {
     pub point: Point3,
     scale2: f64,
+    /// The point rounded to f32, for the wide walk's box tests in lanes ([`Space::lane_threshold`]).
+    pub point32: [f32; 3],
+    /// A bound on how far `point32` lies from `point` (0 when the point is an f32 already).
+    offset: f64,
 }
 
 impl Space {
     /// World space.
     pub(crate) fn world(point: Point3) -> Space {
-        Space { point, scale2: 1.0 }
+        Space::at(point, 1.0)
+    }
+
+    /// The space of `point` with squared stretch `scale2`.
+    fn at(point: Point3, scale2: f64) -> Space {
+        let point32 = point.map(|c| c as f32);
+        // Each coordinate rounds by at most 2^-24 of itself, so the point moves by less than 2^-23 of its largest.
+        let largest = point.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        let exact = point32.iter().zip(&point).all(|(&r, &c)| f64::from(r) == c);
+        Space { point, scale2, point32, offset: if exact { 0.0 } else { largest / 8_388_608.0 } }
     }
 
     /// The object space of `instance`, for the world point `point`: `L^-1 (p - t)` in f64 for the linear part
@@ -41,7 +54,21 @@ impl Space {
         let relative: Point3 = std::array::from_fn(|k| point[k] - a(k, 3));
         // (L^-1)_ij = cofactor(j, i) / det.
         let mapped = std::array::from_fn(|i| (0..3).map(|j| cofactors[j][i] * relative[j]).sum::<f64>() / det);
-        Some(Space { point: mapped, scale2: det * det / frobenius2 * BOUND_SHRINK })
+        Some(Space::at(mapped, det * det / frobenius2 * BOUND_SHRINK))
+    }
+
+    /// The threshold of the wide walk's lanes for the cull `cull_d2` (world space): a slot whose squared
+    /// distance from `point32`, computed in f32 ([`lane_d2`]), exceeds it lies beyond the cull. f32 rounding makes
+    /// a lane's value at most `2^-21` of itself too large; the threshold allows `2^-19`, the move from `point` to
+    /// `point32` and this space's stretch, and is `+inf` (no slot culled) where it does not fit f32.
+    pub(crate) fn lane_threshold(&self, cull_d2: f64) -> f32 {
+        let reach = (cull_d2 / self.scale2).sqrt() + self.offset;
+        let threshold = reach * reach * (1.0 + 1.0 / 524_288.0);
+        if threshold.is_nan() || threshold >= f64::from(f32::MAX) {
+            return f32::INFINITY;
+        }
+        let rounded = threshold as f32;
+        if f64::from(rounded) < threshold { rounded.next_up() } else { rounded }
     }
 
     /// A lower bound on the world-space squared distance from the query point to anything inside `node`'s box
@@ -58,4 +85,21 @@ impl Space {
         }
         if self.scale2 == 1.0 { d2 } else { d2 * self.scale2 }
     }
+}
+
+/// The squared distances, in f32, from `point` to the eight slot boxes of `node`: a slot's gap on each axis is
+/// `max(min - p, p - max, 0)`, so an empty slot (min `+inf`, max `-inf`) is at `+inf`.
+#[inline(always)]
+pub(crate) fn lane_d2(node: &crate::format::WideNode8, point: [f32; 3]) -> [f32; crate::format::WIDE] {
+    let mut d2 = [0.0f32; crate::format::WIDE];
+    for axis in 0..3 {
+        for (slot, d) in d2.iter_mut().enumerate() {
+            let below = node.min[axis][slot] - point[axis];
+            let above = point[axis] - node.max[axis][slot];
+            let gap = if below > above { below } else { above };
+            let gap = if gap > 0.0 { gap } else { 0.0 };
+            *d += gap * gap;
+        }
+    }
+    d2
 }

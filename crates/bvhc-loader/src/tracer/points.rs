@@ -1,13 +1,15 @@
 //! The tracer's point queries (`crate::point`): the closest point of the surface to a position and its
 //! distance, one point or a batch on threads, through a two-level file's instances as well.
 
-use crate::format::{MeshRecord, PackedNode};
+use crate::format::{InstanceRecord, MeshRecord, PackedNode};
 use crate::open::sections::TwoLevelSections;
 use crate::parallel::Workers;
 use crate::point::ClosestPoint;
 use crate::point::nearest::{Candidate, Nearest};
+use crate::point::records::{PacketRecords, Placement, PointLeaves, TriangleRecords};
 use crate::point::space::Space;
-use crate::point::walk::{PointLeaves, TriangleRecords, walk_points};
+use crate::point::walk::walk_points;
+use crate::point::wide::walk_wide_points;
 use crate::ray::query::TieOrder;
 use crate::tracer::Tracer;
 
@@ -37,9 +39,21 @@ impl<'a> Tracer<'a> {
                 walk_points(sections.top_nodes, &world, &mut nearest, &mut leaves);
             }
             None => {
-                let tie = TieOrder::new(self.split_references, self.triangle_ids);
-                let mut leaves = TriangleRecords { triangles: self.triangles, first_record: 0, instance: None, tie };
-                walk_points(self.nodes, &world, &mut nearest, &mut leaves);
+                let placement = Placement {
+                    first_record: 0,
+                    instance: None,
+                    tie: TieOrder::new(self.split_references, self.triangle_ids),
+                };
+                match &self.wide {
+                    Some(wide) => {
+                        let leaves = PacketRecords { packets: wide.sections().packets, placement };
+                        walk_wide_points(wide.sections(), &world, &mut nearest, &leaves);
+                    }
+                    None => {
+                        let mut leaves = TriangleRecords { triangles: self.triangles, placement };
+                        walk_points(self.nodes, &world, &mut nearest, &mut leaves);
+                    }
+                }
             }
         }
         nearest.best.map(|best| self.closest_point_of(&best))
@@ -83,16 +97,29 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// The binary tree and triangle records of `mesh` (its ranges of this tracer's arrays), with its range of
-    /// the source ids; `None` when the ranges lie outside the arrays (a file that breaks V41).
-    fn mesh_records(&self, mesh: &MeshRecord) -> Option<(&'a [PackedNode], TriangleRecords<'a>)> {
+    /// Walks `mesh` (placed by instance `index`, `instance`) for `nearest`: its wide tree where this tracer has
+    /// the wide kernel, else its binary tree. Nothing when its ranges lie outside the arrays (a file that breaks
+    /// V41) or the instance's map is singular (V42).
+    fn walk_mesh(&self, mesh: &MeshRecord, index: u32, instance: &'a InstanceRecord, nearest: &mut Nearest) {
         let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
-        let nodes = self.nodes.get(range(mesh.first_node, mesh.node_count))?;
+        let (Some(nodes), Some(space)) =
+            (self.nodes.get(range(mesh.first_node, mesh.node_count)), Space::instance(instance, nearest.point))
+        else {
+            return;
+        };
         let triangle_range = range(mesh.first_triangle, mesh.triangle_count);
-        let triangles = self.triangles.get(triangle_range.clone())?;
+        let Some(triangles) = self.triangles.get(triangle_range.clone()) else { return };
         let ids = self.triangle_ids.and_then(|ids| ids.get(triangle_range));
         let tie = TieOrder::new(self.split_references, ids);
-        Some((nodes, TriangleRecords { triangles, first_record: mesh.first_triangle, instance: None, tie }))
+        let placement = Placement { first_record: mesh.first_triangle, instance: Some((index, instance)), tie };
+        let root = nodes.first().map(|root| (root.min, root.max));
+        match self.wide.zip(root).and_then(|(wide, root)| wide.mesh(mesh, root, ids)) {
+            Some(wide) => {
+                let leaves = PacketRecords { packets: wide.sections().packets, placement };
+                walk_wide_points(wide.sections(), &space, nearest, &leaves);
+            }
+            None => walk_points(nodes, &space, nearest, &mut TriangleRecords { triangles, placement }),
+        }
     }
 }
 
@@ -105,14 +132,9 @@ struct InstanceLeaves<'t, 'a> {
 impl PointLeaves for InstanceLeaves<'_, '_> {
     fn test_leaf(&mut self, node: &PackedNode, nearest: &mut Nearest) {
         for index in node.index..node.index.saturating_add(node.count) {
-            let Some((instance, mesh)) = self.sections.placement(index) else { continue };
-            let (Some((nodes, records)), Some(space)) =
-                (self.tracer.mesh_records(mesh), Space::instance(instance, nearest.point))
-            else {
-                continue;
-            };
-            let mut records = TriangleRecords { instance: Some((index, instance)), ..records };
-            walk_points(nodes, &space, nearest, &mut records);
+            if let Some((instance, mesh)) = self.sections.placement(index) {
+                self.tracer.walk_mesh(mesh, index, instance, nearest);
+            }
         }
     }
 }

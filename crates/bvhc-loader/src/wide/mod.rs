@@ -159,6 +159,11 @@ impl<'a> WideTracer<'a> {
         WideTracer { sections: Sections { tie, ..self.sections }, ..self }
     }
 
+    /// The wide sections this tracer walks (for the point walk, `crate::point::wide`).
+    pub(crate) fn sections(&self) -> &Sections<'a> {
+        &self.sections
+    }
+
     /// The AVX2 token when the tracer runs the AVX2 path (for walks of other wide trees on the same path).
     pub(crate) fn avx2(&self) -> Option<Avx2> {
         self.avx2
