@@ -92,10 +92,10 @@ impl Space {
 #[inline(always)]
 pub(crate) fn lane_d2(node: &crate::format::WideNode8, point: [f32; 3]) -> [f32; crate::format::WIDE] {
     let mut d2 = [0.0f32; crate::format::WIDE];
-    for axis in 0..3 {
+    for ((min, max), &p) in node.min.iter().zip(&node.max).zip(&point) {
         for (slot, d) in d2.iter_mut().enumerate() {
-            let below = node.min[axis][slot] - point[axis];
-            let above = point[axis] - node.max[axis][slot];
+            let below = min[slot] - p;
+            let above = p - max[slot];
             let gap = if below > above { below } else { above };
             let gap = if gap > 0.0 { gap } else { 0.0 };
             *d += gap * gap;
