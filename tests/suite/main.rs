@@ -72,6 +72,7 @@ mod rules_wide;
 mod same_bytes;
 mod skips;
 mod sbvh;
+mod winding;
 mod spawn;
 mod scenes;
 mod source_vertices;

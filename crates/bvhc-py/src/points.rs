@@ -105,3 +105,43 @@ pub fn distances(
     let found = answers(py, view, &rows, f32::INFINITY, pool);
     Ok(found.iter().map(|c| c.map_or(f32::INFINITY, |c| c.distance)).collect())
 }
+
+/// `Scene.signed_distance` (`signed`) or `Scene.winding_number`: each point's signed distance (float32, negative
+/// inside) or winding number (float64), from the file's winding moments, computed once for the call.
+pub fn winding<'py>(
+    py: Python<'py>,
+    view: &BvhView<'_>,
+    points: &Vectors<'_>,
+    signed: bool,
+    pool: &Option<rayon::ThreadPool>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let rows = finite_rows(py, points)?;
+    let tracer = view.tracer();
+    let numbers = tracer.winding_numbers().map_err(|e| {
+        pyo3::exceptions::PyMemoryError::new_err(format!("the winding moments of {} triangles: {e}", view.triangles().len()))
+    })?;
+    if signed {
+        let mut out = vec![0f32; rows.len()];
+        py.detach(|| {
+            on_pool(pool, || {
+                out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
+                    for (slot, &point) in slots.iter_mut().zip(points) {
+                        *slot = numbers.signed_distance(point);
+                    }
+                })
+            })
+        });
+        return Ok(out.into_pyarray(py).into_any());
+    }
+    let mut out = vec![0f64; rows.len()];
+    py.detach(|| {
+        on_pool(pool, || {
+            out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
+                for (slot, &point) in slots.iter_mut().zip(points) {
+                    *slot = numbers.winding_number(point);
+                }
+            })
+        })
+    });
+    Ok(out.into_pyarray(py).into_any())
+}

@@ -249,6 +249,32 @@ impl Scene {
         Ok(distances.into_pyarray(py))
     }
 
+    /// Each point's signed distance from the surface (negative inside), as a float32 array.
+    #[pyo3(signature = (points, threads=None))]
+    fn signed_distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let points = Vectors::extract("points", &points)?;
+        let pool = pool(threads)?;
+        with_view(py, &self.bytes, &self.path, |view| crate::points::winding(py, view, &points, true, &pool))
+    }
+
+    /// Each point's generalized winding number, as a float64 array.
+    #[pyo3(signature = (points, threads=None))]
+    fn winding_number<'py>(
+        &self,
+        py: Python<'py>,
+        points: Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let points = Vectors::extract("points", &points)?;
+        let pool = pool(threads)?;
+        with_view(py, &self.bytes, &self.path, |view| crate::points::winding(py, view, &points, false, &pool))
+    }
+
     /// Seconds the loader's batch call takes for these rays as a Rust program makes it: `Tracer::closest_hits` in
     /// chunks of 1024 on the pool, into an array of hit records (the rays gathered and checked, and the array
     /// allocated and written once, beforehand: not timed). What the benchmark compares `closest_hits`, the

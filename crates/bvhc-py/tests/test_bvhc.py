@@ -1021,3 +1021,37 @@ def test_closest_points_through_instances_are_in_world_space(tmp_path):
     size = (hi - lo).max()
     assert np.allclose(a["distance"], b["distance"], rtol=0, atol=1e-5 * size)
     assert (b["instance"] != bvhc.MISS).all() and (a["instance"] == bvhc.MISS).all()
+
+
+def test_signed_distance_and_winding_number_of_a_closed_mesh(tmp_path):
+    mesh, opened = sphere_scene(tmp_path)
+    rng = np.random.default_rng(33)
+    points = rng.uniform(-1.3, 1.3, (20_000, 3)).astype(np.float32)
+    radius = np.linalg.norm(points, axis=1)
+    clear = (radius < 0.98) | (radius > 1.001)  # the facets lie between radius 0.98 and 1
+    signed = opened.signed_distance(points)
+    assert signed.dtype == np.float32 and signed.shape == (len(points),)
+    assert np.array_equal(np.abs(signed), opened.distance(points))
+    assert np.array_equal((signed < 0)[clear], (radius < 0.98)[clear])
+    winding = opened.winding_number(points)
+    assert winding.dtype == np.float64
+    assert np.abs(winding[clear] - (radius[clear] < 0.98)).max() < 0.03
+    # The other winding: the winding number changes sign, the signed distance does not.
+    bvhc.build(mesh.vertices, mesh.faces[:, ::-1], tmp_path / "flipped.bvh")
+    flipped = bvhc.open(tmp_path / "flipped.bvh")
+    assert np.array_equal(flipped.signed_distance(points), signed)
+    assert np.abs(flipped.winding_number(points[clear]) + winding[clear]).max() < 1e-9
+    assert np.array_equal(opened.signed_distance(points, threads=1), signed)
+    with pytest.raises(bvhc.InvalidInputError, match="point 1"):
+        opened.signed_distance(np.array([[0, 0, 0], [np.nan, 0, 0]]))
+    try:  # Open3D's signed distance, where installed: the same magnitudes and, clear of the surface, signs
+        import open3d as o3d
+
+        scene = o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
+                            o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)))
+        peer = scene.compute_signed_distance(o3d.core.Tensor(points)).numpy()
+        assert np.allclose(np.abs(peer), np.abs(signed), atol=1e-5)
+        assert np.array_equal((peer < 0)[clear], (signed < 0)[clear])
+    except ImportError:
+        pass

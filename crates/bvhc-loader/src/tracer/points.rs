@@ -1,17 +1,20 @@
 //! The tracer's point queries (`crate::point`): the closest point of the surface to a position and its
 //! distance, one point or a batch on threads, through a two-level file's instances as well.
 
-use crate::format::{InstanceRecord, MeshRecord, PackedNode};
+use crate::format::{InstanceRecord, MeshRecord, PackedNode, PackedTriangle};
 use crate::open::sections::TwoLevelSections;
 use crate::parallel::Workers;
-use crate::point::ClosestPoint;
 use crate::point::nearest::{Candidate, Nearest};
 use crate::point::records::{PacketRecords, Placement, PointLeaves, TriangleRecords};
 use crate::point::space::Space;
 use crate::point::walk::walk_points;
 use crate::point::wide::walk_wide_points;
+use crate::point::{ClosestPoint, WindingNumbers};
 use crate::ray::query::TieOrder;
 use crate::tracer::Tracer;
+
+/// A mesh's binary nodes, triangle records and source ids.
+pub(crate) type MeshArrays<'a> = (&'a [PackedNode], &'a [PackedTriangle], Option<&'a [u32]>);
 
 /// Points a thread takes at least in a batch call (fewer stay on the calling thread).
 const MIN_POINTS_A_THREAD: usize = 256;
@@ -97,19 +100,45 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    /// The winding numbers and signed distances of this tracer's file ([`WindingNumbers`]): their moments,
+    /// computed here in O(records). Fails only when memory for them cannot be had.
+    pub fn winding_numbers(&self) -> Result<WindingNumbers<'a>, std::collections::TryReserveError> {
+        WindingNumbers::new(self)
+    }
+
+    /// The binary nodes this tracer walks (a one-level file's tree; in a two-level file, every mesh's).
+    pub(crate) fn nodes(&self) -> &'a [PackedNode] {
+        self.nodes
+    }
+
+    /// The triangle records.
+    pub(crate) fn triangles(&self) -> &'a [PackedTriangle] {
+        self.triangles
+    }
+
+    /// Whether the file has split references.
+    pub(crate) fn split(&self) -> bool {
+        self.split_references
+    }
+
+    /// `mesh`'s ranges of the nodes, records and source ids; `None` when they lie outside the arrays (V41).
+    pub(crate) fn mesh_arrays(&self, mesh: &MeshRecord) -> Option<MeshArrays<'a>> {
+        let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
+        let nodes = self.nodes.get(range(mesh.first_node, mesh.node_count))?;
+        let triangle_range = range(mesh.first_triangle, mesh.triangle_count);
+        let triangles = self.triangles.get(triangle_range.clone())?;
+        Some((nodes, triangles, self.triangle_ids.and_then(|ids| ids.get(triangle_range))))
+    }
+
     /// Walks `mesh` (placed by instance `index`, `instance`) for `nearest`: its wide tree where this tracer has
     /// the wide kernel, else its binary tree. Nothing when its ranges lie outside the arrays (a file that breaks
     /// V41) or the instance's map is singular (V42).
     fn walk_mesh(&self, mesh: &MeshRecord, index: u32, instance: &'a InstanceRecord, nearest: &mut Nearest) {
-        let range = |first: u32, count: u32| first as usize..(first as usize).saturating_add(count as usize);
-        let (Some(nodes), Some(space)) =
-            (self.nodes.get(range(mesh.first_node, mesh.node_count)), Space::instance(instance, nearest.point))
+        let (Some((nodes, triangles, ids)), Some(space)) =
+            (self.mesh_arrays(mesh), Space::instance(instance, nearest.point))
         else {
             return;
         };
-        let triangle_range = range(mesh.first_triangle, mesh.triangle_count);
-        let Some(triangles) = self.triangles.get(triangle_range.clone()) else { return };
-        let ids = self.triangle_ids.and_then(|ids| ids.get(triangle_range));
         let tie = TieOrder::new(self.split_references, ids);
         let placement = Placement { first_record: mesh.first_triangle, instance: Some((index, instance)), tie };
         let root = nodes.first().map(|root| (root.min, root.max));
