@@ -231,11 +231,8 @@ fn leaf_moments<'t>(triangles: impl Iterator<Item = &'t PackedTriangle> + Clone)
     for t in triangles {
         let [a, b, c] = t.vertices.map(|v| v.map(f64::from));
         let n = cross(sub(b, a), sub(c, a));
-        for i in 0..3 {
-            for j in 0..3 {
-                m.spread[i][j] += 0.5 * n[i] * ((a[j] + b[j] + c[j]) / 3.0 - m.center[j]);
-            }
-        }
+        let offset: Point3 = std::array::from_fn(|j| (a[j] + b[j] + c[j]) / 3.0 - m.center[j]);
+        add_outer(&mut m.spread, n.map(|x| 0.5 * x), offset);
         for v in [a, b, c] {
             m.radius = m.radius.max(length(sub(v, m.center)));
         }
@@ -243,6 +240,15 @@ fn leaf_moments<'t>(triangles: impl Iterator<Item = &'t PackedTriangle> + Clone)
     // Counted with no area (degenerate triangles only): kept apart from "no triangle" by a tiny area.
     m.area = m.area.max(f64::MIN_POSITIVE);
     m
+}
+
+/// `m += u v^T`.
+fn add_outer(m: &mut [Point3; 3], u: Point3, v: Point3) {
+    for (row, ui) in m.iter_mut().zip(u) {
+        for (x, vj) in row.iter_mut().zip(v) {
+            *x += ui * vj;
+        }
+    }
 }
 
 /// The moments of two children together.
@@ -258,12 +264,12 @@ fn merged_moments(children: &[Moments]) -> Moments {
     if m.area > 0.0 {
         m.center = m.center.map(|s| s / m.area);
         for c in children {
-            let shift = sub(c.center, m.center);
-            for i in 0..3 {
-                for j in 0..3 {
-                    m.spread[i][j] += c.spread[i][j] + c.area_vector[i] * shift[j];
+            for (row, child_row) in m.spread.iter_mut().zip(&c.spread) {
+                for (x, y) in row.iter_mut().zip(child_row) {
+                    *x += y;
                 }
             }
+            add_outer(&mut m.spread, c.area_vector, sub(c.center, m.center));
         }
         m.radius = children
             .iter()
