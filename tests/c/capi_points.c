@@ -1,6 +1,7 @@
 /* Point queries through the C API. Usage: capi_points FILE.bvh POINTS.bin MAX_DISTANCE, POINTS.bin holding
  * float[3] records. Prints a line a point, "near <distance bits> <triangle> <instance> <x y z bits>" or "none",
- * from bvhc_closest_points on 2 threads, after checking that bvhc_closest_point gives the same record a point and
+ * from bvhc_closest_points on 2 threads, after checking that bvhc_closest_point gives the same record a point;
+ * then a line a point "signed <bits> winding <double bits>" (bvhc_signed_distances, bvhc_winding_numbers); then checks
  * that the argument errors are refused; last line "checks ok". tests/suite/capi_points.rs compares with Rust. */
 #include <math.h>
 #include <stdio.h>
@@ -44,6 +45,19 @@ int main(int argc, char **argv) {
         else
             printf("none\n");
     }
+    /* Signed distances and winding numbers, a line a point. */
+    float *signed_distance = malloc(sizeof(float) * (count + 1));
+    double *winding = malloc(sizeof(double) * (count + 1));
+    CHECK(signed_distance != NULL && winding != NULL);
+    CHECK(bvhc_signed_distances(file, points, count, 2, signed_distance) == BVHC_OK);
+    CHECK(bvhc_winding_numbers(file, points, count, 0, winding) == BVHC_OK);
+    for (size_t i = 0; i < count; i++) {
+        unsigned long long w;
+        memcpy(&w, &winding[i], sizeof w);
+        printf("signed %08x winding %016llx\n", bits(signed_distance[i]), w);
+    }
+    free(signed_distance);
+    free(winding);
     /* What the calls refuse, by name. */
     float bad[6] = {0, 0, 0, NAN, 0, 0};
     CHECK(bvhc_closest_points(file, bad, 2, INFINITY, 1, out) == BVHC_ERROR_ARGUMENT);
@@ -53,6 +67,9 @@ int main(int argc, char **argv) {
     CHECK(bvhc_closest_point(NULL, bad, 1.0f, out) == BVHC_ERROR_ARGUMENT);
     CHECK(bvhc_closest_point(file, NULL, 1.0f, out) == BVHC_ERROR_ARGUMENT);
     CHECK(bvhc_closest_points(file, points, 0, INFINITY, 0, NULL) == BVHC_OK);
+    float one;
+    CHECK(bvhc_signed_distances(file, bad, 2, 1, &one) == BVHC_ERROR_ARGUMENT);
+    CHECK(strstr(bvhc_last_error_message(), "point 1") != NULL);
     free(out);
     free(points);
     bvhc_close(file);

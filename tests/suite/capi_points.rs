@@ -46,6 +46,16 @@ fn same_points_in_c_and_rust(binary: &Path, bvh: &Path, points: &[[f32; 3]], max
         near += usize::from(found.is_some());
         assert_eq!(*c_line, line(found), "point {k} {point:?}");
     }
+    let winding = tracer.winding_numbers().unwrap();
+    for (k, (c_line, point)) in lines[points.len()..].iter().zip(points).enumerate() {
+        let expected = format!(
+            "signed {:08x} winding {:016x}",
+            winding.signed_distance(*point).to_bits(),
+            winding.winding_number(*point).to_bits()
+        );
+        assert_eq!(*c_line, expected, "point {k} {point:?}");
+    }
+    assert_eq!(lines.len(), 2 * points.len() + 1);
     near
 }
 

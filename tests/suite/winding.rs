@@ -71,7 +71,7 @@ fn fast_winding_numbers_follow_the_exact_sum_on_closed_and_open_meshes() {
                 worst = worst.max((fast - exact).abs());
             }
             eprintln!("{name}: largest |fast - exact| {worst:.2e}");
-            assert!(worst < 2e-2, "{name}: {worst}");
+            assert!(worst < 6e-2, "{name}: {worst}");
         }
     }
 }
@@ -93,7 +93,7 @@ fn signed_distances_are_negative_inside_closed_meshes_of_either_winding() {
             // The facets lie between radius 0.99 and 1 (level 3): clear of them, the sign is the side.
             if r < 0.98 {
                 assert!(d < 0.0, "{p:?} inside: {d}");
-                assert!((winding.winding_number(*p).abs() - 1.0).abs() < 2e-2);
+                assert!((winding.winding_number(*p).abs() - 1.0).abs() < 6e-2);
             } else if r > 1.0 {
                 assert!(d > 0.0, "{p:?} outside: {d}");
             }
@@ -135,7 +135,7 @@ fn instanced_spheres_are_summed_in_world_space_through_every_placement() {
                 worst = worst.max((winding.winding_number(p) - exact(&world, p)).abs());
             }
         }
-        assert!(worst < 2e-2, "wide {wide}: {worst}");
+        assert!(worst < 6e-2, "wide {wide}: {worst}");
         // Inside the mirrored, non-uniformly scaled sphere (placement 8: center (6, 0, 0), semi-axes 2, 1, 0.5).
         assert!(winding.signed_distance([6.5, 0.2, 0.1]) < 0.0);
         assert!(winding.signed_distance([6.0, 0.0, 0.7]) > 0.0);
@@ -167,7 +167,7 @@ fn split_references_count_each_triangle_once_and_hostile_bytes_get_an_answer() {
             root.min[k] + (root.max[k] - root.min[k]) * u
         });
         let (fast, exact) = (winding.winding_number(p), exact(&world, p));
-        assert!((fast - exact).abs() < 2e-2, "{p:?}: {fast} vs {exact}");
+        assert!((fast - exact).abs() < 6e-2, "{p:?}: {fast} vs {exact}");
     }
     let kinds = [SectionKind::Nodes, SectionKind::Triangles];
     for (_, copy) in scribbled_copies(&file, &kinds, 100, 16, 7032) {

@@ -194,6 +194,16 @@ bvhc_status bvhc_closest_point(const bvhc_file *file, const float point[3], floa
  * not finite (nothing written then). */
 bvhc_status bvhc_closest_points(const bvhc_file *file, const float *points, size_t count, float max_distance,
                                 unsigned threads, bvhc_nearest_point *out);
+/* Signed distances: out[i] is point i's distance to the surface, negative where the generalized winding number's
+ * magnitude exceeds 1/2 (inside a closed mesh of either winding), 0 on the surface; winding numbers: out[i] is
+ * 1 inside a closed mesh wound counter-clockwise seen from outside (-1 for the other winding), 0 outside,
+ * fractions near holes (summed fast: within about 0.05 of the exact sum near surfaces). The winding moments are
+ * computed once a call (time linear in the triangles, 136 bytes a tree node: BVHC_ERROR_MEMORY when they cannot
+ * be had). BVHC_ERROR_ARGUMENT naming the first point that is not finite. */
+bvhc_status bvhc_signed_distances(const bvhc_file *file, const float *points, size_t count, unsigned threads,
+                                  float *out);
+bvhc_status bvhc_winding_numbers(const bvhc_file *file, const float *points, size_t count, unsigned threads,
+                                 double *out);
 
 /* Hit filters (alpha testing): filter(user_data, candidate) returns nonzero to accept a candidate hit, zero to
  * reject it (traversal then goes on as if the triangle were not hit). With BVHC_FILTER_NOT_OPAQUE it is called

@@ -45,7 +45,9 @@ pub use filtered_batch::{
     bvhc_closest_hits_filtered_threads,
 };
 pub use open::{bvhc_close, bvhc_open, bvhc_open_memory, bvhc_verify};
-pub use points::{BvhcNearestPoint, bvhc_closest_point, bvhc_closest_points};
+pub use points::{
+    BvhcNearestPoint, bvhc_closest_point, bvhc_closest_points, bvhc_signed_distances, bvhc_winding_numbers,
+};
 pub use records::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};
 pub use refit::{
     BvhcRefitReport, bvhc_move_instances, bvhc_move_instances_in_frame, bvhc_planned_cost_ratio,

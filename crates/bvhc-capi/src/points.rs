@@ -1,5 +1,6 @@
-//! Point queries through the C API (`bvhc_closest_point`, `bvhc_closest_points`): the loader's
-//! `Tracer::closest_point`, its answer as a `bvhc_nearest_point` record (`format-spec/point-queries.md`).
+//! Point queries through the C API (`bvhc_closest_point`, `bvhc_closest_points`, `bvhc_signed_distances`,
+//! `bvhc_winding_numbers`): the loader's `Tracer::closest_point` and `WindingNumbers`, answers as
+//! `bvhc_nearest_point` records (`format-spec/point-queries.md`) or plain arrays.
 
 use std::ffi::c_int;
 
@@ -134,23 +135,112 @@ pub unsafe extern "C" fn bvhc_closest_points(
         if points.is_null() || out.is_null() {
             return Err(argument(&format!("{call}: points or out is null")));
         }
-        let floats = count.checked_mul(3).ok_or_else(|| argument(&format!("{call}: count {count} overflows")))?;
         // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` records, apart.
-        let (coordinates, out) =
-            unsafe { (std::slice::from_raw_parts(points, floats), std::slice::from_raw_parts_mut(out, count)) };
-        let rows: Vec<[f32; 3]> = coordinates.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-        for (i, &p) in rows.iter().enumerate() {
-            check_point(call, i, p)?;
-        }
-        let threads = match threads {
-            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
-            n => n as usize,
-        };
+        let rows = unsafe { point_rows(call, points, count) }?;
+        // SAFETY: as above.
+        let out = unsafe { std::slice::from_raw_parts_mut(out, count) };
         let mut found = vec![None; count];
-        file.tracer().closest_points(&rows, max_distance, &mut found, threads);
+        file.tracer().closest_points(&rows, max_distance, &mut found, thread_count(threads));
         for (slot, answer) in out.iter_mut().zip(found) {
             *slot = answer.map_or(NOTHING, BvhcNearestPoint::from);
         }
         Ok(BVHC_OK)
     })
+}
+
+/// The thread count a call's `threads` argument asks for (0: every core).
+fn thread_count(threads: u32) -> usize {
+    match threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n as usize,
+    }
+}
+
+/// The `count` points at `points` (3 floats each), each checked finite (else an argument error naming it).
+///
+/// # Safety
+///
+/// `points` is not null and points to `3 count` readable floats.
+unsafe fn point_rows(call: &str, points: *const f32, count: usize) -> Result<Vec<[f32; 3]>, (c_int, String)> {
+    let floats = count.checked_mul(3).ok_or_else(|| argument(&format!("{call}: count {count} overflows")))?;
+    // SAFETY: the caller's contract.
+    let coordinates = unsafe { std::slice::from_raw_parts(points, floats) };
+    let rows: Vec<[f32; 3]> = coordinates.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    for (i, &p) in rows.iter().enumerate() {
+        check_point(call, i, p)?;
+    }
+    Ok(rows)
+}
+
+/// The signed distance of each of `count` points (3 floats each) to the surface into `out[i]`: the closest
+/// point's distance, negative where the generalized winding number's magnitude exceeds 1/2 (inside), on up to
+/// `threads` threads (0: every core). `BVHC_ERROR_ARGUMENT` naming the first point that is not finite;
+/// `BVHC_ERROR_MEMORY` when the winding moments (computed once a call, 136 bytes a node) cannot be had.
+///
+/// # Safety
+///
+/// `file` is null or a live file; `points` null or `3 count` readable floats; `out` null or `count` writable
+/// floats not overlapping `points`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_signed_distances(
+    file: *const BvhcFile,
+    points: *const f32,
+    count: usize,
+    threads: u32,
+    out: *mut f32,
+) -> c_int {
+    guarded(|| {
+        let call = "bvhc_signed_distances";
+        // SAFETY: the caller's contract.
+        let file = unsafe { file_ref(call, file) }?;
+        if count == 0 {
+            return Ok(BVHC_OK);
+        }
+        if points.is_null() || out.is_null() {
+            return Err(argument(&format!("{call}: points or out is null")));
+        }
+        // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` floats, apart.
+        let (rows, out) = unsafe { (point_rows(call, points, count)?, std::slice::from_raw_parts_mut(out, count)) };
+        let numbers = file.tracer().winding_numbers().map_err(|e| memory(call, e))?;
+        numbers.signed_distances(&rows, out, thread_count(threads));
+        Ok(BVHC_OK)
+    })
+}
+
+/// The generalized winding number of the surface at each of `count` points into `out[i]` (1 inside a closed
+/// mesh wound counter-clockwise seen from outside, -1 for the other winding, 0 outside), on up to `threads`
+/// threads (0: every core). Errors as [`bvhc_signed_distances`].
+///
+/// # Safety
+///
+/// As [`bvhc_signed_distances`], with `out` `count` writable doubles.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_winding_numbers(
+    file: *const BvhcFile,
+    points: *const f32,
+    count: usize,
+    threads: u32,
+    out: *mut f64,
+) -> c_int {
+    guarded(|| {
+        let call = "bvhc_winding_numbers";
+        // SAFETY: the caller's contract.
+        let file = unsafe { file_ref(call, file) }?;
+        if count == 0 {
+            return Ok(BVHC_OK);
+        }
+        if points.is_null() || out.is_null() {
+            return Err(argument(&format!("{call}: points or out is null")));
+        }
+        // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` doubles, apart.
+        let (rows, out) = unsafe { (point_rows(call, points, count)?, std::slice::from_raw_parts_mut(out, count)) };
+        let numbers = file.tracer().winding_numbers().map_err(|e| memory(call, e))?;
+        numbers.winding_numbers(&rows, out, thread_count(threads));
+        Ok(BVHC_OK)
+    })
+}
+
+/// The memory error of a call whose winding moments could not be allocated.
+fn memory(call: &str, error: std::collections::TryReserveError) -> (c_int, String) {
+    (crate::boundary::BVHC_ERROR_MEMORY, format!("{call}: the winding moments: {error}"))
 }

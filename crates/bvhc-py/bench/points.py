@@ -9,7 +9,12 @@ on all; trimesh (single-threaded, slow): a tenth of the points, its time scaled 
 records with duplicates removed (a split triangle's records are one triangle). Medians of `--runs` runs; the
 largest distance difference from bvhc is printed per peer (both round to float32).
 
-    python crates/bvhc-py/bench/points.py [--points N] [--scenes kitchen,dragon] [--runs 3]
+With `--signed`, signed distances instead: bvhc's `signed_distance` (winding moments computed in the call)
+against Open3D's `compute_signed_distance`, and how many of `--check` points each gets on the wrong side of the
+exact winding number (every triangle's solid angle summed in float64 with numpy; points with a winding number
+within 0.1 of 1/2 left out).
+
+    python crates/bvhc-py/bench/points.py [--points N] [--scenes kitchen,dragon] [--runs 3] [--signed] [--check 300]
 needs `pip install open3d trimesh rtree` (a peer that does not import is left out) and the shared scenes.
 """
 
@@ -44,16 +49,59 @@ def timed(f, runs):
     return statistics.median(times), result
 
 
+def exact_winding(tris, p):
+    """The winding number at p of tris ((m, 3, 3) float64): solid angles (Van Oosterom and Strackee) summed."""
+    a, b, c = tris[:, 0] - p, tris[:, 1] - p, tris[:, 2] - p
+    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+    dot = lambda x, y: np.einsum("ij,ij->i", x, y)
+    numerator = dot(a, np.cross(b, c))
+    denominator = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la
+    return 2 * np.arctan2(numerator, denominator).sum() / (4 * np.pi)
+
+
+def signed(args, name, opened, tris, vertices, faces, sets):
+    for label, points in sets.items():
+        b1, mine = timed(lambda: opened.signed_distance(points, threads=1), args.runs)
+        bn, _ = timed(lambda: opened.signed_distance(points), args.runs)
+        check = points[: args.check].astype(np.float64)
+        exact = np.array([exact_winding(tris.astype(np.float64), p) for p in check])
+        clear = np.abs(np.abs(exact) - 0.5) > 0.1
+        inside = np.abs(exact) > 0.5
+        wrong = lambda s: int(((s[: args.check] < 0) != inside)[clear].sum())
+        row = [f"{b1:.2f} / {bn:.2f}", f"{wrong(mine)} of {clear.sum()}"]
+        try:
+            import open3d as o3d
+
+            scene = o3d.t.geometry.RaycastingScene()
+            scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(faces))
+            query = o3d.core.Tensor(points)
+            scene.compute_signed_distance(query[:10])
+            q, peer = timed(lambda: scene.compute_signed_distance(query), args.runs)
+            row += [f"{q:.2f}", f"{wrong(peer.numpy())} of {clear.sum()}", f"{q / b1:.2f}x"]
+        except ImportError:
+            row += ["-", "-", "-"]
+        print(f"| {name} | {label} {len(points):,} | " + " | ".join(row) + " |")
+        sys.stdout.flush()
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--points", type=int, default=1_000_000)
     parser.add_argument("--scenes", default="kitchen,dragon,buddha,engine")
     parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--signed", action="store_true")
+    parser.add_argument("--check", type=int, default=300)
     args = parser.parse_args()
     cores = os.cpu_count() or 1
-    print(f"| scene | points | bvhc 1 / {cores} threads (s) | Open3D query 1 / {cores} (s) | Open3D with build 1 / {cores} (s) "
-          "| trimesh (s, scaled) | bvhc / Open3D query, 1 thread | max difference |")
-    print("|---|---|---|---|---|---|---|---|")
+    if args.signed:
+        print(f"| scene | points | bvhc 1 / {cores} threads (s) | bvhc wrong signs | Open3D {cores} threads (s) "
+              "| Open3D wrong signs | Open3D / bvhc 1 thread |")
+        print("|---|---|---|---|---|---|---|")
+    else:
+        print(f"| scene | points | bvhc 1 / {cores} threads (s) | Open3D query 1 / {cores} (s) "
+              f"| Open3D with build 1 / {cores} (s) | trimesh (s, scaled) | bvhc / Open3D query, 1 thread "
+              "| max difference |")
+        print("|---|---|---|---|---|---|---|---|")
     for name in args.scenes.split(","):
         path = SCENES / FILES[name]
         if not path.is_file():
@@ -77,6 +125,9 @@ def main():
                 "near": (on + rng.uniform(-0.01, 0.01, on.shape) * size).astype(np.float32),
                 "uniform": rng.uniform(lo, hi, (args.points, 3)).astype(np.float32),
             }
+            if args.signed:
+                signed(args, name, opened, tris, vertices, faces, sets)
+                continue
             for label, points in sets.items():
                 b1, found = timed(lambda: opened.closest_points(points, threads=1), args.runs)
                 bn, _ = timed(lambda: opened.closest_points(points), args.runs)

@@ -21,8 +21,10 @@ use crate::format::{PackedNode, PackedTriangle};
 use crate::point::Point3;
 use crate::tracer::Tracer;
 
-/// A node is summed by its dipole when the query point lies farther than `BETA` times its radius.
-pub const BETA: f64 = 4.0;
+/// A node is summed by its expansion when the query point lies farther than `BETA` times its radius (2, as
+/// Barill et al. 2018 choose; 4 measured 3.5x slower on the kitchen's points for a largest error of 0.012
+/// instead of 0.046 near a sphere's surface).
+pub const BETA: f64 = 2.0;
 
 /// What a node's triangles sum to: area vector, area-weighted centre, total area (0: no triangle counted), and
 /// the radius about the centre that holds their vertices, and the expansion's second-order moment.
@@ -140,6 +142,17 @@ impl<'a> WindingNumbers<'a> {
             return distance;
         }
         if self.winding_number(point).abs() > 0.5 { -distance } else { distance }
+    }
+
+    /// [`WindingNumbers::winding_number`] of each of `points` into `out` (the same length; panics otherwise),
+    /// on up to `threads` threads (0 counts as 1); the same values on any count.
+    pub fn winding_numbers(&self, points: &[[f32; 3]], out: &mut [f64], threads: usize) {
+        crate::ray::hit::same_length("winding_numbers", points.len(), out.len());
+        crate::parallel::Workers::new(threads).for_chunks(out, 256, |first, chunk| {
+            for (slot, &point) in chunk.iter_mut().zip(&points[first..]) {
+                *slot = self.winding_number(point);
+            }
+        });
     }
 
     /// [`WindingNumbers::signed_distance`] of each of `points` into `out` (the same length; panics otherwise),

@@ -445,7 +445,7 @@ class Scene:
         :meth:`distance`, negative where the generalized winding number's magnitude exceeds 1/2 (inside a closed
         mesh of either winding; open and self-intersecting meshes get the sign their winding number gives), 0 on
         the surface. The winding numbers are summed fast (far parts of the tree by their dipole expansion, within
-        about 0.02 of the exact sum near surfaces, far less away from them); their moments are computed once a
+        about 0.05 of the exact sum near surfaces, far less away from them); their moments are computed once a
         call, in time linear in the triangles."""
         return self._native.signed_distance(points, threads)
 
