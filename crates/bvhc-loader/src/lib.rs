@@ -93,7 +93,7 @@ pub use open::sections::{GpuSections, TwoLevelSections, WideSections};
 pub use open::structure::SectionInfo;
 pub use open::view::BvhView;
 pub use open::view_mut::BvhViewMut;
-pub use point::{ClosestPoint, WindingNumbers};
+pub use point::ClosestPoint;
 pub use ray::check_rays;
 pub use ray::{
     BatchRayError, ForeignHit, Hit, HitCore, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,
@@ -105,6 +105,7 @@ pub use source::identity::TriangleIdentities;
 pub use trace::{BatchResult, Order, Trace};
 pub use tracer::filter;
 pub use tracer::filter::{FilteredTracer, HitFilter};
+pub use tracer::winding::WindingNumbers;
 pub use tracer::{Crossings, Kernel, TracedFile, Tracer};
 pub use wide::WideTracer;
 

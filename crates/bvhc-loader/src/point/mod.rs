@@ -15,10 +15,10 @@ pub(crate) mod space;
 mod triangle;
 pub(crate) mod walk;
 pub(crate) mod wide;
-mod winding;
+pub(crate) mod winding;
 
 pub use triangle::{Point3, TrianglePoint, closest_on_triangle};
-pub use winding::{BETA, WindingNumbers, solid_angle};
+pub use winding::{BETA, solid_angle};
 
 /// The closest point of a file's surface to a query point (`format-spec/point-queries.md`).
 ///

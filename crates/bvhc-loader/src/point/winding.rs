@@ -6,20 +6,19 @@
 //! expansion's second-order term (each triangle's area vector times its centroid's offset from `c`), and a near leaf the
 //! exact solid angles of its triangles (Van Oosterom and Strackee 1983). The sum over `4 pi` is 1 inside a
 //! closed, consistently wound mesh, 0 outside, and in between for open or self-intersecting ones, which is what
-//! the sign of [`WindingNumbers::signed_distance`] reads (`> 1/2`: inside).
+//! the sign of a signed distance reads (`> 1/2`: inside; `crate::tracer::winding`).
 //!
 //! Each triangle counts once: with split references only the lowest record of each triangle (its coordinates
 //! and source id) is summed. Through a two-level file every instance's mesh is summed in world space: its
 //! moments mapped by the instance (the centre by the map, the area vector by the cofactor matrix of its linear
 //! part, the radius stretched by that part's Frobenius norm, a bound on its largest stretch) and its near
-//! triangles placed as the point queries place them. Moments are computed once, in O(records), by
-//! [`WindingNumbers::new`].
+//! triangles placed as the point queries place them. Moments are computed once, in O(records)
+//! ([`mesh_moments`]).
 
 use std::collections::TryReserveError;
 
 use crate::format::{PackedNode, PackedTriangle};
 use crate::point::Point3;
-use crate::tracer::Tracer;
 
 /// A node is summed by its expansion when the query point lies farther than `BETA` times its radius (2, as
 /// Barill et al. 2018 choose; 4 measured 3.5x slower on the kitchen's points for a largest error of 0.012
@@ -40,18 +39,9 @@ struct Moments {
 
 /// One mesh's moments, indexed like its binary nodes, and which records count (`None`: all).
 #[derive(Clone, Debug)]
-struct MeshMoments {
+pub(crate) struct MeshMoments {
     nodes: Vec<Moments>,
     counted: Option<Vec<bool>>,
-}
-
-/// A file's winding numbers and signed distances: the moments of every mesh, computed once (O(records) time,
-/// 136 bytes a binary node), over a tracer that answers the closest points.
-#[derive(Clone, Debug)]
-pub struct WindingNumbers<'a> {
-    tracer: Tracer<'a>,
-    /// One a mesh: the file's tree (one level), or each mesh of a two-level file.
-    meshes: Vec<MeshMoments>,
 }
 
 fn sub(a: Point3, b: Point3) -> Point3 {
@@ -80,93 +70,6 @@ pub fn solid_angle(p: Point3, [a, b, c]: [Point3; 3]) -> f64 {
     2.0 * numerator.atan2(denominator)
 }
 
-impl<'a> WindingNumbers<'a> {
-    /// The moments of `tracer`'s file. Fails only when memory for them cannot be had.
-    pub fn new(tracer: &Tracer<'a>) -> Result<WindingNumbers<'a>, TryReserveError> {
-        let mut meshes = Vec::new();
-        match tracer.instance_sections() {
-            None => {
-                meshes.try_reserve_exact(1)?;
-                meshes.push(mesh_moments(tracer.nodes(), tracer.triangles(), tracer.triangle_ids(), tracer.split())?);
-            }
-            Some(sections) => {
-                meshes.try_reserve_exact(sections.meshes.len())?;
-                for mesh in sections.meshes {
-                    let (nodes, triangles, ids) = tracer.mesh_arrays(mesh).unwrap_or((&[], &[], None));
-                    meshes.push(mesh_moments(nodes, triangles, ids, tracer.split())?);
-                }
-            }
-        }
-        Ok(WindingNumbers { tracer: *tracer, meshes })
-    }
-
-    /// The winding number of the file's surface at `point`: 1 inside a closed mesh wound counter-clockwise seen
-    /// from outside (-1 for the other winding), 0 outside, fractions near holes; NaN for a point that is not
-    /// finite.
-    pub fn winding_number(&self, point: [f32; 3]) -> f64 {
-        if !point.iter().all(|c| c.is_finite()) {
-            return f64::NAN;
-        }
-        let p = point.map(f64::from);
-        let total = match self.tracer.instance_sections() {
-            None => match self.meshes.first() {
-                Some(moments) => mesh_angle(self.tracer.nodes(), self.tracer.triangles(), moments, p, None),
-                None => 0.0,
-            },
-            Some(sections) => {
-                let mut total = 0.0;
-                for (index, instance) in sections.instances.iter().enumerate() {
-                    let Some((_, mesh)) = sections.placement(index as u32) else { continue };
-                    let (Some(moments), Some(map)) = (self.meshes.get(instance.mesh_index as usize), Map::of(instance))
-                    else {
-                        continue;
-                    };
-                    let (nodes, triangles, _) = self.tracer.mesh_arrays(mesh).unwrap_or((&[], &[], None));
-                    total += mesh_angle(nodes, triangles, moments, p, Some(&map));
-                }
-                total
-            }
-        };
-        total / (4.0 * std::f64::consts::PI)
-    }
-
-    /// The signed distance from `point` to the surface: the closest point's distance, negative where the
-    /// winding number's magnitude exceeds 1/2 (inside, whichever way the mesh is wound); 0 on the surface;
-    /// `f32::INFINITY` for a file with no triangles; NaN for a point that is not finite.
-    pub fn signed_distance(&self, point: [f32; 3]) -> f32 {
-        if !point.iter().all(|c| c.is_finite()) {
-            return f32::NAN;
-        }
-        let distance = self.tracer.distance(point);
-        if distance == 0.0 || distance.is_infinite() {
-            return distance;
-        }
-        if self.winding_number(point).abs() > 0.5 { -distance } else { distance }
-    }
-
-    /// [`WindingNumbers::winding_number`] of each of `points` into `out` (the same length; panics otherwise),
-    /// on up to `threads` threads (0 counts as 1); the same values on any count.
-    pub fn winding_numbers(&self, points: &[[f32; 3]], out: &mut [f64], threads: usize) {
-        crate::ray::hit::same_length("winding_numbers", points.len(), out.len());
-        crate::parallel::Workers::new(threads).for_chunks(out, 256, |first, chunk| {
-            for (slot, &point) in chunk.iter_mut().zip(&points[first..]) {
-                *slot = self.winding_number(point);
-            }
-        });
-    }
-
-    /// [`WindingNumbers::signed_distance`] of each of `points` into `out` (the same length; panics otherwise),
-    /// on up to `threads` threads (0 counts as 1); the same values on any count.
-    pub fn signed_distances(&self, points: &[[f32; 3]], out: &mut [f32], threads: usize) {
-        crate::ray::hit::same_length("signed_distances", points.len(), out.len());
-        crate::parallel::Workers::new(threads).for_chunks(out, 256, |first, chunk| {
-            for (slot, &point) in chunk.iter_mut().zip(&points[first..]) {
-                *slot = self.signed_distance(point);
-            }
-        });
-    }
-}
-
 /// Which records of a mesh count: with split references only the lowest record of each (coordinates, source id);
 /// `None` when every record does.
 fn counted_records(
@@ -193,7 +96,7 @@ fn counted_records(
 }
 
 /// The moments of a mesh's tree, children before parents (a verified tree's children follow their parent).
-fn mesh_moments(
+pub(crate) fn mesh_moments(
     nodes: &[PackedNode],
     triangles: &[PackedTriangle],
     ids: Option<&[u32]>,
@@ -295,7 +198,7 @@ fn merged_moments(children: &[Moments]) -> Moments {
 
 /// An instance's map in binary64: `x -> L x + t`, the cofactor matrix of `L` (which maps an area vector), and
 /// `|L|_F`, which bounds how far it stretches a radius.
-struct Map {
+pub(crate) struct Map {
     linear: [Point3; 3],
     translation: Point3,
     cofactor: [Point3; 3],
@@ -304,7 +207,7 @@ struct Map {
 
 impl Map {
     /// The map of `instance`'s `object_to_world`; `None` when not finite.
-    fn of(instance: &crate::format::InstanceRecord) -> Option<Map> {
+    pub(crate) fn of(instance: &crate::format::InstanceRecord) -> Option<Map> {
         let m = &instance.object_to_world;
         let linear: [Point3; 3] = std::array::from_fn(|i| std::array::from_fn(|j| f64::from(m[i][j])));
         let translation = [0, 1, 2].map(|i| f64::from(m[i][3]));
@@ -337,7 +240,7 @@ impl Map {
 
 /// The sum of the solid angles at `p` (world space) of a mesh's counted triangles, placed by `map` (`None`:
 /// in world space already), far nodes by their dipoles. At most `nodes.len()` nodes are visited.
-fn mesh_angle(
+pub(crate) fn mesh_angle(
     nodes: &[PackedNode],
     triangles: &[PackedTriangle],
     mesh: &MeshMoments,

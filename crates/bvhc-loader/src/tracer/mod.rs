@@ -7,6 +7,7 @@ pub(crate) mod crossings;
 pub mod filter;
 mod of_view;
 mod points;
+pub(crate) mod winding;
 pub(crate) mod traced;
 
 pub use batch::CHECKED_CHUNK;

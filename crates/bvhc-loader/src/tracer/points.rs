@@ -4,14 +4,15 @@
 use crate::format::{InstanceRecord, MeshRecord, PackedNode, PackedTriangle};
 use crate::open::sections::TwoLevelSections;
 use crate::parallel::Workers;
+use crate::point::ClosestPoint;
 use crate::point::nearest::{Candidate, Nearest};
 use crate::point::records::{PacketRecords, Placement, PointLeaves, TriangleRecords};
 use crate::point::space::Space;
 use crate::point::walk::walk_points;
 use crate::point::wide::walk_wide_points;
-use crate::point::{ClosestPoint, WindingNumbers};
 use crate::ray::query::TieOrder;
 use crate::tracer::Tracer;
+use crate::tracer::winding::WindingNumbers;
 
 /// A mesh's binary nodes, triangle records and source ids.
 pub(crate) type MeshArrays<'a> = (&'a [PackedNode], &'a [PackedTriangle], Option<&'a [u32]>);
