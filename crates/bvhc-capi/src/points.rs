@@ -4,7 +4,7 @@
 
 use std::ffi::c_int;
 
-use bvhc_loader::ClosestPoint;
+use bvhc_loader::{ClosestPoint, WindingNumbers};
 
 use crate::boundary::{BVHC_OK, BvhcFile, argument, file_ref, guarded};
 
@@ -189,22 +189,11 @@ pub unsafe extern "C" fn bvhc_signed_distances(
     threads: u32,
     out: *mut f32,
 ) -> c_int {
-    guarded(|| {
-        let call = "bvhc_signed_distances";
-        // SAFETY: the caller's contract.
-        let file = unsafe { file_ref(call, file) }?;
-        if count == 0 {
-            return Ok(BVHC_OK);
-        }
-        if points.is_null() || out.is_null() {
-            return Err(argument(&format!("{call}: points or out is null")));
-        }
-        // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` floats, apart.
-        let (rows, out) = unsafe { (point_rows(call, points, count)?, std::slice::from_raw_parts_mut(out, count)) };
-        let numbers = file.tracer().winding_numbers().map_err(|e| memory(call, e))?;
-        numbers.signed_distances(&rows, out, thread_count(threads));
-        Ok(BVHC_OK)
-    })
+    let fill = |numbers: &WindingNumbers<'_>, rows: &[[f32; 3]], out: &mut [f32], threads| {
+        numbers.signed_distances(rows, out, threads)
+    };
+    // SAFETY: the caller's contract is the helper's.
+    unsafe { winding_call("bvhc_signed_distances", file, (points, count), threads, out, fill) }
 }
 
 /// The generalized winding number of the surface at each of `count` points into `out[i]` (1 inside a closed
@@ -222,8 +211,29 @@ pub unsafe extern "C" fn bvhc_winding_numbers(
     threads: u32,
     out: *mut f64,
 ) -> c_int {
+    let fill = |numbers: &WindingNumbers<'_>, rows: &[[f32; 3]], out: &mut [f64], threads| {
+        numbers.winding_numbers(rows, out, threads)
+    };
+    // SAFETY: the caller's contract is the helper's.
+    unsafe { winding_call("bvhc_winding_numbers", file, (points, count), threads, out, fill) }
+}
+
+/// The calls over the winding moments: checks the arguments, computes the moments once, and has `fill` write
+/// `count` values into `out` on `threads` threads.
+///
+/// # Safety
+///
+/// `file` is null or a live file; `points` null or `3 count` readable floats; `out` null or `count` writable
+/// values not overlapping `points`.
+unsafe fn winding_call<T>(
+    call: &str,
+    file: *const BvhcFile,
+    (points, count): (*const f32, usize),
+    threads: u32,
+    out: *mut T,
+    fill: impl FnOnce(&WindingNumbers<'_>, &[[f32; 3]], &mut [T], usize),
+) -> c_int {
     guarded(|| {
-        let call = "bvhc_winding_numbers";
         // SAFETY: the caller's contract.
         let file = unsafe { file_ref(call, file) }?;
         if count == 0 {
@@ -232,10 +242,10 @@ pub unsafe extern "C" fn bvhc_winding_numbers(
         if points.is_null() || out.is_null() {
             return Err(argument(&format!("{call}: points or out is null")));
         }
-        // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` doubles, apart.
+        // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` values, apart.
         let (rows, out) = unsafe { (point_rows(call, points, count)?, std::slice::from_raw_parts_mut(out, count)) };
         let numbers = file.tracer().winding_numbers().map_err(|e| memory(call, e))?;
-        numbers.winding_numbers(&rows, out, thread_count(threads));
+        fill(&numbers, &rows, out, thread_count(threads));
         Ok(BVHC_OK)
     })
 }

@@ -36,6 +36,27 @@ pub fn max_distance_keyword(max_distance: Option<f64>) -> PyResult<f32> {
     }
 }
 
+/// `value(point)` of each of `rows` into a new array, chunks of points on `pool` with the GIL released.
+fn each_point<T: Copy + Send>(
+    py: Python<'_>,
+    rows: &[[f32; 3]],
+    pool: &Option<rayon::ThreadPool>,
+    empty: T,
+    value: impl Fn([f32; 3]) -> T + Sync,
+) -> Vec<T> {
+    let mut out = vec![empty; rows.len()];
+    py.detach(|| {
+        on_pool(pool, || {
+            out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
+                for (slot, &point) in slots.iter_mut().zip(points) {
+                    *slot = value(point);
+                }
+            })
+        })
+    });
+    out
+}
+
 /// Each point's closest point within `max_distance`, traced on `pool`.
 fn answers(
     py: Python<'_>,
@@ -45,17 +66,7 @@ fn answers(
     pool: &Option<rayon::ThreadPool>,
 ) -> Vec<Option<ClosestPoint>> {
     let tracer = view.tracer();
-    let mut out = vec![None; rows.len()];
-    py.detach(|| {
-        on_pool(pool, || {
-            out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
-                for (slot, &point) in slots.iter_mut().zip(points) {
-                    *slot = tracer.closest_point(point, max_distance);
-                }
-            })
-        })
-    });
-    out
+    each_point(py, rows, pool, None, |point| tracer.closest_point(point, max_distance))
 }
 
 /// `Scene.closest_points`: a dict of columns, a row a point: `point` ((n, 3) float32), `distance` (float32,
@@ -94,18 +105,6 @@ pub fn closest_points<'py>(
     Ok(d)
 }
 
-/// `Scene.distance`: each point's distance from the surface (`inf` for a file with no triangles).
-pub fn distances(
-    py: Python<'_>,
-    view: &BvhView<'_>,
-    points: &Vectors<'_>,
-    pool: &Option<rayon::ThreadPool>,
-) -> PyResult<Vec<f32>> {
-    let rows = finite_rows(py, points)?;
-    let found = answers(py, view, &rows, f32::INFINITY, pool);
-    Ok(found.iter().map(|c| c.map_or(f32::INFINITY, |c| c.distance)).collect())
-}
-
 /// `Scene.signed_distance` (`signed`) or `Scene.winding_number`: each point's signed distance (float32, negative
 /// inside) or winding number (float64), from the file's winding moments, computed once for the call.
 pub fn winding<'py>(
@@ -121,27 +120,9 @@ pub fn winding<'py>(
         pyo3::exceptions::PyMemoryError::new_err(format!("the winding moments of {} triangles: {e}", view.triangles().len()))
     })?;
     if signed {
-        let mut out = vec![0f32; rows.len()];
-        py.detach(|| {
-            on_pool(pool, || {
-                out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
-                    for (slot, &point) in slots.iter_mut().zip(points) {
-                        *slot = numbers.signed_distance(point);
-                    }
-                })
-            })
-        });
+        let out = each_point(py, &rows, pool, 0f32, |point| numbers.signed_distance(point));
         return Ok(out.into_pyarray(py).into_any());
     }
-    let mut out = vec![0f64; rows.len()];
-    py.detach(|| {
-        on_pool(pool, || {
-            out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
-                for (slot, &point) in slots.iter_mut().zip(points) {
-                    *slot = numbers.winding_number(point);
-                }
-            })
-        })
-    });
+    let out = each_point(py, &rows, pool, 0f64, |point| numbers.winding_number(point));
     Ok(out.into_pyarray(py).into_any())
 }

@@ -235,44 +235,19 @@ impl Scene {
         })
     }
 
-    /// Each point's distance from the surface, as a float32 array.
-    #[pyo3(signature = (points, threads=None))]
-    fn distance<'py>(
+    /// Each point's signed distance (`signed`: float32, negative inside) or generalized winding number
+    /// (float64), as an array.
+    #[pyo3(signature = (points, signed, threads=None))]
+    fn winding<'py>(
         &self,
         py: Python<'py>,
         points: Bound<'py, PyAny>,
-        threads: Option<usize>,
-    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
-        let points = Vectors::extract("points", &points)?;
-        let pool = pool(threads)?;
-        let distances = with_view(py, &self.bytes, &self.path, |view| crate::points::distances(py, view, &points, &pool))?;
-        Ok(distances.into_pyarray(py))
-    }
-
-    /// Each point's signed distance from the surface (negative inside), as a float32 array.
-    #[pyo3(signature = (points, threads=None))]
-    fn signed_distance<'py>(
-        &self,
-        py: Python<'py>,
-        points: Bound<'py, PyAny>,
+        signed: bool,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let points = Vectors::extract("points", &points)?;
         let pool = pool(threads)?;
-        with_view(py, &self.bytes, &self.path, |view| crate::points::winding(py, view, &points, true, &pool))
-    }
-
-    /// Each point's generalized winding number, as a float64 array.
-    #[pyo3(signature = (points, threads=None))]
-    fn winding_number<'py>(
-        &self,
-        py: Python<'py>,
-        points: Bound<'py, PyAny>,
-        threads: Option<usize>,
-    ) -> PyResult<Bound<'py, PyAny>> {
-        let points = Vectors::extract("points", &points)?;
-        let pool = pool(threads)?;
-        with_view(py, &self.bytes, &self.path, |view| crate::points::winding(py, view, &points, false, &pool))
+        with_view(py, &self.bytes, &self.path, |view| crate::points::winding(py, view, &points, signed, &pool))
     }
 
     /// Seconds the loader's batch call takes for these rays as a Rust program makes it: `Tracer::closest_hits` in

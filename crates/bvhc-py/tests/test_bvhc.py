@@ -1035,7 +1035,7 @@ def test_signed_distance_and_winding_number_of_a_closed_mesh(tmp_path):
     assert np.array_equal((signed < 0)[clear], (radius < 0.98)[clear])
     winding = opened.winding_number(points)
     assert winding.dtype == np.float64
-    assert np.abs(winding[clear] - (radius[clear] < 0.98)).max() < 0.03
+    assert np.abs(winding[clear] - (radius[clear] < 0.98)).max() < 0.06
     # The other winding: the winding number changes sign, the signed distance does not.
     bvhc.build(mesh.vertices, mesh.faces[:, ::-1], tmp_path / "flipped.bvh")
     flipped = bvhc.open(tmp_path / "flipped.bvh")

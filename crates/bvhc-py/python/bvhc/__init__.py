@@ -438,7 +438,7 @@ class Scene:
     def distance(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
         """The distance from each of ``points`` (``(n, 3)``) to the surface, as a float32 array: the
         ``distance`` column of :meth:`closest_points` with no bound (``inf`` for a file with no triangles)."""
-        return self._native.distance(points, threads)
+        return self._native.closest_points(points, None, threads)["distance"]
 
     def signed_distance(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
         """The signed distance from each of ``points`` (``(n, 3)``) to the surface, as a float32 array: the
@@ -447,14 +447,14 @@ class Scene:
         the surface. The winding numbers are summed fast (far parts of the tree by their dipole expansion, within
         about 0.05 of the exact sum near surfaces, far less away from them); their moments are computed once a
         call, in time linear in the triangles."""
-        return self._native.signed_distance(points, threads)
+        return self._native.winding(points, True, threads)
 
     def winding_number(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
         """The generalized winding number of the surface at each of ``points`` (``(n, 3)``), as a float64 array:
         1 inside a closed mesh wound counter-clockwise seen from outside (-1 for the other winding), 0 outside,
         fractions near holes (Jacobson et al. 2013; summed fast as Barill et al. 2018). Through a two-level file,
         every instance's mesh is summed in world space."""
-        return self._native.winding_number(points, threads)
+        return self._native.winding(points, False, threads)
 
     def spawn(self, hits: Dict[str, np.ndarray], directions: Any) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Secondary rays leaving ``hits`` (a dict as :meth:`closest_hits` returns, misses removed) in
