@@ -117,7 +117,10 @@ pub fn winding<'py>(
     let rows = finite_rows(py, points)?;
     let tracer = view.tracer();
     let numbers = tracer.winding_numbers().map_err(|e| {
-        pyo3::exceptions::PyMemoryError::new_err(format!("the winding moments of {} triangles: {e}", view.triangles().len()))
+        pyo3::exceptions::PyMemoryError::new_err(format!(
+            "the winding moments of {} triangles: {e}",
+            view.triangles().len()
+        ))
     })?;
     if signed {
         let out = each_point(py, &rows, pool, 0f32, |point| numbers.signed_distance(point));
