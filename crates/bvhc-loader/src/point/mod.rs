@@ -9,6 +9,7 @@
 //! each instance's object space, and an object-space box's distance becomes a lower bound on the world distance
 //! through the smallest stretch of the instance's map (`space::Space`).
 
+pub(crate) mod caps;
 pub(crate) mod nearest;
 pub(crate) mod records;
 pub(crate) mod space;

@@ -95,6 +95,13 @@ fn counted_records(
     Ok(Some(counted))
 }
 
+impl MeshMoments {
+    /// Which records count (`None`: all).
+    pub(crate) fn counted(&self) -> Option<&[bool]> {
+        self.counted.as_deref()
+    }
+}
+
 /// The moments of a mesh's tree, children before parents (a verified tree's children follow their parent).
 pub(crate) fn mesh_moments(
     nodes: &[PackedNode],

@@ -9,6 +9,7 @@ pub(crate) mod exact_hit;
 pub(crate) mod exact_int;
 pub(crate) mod hit;
 pub(crate) mod intersect;
+pub(crate) mod moved;
 pub(crate) mod query;
 pub(crate) mod reach;
 pub(crate) mod slab;

@@ -32,6 +32,12 @@ fn determinant(m: &Affine3x4) -> f64 {
         + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0))
 }
 
+/// Whether `instance`'s map mirrors (its linear part has a negative determinant), which turns its mesh's
+/// front sides to the back in world space.
+pub(crate) fn mirrors(instance: &InstanceRecord) -> bool {
+    determinant(&instance.object_to_world) < 0.0
+}
+
 /// `ray` in the object space of `instance`: origin `W (o - t)`, direction `W d`, for the 3x3 part `W` of
 /// `world_to_object` and the translation `t` of `object_to_world` (not renormalized, so a point at parameter
 /// `t` is the image of the world ray's point at `t`), each coordinate computed in f64 and rounded to nearest

@@ -9,7 +9,7 @@
 //! it, so that no ray slips between them; a ray exactly through an edge or a vertex (an edge function exactly 0:
 //! a ray aimed at a vertex meets it exactly, since the vertex's offset from the origin is the direction before
 //! rounding) therefore hits every triangle around it. Here such a ray counts as if moved infinitesimally off it,
-//! to the same side for every triangle, in the spirit of Edelsbrunner and Muecke's Simulation of Simplicity
+//! to the same side for every triangle (`crate::ray::moved`), in the spirit of Edelsbrunner and Muecke's Simulation of Simplicity
 //! (1990): in the ray's sheared 2D space (where the test's edge function `E(p, q) = p_x q_y - p_y q_x` is
 //! evaluated at the origin) the query point moves to `(e, e^2)` for an infinitesimal `e`, which changes an edge
 //! function of 0 to `e (p_y - q_y) + e^2 (q_x - p_x)`: its sign is that of `p_y - q_y`, or if that is 0 of
@@ -36,8 +36,8 @@ use crate::open::view::BvhView;
 use crate::ray::candidates::{Candidate, FilterScope, HitFilter};
 use crate::ray::hit::{Hit, TriangleHit};
 use crate::ray::intersect::{PreparedRay, Ray};
-use crate::ray::transform::{object_ray, world_normal};
-use crate::ray::watertight::{edge_functions, edge_functions_f64, has_zero_edge, sheared};
+use crate::ray::moved::moved_side;
+use crate::ray::transform::{mirrors, object_ray, world_normal};
 use crate::source::identity::TriangleIdentities;
 use crate::tracer::Tracer;
 
@@ -45,7 +45,7 @@ use crate::tracer::Tracer;
 const ON_SURFACE: f32 = 1.0 / 1_048_576.0;
 /// The direction of an inside test's ray: along no axis or diagonal, so that axis-aligned models do not put it
 /// through their edges more often than chance.
-const INSIDE_DIRECTION: [f32; 3] = [0.577_350_3, 0.211_324_87, 0.788_675_1];
+pub(crate) const INSIDE_DIRECTION: [f32; 3] = [0.577_350_3, 0.211_324_87, 0.788_675_1];
 
 /// All hits and inside tests over a file: see the module doc. Made once per file ([`BvhView::crossings`]); cheap
 /// to copy around threads by reference (`Sync`).
@@ -150,6 +150,35 @@ impl<'a> Crossings<'a> {
         hits.iter().map(|h| if h.front_face { -1i32 } else { 1 }).sum::<i32>() != 0
     }
 
+    /// The winding number at `ray`'s origin counted along it: the sides of its crossings within `[t_min,
+    /// t_max]` summed, each triangle once ([`crate::ray::moved::moved_side`]: 1 passing from a back side to a
+    /// front side, -1 the other way; in world space, so a mirroring instance's sides count turned). For a
+    /// surface without boundary this is its winding number at the origin exactly, provided no triangle lies
+    /// within the rounding of a hit's `t` of the origin (the caller's check).
+    pub(crate) fn winding_along(&self, ray: &Ray) -> i64 {
+        let recorded = self.candidates(ray, &everything, FilterScope::Every);
+        let world = PreparedRay::new(ray);
+        let sections = self.tracer.instance_sections();
+        let mut sides: Vec<(u32, Option<u32>, i32)> = recorded
+            .iter()
+            .filter_map(|r| {
+                let triangle = self.triangles.get(r.record as usize)?;
+                let side = match r.instance.and_then(|i| sections?.placement(i)) {
+                    Some((instance, _)) => {
+                        let side = moved_side(&PreparedRay::new(&object_ray(instance, ray)), triangle);
+                        if mirrors(instance) { -side } else { side }
+                    }
+                    None => moved_side(&world, triangle),
+                };
+                (side != 0).then(|| (self.identities.get(r.record), r.instance, side))
+            })
+            .collect();
+        // A line crosses a triangle once: its records (split references) and repeated tests are one crossing.
+        sides.sort_unstable();
+        sides.dedup_by_key(|&mut (identity, instance, _)| (identity, instance));
+        sides.iter().map(|&(_, _, side)| i64::from(side)).sum()
+    }
+
     /// Every candidate hit of `ray` within its interval that `filter` accepts (asked in `scope`).
     fn candidates<F: HitFilter + ?Sized>(&self, ray: &Ray, filter: &F, scope: FilterScope) -> Vec<Recorded> {
         let collector =
@@ -185,8 +214,8 @@ impl<'a> Crossings<'a> {
             return true;
         };
         match recorded.instance.and_then(|i| self.tracer.instance_sections()?.placement(i)) {
-            Some((instance, _)) => inside_when_moved(&PreparedRay::new(&object_ray(instance, ray)), triangle),
-            None => inside_when_moved(world, triangle),
+            Some((instance, _)) => moved_side(&PreparedRay::new(&object_ray(instance, ray)), triangle) != 0,
+            None => moved_side(world, triangle) != 0,
         }
     }
 
@@ -213,38 +242,4 @@ impl<'a> Crossings<'a> {
             None => Hit::new(recorded.record, recorded.hit, self.triangles, ids, &ray.direction),
         }
     }
-}
-
-/// Whether the ray's point lies inside `triangle` once moved to `(e, e^2)` in the ray's sheared 2D space (see the
-/// module doc): the edge functions as the watertight test computes them (exact signs), each one of exactly 0
-/// replaced by the sign of its perturbation, all of one sign.
-fn inside_when_moved(ray: &PreparedRay, triangle: &PackedTriangle) -> bool {
-    let (_, [sx, sy, _]) = ray.shear();
-    let p = sheared(&ray.relative(triangle), sx, sy);
-    let mut e = edge_functions(p);
-    if !has_zero_edge(e, 0.0) {
-        return true; // the test's own decision stands
-    }
-    e = edge_functions_f64(p);
-    let [a, b, c] = p;
-    // U = E(c, b), V = E(a, c), W = E(b, a).
-    let edges = [(c, b), (a, c), (b, a)];
-    let sign = |value: f32, ([px, py], [qx, qy]): ([f32; 2], [f32; 2])| {
-        let moved = if value != 0.0 {
-            value
-        } else if py != qy {
-            py - qy
-        } else {
-            qx - px
-        };
-        if moved > 0.0 {
-            1
-        } else if moved < 0.0 {
-            -1
-        } else {
-            0
-        }
-    };
-    let [su, sv, sw] = [0, 1, 2].map(|i| sign(e[i], edges[i]));
-    su != 0 && su == sv && sv == sw
 }

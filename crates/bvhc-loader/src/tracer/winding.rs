@@ -1,38 +1,68 @@
-//! A file's winding numbers and signed distances ([`WindingNumbers`]): the winding moments of each of its meshes
-//! (`crate::point::winding`, computed once) with the tracer whose closest points give the distances.
+//! A file's winding numbers and signed distances ([`WindingNumbers`]).
+//!
+//! A point's winding number is counted along a ray where it can be: the sides of the ray's crossings of the
+//! surface (`crate::tracer::crossings`, exact) and of the caps over the surface's holes (`crate::point::caps`),
+//! less the caps' own winding number summed from their moments. For a closed mesh (no caps) that is exact; for
+//! an open one only the caps' sum is approximate, and caps span holes, so the error is confined to points near
+//! the holes. Where the count cannot be trusted (a point within `2^-18` of the scene's size of the surface or of
+//! a cap, where the side of the point is left to rounding) the whole surface is summed from its moments instead
+//! (`crate::point::winding`, Barill et al. 2018).
 
 use std::collections::TryReserveError;
 
+use crate::point::caps::Caps;
 use crate::point::winding::{Map, MeshMoments, mesh_angle, mesh_moments};
+use crate::ray::intersect::Ray;
+use crate::ray::transform::{mirrors, object_ray};
+use crate::source::identity::TriangleIdentities;
 use crate::tracer::Tracer;
+use crate::tracer::crossings::{Crossings, INSIDE_DIRECTION};
 
-/// A file's winding numbers and signed distances: the moments of every mesh, computed once (O(records) time,
-/// 136 bytes a binary node), over a tracer that answers the closest points.
+/// Within what distance of the surface, relative to the scene's size, a winding number is summed rather than
+/// counted (`2^-18`: far above the rounding of a hit's `t`, which is relative to the triangle's own offset from
+/// the point).
+const COUNTED_BEYOND: f32 = 1.0 / 262_144.0;
+
+/// A file's winding numbers and signed distances: the moments of every mesh and the caps over its holes,
+/// computed once (O(records) time and memory), over a tracer that answers the closest points and the crossings.
 #[derive(Clone, Debug)]
 pub struct WindingNumbers<'a> {
     tracer: Tracer<'a>,
+    crossings: Crossings<'a>,
     /// One a mesh: the file's tree (one level), or each mesh of a two-level file.
     meshes: Vec<MeshMoments>,
+    /// Each mesh's caps; `None` for a closed mesh.
+    caps: Vec<Option<Caps>>,
+    /// Within what distance of the surface or a cap a point's winding number is summed, not counted.
+    near: f32,
 }
 
 impl<'a> WindingNumbers<'a> {
-    /// The moments of `tracer`'s file. Fails only when memory for them cannot be had.
+    /// The moments and caps of `tracer`'s file. Fails only when memory for them cannot be had.
     pub fn new(tracer: &Tracer<'a>) -> Result<WindingNumbers<'a>, TryReserveError> {
         let mut meshes = Vec::new();
+        let mut caps = Vec::new();
+        let mut add = |nodes, triangles, ids| -> Result<(), TryReserveError> {
+            let moments = mesh_moments(nodes, triangles, ids, tracer.split())?;
+            caps.try_reserve(1)?;
+            caps.push(Caps::of(triangles, moments.counted())?);
+            meshes.try_reserve(1)?;
+            meshes.push(moments);
+            Ok(())
+        };
         match tracer.instance_sections() {
-            None => {
-                meshes.try_reserve_exact(1)?;
-                meshes.push(mesh_moments(tracer.nodes(), tracer.triangles(), tracer.triangle_ids(), tracer.split())?);
-            }
+            None => add(tracer.nodes(), tracer.triangles(), tracer.triangle_ids())?,
             Some(sections) => {
-                meshes.try_reserve_exact(sections.meshes.len())?;
                 for mesh in sections.meshes {
                     let (nodes, triangles, ids) = tracer.mesh_arrays(mesh).unwrap_or((&[], &[], None));
-                    meshes.push(mesh_moments(nodes, triangles, ids, tracer.split())?);
+                    add(nodes, triangles, ids)?;
                 }
             }
         }
-        Ok(WindingNumbers { tracer: *tracer, meshes })
+        let identities = TriangleIdentities::new(tracer.triangles(), tracer.triangle_ids(), tracer.split());
+        let crossings = Crossings::new(*tracer, tracer.triangles(), identities);
+        let near = tracer.scene_extent() * COUNTED_BEYOND;
+        Ok(WindingNumbers { tracer: *tracer, crossings, meshes, caps, near })
     }
 
     /// The winding number of the file's surface at `point`: 1 inside a closed mesh wound counter-clockwise seen
@@ -42,6 +72,39 @@ impl<'a> WindingNumbers<'a> {
         if !point.iter().all(|c| c.is_finite()) {
             return f64::NAN;
         }
+        let clear = self.tracer.closest_point(point, self.near).is_none();
+        clear.then(|| self.counted(point)).flatten().unwrap_or_else(|| self.summed(point))
+    }
+
+    /// The winding number at `point` counted along a ray (see the module doc), for a point farther than
+    /// `near` from the surface; `None` when a cap lies that near.
+    fn counted(&self, point: [f32; 3]) -> Option<f64> {
+        let ray = Ray::new(point, INSIDE_DIRECTION);
+        let p = point.map(f64::from);
+        let mut crossings = self.crossings.winding_along(&ray);
+        let mut angle = 0.0;
+        match self.tracer.instance_sections() {
+            None => {
+                if let Some(Some(caps)) = self.caps.first() {
+                    crossings += caps.crossings(&ray, self.near).ok()?;
+                    angle += caps.angle(p, None);
+                }
+            }
+            Some(sections) => {
+                for instance in sections.instances {
+                    let Some(Some(caps)) = self.caps.get(instance.mesh_index as usize) else { continue };
+                    let Some(map) = Map::of(instance) else { continue };
+                    let side = caps.crossings(&object_ray(instance, &ray), self.near).ok()?;
+                    crossings += if mirrors(instance) { -side } else { side };
+                    angle += caps.angle(p, Some(&map));
+                }
+            }
+        }
+        Some(crossings as f64 - angle / (4.0 * std::f64::consts::PI))
+    }
+
+    /// The winding number at `point` summed over the whole surface from its moments (Barill et al. 2018).
+    fn summed(&self, point: [f32; 3]) -> f64 {
         let p = point.map(f64::from);
         let total = match self.tracer.instance_sections() {
             None => match self.meshes.first() {
@@ -76,7 +139,9 @@ impl<'a> WindingNumbers<'a> {
         if distance == 0.0 || distance.is_infinite() {
             return distance;
         }
-        if self.winding_number(point).abs() > 0.5 { -distance } else { distance }
+        let counted = if distance > self.near { self.counted(point) } else { None };
+        let winding = counted.unwrap_or_else(|| self.summed(point));
+        if winding.abs() > 0.5 { -distance } else { distance }
     }
 
     /// [`WindingNumbers::winding_number`] of each of `points` into `out` (the same length; panics otherwise),
