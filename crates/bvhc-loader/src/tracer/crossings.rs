@@ -9,8 +9,8 @@
 //! it, so that no ray slips between them; a ray exactly through an edge or a vertex (an edge function exactly 0:
 //! a ray aimed at a vertex meets it exactly, since the vertex's offset from the origin is the direction before
 //! rounding) therefore hits every triangle around it. Here such a ray counts as if moved infinitesimally off it,
-//! to the same side for every triangle (`crate::ray::moved`), in the spirit of Edelsbrunner and Muecke's Simulation of Simplicity
-//! (1990): in the ray's sheared 2D space (where the test's edge function `E(p, q) = p_x q_y - p_y q_x` is
+//! to the same side for every triangle (`crate::ray::moved`), in the spirit of Edelsbrunner and Muecke's
+//! Simulation of Simplicity (1990): in the ray's sheared 2D space (where the test's edge function `E(p, q) = p_x q_y - p_y q_x` is
 //! evaluated at the origin) the query point moves to `(e, e^2)` for an infinitesimal `e`, which changes an edge
 //! function of 0 to `e (p_y - q_y) + e^2 (q_x - p_x)`: its sign is that of `p_y - q_y`, or if that is 0 of
 //! `q_x - p_x`. Both differences are of f32 values, so their signs are exact, and two triangles sharing an edge
@@ -158,18 +158,10 @@ impl<'a> Crossings<'a> {
     pub(crate) fn winding_along(&self, ray: &Ray) -> i64 {
         let recorded = self.candidates(ray, &everything, FilterScope::Every);
         let world = PreparedRay::new(ray);
-        let sections = self.tracer.instance_sections();
         let mut sides: Vec<(u32, Option<u32>, i32)> = recorded
             .iter()
             .filter_map(|r| {
-                let triangle = self.triangles.get(r.record as usize)?;
-                let side = match r.instance.and_then(|i| sections?.placement(i)) {
-                    Some((instance, _)) => {
-                        let side = moved_side(&PreparedRay::new(&object_ray(instance, ray)), triangle);
-                        if mirrors(instance) { -side } else { side }
-                    }
-                    None => moved_side(&world, triangle),
-                };
+                let side = self.moved_side(ray, &world, r)?;
                 (side != 0).then(|| (self.identities.get(r.record), r.instance, side))
             })
             .collect();
@@ -194,7 +186,7 @@ impl<'a> Crossings<'a> {
         let world = PreparedRay::new(ray);
         let mut found: Vec<(Hit, u32)> = recorded
             .into_iter()
-            .filter(|r| self.on_moved_ray(ray, &world, r))
+            .filter(|r| self.moved_side(ray, &world, r) != Some(0))
             .map(|r| (self.hit(ray, r), self.identities.get(r.record)))
             .collect();
         found.sort_by(|a, b| {
@@ -206,17 +198,20 @@ impl<'a> Crossings<'a> {
         hits.extend(found.into_iter().map(|(hit, _)| hit));
     }
 
-    /// Whether a recorded candidate is still hit when the ray is moved infinitesimally off the edges and
-    /// vertices it passes exactly through (see the module doc; `world` is `ray` prepared): decided by the
-    /// test's edge functions, not by the hit's weights, which for an ill-conditioned hit are the exact ones.
-    fn on_moved_ray(&self, ray: &Ray, world: &PreparedRay, recorded: &Recorded) -> bool {
-        let Some(triangle) = self.triangles.get(recorded.record as usize) else {
-            return true;
-        };
-        match recorded.instance.and_then(|i| self.tracer.instance_sections()?.placement(i)) {
-            Some((instance, _)) => moved_side(&PreparedRay::new(&object_ray(instance, ray)), triangle) != 0,
-            None => moved_side(world, triangle) != 0,
-        }
+    /// How the ray, moved infinitesimally off the edges and vertices it passes exactly through, crosses a recorded
+    /// candidate's triangle (`crate::ray::moved::moved_side`; `world` is `ray` prepared): 0 when it misses it, 1
+    /// or -1 by the side in world space (a mirroring instance turns its mesh's sides); decided by the test's edge
+    /// functions, not by the hit's weights, which for an ill-conditioned hit are the exact ones. `None` for a
+    /// record outside the triangles (only in a file that breaks verification).
+    fn moved_side(&self, ray: &Ray, world: &PreparedRay, recorded: &Recorded) -> Option<i32> {
+        let triangle = self.triangles.get(recorded.record as usize)?;
+        Some(match recorded.instance.and_then(|i| self.tracer.instance_sections()?.placement(i)) {
+            Some((instance, _)) => {
+                let side = moved_side(&PreparedRay::new(&object_ray(instance, ray)), triangle);
+                if mirrors(instance) { -side } else { side }
+            }
+            None => moved_side(world, triangle),
+        })
     }
 
     /// Within what `t` (along a unit direction) of a point a hit puts the point on the surface: `2^-20` of the
