@@ -36,8 +36,9 @@ impl Space {
 
     /// The object space of `instance`, for the world point `point`: `L^-1 (p - t)` in f64 for the linear part
     /// `L` and translation `t` of `object_to_world` (its inverse by cofactors, not the stored `world_to_object`,
-    /// which rule V42 lets be looser), and the squared stretch bound `1 / |L^-1|_F^2 <= sigma_min(L)^2`. `None`
-    /// for a singular or non-finite map (which a verified file does not have).
+    /// which rule V42 lets be looser), and a squared stretch bound `<= sigma_min(L)^2`: the larger of the
+    /// Gershgorin bound on the smallest eigenvalue of `L^T L` and `1 / |L^-1|_F^2`. `None` for a singular or
+    /// non-finite map (which a verified file does not have).
     pub(crate) fn instance(instance: &InstanceRecord, point: Point3) -> Option<Space> {
         let m = &instance.object_to_world;
         let a = |i: usize, j: usize| f64::from(m[i][j]);
@@ -54,7 +55,16 @@ impl Space {
         let relative: Point3 = std::array::from_fn(|k| point[k] - a(k, 3));
         // (L^-1)_ij = cofactor(j, i) / det.
         let mapped = std::array::from_fn(|i| (0..3).map(|j| cofactors[j][i] * relative[j]).sum::<f64>() / det);
-        Some(Space::at(mapped, det * det / frobenius2 * BOUND_SHRINK))
+        // sigma_min(L)^2 is the smallest eigenvalue of L^T L, at least its Gershgorin bound (exact for a rotation
+        // times a scale, where 1 / |L^-1|_F^2 is a third of it) and at least 1 / |L^-1|_F^2 (the better of the two).
+        // The Gram entries are sums of exact products, so the bound is off by far less than its 2^-40 allowance.
+        let gram = |i: usize, j: usize| (0..3).map(|k| a(k, i) * a(k, j)).sum::<f64>();
+        let allowance = (0..3).map(|i| gram(i, i)).fold(0.0, f64::max) / 1_099_511_627_776.0;
+        let gershgorin = (0..3)
+            .map(|i| gram(i, i) - (0..3).filter(|&j| j != i).map(|j| gram(i, j).abs()).sum::<f64>())
+            .fold(f64::INFINITY, f64::min);
+        let stretch2 = (gershgorin - allowance).max(det * det / frobenius2);
+        Some(Space::at(mapped, stretch2 * BOUND_SHRINK))
     }
 
     /// The threshold of the wide walk's lanes for the cull `cull_d2` (world space): a slot whose squared
@@ -102,4 +112,48 @@ pub(crate) fn lane_d2(node: &crate::format::WideNode8, point: [f32; 3]) -> [f32;
         }
     }
     d2
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `|L u|^2` over many unit directions `u`: at least the true `sigma_min(L)^2`, so never below a valid bound.
+    fn sampled_min_stretch2(m: &crate::format::Affine3x4) -> f64 {
+        let mut smallest = f64::INFINITY;
+        for i in 0..64 {
+            for j in 0..128 {
+                let (theta, phi) =
+                    (std::f64::consts::PI * (i as f64 + 0.5) / 64.0, std::f64::consts::TAU * j as f64 / 128.0);
+                let u = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
+                let lu: f64 = (0..3).map(|r| (0..3).map(|c| f64::from(m[r][c]) * u[c]).sum::<f64>().powi(2)).sum();
+                smallest = smallest.min(lu);
+            }
+        }
+        smallest
+    }
+
+    #[test]
+    fn the_stretch_bound_is_below_the_smallest_stretch_and_tight_for_a_scaled_rotation() {
+        let (c, s) = (0.6f32, 0.8f32);
+        let maps: [crate::format::Affine3x4; 4] = [
+            [[2.0 * c, -2.0 * s, 0.0, 1.0], [2.0 * s, 2.0 * c, 0.0, -3.0], [0.0, 0.0, 2.0, 0.5]], // rotation, scale 2
+            [[1.0, 0.7, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0]],                   // shear
+            [[-0.2, 0.0, 0.0, 5.0], [0.0, 3.0, 0.0, 0.0], [0.0, 0.0, 0.01, 0.0]],                 // mirror, uneven
+            [[0.3, 0.9, 0.1, 0.0], [-0.8, 0.2, 0.4, 0.0], [0.2, -0.3, 0.9, 0.0]],                 // general
+        ];
+        for (k, m) in maps.iter().enumerate() {
+            let instance = InstanceRecord::placing(0, *m).unwrap();
+            let space = Space::instance(&instance, [0.3, -0.2, 0.7]).unwrap();
+            let sampled = sampled_min_stretch2(m);
+            assert!(space.scale2 <= sampled, "map {k}: bound {} above a sampled stretch {sampled}", space.scale2);
+            if k == 0 {
+                assert!(
+                    space.scale2 > 4.0 * 0.999_99,
+                    "a scaled rotation's bound is its scale squared: {}",
+                    space.scale2
+                );
+            }
+        }
+    }
 }
