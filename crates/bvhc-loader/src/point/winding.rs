@@ -205,6 +205,7 @@ fn merged_moments(children: &[Moments]) -> Moments {
 
 /// An instance's map in binary64: `x -> L x + t`, the cofactor matrix of `L` (which maps an area vector), and
 /// `|L|_F`, which bounds how far it stretches a radius.
+#[derive(Clone, Debug)]
 pub(crate) struct Map {
     linear: [Point3; 3],
     translation: Point3,
@@ -267,13 +268,18 @@ pub(crate) fn mesh_angle(
         if m.area == 0.0 {
             continue;
         }
-        let (center, area_vector, radius, spread) = match map {
-            None => (m.center, m.area_vector, m.radius, m.spread),
-            Some(map) => (map.point(m.center), map.area(m.area_vector), map.stretch * m.radius, map.spread(&m.spread)),
+        // The centre and radius decide; the area vector and spread are placed only for a node summed whole.
+        let (center, radius) = match map {
+            None => (m.center, m.radius),
+            Some(map) => (map.point(m.center), map.stretch * m.radius),
         };
         let r = sub(center, p);
         let distance = length(r);
         if distance > BETA * radius {
+            let (area_vector, spread) = match map {
+                None => (m.area_vector, m.spread),
+                Some(map) => (map.area(m.area_vector), map.spread(&m.spread)),
+            };
             // The dipole `A . r / |r|^3` and the next term of its Taylor expansion about the centre,
             // `J : S` with `J = I / |r|^3 - 3 r r^T / |r|^5`, the gradient of `r / |r|^3`.
             let d3 = distance * distance * distance;

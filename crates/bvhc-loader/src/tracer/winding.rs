@@ -33,6 +33,8 @@ pub struct WindingNumbers<'a> {
     meshes: Vec<MeshMoments>,
     /// Each mesh's caps; `None` for a closed mesh.
     caps: Vec<Option<Caps>>,
+    /// Each instance's map in binary64 (`None`: not finite); empty for a one-level file.
+    maps: Vec<Option<Map>>,
     /// Within what distance of the surface or a cap a point's winding number is summed, not counted.
     near: f32,
 }
@@ -59,10 +61,15 @@ impl<'a> WindingNumbers<'a> {
                 }
             }
         }
+        let mut maps = Vec::new();
+        if let Some(sections) = tracer.instance_sections() {
+            maps.try_reserve_exact(sections.instances.len())?;
+            maps.extend(sections.instances.iter().map(Map::of));
+        }
         let identities = TriangleIdentities::new(tracer.triangles(), tracer.triangle_ids(), tracer.split());
         let crossings = Crossings::new(*tracer, tracer.triangles(), identities);
         let near = tracer.scene_extent() * COUNTED_BEYOND;
-        Ok(WindingNumbers { tracer: *tracer, crossings, meshes, caps, near })
+        Ok(WindingNumbers { tracer: *tracer, crossings, meshes, caps, maps, near })
     }
 
     /// The winding number of the file's surface at `point`: 1 inside a closed mesh wound counter-clockwise seen
@@ -91,12 +98,12 @@ impl<'a> WindingNumbers<'a> {
                 }
             }
             Some(sections) => {
-                for instance in sections.instances {
+                for (instance, map) in sections.instances.iter().zip(&self.maps) {
                     let Some(Some(caps)) = self.caps.get(instance.mesh_index as usize) else { continue };
-                    let Some(map) = Map::of(instance) else { continue };
+                    let Some(map) = map else { continue };
                     let side = caps.crossings(&object_ray(instance, &ray), self.near).ok()?;
                     crossings += if mirrors(instance) { -side } else { side };
-                    angle += caps.angle(p, Some(&map));
+                    angle += caps.angle(p, Some(map));
                 }
             }
         }
@@ -115,12 +122,13 @@ impl<'a> WindingNumbers<'a> {
                 let mut total = 0.0;
                 for (index, instance) in sections.instances.iter().enumerate() {
                     let Some((_, mesh)) = sections.placement(index as u32) else { continue };
-                    let (Some(moments), Some(map)) = (self.meshes.get(instance.mesh_index as usize), Map::of(instance))
+                    let (Some(moments), Some(Some(map))) =
+                        (self.meshes.get(instance.mesh_index as usize), self.maps.get(index))
                     else {
                         continue;
                     };
                     let (nodes, triangles, _) = self.tracer.mesh_arrays(mesh).unwrap_or((&[], &[], None));
-                    total += mesh_angle(nodes, triangles, moments, p, Some(&map));
+                    total += mesh_angle(nodes, triangles, moments, p, Some(map));
                 }
                 total
             }
