@@ -37,6 +37,11 @@ FILES = {
     "dragon": "stanford-dragon/dragon_vrip.ply.gz",
     "buddha": "happy-buddha-decimated/stanford-buddha.obj",
     "engine": "khr-2cylinder-engine/2CylinderEngine.gltf",
+    # Held out (not in the default list): an open scan, a self-intersecting model, a dense scan, a beetle.
+    "nefertiti": "aj-nefertiti/nefertiti.obj",
+    "suzanne": "aj-suzanne/suzanne.obj",
+    "armadillo": "armadillo-decimated/armadillo.obj",
+    "beetle": "aj-beetle/beetle.obj",
 }
 
 
