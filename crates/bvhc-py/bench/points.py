@@ -15,6 +15,7 @@ exact winding number (every triangle's solid angle summed in float64 with numpy;
 within 0.1 of 1/2 left out).
 
     python crates/bvhc-py/bench/points.py [--points N] [--scenes kitchen,dragon] [--runs 3] [--signed] [--check 300]
+        [--no-trimesh]
 needs `pip install open3d trimesh rtree` (a peer that does not import is left out) and the shared scenes.
 """
 
@@ -96,6 +97,7 @@ def main():
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--signed", action="store_true")
     parser.add_argument("--check", type=int, default=300)
+    parser.add_argument("--no-trimesh", action="store_true", help="leave trimesh out (its tenth takes minutes)")
     args = parser.parse_args()
     cores = os.cpu_count() or 1
     if args.signed:
@@ -162,6 +164,8 @@ def main():
                 except ImportError:
                     row += ["-", "-"]
                 try:
+                    if args.no_trimesh:
+                        raise ImportError("left out")
                     import trimesh
 
                     mesh = trimesh.Trimesh(vertices, faces, process=False)

@@ -13,7 +13,7 @@ pub(crate) mod caps;
 pub(crate) mod nearest;
 pub(crate) mod records;
 pub(crate) mod space;
-mod triangle;
+pub(crate) mod triangle;
 pub(crate) mod walk;
 pub(crate) mod wide;
 pub(crate) mod winding;

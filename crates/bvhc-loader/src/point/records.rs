@@ -4,10 +4,12 @@
 //! two layouts offer the same candidates.
 
 use crate::format::{InstanceRecord, PackedNode, PackedTriangle, TrianglePacket4, UNUSED_LANE, WideNode8};
-use crate::point::closest_on_triangle;
 use crate::point::nearest::Nearest;
+use crate::point::triangle::closest_from_plane;
+use crate::point::{TrianglePoint, closest_on_triangle};
 use crate::ray::query::{TieKey, TieOrder};
 use crate::ray::transform::world_point;
+use crate::simd::Avx2;
 
 /// Where a mesh's records are: the first's absolute index, the instance placing them (`None`: world space), and
 /// the mesh's tie order (its range of the source ids).
@@ -29,7 +31,13 @@ impl Placement<'_> {
         if !placed.iter().flatten().all(|c| c.is_finite()) {
             return; // only in a file that breaks V12 or V42
         }
-        let found = closest_on_triangle(nearest.point, placed);
+        self.offer_found(nearest, local, vertices, closest_on_triangle(nearest.point, placed));
+    }
+
+    /// Offers the mesh's record `local`, with vertices `vertices` (as stored, all finite), whose closest point
+    /// (computed as [`closest_on_triangle`] computes it) is `found`, to `nearest`.
+    #[inline(always)]
+    fn offer_found(&self, nearest: &mut Nearest, local: u32, vertices: [[f32; 3]; 3], found: TrianglePoint) {
         if nearest.admits(found.d2) {
             let key = || match self.tie.key(local, || PackedTriangle { vertices }.coordinate_bits()) {
                 TieKey::Record(record) => TieKey::Record(record.wrapping_add(self.first_record)),
@@ -63,10 +71,13 @@ impl PointLeaves for TriangleRecords<'_> {
     }
 }
 
-/// The triangle packets of one mesh's wide tree (the mesh's range; lanes index the mesh's records).
+/// The triangle packets of one mesh's wide tree (the mesh's range; lanes index the mesh's records), and the
+/// AVX2 token where the wide tracer runs that path (a world-space packet's four triangles are then measured in
+/// binary64 lanes, `crate::simd::x86_points`, each then finished alone: the same bits as one at a time).
 pub(crate) struct PacketRecords<'a> {
     pub packets: &'a [TrianglePacket4],
     pub placement: Placement<'a>,
+    pub avx2: Option<Avx2>,
 }
 
 impl PacketRecords<'_> {
@@ -76,6 +87,22 @@ impl PacketRecords<'_> {
         let (first, count) = WideNode8::leaf_packets(reference);
         let packets = self.packets.get(first as usize..(first as usize).saturating_add(count as usize)).unwrap_or(&[]);
         for packet in packets {
+            #[cfg(target_arch = "x86_64")]
+            if let (Some(token), None) = (self.avx2, self.placement.instance) {
+                let planes = crate::simd::x86_points::packet_planes(token, nearest.point, packet);
+                for (lane, &local) in packet.triangle_index.iter().enumerate() {
+                    if local == UNUSED_LANE {
+                        break;
+                    }
+                    let vertices = packet.triangle(lane).vertices;
+                    let placed = vertices.map(|v| v.map(f64::from));
+                    if placed.iter().flatten().all(|c| c.is_finite()) {
+                        let found = closest_from_plane(nearest.point, placed, planes[lane]);
+                        self.placement.offer_found(nearest, local, vertices, found);
+                    }
+                }
+                continue;
+            }
             for (lane, &local) in packet.triangle_index.iter().enumerate() {
                 if local == UNUSED_LANE {
                     break;

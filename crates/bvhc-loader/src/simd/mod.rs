@@ -10,6 +10,8 @@
 mod lanes;
 #[cfg(target_arch = "x86_64")]
 mod x86;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod x86_points;
 
 pub(crate) use lanes::{LaneMask, Lanes, PortableLanes};
 #[cfg(target_arch = "x86_64")]

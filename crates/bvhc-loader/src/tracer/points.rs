@@ -50,7 +50,7 @@ impl<'a> Tracer<'a> {
                 };
                 match &self.wide {
                     Some(wide) => {
-                        let leaves = PacketRecords { packets: wide.sections().packets, placement };
+                        let leaves = PacketRecords { packets: wide.sections().packets, placement, avx2: wide.avx2() };
                         walk_wide_points(wide.sections(), &world, &mut nearest, &leaves);
                     }
                     None => {
@@ -145,7 +145,7 @@ impl<'a> Tracer<'a> {
         let root = nodes.first().map(|root| (root.min, root.max));
         match self.wide.zip(root).and_then(|(wide, root)| wide.mesh(mesh, root, ids)) {
             Some(wide) => {
-                let leaves = PacketRecords { packets: wide.sections().packets, placement };
+                let leaves = PacketRecords { packets: wide.sections().packets, placement, avx2: wide.avx2() };
                 walk_wide_points(wide.sections(), &space, nearest, &leaves);
             }
             None => walk_points(nodes, &space, nearest, &mut TriangleRecords { triangles, placement }),
