@@ -5,7 +5,7 @@
 
 use crate::format::{InstanceRecord, PackedNode, PackedTriangle, TrianglePacket4, UNUSED_LANE, WideNode8};
 use crate::point::nearest::Nearest;
-use crate::point::triangle::closest_from_plane;
+use crate::point::triangle::{PlaneValues, closest_from_plane};
 use crate::point::{TrianglePoint, closest_on_triangle};
 use crate::ray::query::{TieKey, TieOrder};
 use crate::ray::transform::world_point;
@@ -97,7 +97,12 @@ impl PacketRecords<'_> {
                     let vertices = packet.triangle(lane).vertices;
                     let placed = vertices.map(|v| v.map(f64::from));
                     if placed.iter().flatten().all(|c| c.is_finite()) {
-                        let found = closest_from_plane(nearest.point, placed, planes[lane]);
+                        let plane = PlaneValues {
+                            n: planes.n.map(|axis| axis[lane]),
+                            nn: planes.nn[lane],
+                            weights: planes.weights.map(|w| w[lane]),
+                        };
+                        let found = closest_from_plane(nearest.point, placed, plane);
                         self.placement.offer_found(nearest, local, vertices, found);
                     }
                 }
@@ -108,6 +113,52 @@ impl PacketRecords<'_> {
                     break;
                 }
                 self.placement.offer(nearest, local, packet.triangle(lane).vertices);
+            }
+        }
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+    use crate::format::PackedTriangle;
+    use crate::point::Point3;
+    use crate::point::triangle::plane_values;
+    use crate::simd::Avx2;
+    use crate::simd::x86_points::packet_planes;
+
+    #[test]
+    fn lanes_hold_the_scalar_plane_values_bit_for_bit() {
+        let Some(token) = Avx2::detect() else { return };
+        let mut state = 11u64;
+        let mut next = |scale: f32| {
+            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * scale
+        };
+        for round in 0..2000 {
+            // Scales from tiny to far, a shared vertex and a degenerate triangle now and then.
+            let scale = [1e-6f32, 1.0, 3e4][round % 3];
+            let mut triangles: Vec<(u32, PackedTriangle)> = (0..4u32)
+                .map(|i| {
+                    (i, PackedTriangle { vertices: std::array::from_fn(|_| std::array::from_fn(|_| next(scale))) })
+                })
+                .collect();
+            triangles[1].1.vertices[0] = triangles[0].1.vertices[2];
+            if round % 7 == 0 {
+                triangles[2].1.vertices[2] = triangles[2].1.vertices[1];
+            }
+            let packet = TrianglePacket4::new(&triangles);
+            let p: Point3 = std::array::from_fn(|_| f64::from(next(scale * 1.5)));
+            let planes = packet_planes(token, p, &packet);
+            for (lane, (_, triangle)) in triangles.iter().enumerate() {
+                let scalar = plane_values(p, triangle.vertices.map(|v| v.map(f64::from)));
+                let lanes = PlaneValues {
+                    n: planes.n.map(|axis| axis[lane]),
+                    nn: planes.nn[lane],
+                    weights: planes.weights.map(|w| w[lane]),
+                };
+                let bits = |v: PlaneValues| (v.n.map(f64::to_bits), v.nn.to_bits(), v.weights.map(f64::to_bits));
+                assert_eq!(bits(lanes), bits(scalar), "round {round}, lane {lane}");
             }
         }
     }

@@ -1,7 +1,8 @@
 //! The plane values of a triangle packet's four triangles for one query point in AVX2 binary64 lanes
 //! ([`packet_planes`]): the first steps of `crate::point::closest_on_triangle` (normal, its square, the three
 //! weights), operation for operation and in its order (no fused operation), so each lane holds the scalar
-//! values bit for bit; each triangle is then finished one at a time (`closest_from_plane`).
+//! values bit for bit (`crate::point::records` finishes each triangle alone and tests the lanes against the
+//! scalar values).
 
 #![allow(unsafe_code)] // intrinsics: each block states what it relies on
 
@@ -9,8 +10,6 @@ use std::arch::x86_64::*;
 
 use super::x86::Avx2;
 use crate::format::{PACKET_LANES, TrianglePacket4};
-use crate::point::Point3;
-use crate::point::triangle::PlaneValues;
 
 type V = __m256d;
 type V3 = [V; 3];
@@ -61,9 +60,17 @@ fn cross3(a: V3, b: V3) -> V3 {
     ]
 }
 
+/// The plane values of a packet's four triangles, lane by lane: the normal `n = (v1 - v0) x (v2 - v0)` by axis,
+/// `n . n`, and the weights of `v0`, `v1`, `v2`, in binary64.
+pub(crate) struct PacketPlanes {
+    pub n: [[f64; PACKET_LANES]; 3],
+    pub nn: [f64; PACKET_LANES],
+    pub weights: [[f64; PACKET_LANES]; 3],
+}
+
 /// The plane values of each lane's triangle of `packet` for the point `p`: those `closest_on_triangle` computes
 /// from the lane's vertices (as f64), bit for bit.
-pub(crate) fn packet_planes(token: Avx2, p: Point3, packet: &TrianglePacket4) -> [PlaneValues; PACKET_LANES] {
+pub(crate) fn packet_planes(token: Avx2, p: [f64; 3], packet: &TrianglePacket4) -> PacketPlanes {
     let _ = token;
     // SAFETY: `token` exists, so `Avx2::detect` found AVX2 on this CPU.
     unsafe { packet_planes_avx2(p, packet) }
@@ -72,7 +79,7 @@ pub(crate) fn packet_planes(token: Avx2, p: Point3, packet: &TrianglePacket4) ->
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-unsafe fn packet_planes_avx2(p: Point3, packet: &TrianglePacket4) -> [PlaneValues; PACKET_LANES] {
+unsafe fn packet_planes_avx2(p: [f64; 3], packet: &TrianglePacket4) -> PacketPlanes {
     let mut corners = [[_mm256_setzero_pd(); 3]; 3];
     for (corner, rows) in corners.iter_mut().zip(&packet.vertices) {
         for (lanes, row) in corner.iter_mut().zip(rows) {
@@ -83,54 +90,13 @@ unsafe fn packet_planes_avx2(p: Point3, packet: &TrianglePacket4) -> [PlaneValue
     let [a, b, c] = corners;
     let q: V3 = p.map(splat);
     let n = cross3(sub3(b, a), sub3(c, a));
-    let nn = lanes(dot3(n, n));
-    let weights = [
-        lanes(dot3(cross3(sub3(c, b), sub3(q, b)), n)),
-        lanes(dot3(cross3(sub3(a, c), sub3(q, c)), n)),
-        lanes(dot3(cross3(sub3(b, a), sub3(q, a)), n)),
-    ];
-    let n = n.map(lanes);
-    std::array::from_fn(|lane| PlaneValues {
-        n: [n[0][lane], n[1][lane], n[2][lane]],
-        nn: nn[lane],
-        weights: weights.map(|w| w[lane]),
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::format::PackedTriangle;
-    use crate::point::triangle::plane_values;
-
-    #[test]
-    fn lanes_hold_the_scalar_plane_values_bit_for_bit() {
-        let Some(token) = Avx2::detect() else { return };
-        let mut state = 11u64;
-        let mut next = |scale: f32| {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
-            ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * scale
-        };
-        for round in 0..2000 {
-            // Scales from tiny to far, a shared vertex and a degenerate triangle now and then.
-            let scale = [1e-6f32, 1.0, 3e4][round % 3];
-            let mut triangles: Vec<(u32, PackedTriangle)> = (0..4u32)
-                .map(|i| {
-                    (i, PackedTriangle { vertices: std::array::from_fn(|_| std::array::from_fn(|_| next(scale))) })
-                })
-                .collect();
-            triangles[1].1.vertices[0] = triangles[0].1.vertices[2];
-            if round % 7 == 0 {
-                triangles[2].1.vertices[2] = triangles[2].1.vertices[1];
-            }
-            let packet = TrianglePacket4::new(&triangles);
-            let p: Point3 = std::array::from_fn(|_| f64::from(next(scale * 1.5)));
-            let lanes = packet_planes(token, p, &packet);
-            for (lane, (_, triangle)) in triangles.iter().enumerate() {
-                let scalar = plane_values(p, triangle.vertices.map(|v| v.map(f64::from)));
-                let bits = |v: PlaneValues| (v.n.map(f64::to_bits), v.nn.to_bits(), v.weights.map(f64::to_bits));
-                assert_eq!(bits(lanes[lane]), bits(scalar), "round {round}, lane {lane}");
-            }
-        }
+    PacketPlanes {
+        nn: lanes(dot3(n, n)),
+        weights: [
+            lanes(dot3(cross3(sub3(c, b), sub3(q, b)), n)),
+            lanes(dot3(cross3(sub3(a, c), sub3(q, c)), n)),
+            lanes(dot3(cross3(sub3(b, a), sub3(q, a)), n)),
+        ],
+        n: n.map(lanes),
     }
 }
