@@ -251,19 +251,43 @@ fn ties_go_to_the_lowest_record_and_the_bound_is_inclusive() {
     }
 }
 
+/// Each tracer's batch answers (points in a spatial order, each walk bounded by its neighbour's answer) equal
+/// its single queries bit for bit, record and instance included, on any thread count.
+fn check_batches(view: &BvhView<'_>, points: &[[f32; 3]], max_distance: f32, what: &str) {
+    for tracer in every_kernel(view) {
+        let single: Vec<_> = points.iter().map(|&p| tracer.closest_point(p, max_distance)).collect();
+        for threads in [0, 1, 3] {
+            let mut out = vec![None; points.len()];
+            tracer.closest_points(points, max_distance, &mut out, threads);
+            assert_eq!(out, single, "{what}: {threads} threads");
+        }
+    }
+}
+
 #[test]
 fn batches_equal_single_queries_on_any_thread_count_and_bad_queries_get_nothing() {
     let triangles = random_triangles(6011, 300, 1.0);
-    let file = write_wide_file(&triangles, 2);
-    let records = records_of_view(&file.view());
-    let points = query_points(&records, 3000, 6012);
-    let tracer = file.view().tracer();
-    let single: Vec<_> = points.iter().map(|&p| tracer.closest_point(p, 0.5)).collect();
-    for threads in [0, 1, 3] {
-        let mut out = vec![None; points.len()];
-        tracer.closest_points(&points, 0.5, &mut out, threads);
-        assert_eq!(out, single, "{threads} threads");
+    for file in [write_wide_file(&triangles, 2), write_file(&packed_tree(&triangles, 4))] {
+        let records = records_of_view(&file.view());
+        let mut points = query_points(&records, 3000, 6012);
+        points.extend([[f32::NAN, 0.0, 0.0], [0.0, f32::INFINITY, 0.0]]);
+        check_batches(&file.view(), &points, 0.5, "random triangles within 0.5");
+        check_batches(&file.view(), &points, f32::INFINITY, "random triangles");
     }
+    // Ties: every grid point lies at the same distance from several triangles, and its neighbours' answers
+    // bound the walk by that distance exactly.
+    let grid_file = write_wide_file(&grid(12), 2);
+    let points: Vec<[f32; 3]> =
+        (0..2000).map(|k| [(k % 25) as f32 * 0.5, (k / 25 % 25) as f32 * 0.5, (k / 625) as f32 + 0.5]).collect();
+    check_batches(&grid_file.view(), &points, f32::INFINITY, "grid ties");
+    for wide in [false, true] {
+        let (scene, sources) = two_level(&test_meshes(), &test_placements(), wide);
+        let file = write_two_level(&scene, &sources).expect("the test scene writes and verifies");
+        let points = query_points(&records_of_view(&file.view()), 2000, 6013);
+        check_batches(&file.view(), &points, f32::INFINITY, "two-level");
+    }
+    let file = write_wide_file(&triangles, 2);
+    let tracer = file.view().tracer();
     for (p, max) in
         [([f32::NAN, 0.0, 0.0], 1.0), ([0.0, f32::INFINITY, 0.0], 1.0), ([0.0; 3], -1.0), ([0.0; 3], f32::NAN)]
     {
@@ -325,6 +349,7 @@ fn check_converted_scene(relative: &str, preset: bvhc::Preset, instancing: bvhc:
             );
         }
     }
+    check_batches(&view, &points, f32::INFINITY, relative);
     eprintln!("{relative} ({instancing:?}): {count} points, {} records, split references {split}", records.len());
 }
 

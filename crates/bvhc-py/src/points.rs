@@ -1,6 +1,6 @@
-//! Point queries from numpy arrays (`Scene.closest_points`, `Scene.distance`): the loader's
-//! `Tracer::closest_point` a point, chunks of points on the pool with the GIL released, answers into numpy
-//! columns. Points are `(n, 3)` float32 or float64 arrays (float64 rounded to float32, the precision the file's
+//! Point queries from numpy arrays (`Scene.closest_points`, `Scene.distance`, `Scene.signed_distance`,
+//! `Scene.winding_number`): the loader's batch calls (which answer the points in a spatial order) on the pool's
+//! thread count with the GIL released, answers into numpy columns. Points are `(n, 3)` float32 or float64 arrays (float64 rounded to float32, the precision the file's
 //! triangles and the spec's queries take); a point that is not finite raises, naming it.
 
 use bvhc::loader::{BvhView, ClosestPoint};
@@ -8,15 +8,11 @@ use numpy::IntoPyArray;
 use numpy::ndarray::Array2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use rayon::prelude::*;
 
 use crate::errors::InvalidInputError;
 use crate::hits::NONE;
 use crate::rays::Vectors;
 use crate::tracing::on_pool;
-
-/// Points a task.
-const POINT_CHUNK: usize = 1024;
 
 /// The points as rows, each finite (else the error names the first that is not).
 fn finite_rows(py: Python<'_>, points: &Vectors<'_>) -> PyResult<Vec<[f32; 3]>> {
@@ -36,28 +32,13 @@ pub fn max_distance_keyword(max_distance: Option<f64>) -> PyResult<f32> {
     }
 }
 
-/// `value(point)` of each of `rows` into a new array, chunks of points on `pool` with the GIL released.
-fn each_point<T: Copy + Send>(
-    py: Python<'_>,
-    rows: &[[f32; 3]],
-    pool: &Option<rayon::ThreadPool>,
-    empty: T,
-    value: impl Fn([f32; 3]) -> T + Sync,
-) -> Vec<T> {
-    let mut out = vec![empty; rows.len()];
-    py.detach(|| {
-        on_pool(pool, || {
-            out.par_chunks_mut(POINT_CHUNK).zip(rows.par_chunks(POINT_CHUNK)).for_each(|(slots, points)| {
-                for (slot, &point) in slots.iter_mut().zip(points) {
-                    *slot = value(point);
-                }
-            })
-        })
-    });
-    out
+/// The threads a call on `pool` may use (the pool's, else every core's).
+fn pool_threads(pool: &Option<rayon::ThreadPool>) -> usize {
+    on_pool(pool, rayon::current_num_threads)
 }
 
-/// Each point's closest point within `max_distance`, traced on `pool`.
+/// Each point's closest point within `max_distance`: the loader's batch call (points in a spatial order, each
+/// walk bounded by its neighbour's answer) on `pool`'s thread count, with the GIL released.
 fn answers(
     py: Python<'_>,
     view: &BvhView<'_>,
@@ -66,7 +47,10 @@ fn answers(
     pool: &Option<rayon::ThreadPool>,
 ) -> Vec<Option<ClosestPoint>> {
     let tracer = view.tracer();
-    each_point(py, rows, pool, None, |point| tracer.closest_point(point, max_distance))
+    let mut out = vec![None; rows.len()];
+    let threads = pool_threads(pool);
+    py.detach(|| tracer.closest_points(rows, max_distance, &mut out, threads));
+    out
 }
 
 /// `Scene.closest_points`: a dict of columns, a row a point: `point` ((n, 3) float32), `distance` (float32,
@@ -122,10 +106,13 @@ pub fn winding<'py>(
             view.triangles().len()
         ))
     })?;
+    let threads = pool_threads(pool);
     if signed {
-        let out = each_point(py, &rows, pool, 0f32, |point| numbers.signed_distance(point));
+        let mut out = vec![0f32; rows.len()];
+        py.detach(|| numbers.signed_distances(&rows, &mut out, threads));
         return Ok(out.into_pyarray(py).into_any());
     }
-    let out = each_point(py, &rows, pool, 0f64, |point| numbers.winding_number(point));
+    let mut out = vec![0f64; rows.len()];
+    py.detach(|| numbers.winding_numbers(&rows, &mut out, threads));
     Ok(out.into_pyarray(py).into_any())
 }

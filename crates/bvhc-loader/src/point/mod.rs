@@ -11,6 +11,7 @@
 
 pub(crate) mod caps;
 pub(crate) mod nearest;
+pub(crate) mod order;
 pub(crate) mod records;
 pub(crate) mod space;
 pub(crate) mod triangle;

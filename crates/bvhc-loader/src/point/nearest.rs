@@ -61,6 +61,15 @@ impl Nearest {
         if reach.is_nan() { f64::INFINITY } else { reach * reach }
     }
 
+    /// Narrows the query to squared distances at most `d2`, that of a triangle the walk will offer (a bound that
+    /// only spares the walk nodes farther than that triangle: the answer is the same, found sooner).
+    pub(crate) fn bound_by(&mut self, d2: f64) {
+        if d2 < self.accept_d2 {
+            self.accept_d2 = d2;
+            self.cull_d2 = self.cull_beyond(d2.sqrt());
+        }
+    }
+
     /// Whether a triangle at squared distance `d2` may still be taken (before its tie key is read).
     #[inline(always)]
     pub(crate) fn admits(&self, d2: f64) -> bool {

@@ -10,7 +10,9 @@
 
 use std::collections::TryReserveError;
 
+use crate::point::ClosestPoint;
 use crate::point::caps::Caps;
+use crate::point::order::answer_in_order;
 use crate::point::winding::{Map, MeshMoments, mesh_angle, mesh_moments};
 use crate::ray::intersect::Ray;
 use crate::ray::transform::{mirrors, object_ray};
@@ -22,6 +24,9 @@ use crate::tracer::crossings::{Crossings, INSIDE_DIRECTION};
 /// counted (`2^-18`: far above the rounding of a hit's `t`, which is relative to the triangle's own offset from
 /// the point).
 const COUNTED_BEYOND: f32 = 1.0 / 262_144.0;
+
+/// Points a thread takes at least in a batch call (fewer stay on the calling thread).
+const MIN_POINTS_A_THREAD: usize = 256;
 
 /// A file's winding numbers and signed distances: the moments of every mesh and the caps over its holes,
 /// computed once (O(records) time and memory), over a tracer that answers the closest points and the crossings.
@@ -140,10 +145,18 @@ impl<'a> WindingNumbers<'a> {
     /// winding number's magnitude exceeds 1/2 (inside, whichever way the mesh is wound); 0 on the surface;
     /// `f32::INFINITY` for a file with no triangles; NaN for a point that is not finite.
     pub fn signed_distance(&self, point: [f32; 3]) -> f32 {
+        self.signed_distance_near(point, &mut None)
+    }
+
+    /// [`WindingNumbers::signed_distance`], the closest point's walk bounded by `previous` (a nearby point's
+    /// closest point, `crate::point::order`), which becomes this point's.
+    fn signed_distance_near(&self, point: [f32; 3], previous: &mut Option<ClosestPoint>) -> f32 {
         if !point.iter().all(|c| c.is_finite()) {
             return f32::NAN;
         }
-        let distance = self.tracer.distance(point);
+        let found = self.tracer.closest_point_near(point, f32::INFINITY, previous.as_ref());
+        *previous = found.or(*previous);
+        let distance = found.map_or(f32::INFINITY, |found| found.distance);
         if distance == 0.0 || distance.is_infinite() {
             return distance;
         }
@@ -153,24 +166,20 @@ impl<'a> WindingNumbers<'a> {
     }
 
     /// [`WindingNumbers::winding_number`] of each of `points` into `out` (the same length; panics otherwise),
-    /// on up to `threads` threads (0 counts as 1); the same values on any count.
+    /// on up to `threads` threads (0 counts as 1); the same values on any count, the points taken in a spatial
+    /// order (`crate::point::order`).
     pub fn winding_numbers(&self, points: &[[f32; 3]], out: &mut [f64], threads: usize) {
         crate::ray::hit::same_length("winding_numbers", points.len(), out.len());
-        crate::parallel::Workers::new(threads).for_chunks(out, 256, |first, chunk| {
-            for (slot, &point) in chunk.iter_mut().zip(&points[first..]) {
-                *slot = self.winding_number(point);
-            }
-        });
+        answer_in_order(points, out, threads, MIN_POINTS_A_THREAD, |point, _: &mut ()| self.winding_number(point));
     }
 
     /// [`WindingNumbers::signed_distance`] of each of `points` into `out` (the same length; panics otherwise),
-    /// on up to `threads` threads (0 counts as 1); the same values on any count.
+    /// on up to `threads` threads (0 counts as 1); the same values on any count, the points taken in a spatial
+    /// order, each closest point's walk bounded by the previous one's (`crate::point::order`).
     pub fn signed_distances(&self, points: &[[f32; 3]], out: &mut [f32], threads: usize) {
         crate::ray::hit::same_length("signed_distances", points.len(), out.len());
-        crate::parallel::Workers::new(threads).for_chunks(out, 256, |first, chunk| {
-            for (slot, &point) in chunk.iter_mut().zip(&points[first..]) {
-                *slot = self.signed_distance(point);
-            }
+        answer_in_order(points, out, threads, MIN_POINTS_A_THREAD, |point, previous| {
+            self.signed_distance_near(point, previous)
         });
     }
 }

@@ -329,7 +329,7 @@ fn leaf_hit<Q: Query, I: Isa, C: Candidates>(
 /// Asks the cache for the wide node or the first packet `child` references: a hint with no effect on results,
 /// so the address is formed without a bounds check (a prefetch never faults, whatever the address).
 #[inline(always)]
-fn prefetch(sections: &Sections<'_>, child: u32) {
+pub(crate) fn prefetch(sections: &Sections<'_>, child: u32) {
     if child & LEAF_BIT == 0 {
         prefetch_lines::<4>(sections.nodes.as_ptr().wrapping_add(child as usize).cast());
     } else {
