@@ -198,8 +198,9 @@ bvhc_status bvhc_closest_points(const bvhc_file *file, const float *points, size
  * magnitude exceeds 1/2 (inside a closed mesh of either winding), 0 on the surface; winding numbers: out[i] is
  * 1 inside a closed mesh wound counter-clockwise seen from outside (-1 for the other winding), 0 outside,
  * fractions near holes (summed fast: within about 0.05 of the exact sum near surfaces). The winding moments are
- * computed once a call (time linear in the triangles, 136 bytes a tree node: BVHC_ERROR_MEMORY when they cannot
- * be had). BVHC_ERROR_ARGUMENT naming the first point that is not finite. */
+ * computed by the first such call on a file and kept with it until a refit or instance move (time linear in
+ * the triangles, 136 bytes a tree node: BVHC_ERROR_MEMORY when they cannot be had). Calls on one file may run
+ * at once. BVHC_ERROR_ARGUMENT naming the first point that is not finite. */
 bvhc_status bvhc_signed_distances(const bvhc_file *file, const float *points, size_t count, unsigned threads,
                                   float *out);
 bvhc_status bvhc_winding_numbers(const bvhc_file *file, const float *points, size_t count, unsigned threads,

@@ -175,7 +175,8 @@ unsafe fn point_rows(call: &str, points: *const f32, count: usize) -> Result<Vec
 /// The signed distance of each of `count` points (3 floats each) to the surface into `out[i]`: the closest
 /// point's distance, negative where the generalized winding number's magnitude exceeds 1/2 (inside), on up to
 /// `threads` threads (0: every core). `BVHC_ERROR_ARGUMENT` naming the first point that is not finite;
-/// `BVHC_ERROR_MEMORY` when the winding moments (computed once a call, 136 bytes a node) cannot be had.
+/// `BVHC_ERROR_MEMORY` when the winding moments (computed by the first call on the file and kept with it until
+/// it changes, 136 bytes a node) cannot be had.
 ///
 /// # Safety
 ///
@@ -218,7 +219,8 @@ pub unsafe extern "C" fn bvhc_winding_numbers(
     unsafe { winding_call("bvhc_winding_numbers", file, (points, count), threads, out, fill) }
 }
 
-/// The calls over the winding moments: checks the arguments, computes the moments once, and has `fill` write
+/// The calls over the winding moments: checks the arguments, takes the file's moments (computed by its first
+/// such call), and has `fill` write
 /// `count` values into `out` on `threads` threads.
 ///
 /// # Safety
@@ -244,7 +246,7 @@ unsafe fn winding_call<T>(
         }
         // SAFETY: by the contract `points` holds `3 count` floats and `out` `count` values, apart.
         let (rows, out) = unsafe { (point_rows(call, points, count)?, std::slice::from_raw_parts_mut(out, count)) };
-        let numbers = file.tracer().winding_numbers().map_err(|e| memory(call, e))?;
+        let numbers = file.traced.winding_numbers().map_err(|e| memory(call, e))?;
         fill(&numbers, &rows, out, thread_count(threads));
         Ok(BVHC_OK)
     })

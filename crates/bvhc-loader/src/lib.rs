@@ -105,7 +105,7 @@ pub use source::identity::TriangleIdentities;
 pub use trace::{BatchResult, Order, Trace};
 pub use tracer::filter;
 pub use tracer::filter::{FilteredTracer, HitFilter};
-pub use tracer::winding::WindingNumbers;
+pub use tracer::winding::{WindingMoments, WindingNumbers};
 pub use tracer::{Crossings, Kernel, TracedFile, Tracer};
 pub use wide::WideTracer;
 

@@ -3,7 +3,9 @@
 //! thread count with the GIL released, answers into numpy columns. Points are `(n, 3)` float32 or float64 arrays (float64 rounded to float32, the precision the file's
 //! triangles and the spec's queries take); a point that is not finite raises, naming it.
 
-use bvhc::loader::{BvhView, ClosestPoint};
+use std::sync::{Arc, Mutex, PoisonError};
+
+use bvhc::loader::{BvhView, ClosestPoint, WindingMoments, WindingNumbers};
 use numpy::IntoPyArray;
 use numpy::ndarray::Array2;
 use pyo3::prelude::*;
@@ -89,23 +91,49 @@ pub fn closest_points<'py>(
     Ok(d)
 }
 
+/// A scene's winding moments and the hash (xxh3) and length of the bytes they were computed from: a call whose
+/// bytes hash the same takes them, any other computes them again, so a refit, a pose, an instance move or a
+/// write into the array by any means leaves no stale moments (hashing costs about a tenth of computing them).
+#[derive(Default)]
+pub struct KeptMoments(Mutex<Option<(u64, usize, Arc<WindingMoments>)>>);
+
+impl KeptMoments {
+    /// The moments of `view`'s bytes: the kept ones if they are of the same bytes, else computed and kept.
+    fn of(&self, view: &BvhView<'_>) -> PyResult<Arc<WindingMoments>> {
+        let bytes = view.bytes();
+        let key = (xxhash_rust::xxh3::xxh3_64(bytes), bytes.len());
+        let mut kept = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((hash, len, moments)) = &*kept
+            && (*hash, *len) == key
+        {
+            return Ok(Arc::clone(moments));
+        }
+        let moments = WindingMoments::new(&view.tracer()).map_err(|e| {
+            pyo3::exceptions::PyMemoryError::new_err(format!(
+                "the winding moments of {} triangles: {e}",
+                view.triangles().len()
+            ))
+        })?;
+        let moments = Arc::new(moments);
+        *kept = Some((key.0, key.1, Arc::clone(&moments)));
+        Ok(moments)
+    }
+}
+
 /// `Scene.signed_distance` (`signed`) or `Scene.winding_number`: each point's signed distance (float32, negative
-/// inside) or winding number (float64), from the file's winding moments, computed once for the call.
+/// inside) or winding number (float64), from the file's winding moments (`kept`'s, when of the same bytes).
 pub fn winding<'py>(
     py: Python<'py>,
     view: &BvhView<'_>,
     points: &Vectors<'_>,
     signed: bool,
     pool: &Option<rayon::ThreadPool>,
+    kept: &KeptMoments,
 ) -> PyResult<Bound<'py, PyAny>> {
     let rows = finite_rows(py, points)?;
     let tracer = view.tracer();
-    let numbers = tracer.winding_numbers().map_err(|e| {
-        pyo3::exceptions::PyMemoryError::new_err(format!(
-            "the winding moments of {} triangles: {e}",
-            view.triangles().len()
-        ))
-    })?;
+    let moments = py.detach(|| kept.of(view))?;
+    let numbers = WindingNumbers::with_moments(&tracer, moments);
     let threads = pool_threads(pool);
     if signed {
         let mut out = vec![0f32; rows.len()];

@@ -24,6 +24,8 @@ pub struct Scene {
     path: String,
     /// What `pose` left for `write`.
     posed: std::sync::Mutex<Posed>,
+    /// The winding moments of the bytes as they were when last asked for (`crate::points::KeptMoments`).
+    winding: crate::points::KeptMoments,
 }
 
 /// What `Scene.pose` leaves for `Scene.write`.
@@ -71,7 +73,7 @@ impl Scene {
             }
             Ok(())
         })?;
-        Ok(Scene { bytes, path, posed: Default::default() })
+        Ok(Scene { bytes, path, posed: Default::default(), winding: Default::default() })
     }
 
     /// The file's path as given.
@@ -247,7 +249,9 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyAny>> {
         let points = Vectors::extract("points", &points)?;
         let pool = pool(threads)?;
-        with_view(py, &self.bytes, &self.path, |view| crate::points::winding(py, view, &points, signed, &pool))
+        with_view(py, &self.bytes, &self.path, |view| {
+            crate::points::winding(py, view, &points, signed, &pool, &self.winding)
+        })
     }
 
     /// Seconds the loader's batch call takes for these rays as a Rust program makes it: `Tracer::closest_hits` in

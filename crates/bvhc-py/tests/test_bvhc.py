@@ -1005,6 +1005,24 @@ def test_closest_points_are_the_nearest_on_the_surface(tmp_path):
         pass
 
 
+def test_winding_moments_kept_between_calls_follow_a_refit(tmp_path):
+    mesh, _ = sphere_scene(tmp_path)
+    opened = bvhc.open(tmp_path / "sphere.bvh", writable=True)
+    points = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0], [1.5, 0.0, 0.0]], dtype=np.float32)
+    first = opened.signed_distance(points)
+    assert np.array_equal(opened.signed_distance(points), first), "the kept moments answer the same"
+    assert first[0] < 0 < first[1] and first[2] > 0
+    # Moved by 3 along x: the kept moments are of other bytes now and must not be used.
+    moved = np.array(opened.triangles, dtype=np.float32) + np.array([3.0, 0.0, 0.0], dtype=np.float32)
+    opened.refit(np.ascontiguousarray(moved))
+    after = opened.signed_distance(points)
+    assert after[0] > 0 > after[1], after
+    opened.write(tmp_path / "moved.bvh")
+    fresh = bvhc.open(tmp_path / "moved.bvh")
+    assert np.array_equal(after, fresh.signed_distance(points))
+    assert np.array_equal(opened.winding_number(points), fresh.winding_number(points))
+
+
 def test_closest_points_through_instances_are_in_world_space(tmp_path):
     engine = scene("khr-2cylinder-engine/2CylinderEngine.gltf")
     flat, placed = tmp_path / "flat.bvh", tmp_path / "placed.bvh"

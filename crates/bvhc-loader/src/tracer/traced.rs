@@ -6,6 +6,9 @@
 use crate::open::file::BvhFile;
 use crate::open::view::BvhView;
 use crate::tracer::Tracer;
+use crate::tracer::winding::{WindingMoments, WindingNumbers};
+use std::collections::TryReserveError;
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// A [`BvhFile`] and the tracer over it ([`BvhView::tracer`]), made once.
 pub struct TracedFile {
@@ -14,6 +17,8 @@ pub struct TracedFile {
     /// [`TracedFile::edit_file`] changes the buffer it is a tracer over no triangles, which borrows nothing.
     tracer: Tracer<'static>,
     file: BvhFile,
+    /// The file's winding moments, once a call has asked for them; dropped by [`TracedFile::edit_file`].
+    winding: Mutex<Option<Arc<WindingMoments>>>,
 }
 
 /// A tracer over `file` with its lifetime widened to `'static`, which [`TracedFile`] keeps (see its fields).
@@ -33,13 +38,13 @@ impl TracedFile {
     /// `file` with its fastest tracer (the wide kernel on the best path, through the instances of a two-level
     /// file).
     pub fn new(file: BvhFile) -> TracedFile {
-        TracedFile { tracer: kept_tracer(&file, true), file }
+        TracedFile { tracer: kept_tracer(&file, true), file, winding: Mutex::new(None) }
     }
 
     /// This file with its tracer trusting rays ([`Tracer::trusting_rays`]): for bindings that check rays
     /// themselves to report an error rather than panic.
     pub fn trusting_rays(self) -> TracedFile {
-        TracedFile { tracer: self.tracer.trusting_rays(), file: self.file }
+        TracedFile { tracer: self.tracer.trusting_rays(), ..self }
     }
 
     /// The tracer, made when this was (or after the last [`TracedFile::edit_file`]).
@@ -62,10 +67,23 @@ impl TracedFile {
             }
         }
         let checks_rays = self.tracer.checks_rays();
+        // The moments describe the bytes as they were.
+        *self.winding.get_mut().unwrap_or_else(PoisonError::into_inner) = None;
         // No borrow of the buffer may live while it changes.
         self.tracer = Tracer::new(&[], &[], None);
         let restore = Restore { traced: self, checks_rays };
         edit(&mut restore.traced.file)
+    }
+
+    /// The file's winding numbers and signed distances ([`WindingNumbers`]), their moments computed by the first
+    /// call and kept until the next [`TracedFile::edit_file`]. Fails only when memory for them cannot be had.
+    pub fn winding_numbers(&self) -> Result<WindingNumbers<'_>, TryReserveError> {
+        let mut kept = self.winding.lock().unwrap_or_else(PoisonError::into_inner);
+        let moments = match &*kept {
+            Some(moments) => Arc::clone(moments),
+            None => Arc::clone(kept.insert(Arc::new(WindingMoments::new(&self.tracer)?))),
+        };
+        Ok(WindingNumbers::with_moments(self.tracer(), moments))
     }
 
     /// The file.
@@ -113,5 +131,23 @@ mod tests {
         traced.edit_file(|file| file.refit_triangles(&lifted)).unwrap();
         assert_eq!(traced.tracer().closest_hit(&ray).map(|h| h.t), Some(0.5));
         assert!(!traced.tracer().checks_rays(), "still trusting rays");
+    }
+
+    #[test]
+    fn winding_moments_are_kept_until_an_edit() {
+        let file = BvhFile::from_bytes(include_bytes!("../../tests/data/quad-v1.1.bvh")).unwrap();
+        let mut traced = TracedFile::new(file);
+        let first = Arc::clone(traced.winding_numbers().unwrap().moments());
+        assert!(Arc::ptr_eq(&first, traced.winding_numbers().unwrap().moments()), "kept");
+        // Above the quad (0..1 square at z = 0) at height 1; after lifting it by 2 the point is below it.
+        let lifted: Vec<[[f32; 3]; 3]> =
+            traced.view().triangles().iter().map(|t| t.vertices.map(|[x, y, z]| [x, y, z + 2.0])).collect();
+        let before = traced.winding_numbers().unwrap().winding_number([0.5, 0.5, 1.0]);
+        traced.edit_file(|file| file.refit_triangles(&lifted)).unwrap();
+        let after = traced.winding_numbers().unwrap();
+        assert!(!Arc::ptr_eq(&first, after.moments()), "computed again after the edit");
+        let fresh = traced.tracer().winding_numbers().unwrap().winding_number([0.5, 0.5, 1.0]);
+        assert_eq!(after.winding_number([0.5, 0.5, 1.0]), fresh);
+        assert!(before * fresh < 0.0, "the open quad's winding number changes sign: {before} then {fresh}");
     }
 }

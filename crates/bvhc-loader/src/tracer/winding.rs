@@ -9,6 +9,7 @@
 //! (`crate::point::winding`, Barill et al. 2018).
 
 use std::collections::TryReserveError;
+use std::sync::Arc;
 
 use crate::point::ClosestPoint;
 use crate::point::caps::Caps;
@@ -28,12 +29,12 @@ const COUNTED_BEYOND: f32 = 1.0 / 262_144.0;
 /// Points a thread takes at least in a batch call (fewer stay on the calling thread).
 const MIN_POINTS_A_THREAD: usize = 256;
 
-/// A file's winding numbers and signed distances: the moments of every mesh and the caps over its holes,
-/// computed once (O(records) time and memory), over a tracer that answers the closest points and the crossings.
+/// What a file's winding numbers are computed from, once (O(records) time and memory): the moments of every mesh,
+/// the caps over its holes, each instance's map. Owned and shareable between threads, so a binding can keep it
+/// with the file and answer many calls from it ([`WindingNumbers::with_moments`]); it describes the bytes it was
+/// computed from, so a refit, pose or instance move calls for a new one (`TracedFile` drops its own).
 #[derive(Clone, Debug)]
-pub struct WindingNumbers<'a> {
-    tracer: Tracer<'a>,
-    crossings: Crossings<'a>,
+pub struct WindingMoments {
     /// One a mesh: the file's tree (one level), or each mesh of a two-level file.
     meshes: Vec<MeshMoments>,
     /// Each mesh's caps; `None` for a closed mesh.
@@ -44,9 +45,9 @@ pub struct WindingNumbers<'a> {
     near: f32,
 }
 
-impl<'a> WindingNumbers<'a> {
+impl WindingMoments {
     /// The moments and caps of `tracer`'s file. Fails only when memory for them cannot be had.
-    pub fn new(tracer: &Tracer<'a>) -> Result<WindingNumbers<'a>, TryReserveError> {
+    pub fn new(tracer: &Tracer<'_>) -> Result<WindingMoments, TryReserveError> {
         let mut meshes = Vec::new();
         let mut caps = Vec::new();
         let mut add = |nodes, triangles, ids| -> Result<(), TryReserveError> {
@@ -71,10 +72,36 @@ impl<'a> WindingNumbers<'a> {
             maps.try_reserve_exact(sections.instances.len())?;
             maps.extend(sections.instances.iter().map(Map::of));
         }
+        Ok(WindingMoments { meshes, caps, maps, near: tracer.scene_extent() * COUNTED_BEYOND })
+    }
+}
+
+/// A file's winding numbers and signed distances: its [`WindingMoments`] over a tracer that answers the closest
+/// points and the crossings.
+#[derive(Clone, Debug)]
+pub struct WindingNumbers<'a> {
+    tracer: Tracer<'a>,
+    crossings: Crossings<'a>,
+    moments: Arc<WindingMoments>,
+}
+
+impl<'a> WindingNumbers<'a> {
+    /// The moments and caps of `tracer`'s file, computed here. Fails only when memory for them cannot be had.
+    pub fn new(tracer: &Tracer<'a>) -> Result<WindingNumbers<'a>, TryReserveError> {
+        Ok(WindingNumbers::with_moments(tracer, Arc::new(WindingMoments::new(tracer)?)))
+    }
+
+    /// Over `moments` computed earlier from `tracer`'s file as its bytes are now. Moments of other bytes give
+    /// wrong numbers (never a panic: every index they hold is checked).
+    pub fn with_moments(tracer: &Tracer<'a>, moments: Arc<WindingMoments>) -> WindingNumbers<'a> {
         let identities = TriangleIdentities::new(tracer.triangles(), tracer.triangle_ids(), tracer.split());
         let crossings = Crossings::new(*tracer, tracer.triangles(), identities);
-        let near = tracer.scene_extent() * COUNTED_BEYOND;
-        Ok(WindingNumbers { tracer: *tracer, crossings, meshes, caps, maps, near })
+        WindingNumbers { tracer: *tracer, crossings, moments }
+    }
+
+    /// The moments these numbers are computed from, to keep for later calls.
+    pub fn moments(&self) -> &Arc<WindingMoments> {
+        &self.moments
     }
 
     /// The winding number of the file's surface at `point`: 1 inside a closed mesh wound counter-clockwise seen
@@ -84,7 +111,7 @@ impl<'a> WindingNumbers<'a> {
         if !point.iter().all(|c| c.is_finite()) {
             return f64::NAN;
         }
-        let clear = self.tracer.closest_point(point, self.near).is_none();
+        let clear = self.tracer.closest_point(point, self.moments.near).is_none();
         clear.then(|| self.counted(point)).flatten().unwrap_or_else(|| self.summed(point))
     }
 
@@ -97,16 +124,16 @@ impl<'a> WindingNumbers<'a> {
         let mut angle = 0.0;
         match self.tracer.instance_sections() {
             None => {
-                if let Some(Some(caps)) = self.caps.first() {
-                    crossings += caps.crossings(&ray, self.near).ok()?;
+                if let Some(Some(caps)) = self.moments.caps.first() {
+                    crossings += caps.crossings(&ray, self.moments.near).ok()?;
                     angle += caps.angle(p, None);
                 }
             }
             Some(sections) => {
-                for (instance, map) in sections.instances.iter().zip(&self.maps) {
-                    let Some(Some(caps)) = self.caps.get(instance.mesh_index as usize) else { continue };
+                for (instance, map) in sections.instances.iter().zip(&self.moments.maps) {
+                    let Some(Some(caps)) = self.moments.caps.get(instance.mesh_index as usize) else { continue };
                     let Some(map) = map else { continue };
-                    let side = caps.crossings(&object_ray(instance, &ray), self.near).ok()?;
+                    let side = caps.crossings(&object_ray(instance, &ray), self.moments.near).ok()?;
                     crossings += if mirrors(instance) { -side } else { side };
                     angle += caps.angle(p, Some(map));
                 }
@@ -119,7 +146,7 @@ impl<'a> WindingNumbers<'a> {
     fn summed(&self, point: [f32; 3]) -> f64 {
         let p = point.map(f64::from);
         let total = match self.tracer.instance_sections() {
-            None => match self.meshes.first() {
+            None => match self.moments.meshes.first() {
                 Some(moments) => mesh_angle(self.tracer.nodes(), self.tracer.triangles(), moments, p, None),
                 None => 0.0,
             },
@@ -128,7 +155,7 @@ impl<'a> WindingNumbers<'a> {
                 for (index, instance) in sections.instances.iter().enumerate() {
                     let Some((_, mesh)) = sections.placement(index as u32) else { continue };
                     let (Some(moments), Some(Some(map))) =
-                        (self.meshes.get(instance.mesh_index as usize), self.maps.get(index))
+                        (self.moments.meshes.get(instance.mesh_index as usize), self.moments.maps.get(index))
                     else {
                         continue;
                     };
@@ -160,7 +187,7 @@ impl<'a> WindingNumbers<'a> {
         if distance == 0.0 || distance.is_infinite() {
             return distance;
         }
-        let counted = if distance > self.near { self.counted(point) } else { None };
+        let counted = if distance > self.moments.near { self.counted(point) } else { None };
         let winding = counted.unwrap_or_else(|| self.summed(point));
         if winding.abs() > 0.5 { -distance } else { distance }
     }

@@ -445,8 +445,9 @@ class Scene:
         :meth:`distance`, negative where the generalized winding number's magnitude exceeds 1/2 (inside a closed
         mesh of either winding; open and self-intersecting meshes get the sign their winding number gives), 0 on
         the surface. The winding numbers are summed fast (far parts of the tree by their dipole expansion, within
-        about 0.05 of the exact sum near surfaces, far less away from them); their moments are computed once a
-        call, in time linear in the triangles."""
+        about 0.05 of the exact sum near surfaces, far less away from them); their moments are computed by the first
+        call, in time linear in the triangles, and kept for later calls while the file's bytes stay the same (a
+        refit, pose or instance move computes them again)."""
         return self._native.winding(points, True, threads)
 
     def winding_number(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
