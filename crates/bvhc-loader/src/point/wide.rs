@@ -9,16 +9,41 @@ use crate::format::{EMPTY_SLOT, LEAF_BIT, WIDE};
 use crate::point::nearest::Nearest;
 use crate::point::records::PacketRecords;
 use crate::point::space::{Space, lane_d2};
+use crate::simd::{Isa, Kernel};
 use crate::walk_stack::WalkStack;
 use crate::wide::walk::{STACK_LEN, Sections, prefetch};
 
-/// Walks the wide tree of `sections` (boxes in `space`), offering its packets to `nearest` through `leaves`.
+/// Walks the wide tree of `sections` (boxes in `space`), offering its packets to `nearest` through `leaves`:
+/// compiled for AVX2 as a whole where `leaves` has the token (the same arithmetic, no fused operation, so the
+/// same answers as the portable path), else portable.
 pub(crate) fn walk_wide_points(
     sections: &Sections<'_>,
     space: &Space,
     nearest: &mut Nearest,
     leaves: &PacketRecords<'_>,
 ) {
+    crate::simd::run(leaves.avx2, PointWalk { sections, space, nearest, leaves });
+}
+
+/// [`walk_wide_points`] as a kernel for `crate::simd::run`.
+struct PointWalk<'w, 's> {
+    sections: &'w Sections<'s>,
+    space: &'w Space,
+    nearest: &'w mut Nearest,
+    leaves: &'w PacketRecords<'s>,
+}
+
+impl Kernel for PointWalk<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, _isa: I) {
+        walk(self.sections, self.space, self.nearest, self.leaves);
+    }
+}
+
+#[inline(always)]
+fn walk(sections: &Sections<'_>, space: &Space, nearest: &mut Nearest, leaves: &PacketRecords<'_>) {
     if sections.nodes.is_empty() {
         return;
     }
