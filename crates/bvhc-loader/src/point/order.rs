@@ -48,11 +48,43 @@ pub(crate) fn morton_order(points: &[[f32; 3]]) -> Option<Vec<u32>> {
         let key = spread(cell(0)) | spread(cell(1)) << 1 | spread(cell(2)) << 2;
         key << 32 | index as u64
     }));
-    keys.sort_unstable();
+    let mut spare: Vec<u64> = Vec::new();
+    spare.try_reserve_exact(points.len()).ok()?;
+    spare.resize(points.len(), 0);
+    radix_sort_keys(&mut keys, &mut spare);
     let mut order: Vec<u32> = Vec::new();
     order.try_reserve_exact(points.len()).ok()?;
     order.extend(keys.iter().map(|&key| key as u32));
     Some(order)
+}
+
+/// Sorts `keys` (a 30-bit Morton key above a 32-bit index, indices in increasing order) by the key, stably, so
+/// ties stay in index order: three passes of a least-significant-digit radix sort over the key's 10-bit digits,
+/// through `spare` (as long as `keys`). Linear time: on 200,000 points a comparison sort took a quarter of a
+/// small mesh's query time.
+fn radix_sort_keys(keys: &mut [u64], spare: &mut [u64]) {
+    const DIGIT: u32 = CELL_BITS;
+    let (mut from, mut to) = (keys, spare);
+    for pass in 0..3 {
+        let shift = 32 + DIGIT * pass;
+        let digit = |key: u64| (key >> shift) as usize & ((1 << DIGIT) - 1);
+        let mut starts = [0usize; 1 << DIGIT];
+        for &key in from.iter() {
+            starts[digit(key)] += 1;
+        }
+        let mut sum = 0;
+        for start in starts.iter_mut() {
+            (*start, sum) = (sum, sum + *start);
+        }
+        for &key in from.iter() {
+            let slot = &mut starts[digit(key)];
+            to[*slot] = key;
+            *slot += 1;
+        }
+        std::mem::swap(&mut from, &mut to);
+    }
+    // After an odd number of passes the sorted keys are in the spare buffer.
+    to.copy_from_slice(from);
 }
 
 /// `answer(point, state)` of each of `points` into `out` (the same length), on up to `threads` threads (0 counts
@@ -69,13 +101,18 @@ pub(crate) fn answer_in_order<T: Copy + Send, S: Default>(
     answer: impl Fn([f32; 3], &mut S) -> T + Sync,
 ) {
     let workers = Workers::new(threads);
+    // The points gathered in order first (a tight loop whose cache misses overlap, where reading each at the
+    // start of its query would wait for it), the answers written in order and scattered at the end.
     let in_order = morton_order(points).and_then(|order| {
         let mut answers: Vec<T> = Vec::new();
         answers.try_reserve_exact(out.len()).ok()?;
         answers.extend_from_slice(out);
-        Some((order, answers))
+        let mut gathered: Vec<[f32; 3]> = Vec::new();
+        gathered.try_reserve_exact(points.len()).ok()?;
+        gathered.extend(order.iter().map(|&index| points[index as usize]));
+        Some((order, gathered, answers))
     });
-    let Some((order, mut answers)) = in_order else {
+    let Some((order, gathered, mut answers)) = in_order else {
         workers.for_chunks(out, min_chunk, |first, chunk| {
             let mut state = S::default();
             for (slot, &point) in chunk.iter_mut().zip(&points[first..]) {
@@ -86,8 +123,8 @@ pub(crate) fn answer_in_order<T: Copy + Send, S: Default>(
     };
     workers.for_chunks(&mut answers, min_chunk, |first, chunk| {
         let mut state = S::default();
-        for (slot, &index) in chunk.iter_mut().zip(&order[first..]) {
-            *slot = answer(points[index as usize], &mut state);
+        for (slot, &point) in chunk.iter_mut().zip(&gathered[first..]) {
+            *slot = answer(point, &mut state);
         }
     });
     for (&index, &value) in order.iter().zip(&answers) {
@@ -130,6 +167,23 @@ mod tests {
         let order = morton_order(&points).unwrap();
         assert_eq!(order.last(), Some(&(corner as u32 + 1)));
         assert!(order[..3].contains(&(corner as u32)));
+    }
+
+    #[test]
+    fn the_radix_sort_equals_a_comparison_sort() {
+        let mut s = 99u64;
+        let mut keys: Vec<u64> = (0..5000u64)
+            .map(|index| {
+                s = s.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+                (s >> 34) << 32 | index
+            })
+            .collect();
+        keys.extend((5000..5100u64).map(|index| 7 << 32 | index)); // ties, in index order
+        let mut expected = keys.clone();
+        expected.sort_unstable();
+        let mut spare = vec![0; keys.len()];
+        radix_sort_keys(&mut keys, &mut spare);
+        assert_eq!(keys, expected);
     }
 
     #[test]
