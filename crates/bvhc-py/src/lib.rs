@@ -12,6 +12,7 @@ mod rays;
 mod refit;
 mod scene;
 mod tracing;
+mod verify;
 
 use pyo3::prelude::*;
 
@@ -22,7 +23,7 @@ fn native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     m.add_function(wrap_pyfunction!(options::convert, m)?)?;
     m.add_function(wrap_pyfunction!(options::resolve, m)?)?;
-    m.add_function(wrap_pyfunction!(scene::verify, m)?)?;
+    m.add_function(wrap_pyfunction!(verify::verify, m)?)?;
     m.add_class::<scene::Scene>()?;
     m.add(
         "FORMAT_VERSION",
