@@ -1,6 +1,6 @@
-//! Point queries through the C API (`tests/c/capi_points.c`): the records `bvhc_closest_point` and
-//! `bvhc_closest_points` write equal the Rust tracer's, one- and two-level, bounded or not, and bad arguments get
-//! named errors. SKIPPED without a C compiler or the static library.
+//! Point queries through the C API (`tests/c/capi_points.c`): the records `bvhc_closest_point`,
+//! `bvhc_closest_points` and `bvhc_closest_points_filtered` write equal the Rust tracer's, one- and two-level,
+//! bounded or not, and bad arguments get named errors. SKIPPED without a C compiler or the static library.
 
 use std::path::Path;
 use std::process::Command;
@@ -55,7 +55,11 @@ fn same_points_in_c_and_rust(binary: &Path, bvh: &Path, points: &[[f32; 3]], max
         );
         assert_eq!(*c_line, expected, "point {k} {point:?}");
     }
-    assert_eq!(lines.len(), 2 * points.len() + 1);
+    let odd = |c: &bvhc::loader::PointCandidate| c.triangle_index % 2 == 1;
+    for (k, (c_line, point)) in lines[2 * points.len()..].iter().zip(points).enumerate() {
+        assert_eq!(*c_line, line(tracer.closest_point_filtered(*point, max, &odd)), "filtered point {k} {point:?}");
+    }
+    assert_eq!(lines.len(), 3 * points.len() + 1);
     near
 }
 

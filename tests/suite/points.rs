@@ -7,7 +7,7 @@
 
 use bvhc::loader::format::PackedTriangle;
 use bvhc::loader::point::{Point3, closest_on_triangle};
-use bvhc::loader::{BvhView, ClosestPoint, Tracer};
+use bvhc::loader::{BvhView, ClosestPoint, PointCandidate, Tracer};
 
 use crate::common::*;
 use crate::instances::{test_meshes, test_placements, two_level, write_two_level};
@@ -294,6 +294,59 @@ fn batches_equal_single_queries_on_any_thread_count_and_bad_queries_get_nothing(
         assert_eq!(tracer.closest_point(p, max), None, "{p:?} within {max}");
     }
     assert_eq!(tracer.distance([f32::NAN; 3]), f32::INFINITY);
+}
+
+/// A filtered query answers as the brute force over the records the filter keeps, single and batch, on every
+/// kernel and thread count.
+fn check_filtered(view: &BvhView<'_>, points: &[[f32; 3]], keep: impl Fn(&PointCandidate) -> bool + Sync) {
+    let records = records_of_view(view);
+    let ids = view.triangle_ids();
+    let kept: Vec<Record> = records
+        .iter()
+        .filter(|r| {
+            keep(&PointCandidate {
+                triangle_index: r.record,
+                source_triangle_id: ids.map(|ids| ids[r.record as usize]),
+                instance_index: r.instance,
+            })
+        })
+        .map(|r| Record { vertices: r.vertices, instance: r.instance, record: r.record })
+        .collect();
+    assert!(!kept.is_empty() && kept.len() < records.len(), "the filter keeps some, not all");
+    for tracer in every_kernel(view) {
+        let single: Vec<_> = points.iter().map(|&p| tracer.closest_point_filtered(p, f32::INFINITY, &keep)).collect();
+        for (k, (&p, got)) in points.iter().zip(&single).enumerate() {
+            let (d2, instance, record, point) = brute_force(&kept, p, f32::INFINITY).expect("some are kept");
+            let got = got.expect("a kept triangle is within reach");
+            assert_eq!(
+                (got.triangle_index, got.instance_index, got.distance, got.point),
+                (record, instance, d2.sqrt() as f32, point.map(|c| c as f32)),
+                "point {k} {p:?}"
+            );
+        }
+        for threads in [1, 3] {
+            let mut out = vec![None; points.len()];
+            tracer.closest_points_filtered(points, f32::INFINITY, &keep, &mut out, threads);
+            assert_eq!(out, single, "{threads} threads");
+        }
+    }
+}
+
+#[test]
+fn filtered_queries_answer_among_the_kept_triangles() {
+    let triangles = random_triangles(6041, 300, 1.0);
+    for file in [write_wide_file(&triangles, 2), write_file(&packed_tree(&triangles, 4))] {
+        let records = records_of_view(&file.view());
+        let points = query_points(&records, 600, 6042);
+        check_filtered(&file.view(), &points, |c: &PointCandidate| !c.triangle_index.is_multiple_of(3));
+    }
+    for wide in [false, true] {
+        let (scene, sources) = two_level(&test_meshes(), &test_placements(), wide);
+        let file = write_two_level(&scene, &sources).expect("the test scene writes and verifies");
+        let points = query_points(&records_of_view(&file.view()), 600, 6043);
+        check_filtered(&file.view(), &points, |c: &PointCandidate| c.instance_index.is_some_and(|i| i % 2 == 1));
+        check_filtered(&file.view(), &points, |c: &PointCandidate| c.triangle_index.is_multiple_of(2));
+    }
 }
 
 #[test]

@@ -194,6 +194,17 @@ bvhc_status bvhc_closest_point(const bvhc_file *file, const float point[3], floa
  * not finite (nothing written then). */
 bvhc_status bvhc_closest_points(const bvhc_file *file, const float *points, size_t count, float max_distance,
                                 unsigned threads, bvhc_nearest_point *out);
+/* Point filters: keep(user_data, triangle_index, source_triangle_id, instance_index) returns nonzero where the
+ * record may be the answer (source_triangle_id BVHC_NO_INDEX without ids, instance_index BVHC_NO_INDEX in a
+ * one-level file). bvhc_closest_points_filtered answers as bvhc_closest_points among the kept triangles, as if
+ * the others were absent; keep is called for records within a query's reach, from up to `threads` threads at
+ * once with the same user_data, and must answer alike for the same record (with split references, keep all of
+ * a triangle's records or none: by source id does). BVHC_ERROR_ARGUMENT for a null keep. */
+typedef int (*bvhc_point_filter)(void *user_data, uint32_t triangle_index, uint32_t source_triangle_id,
+                                 uint32_t instance_index);
+bvhc_status bvhc_closest_points_filtered(const bvhc_file *file, const float *points, size_t count,
+                                         float max_distance, unsigned threads, bvhc_point_filter keep,
+                                         void *user_data, bvhc_nearest_point *out);
 /* Signed distances: out[i] is point i's distance to the surface, negative where the generalized winding number's
  * magnitude exceeds 1/2 (inside a closed mesh of either winding), 0 on the surface; winding numbers: out[i] is
  * 1 inside a closed mesh wound counter-clockwise seen from outside (-1 for the other winding), 0 outside,

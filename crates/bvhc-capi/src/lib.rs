@@ -46,7 +46,8 @@ pub use filtered_batch::{
 };
 pub use open::{bvhc_close, bvhc_open, bvhc_open_memory, bvhc_verify};
 pub use points::{
-    BvhcNearestPoint, bvhc_closest_point, bvhc_closest_points, bvhc_signed_distances, bvhc_winding_numbers,
+    BvhcNearestPoint, BvhcPointFilter, bvhc_closest_point, bvhc_closest_points, bvhc_closest_points_filtered,
+    bvhc_signed_distances, bvhc_winding_numbers,
 };
 pub use records::{BvhcHit, BvhcInstance, BvhcMesh, BvhcRay, BvhcSourceCorners};
 pub use refit::{

@@ -2,9 +2,10 @@
 //! `bvhc_winding_numbers`): the loader's `Tracer::closest_point` and `WindingNumbers`, answers as
 //! `bvhc_nearest_point` records (`format-spec/point-queries.md`) or plain arrays.
 
-use std::ffi::c_int;
+use std::ffi::{c_int, c_void};
 
-use bvhc_loader::{ClosestPoint, WindingNumbers};
+use bvhc_loader::format::NO_INDEX;
+use bvhc_loader::{ClosestPoint, PointCandidate, PointFilter, WindingNumbers};
 
 use crate::boundary::{BVHC_OK, BvhcFile, argument, file_ref, guarded};
 
@@ -124,8 +125,82 @@ pub unsafe extern "C" fn bvhc_closest_points(
     threads: u32,
     out: *mut BvhcNearestPoint,
 ) -> c_int {
+    // SAFETY: the caller's contract, passed on.
+    unsafe { closest_points_call("bvhc_closest_points", file, (points, count), max_distance, threads, None, out) }
+}
+
+/// A C point filter: `keep(user_data, triangle_index, source_triangle_id, instance_index)`, nonzero to keep.
+pub type BvhcPointFilter = unsafe extern "C" fn(*mut c_void, u32, u32, u32) -> c_int;
+
+/// [`bvhc_closest_points`] among the triangles `keep` keeps (nonzero), as if the others were absent: `keep` is
+/// called with `user_data`, the record, its source id (`BVHC_NO_INDEX` without ids) and instance
+/// (`BVHC_NO_INDEX` in a one-level file), for records within a query's reach, from up to `threads` threads at
+/// once; it must answer alike for the same record. An argument error for a null `keep`.
+///
+/// # Safety
+///
+/// As [`bvhc_closest_points`]; `keep` may be called from several threads at once with `user_data`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn bvhc_closest_points_filtered(
+    file: *const BvhcFile,
+    points: *const f32,
+    count: usize,
+    max_distance: f32,
+    threads: u32,
+    keep: Option<BvhcPointFilter>,
+    user_data: *mut c_void,
+    out: *mut BvhcNearestPoint,
+) -> c_int {
+    let call = "bvhc_closest_points_filtered";
+    let Some(function) = keep else {
+        return guarded(|| Err(argument(&format!("{call}: keep is null"))));
+    };
+    let filter = CPointFilter { function, user_data };
+    // SAFETY: the caller's contract, passed on.
+    unsafe { closest_points_call(call, file, (points, count), max_distance, threads, Some(&filter), out) }
+}
+
+/// A C point filter and its user data.
+struct CPointFilter {
+    function: BvhcPointFilter,
+    user_data: *mut c_void,
+}
+
+// SAFETY: the batch shares one `CPointFilter` between its threads; `bvhc_closest_points_filtered`'s contract makes
+// the caller promise that `function` may be called from several threads at once with `user_data`.
+unsafe impl Sync for CPointFilter {}
+
+impl PointFilter for CPointFilter {
+    fn keep(&self, candidate: &PointCandidate) -> bool {
+        let (source, instance) = (candidate.source_triangle_id, candidate.instance_index);
+        // SAFETY: the caller gave `function` and `user_data` for this call, which outlives it.
+        let kept = unsafe {
+            (self.function)(
+                self.user_data,
+                candidate.triangle_index,
+                source.unwrap_or(NO_INDEX),
+                instance.unwrap_or(NO_INDEX),
+            )
+        };
+        kept != 0
+    }
+}
+
+/// The batch calls' work: the arguments checked, the points answered (among what `filter` keeps) into `out`.
+///
+/// # Safety
+///
+/// As [`bvhc_closest_points`].
+unsafe fn closest_points_call(
+    call: &str,
+    file: *const BvhcFile,
+    (points, count): (*const f32, usize),
+    max_distance: f32,
+    threads: u32,
+    filter: Option<&CPointFilter>,
+    out: *mut BvhcNearestPoint,
+) -> c_int {
     guarded(|| {
-        let call = "bvhc_closest_points";
         // SAFETY: the caller's contract.
         let file = unsafe { file_ref(call, file) }?;
         check_bound(call, max_distance)?;
@@ -140,7 +215,11 @@ pub unsafe extern "C" fn bvhc_closest_points(
         // SAFETY: as above.
         let out = unsafe { std::slice::from_raw_parts_mut(out, count) };
         let mut found = vec![None; count];
-        file.tracer().closest_points(&rows, max_distance, &mut found, thread_count(threads));
+        let (tracer, threads) = (file.tracer(), thread_count(threads));
+        match filter {
+            Some(filter) => tracer.closest_points_filtered(&rows, max_distance, filter, &mut found, threads),
+            None => tracer.closest_points(&rows, max_distance, &mut found, threads),
+        }
         for (slot, answer) in out.iter_mut().zip(found) {
             *slot = answer.map_or(NOTHING, BvhcNearestPoint::from);
         }

@@ -93,7 +93,7 @@ pub use open::sections::{GpuSections, TwoLevelSections, WideSections};
 pub use open::structure::SectionInfo;
 pub use open::view::BvhView;
 pub use open::view_mut::BvhViewMut;
-pub use point::ClosestPoint;
+pub use point::{ClosestPoint, PointCandidate, PointFilter};
 pub use ray::check_rays;
 pub use ray::{
     BatchRayError, ForeignHit, Hit, HitCore, Ray, RayError, SurfacePoint, TraversalCounter, TraversalStats, TriangleHit,

@@ -14,7 +14,7 @@
 use std::cell::{Cell, RefCell};
 
 use bvhc::loader::format::SourceRange;
-use bvhc::loader::{BvhView, HitFilter, filter::Candidate, filter::FilterScope};
+use bvhc::loader::{BvhView, HitFilter, PointCandidate, PointFilter, filter::Candidate, filter::FilterScope};
 use numpy::{PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
@@ -120,19 +120,33 @@ pub struct Cutouts<'a> {
     table: &'a [SourceRange],
 }
 
-impl HitFilter for Cutouts<'_> {
-    fn accept(&self, candidate: &Candidate<'_>) -> bool {
-        let Some(id) = candidate.source_triangle_id else { return true };
+impl Cutouts<'_> {
+    /// Whether the triangle of source id `id` is cut out (one with no source id never is).
+    fn cuts(&self, id: Option<u32>) -> bool {
+        let Some(id) = id else { return false };
         if self.by_source_id.is_some_and(|mask| mask.get(id as usize) == Some(&true)) {
-            return false;
+            return true;
         }
         if !self.by_range.is_empty() {
             let after = self.table.partition_point(|r| r.first_source_triangle <= id);
             if after > 0 && self.by_range[after - 1] {
-                return false;
+                return true;
             }
         }
-        true
+        false
+    }
+}
+
+impl HitFilter for Cutouts<'_> {
+    fn accept(&self, candidate: &Candidate<'_>) -> bool {
+        !self.cuts(candidate.source_triangle_id)
+    }
+}
+
+/// The same masks on point queries: a cut-out triangle is never the closest.
+impl PointFilter for Cutouts<'_> {
+    fn keep(&self, candidate: &PointCandidate) -> bool {
+        !self.cuts(candidate.source_triangle_id)
     }
 }
 

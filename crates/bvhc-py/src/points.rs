@@ -12,6 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::errors::InvalidInputError;
+use crate::filters::Cutouts;
 use crate::hits::NONE;
 use crate::rays::Vectors;
 use crate::tracing::on_pool;
@@ -39,19 +40,24 @@ fn pool_threads(pool: &Option<rayon::ThreadPool>) -> usize {
     on_pool(pool, rayon::current_num_threads)
 }
 
-/// Each point's closest point within `max_distance`: the loader's batch call (points in a spatial order, each
-/// walk bounded by its neighbour's answer) on `pool`'s thread count, with the GIL released.
+/// Each point's closest point within `max_distance` among the triangles `cutouts` keep: the loader's batch call
+/// (points in a spatial order, each walk bounded by its neighbour's answer) on `pool`'s thread count, with the
+/// GIL released.
 fn answers(
     py: Python<'_>,
     view: &BvhView<'_>,
     rows: &[[f32; 3]],
     max_distance: f32,
+    cutouts: Option<&Cutouts<'_>>,
     pool: &Option<rayon::ThreadPool>,
 ) -> Vec<Option<ClosestPoint>> {
     let tracer = view.tracer();
     let mut out = vec![None; rows.len()];
     let threads = pool_threads(pool);
-    py.detach(|| tracer.closest_points(rows, max_distance, &mut out, threads));
+    py.detach(|| match cutouts {
+        Some(cutouts) => tracer.closest_points_filtered(rows, max_distance, cutouts, &mut out, threads),
+        None => tracer.closest_points(rows, max_distance, &mut out, threads),
+    });
     out
 }
 
@@ -63,10 +69,11 @@ pub fn closest_points<'py>(
     view: &BvhView<'_>,
     points: &Vectors<'_>,
     max_distance: f32,
+    cutouts: Option<&Cutouts<'_>>,
     pool: &Option<rayon::ThreadPool>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let rows = finite_rows(py, points)?;
-    let found = answers(py, view, &rows, max_distance, pool);
+    let found = answers(py, view, &rows, max_distance, cutouts, pool);
     let n = found.len();
     let mut point = Array2::<f32>::from_elem((n, 3), f32::NAN);
     let (mut distance, mut triangle, mut source_id) = (vec![f32::INFINITY; n], vec![NONE; n], vec![NONE; n]);

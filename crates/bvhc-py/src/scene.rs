@@ -220,20 +220,25 @@ impl Scene {
         Ok(inside.into_pyarray(py))
     }
 
-    /// The closest point of the surface to each point, as a dict of arrays (see the package's docs).
-    #[pyo3(signature = (points, max_distance=None, threads=None))]
+    /// The closest point of the surface to each point, as a dict of arrays, among the triangles the cut-out
+    /// masks keep (see the package's docs).
+    #[pyo3(signature = (points, max_distance=None, threads=None, cutout=None, cutout_primitives=None))]
     fn closest_points<'py>(
         &self,
         py: Python<'py>,
         points: Bound<'py, PyAny>,
         max_distance: Option<f64>,
         threads: Option<usize>,
+        cutout: Option<Bound<'py, PyAny>>,
+        cutout_primitives: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let points = Vectors::extract("points", &points)?;
         let max_distance = crate::points::max_distance_keyword(max_distance)?;
+        let masks = FilterArgs::extract(cutout, cutout_primitives, None, "every")?;
         let pool = pool(threads)?;
         with_view(py, &self.bytes, &self.path, |view| {
-            crate::points::closest_points(py, view, &points, max_distance, &pool)
+            let cutouts = masks.as_ref().map(|masks| masks.cutouts(view)).transpose()?;
+            crate::points::closest_points(py, view, &points, max_distance, cutouts.as_ref(), &pool)
         })
     }
 

@@ -1023,6 +1023,31 @@ def test_winding_moments_kept_between_calls_follow_a_refit(tmp_path):
     assert np.array_equal(opened.winding_number(points), fresh.winding_number(points))
 
 
+def test_closest_points_among_the_triangles_the_cutout_keeps(tmp_path):
+    bvh = tmp_path / "t.bvh"
+    bvhc.convert(TEAPOT, bvh)  # spatial splits: several records of one triangle share its source id
+    opened = bvhc.open(bvh)
+    ids, records = np.asarray(opened.triangle_ids), np.asarray(opened.triangles, dtype=np.float32)
+    cut = np.zeros(opened.source_id_count, dtype=bool)
+    cut[::3] = True
+    # The oracle: a file of the kept triangles alone, whose distances come from the same arithmetic.
+    kept = np.unique(records[~cut[ids]].reshape(-1, 9), axis=0).reshape(-1, 3, 3)
+    bvhc.build(kept.reshape(-1, 3), np.arange(3 * len(kept)).reshape(-1, 3), tmp_path / "kept.bvh")
+    alone = bvhc.open(tmp_path / "kept.bvh")
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in opened.bounds)
+    points = np.random.default_rng(35).uniform(lo - 0.2 * (hi - lo), hi, (3000, 3)).astype(np.float32)
+    found = opened.closest_points(points, cutout=cut)
+    assert not cut[found["source_id"]].any(), "no answer lies on a cut-out triangle"
+    assert np.array_equal(found["distance"], alone.distance(points))
+    assert np.array_equal(opened.distance(points, cutout=cut, threads=1), found["distance"])
+    whole = opened.closest_points(points)
+    assert (found["distance"] >= whole["distance"]).all() and (found["distance"] > whole["distance"]).any()
+    nothing = np.zeros_like(cut)
+    assert all(np.array_equal(opened.closest_points(points, cutout=nothing)[k], whole[k]) for k in whole)
+    with pytest.raises(bvhc.InvalidInputError, match="cutout"):
+        opened.closest_points(points, cutout=cut[:-1])
+
+
 def test_closest_points_through_instances_are_in_world_space(tmp_path):
     engine = scene("khr-2cylinder-engine/2CylinderEngine.gltf")
     flat, placed = tmp_path / "flat.bvh", tmp_path / "placed.bvh"

@@ -22,6 +22,33 @@ pub(crate) mod winding;
 pub use triangle::{Point3, TrianglePoint, closest_on_triangle};
 pub use winding::{BETA, solid_angle};
 
+/// A triangle record a filtered point query may answer with ([`PointFilter`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PointCandidate {
+    /// The triangle record (absolute in a two-level file).
+    pub triangle_index: u32,
+    /// Its source id (`triangle_ids`), when the file has them.
+    pub source_triangle_id: Option<u32>,
+    /// The instance placing it, in a two-level file.
+    pub instance_index: Option<u32>,
+}
+
+/// Which triangles a point query may answer with: a filtered query's answer is the closest point of the
+/// triangles the filter keeps, by the same arithmetic and tie rule (`format-spec/point-queries.md`), as if the
+/// others were absent. Asked about each record within the query's bound that could be the answer; with split
+/// references each reference of a triangle is asked on its own, so a filter should keep all of a triangle's or
+/// none (one by source id does). Closures `Fn(&PointCandidate) -> bool` are filters.
+pub trait PointFilter: Sync {
+    /// Whether `candidate` may be the answer.
+    fn keep(&self, candidate: &PointCandidate) -> bool;
+}
+
+impl<F: Fn(&PointCandidate) -> bool + Sync> PointFilter for F {
+    fn keep(&self, candidate: &PointCandidate) -> bool {
+        self(candidate)
+    }
+}
+
 /// The closest point of a file's surface to a query point (`format-spec/point-queries.md`).
 ///
 /// Of all triangle records within the query's distance, the one at the smallest squared distance, computed as

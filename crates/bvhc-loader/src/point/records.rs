@@ -6,18 +6,20 @@
 use crate::format::{InstanceRecord, PackedNode, PackedTriangle, TrianglePacket4, UNUSED_LANE, WideNode8};
 use crate::point::nearest::Nearest;
 use crate::point::triangle::{PlaneValues, closest_from_plane};
-use crate::point::{TrianglePoint, closest_on_triangle};
+use crate::point::{PointCandidate, PointFilter, TrianglePoint, closest_on_triangle};
 use crate::ray::query::{TieKey, TieOrder};
 use crate::ray::transform::world_point;
 use crate::simd::Avx2;
 
-/// Where a mesh's records are: the first's absolute index, the instance placing them (`None`: world space), and
-/// the mesh's tie order (its range of the source ids).
-#[derive(Clone, Copy, Debug)]
+/// Where a mesh's records are: the first's absolute index, the instance placing them (`None`: world space), the
+/// mesh's tie order and its range of the source ids, and the query's filter, if any.
+#[derive(Clone, Copy)]
 pub(crate) struct Placement<'a> {
     pub first_record: u32,
     pub instance: Option<(u32, &'a InstanceRecord)>,
     pub tie: TieOrder<'a>,
+    pub ids: Option<&'a [u32]>,
+    pub filter: Option<&'a dyn PointFilter>,
 }
 
 impl Placement<'_> {
@@ -39,6 +41,16 @@ impl Placement<'_> {
     #[inline(always)]
     fn offer_found(&self, nearest: &mut Nearest, local: u32, vertices: [[f32; 3]; 3], found: TrianglePoint) {
         if nearest.admits(found.d2) {
+            if let Some(filter) = self.filter {
+                let candidate = PointCandidate {
+                    triangle_index: self.first_record.wrapping_add(local),
+                    source_triangle_id: self.ids.and_then(|ids| ids.get(local as usize).copied()),
+                    instance_index: self.instance.map(|(index, _)| index),
+                };
+                if !filter.keep(&candidate) {
+                    return;
+                }
+            }
             let key = || match self.tie.key(local, || PackedTriangle { vertices }.coordinate_bits()) {
                 TieKey::Record(record) => TieKey::Record(record.wrapping_add(self.first_record)),
                 key => key,

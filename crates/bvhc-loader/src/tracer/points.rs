@@ -9,7 +9,7 @@ use crate::point::records::{PacketRecords, Placement, PointLeaves, TriangleRecor
 use crate::point::space::Space;
 use crate::point::walk::walk_points;
 use crate::point::wide::walk_wide_points;
-use crate::point::{ClosestPoint, Point3, closest_on_triangle};
+use crate::point::{ClosestPoint, Point3, PointFilter, closest_on_triangle};
 use crate::ray::query::TieOrder;
 use crate::ray::transform::world_point;
 use crate::tracer::Tracer;
@@ -29,16 +29,29 @@ impl<'a> Tracer<'a> {
     /// `max_distance` negative or NaN. Safe on any file; on one that fails verification the answer is
     /// unspecified.
     pub fn closest_point(&self, point: [f32; 3], max_distance: f32) -> Option<ClosestPoint> {
-        self.closest_point_near(point, max_distance, None)
+        self.closest_point_near(point, max_distance, None, None)
     }
 
-    /// [`Tracer::closest_point`], the walk bounded first by the distance from `point` of `hint`'s triangle (the
-    /// answer of a nearby point, `crate::point::order`): the same answer, found sooner when the hint is near.
+    /// [`Tracer::closest_point`] among the triangles `filter` keeps ([`PointFilter`]): as if the others were
+    /// absent.
+    pub fn closest_point_filtered(
+        &self,
+        point: [f32; 3],
+        max_distance: f32,
+        filter: &dyn PointFilter,
+    ) -> Option<ClosestPoint> {
+        self.closest_point_near(point, max_distance, None, Some(filter))
+    }
+
+    /// [`Tracer::closest_point`] (among the triangles `filter` keeps), the walk bounded first by the distance from
+    /// `point` of `hint`'s triangle (the answer of a nearby point under the same filter, `crate::point::order`):
+    /// the same answer, found sooner when the hint is near.
     pub(crate) fn closest_point_near(
         &self,
         point: [f32; 3],
         max_distance: f32,
         hint: Option<&ClosestPoint>,
+        filter: Option<&dyn PointFilter>,
     ) -> Option<ClosestPoint> {
         if !point.iter().all(|c| c.is_finite()) || max_distance.is_nan() || max_distance < 0.0 {
             return None;
@@ -51,14 +64,14 @@ impl<'a> Tracer<'a> {
         if let Some(d2) = hint.and_then(|hint| self.hint_d2(nearest.point, hint)) {
             let mut bounded = nearest;
             bounded.bound_by(d2);
-            let found = self.walk_nearest(bounded);
+            let found = self.walk_nearest(bounded, filter);
             // The hint's triangle is in the tree, so the bounded walk finds it or a nearer one; were the file
             // to break that (a record outside every leaf), the query is answered unbounded.
             if found.is_some() {
                 return found;
             }
         }
-        self.walk_nearest(nearest)
+        self.walk_nearest(nearest, filter)
     }
 
     /// The squared distance from `point` of the triangle of `hint`, computed as a walk computes it.
@@ -75,12 +88,13 @@ impl<'a> Tracer<'a> {
         placed.iter().flatten().all(|c| c.is_finite()).then(|| closest_on_triangle(point, placed).d2)
     }
 
-    /// Walks the file for `nearest`: the top tree's instances, else the wide tree or the binary one.
-    fn walk_nearest(&self, mut nearest: Nearest) -> Option<ClosestPoint> {
+    /// Walks the file for `nearest` (offering only what `filter` keeps): the top tree's instances, else the wide
+    /// tree or the binary one.
+    fn walk_nearest(&self, mut nearest: Nearest, filter: Option<&dyn PointFilter>) -> Option<ClosestPoint> {
         let world = Space::world(nearest.point);
         match &self.instances {
             Some(sections) => {
-                let mut leaves = InstanceLeaves { tracer: self, sections };
+                let mut leaves = InstanceLeaves { tracer: self, sections, filter };
                 walk_points(sections.top_nodes, &world, &mut nearest, &mut leaves);
             }
             None => {
@@ -88,6 +102,8 @@ impl<'a> Tracer<'a> {
                     first_record: 0,
                     instance: None,
                     tie: TieOrder::new(self.split_references, self.triangle_ids),
+                    ids: self.triangle_ids,
+                    filter,
                 };
                 match &self.wide {
                     Some(wide) => {
@@ -122,8 +138,33 @@ impl<'a> Tracer<'a> {
         threads: usize,
     ) {
         crate::ray::hit::same_length("closest_points", points.len(), out.len());
+        self.closest_points_near(points, max_distance, None, out, threads);
+    }
+
+    /// [`Tracer::closest_points`] among the triangles `filter` keeps ([`Tracer::closest_point_filtered`]).
+    pub fn closest_points_filtered(
+        &self,
+        points: &[[f32; 3]],
+        max_distance: f32,
+        filter: &dyn PointFilter,
+        out: &mut [Option<ClosestPoint>],
+        threads: usize,
+    ) {
+        crate::ray::hit::same_length("closest_points_filtered", points.len(), out.len());
+        self.closest_points_near(points, max_distance, Some(filter), out, threads);
+    }
+
+    /// The batch calls' work: the points in a spatial order, each walk bounded by its predecessor's answer.
+    fn closest_points_near(
+        &self,
+        points: &[[f32; 3]],
+        max_distance: f32,
+        filter: Option<&dyn PointFilter>,
+        out: &mut [Option<ClosestPoint>],
+        threads: usize,
+    ) {
         answer_in_order(points, out, threads, MIN_POINTS_A_THREAD, |point, previous: &mut Option<ClosestPoint>| {
-            let found = self.closest_point_near(point, max_distance, previous.as_ref());
+            let found = self.closest_point_near(point, max_distance, previous.as_ref(), filter);
             *previous = found.or(*previous);
             found
         });
@@ -176,14 +217,20 @@ impl<'a> Tracer<'a> {
     /// Walks `mesh` (placed by instance `index`, `instance`) for `nearest`: its wide tree where this tracer has
     /// the wide kernel, else its binary tree. Nothing when its ranges lie outside the arrays (a file that breaks
     /// V41) or the instance's map is singular (V42).
-    fn walk_mesh(&self, mesh: &MeshRecord, index: u32, instance: &'a InstanceRecord, nearest: &mut Nearest) {
+    fn walk_mesh(
+        &self,
+        (mesh, index, instance): (&MeshRecord, u32, &'a InstanceRecord),
+        nearest: &mut Nearest,
+        filter: Option<&dyn PointFilter>,
+    ) {
         let (Some((nodes, triangles, ids)), Some(space)) =
             (self.mesh_arrays(mesh), Space::instance(instance, nearest.point))
         else {
             return;
         };
         let tie = TieOrder::new(self.split_references, ids);
-        let placement = Placement { first_record: mesh.first_triangle, instance: Some((index, instance)), tie };
+        let placement =
+            Placement { first_record: mesh.first_triangle, instance: Some((index, instance)), tie, ids, filter };
         let root = nodes.first().map(|root| (root.min, root.max));
         match self.wide.zip(root).and_then(|(wide, root)| wide.mesh(mesh, root, ids)) {
             Some(wide) => {
@@ -199,13 +246,14 @@ impl<'a> Tracer<'a> {
 struct InstanceLeaves<'t, 'a> {
     tracer: &'t Tracer<'a>,
     sections: &'t TwoLevelSections<'a>,
+    filter: Option<&'t dyn PointFilter>,
 }
 
 impl PointLeaves for InstanceLeaves<'_, '_> {
     fn test_leaf(&mut self, node: &PackedNode, nearest: &mut Nearest) {
         for index in node.index..node.index.saturating_add(node.count) {
             if let Some((instance, mesh)) = self.sections.placement(index) {
-                self.tracer.walk_mesh(mesh, index, instance, nearest);
+                self.tracer.walk_mesh((mesh, index, instance), nearest, self.filter);
             }
         }
     }

@@ -181,7 +181,7 @@ impl<'a> WindingNumbers<'a> {
         if !point.iter().all(|c| c.is_finite()) {
             return f32::NAN;
         }
-        let found = self.tracer.closest_point_near(point, f32::INFINITY, previous.as_ref());
+        let found = self.tracer.closest_point_near(point, f32::INFINITY, previous.as_ref(), None);
         *previous = found.or(*previous);
         let distance = found.map_or(f32::INFINITY, |found| found.distance);
         if distance == 0.0 || distance.is_infinite() {

@@ -419,7 +419,13 @@ class Scene:
         return self._native.contains(points, threads)
 
     def closest_points(
-        self, points: Any, max_distance: Optional[float] = None, *, threads: Optional[int] = None
+        self,
+        points: Any,
+        max_distance: Optional[float] = None,
+        *,
+        threads: Optional[int] = None,
+        cutout: Optional[np.ndarray] = None,
+        cutout_primitives: Optional[Any] = None,
     ) -> Dict[str, np.ndarray]:
         """The closest point of the surface to each of ``points`` (``(n, 3)`` float32 or float64; float64 is
         rounded to float32), within ``max_distance`` (inclusive; ``None`` for no bound), as
@@ -432,13 +438,26 @@ class Scene:
         within ``max_distance``), ``distance`` (float32, ``inf`` there), ``triangle`` (uint32 record index),
         ``source_id``, ``instance`` (uint32; :data:`MISS` where there is none, or for no ids / a one-level file),
         ``u``, ``v`` (float32 weights of the record's ``v1`` and ``v2``, 0 where there is none). Runs on all cores
-        (or ``threads``) with the GIL released."""
-        return self._native.closest_points(points, max_distance, threads)
+        (or ``threads``) with the GIL released, the points taken in a spatial order inside (the answers do not
+        depend on it).
 
-    def distance(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
+        ``cutout`` and ``cutout_primitives`` are the masks :meth:`closest_hits` takes (a bool array of
+        :attr:`source_id_count` values, true where a triangle is cut out; ``(mesh, primitive)`` pairs): the
+        closest point among the triangles they keep, as if the others were absent."""
+        return self._native.closest_points(points, max_distance, threads, cutout, cutout_primitives)
+
+    def distance(
+        self,
+        points: Any,
+        *,
+        threads: Optional[int] = None,
+        cutout: Optional[np.ndarray] = None,
+        cutout_primitives: Optional[Any] = None,
+    ) -> np.ndarray:
         """The distance from each of ``points`` (``(n, 3)``) to the surface, as a float32 array: the
-        ``distance`` column of :meth:`closest_points` with no bound (``inf`` for a file with no triangles)."""
-        return self._native.closest_points(points, None, threads)["distance"]
+        ``distance`` column of :meth:`closest_points` with no bound (``inf`` for a file with no triangles, or
+        none the masks keep)."""
+        return self._native.closest_points(points, None, threads, cutout, cutout_primitives)["distance"]
 
     def signed_distance(self, points: Any, *, threads: Optional[int] = None) -> np.ndarray:
         """The signed distance from each of ``points`` (``(n, 3)``) to the surface, as a float32 array: the

@@ -100,7 +100,12 @@ class Scene:
     ) -> Dict[str, npt.NDArray[Any]]: ...
     def contains(self, points: Any, threads: Optional[int] = None) -> npt.NDArray[np.bool_]: ...
     def closest_points(
-        self, points: Any, max_distance: Optional[float] = None, threads: Optional[int] = None
+        self,
+        points: Any,
+        max_distance: Optional[float] = None,
+        threads: Optional[int] = None,
+        cutout: Optional[npt.NDArray[np.bool_]] = None,
+        cutout_primitives: Optional[Any] = None,
     ) -> Dict[str, npt.NDArray[Any]]: ...
     def winding(self, points: Any, signed: bool, threads: Optional[int] = None) -> npt.NDArray[Any]: ...
     def spawn(
