@@ -1,7 +1,8 @@
 //! Point queries from numpy arrays (`Scene.closest_points`, `Scene.distance`, `Scene.signed_distance`,
 //! `Scene.winding_number`): the loader's batch calls (which answer the points in a spatial order) on the pool's
-//! thread count with the GIL released, answers into numpy columns. Points are `(n, 3)` float32 or float64 arrays (float64 rounded to float32, the precision the file's
-//! triangles and the spec's queries take); a point that is not finite raises, naming it.
+//! thread count with the GIL released, answers into numpy columns. Points are `(n, 3)` float32 or float64
+//! arrays (float64 rounded to float32, the precision the file's triangles and the spec's queries take); a point
+//! that is not finite raises, naming it.
 
 use std::sync::{Arc, Mutex, PoisonError};
 

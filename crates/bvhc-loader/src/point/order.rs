@@ -12,6 +12,9 @@
 
 use crate::parallel::Workers;
 
+/// Points a thread takes at least in a batch (fewer stay on the calling thread).
+const MIN_POINTS_A_THREAD: usize = 256;
+
 /// Cells of the curve along each axis (`2^10`: 30 bits of key beside a 32-bit index in one `u64`).
 const CELL_BITS: u32 = 10;
 
@@ -89,16 +92,15 @@ fn radix_sort_keys(keys: &mut [u64], spare: &mut [u64]) {
 }
 
 /// `answer(point, state)` of each of `points` into `out` (the same length), on up to `threads` threads (0 counts
-/// as 1), no thread taking fewer than `min_chunk` points: the points answered in Morton order ([`morton_order`]),
-/// each run of consecutive points on one thread sharing one `state` (started `S::default()`), the answers put
-/// back in the caller's order. Where memory for the order cannot be had, in the caller's order. `answer`'s
-/// result must not depend on `state` (only how fast it is found), so the answers are the same on any thread
-/// count.
+/// as 1), no thread taking fewer than [`MIN_POINTS_A_THREAD`] points: the points answered in Morton order
+/// ([`morton_order`]), each run of consecutive points on one thread sharing one `state` (started
+/// `S::default()`), the answers put back in the caller's order. Where memory for the order cannot be had, in the
+/// caller's order. `answer`'s result must not depend on `state` (only how fast it is found), so the answers are
+/// the same on any thread count.
 pub(crate) fn answer_in_order<T: Copy + Send, S: Default>(
     points: &[[f32; 3]],
     out: &mut [T],
     threads: usize,
-    min_chunk: usize,
     answer: impl Fn([f32; 3], &mut S) -> T + Sync,
 ) {
     let workers = Workers::new(threads);
@@ -114,7 +116,7 @@ pub(crate) fn answer_in_order<T: Copy + Send, S: Default>(
         Some((order, gathered, answers))
     });
     let Some((order, gathered, mut answers)) = in_order else {
-        workers.for_chunks(out, min_chunk, |first, chunk| {
+        workers.for_chunks(out, MIN_POINTS_A_THREAD, |first, chunk| {
             let mut state = S::default();
             for (slot, &point) in chunk.iter_mut().zip(&points[first..]) {
                 *slot = answer(point, &mut state);
@@ -122,7 +124,7 @@ pub(crate) fn answer_in_order<T: Copy + Send, S: Default>(
         });
         return;
     };
-    workers.for_chunks(&mut answers, min_chunk, |first, chunk| {
+    workers.for_chunks(&mut answers, MIN_POINTS_A_THREAD, |first, chunk| {
         let mut state = S::default();
         for (slot, &point) in chunk.iter_mut().zip(&gathered[first..]) {
             *slot = answer(point, &mut state);
@@ -192,7 +194,7 @@ mod tests {
         let points: Vec<[f32; 3]> = (0..5000).map(|k| [((k * 7919) % 5000) as f32, (k % 13) as f32, 0.0]).collect();
         for threads in [0, 1, 2, 3] {
             let mut out = vec![0f32; points.len()];
-            answer_in_order(&points, &mut out, threads, 100, |p, calls: &mut usize| {
+            answer_in_order(&points, &mut out, threads, |p, calls: &mut usize| {
                 *calls += 1;
                 p[0] + p[1]
             });

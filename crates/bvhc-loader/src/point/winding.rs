@@ -3,8 +3,8 @@
 //! Levin and Jacobson (2018, "Fast winding numbers for soups and clouds") do: a node far enough from the query
 //! point (farther than [`BETA`] times the radius of its triangles about their area-weighted centre) contributes
 //! its dipole term, `A . (c - p) / |c - p|^3` for the sum `A` of its triangles' area vectors, with the
-//! expansion's second-order term (each triangle's area vector times its centroid's offset from `c`), and a near leaf the
-//! exact solid angles of its triangles (Van Oosterom and Strackee 1983). The sum over `4 pi` is 1 inside a
+//! expansion's second-order term (each triangle's area vector times its centroid's offset from `c`), and a near
+//! leaf the exact solid angles of its triangles (Van Oosterom and Strackee 1983). The sum over `4 pi` is 1 inside a
 //! closed, consistently wound mesh, 0 outside, and in between for open or self-intersecting ones, which is what
 //! the sign of a signed distance reads (`> 1/2`: inside; `crate::tracer::winding`).
 //!

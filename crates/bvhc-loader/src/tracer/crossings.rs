@@ -5,20 +5,20 @@
 //! rejects it, so traversal goes on to the end of the interval; the records are then sorted by `t`, and a
 //! triangle reported more than once (split references, or a record tested again) is one hit, the nearest.
 //!
-//! **Edges and vertices.** The watertight test counts a point on an edge as inside both triangles that share
-//! it, so that no ray slips between them; a ray exactly through an edge or a vertex (an edge function exactly 0:
-//! a ray aimed at a vertex meets it exactly, since the vertex's offset from the origin is the direction before
-//! rounding) therefore hits every triangle around it. Here such a ray counts as if moved infinitesimally off it,
-//! to the same side for every triangle (`crate::ray::moved`), in the spirit of Edelsbrunner and Muecke's
-//! Simulation of Simplicity (1990): in the ray's sheared 2D space (where the test's edge function `E(p, q) = p_x q_y - p_y q_x` is
-//! evaluated at the origin) the query point moves to `(e, e^2)` for an infinitesimal `e`, which changes an edge
-//! function of 0 to `e (p_y - q_y) + e^2 (q_x - p_x)`: its sign is that of `p_y - q_y`, or if that is 0 of
-//! `q_x - p_x`. Both differences are of f32 values, so their signs are exact, and two triangles sharing an edge
-//! see it with opposite orientation and get opposite signs: the moved point lies in exactly the triangles whose
-//! three signs then agree, which for triangles around an edge or a vertex of a consistently oriented mesh is one
-//! crossing where the ray crosses the surface, and none or a front and a back hit where it touches a ridge or a
-//! silhouette, however the fan around the vertex folds as seen along the ray. So a ray from outside a closed
-//! mesh always has an even number of hits, and the sum of their sides is zero.
+//! **Edges and vertices.** The watertight test counts a point on an edge as inside both triangles that share it, so
+//! that no ray slips between them; a ray exactly through an edge or a vertex (an edge function exactly 0: a ray aimed
+//! at a vertex meets it exactly, since the vertex's offset from the origin is the direction before rounding) therefore
+//! hits every triangle around it. Here such a ray counts as if moved infinitesimally off it, to the same side for every
+//! triangle (`crate::ray::moved`), in the spirit of Edelsbrunner and Muecke's Simulation of Simplicity (1990): in the
+//! ray's sheared 2D space (where the test's edge function `E(p, q) = p_x q_y - p_y q_x` is evaluated at the origin) the
+//! query point moves to `(e, e^2)` for an infinitesimal `e`, which changes an edge function of 0 to `e (p_y - q_y) +
+//! e^2 (q_x - p_x)`: its sign is that of `p_y - q_y`, or if that is 0 of `q_x - p_x`. Both differences are of f32
+//! values, so their signs are exact, and two triangles sharing an edge see it with opposite orientation and get
+//! opposite signs: the moved point lies in exactly the triangles whose three signs then agree, which for triangles
+//! around an edge or a vertex of a consistently oriented mesh is one crossing where the ray crosses the surface, and
+//! none or a front and a back hit where it touches a ridge or a silhouette, however the fan around the vertex folds as
+//! seen along the ray. So a ray from outside a closed mesh always has an even number of hits, and the sum of their
+//! sides is zero.
 //!
 //! Ray casters built on a non-watertight test instead report such a crossing twice or not at all, and ones that
 //! restart the ray past each hit can skip a surface within their offset.

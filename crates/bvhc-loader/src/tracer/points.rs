@@ -18,9 +18,6 @@ use crate::tracer::winding::WindingNumbers;
 /// A mesh's binary nodes, triangle records and source ids.
 pub(crate) type MeshArrays<'a> = (&'a [PackedNode], &'a [PackedTriangle], Option<&'a [u32]>);
 
-/// Points a thread takes at least in a batch call (fewer stay on the calling thread).
-const MIN_POINTS_A_THREAD: usize = 256;
-
 impl<'a> Tracer<'a> {
     /// The closest point of the file's surface to `point` within `max_distance` (inclusive; `f32::INFINITY`
     /// for no bound): the triangle record, the point on it, its distance and barycentrics, as
@@ -163,7 +160,7 @@ impl<'a> Tracer<'a> {
         out: &mut [Option<ClosestPoint>],
         threads: usize,
     ) {
-        answer_in_order(points, out, threads, MIN_POINTS_A_THREAD, |point, previous: &mut Option<ClosestPoint>| {
+        answer_in_order(points, out, threads, |point, previous: &mut Option<ClosestPoint>| {
             let found = self.closest_point_near(point, max_distance, previous.as_ref(), filter);
             *previous = found.or(*previous);
             found

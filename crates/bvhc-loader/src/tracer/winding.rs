@@ -26,9 +26,6 @@ use crate::tracer::crossings::{Crossings, INSIDE_DIRECTION};
 /// the point).
 const COUNTED_BEYOND: f32 = 1.0 / 262_144.0;
 
-/// Points a thread takes at least in a batch call (fewer stay on the calling thread).
-const MIN_POINTS_A_THREAD: usize = 256;
-
 /// What a file's winding numbers are computed from, once (O(records) time and memory): the moments of every mesh,
 /// the caps over its holes, each instance's map. Owned and shareable between threads, so a binding can keep it
 /// with the file and answer many calls from it ([`WindingNumbers::with_moments`]); it describes the bytes it was
@@ -197,7 +194,7 @@ impl<'a> WindingNumbers<'a> {
     /// order (`crate::point::order`).
     pub fn winding_numbers(&self, points: &[[f32; 3]], out: &mut [f64], threads: usize) {
         crate::ray::hit::same_length("winding_numbers", points.len(), out.len());
-        answer_in_order(points, out, threads, MIN_POINTS_A_THREAD, |point, _: &mut ()| self.winding_number(point));
+        answer_in_order(points, out, threads, |point, _: &mut ()| self.winding_number(point));
     }
 
     /// [`WindingNumbers::signed_distance`] of each of `points` into `out` (the same length; panics otherwise),
@@ -205,8 +202,6 @@ impl<'a> WindingNumbers<'a> {
     /// order, each closest point's walk bounded by the previous one's (`crate::point::order`).
     pub fn signed_distances(&self, points: &[[f32; 3]], out: &mut [f32], threads: usize) {
         crate::ray::hit::same_length("signed_distances", points.len(), out.len());
-        answer_in_order(points, out, threads, MIN_POINTS_A_THREAD, |point, previous| {
-            self.signed_distance_near(point, previous)
-        });
+        answer_in_order(points, out, threads, |point, previous| self.signed_distance_near(point, previous));
     }
 }
