@@ -9,7 +9,8 @@
 
 use std::ops::Range;
 
-use bvhc_loader::format::Affine3x4;
+use bvhc_loader::format::{Affine3x4, InstanceRecord};
+use glam::DMat4;
 
 /// Whether a conversion keeps meshes placed more than once as instances (glTF inputs; OBJ and PLY files place
 /// each model once).
@@ -96,6 +97,12 @@ pub(crate) fn stored_triangles(placements: &[u64], triangles: &[u64], instanced:
     (0..placements.len())
         .map(|m| if instanced[m] { triangles[m] } else { triangles[m].saturating_mul(placements[m]) })
         .fold(0, u64::saturating_add)
+}
+
+/// `world` as the rows of a 3x4 map rounded to f32, when that is a valid instance transform (rule V42).
+pub(crate) fn affine(world: &DMat4) -> Option<Affine3x4> {
+    let m: Affine3x4 = std::array::from_fn(|i| std::array::from_fn(|j| world.col(j)[i] as f32));
+    InstanceRecord::placing(0, m).map(|_| m)
 }
 
 #[cfg(test)]

@@ -1,4 +1,5 @@
-//! Scene import: a `.gltf`, `.glb`, `.obj`, `.ply`, `.obj.gz` or `.ply.gz` file -> a [`TriangleSoup`] in
+//! Scene import: a `.gltf`, `.glb`, `.obj`, `.ply`, `.obj.gz` or `.ply.gz` file, or an OpenUSD stage (`.usd`,
+//! `.usda`, `.usdc`, `.usdz`) -> a [`TriangleSoup`] in
 //! world space with provenance, the list of every file read, and a report of what was skipped.
 //!
 //! ```no_run
@@ -22,6 +23,7 @@ mod ply;
 mod polygon;
 mod report;
 mod soup;
+mod usd;
 
 use std::path::{Path, PathBuf};
 
@@ -31,6 +33,7 @@ pub use limits::ImportLimits;
 pub use opacity::Opacity;
 pub use report::ImportReport;
 pub use soup::{Provenance, TriangleSoup, is_zero_area};
+pub use usd::StageRecord;
 
 use soup::SoupBuilder;
 
@@ -109,6 +112,50 @@ pub struct ImportOptions {
     /// Which triangles the file marks not opaque (recorded by the conversion's `build` object, not here).
     #[serde(skip)]
     pub opacity: Opacity,
+    /// The time code an OpenUSD stage is read at (`--pose TIME` on a USD input): time-sampled transforms,
+    /// points, visibility and point-instancer attributes interpolated there; `None`: the default time, which
+    /// reads authored default values only (USD's `UsdTimeCode::Default()`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_code: Option<f64>,
+    /// Which USD purposes besides `default` are imported (`render` by default; `proxy` and `guide` on request).
+    #[serde(skip)]
+    pub purposes: Purposes,
+}
+
+/// The `purpose` values of an OpenUSD stage whose geometry an import keeps, besides `default` (always kept).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Purposes {
+    /// `render`: final-quality geometry (kept by default).
+    pub render: bool,
+    /// `proxy`: lightweight stand-ins for interactive viewing.
+    pub proxy: bool,
+    /// `guide`: helper geometry (rigs, bounds) not meant to render.
+    pub guide: bool,
+}
+
+impl Default for Purposes {
+    fn default() -> Purposes {
+        Purposes { render: true, proxy: false, guide: false }
+    }
+}
+
+impl std::str::FromStr for Purposes {
+    type Err = String;
+
+    /// A comma-separated list of `render`, `proxy` and `guide` (`default` may be listed and is always kept).
+    fn from_str(text: &str) -> Result<Purposes, String> {
+        let mut purposes = Purposes { render: false, proxy: false, guide: false };
+        for name in text.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            match name {
+                "default" => {}
+                "render" => purposes.render = true,
+                "proxy" => purposes.proxy = true,
+                "guide" => purposes.guide = true,
+                other => return Err(format!("'{other}' is not a USD purpose (default, render, proxy, guide)")),
+            }
+        }
+        Ok(purposes)
+    }
 }
 
 /// The file formats bvhc reads.
@@ -122,6 +169,8 @@ pub enum SceneFormat {
     Obj,
     /// Stanford PLY, optionally gzipped.
     Ply,
+    /// An OpenUSD stage: a `.usd`, `.usda` or `.usdc` layer, or a `.usdz` package.
+    Usd,
 }
 
 impl SceneFormat {
@@ -137,6 +186,7 @@ impl SceneFormat {
             Some("glb") if !gzipped => SceneFormat::Glb,
             Some("obj") => SceneFormat::Obj,
             Some("ply") => SceneFormat::Ply,
+            Some("usd" | "usda" | "usdc" | "usdz") if !gzipped => SceneFormat::Usd,
             _ => return None,
         };
         Some((format, gzipped))
@@ -154,7 +204,9 @@ pub struct Import {
     pub report: ImportReport,
     /// The input's format.
     pub format: SceneFormat,
-    /// The meshes kept instanced (glTF only): their object-space triangles in the soup and their placements;
+    /// What a USD stage records (prim paths, units), for an OpenUSD input.
+    pub stage: Option<StageRecord>,
+    /// The meshes kept instanced (glTF and USD): their object-space triangles in the soup and their placements;
     /// every other triangle of the soup is in world space. Empty for a flattened scene.
     pub instanced: Vec<InstancedMesh>,
 }
@@ -309,9 +361,17 @@ pub fn import_for_peak(
     let (format, gzipped) = input_format(path).map_err(error)?.ok_or_else(|| {
         error(Located::new(
             "file name",
-            "unsupported file type (expected .gltf, .glb, .obj, .ply, .obj.gz or .ply.gz)".to_string(),
+            "unsupported file type (expected .gltf, .glb, .obj, .ply, .obj.gz, .ply.gz, .usd, .usda, .usdc or .usdz)"
+                .to_string(),
         ))
     })?;
+    if format == SceneFormat::Usd {
+        return import_stage(path, options, peak_bytes_per_triangle);
+    }
+    if options.time_code.is_some() {
+        let message = "a time code poses an OpenUSD stage; a glTF pose is CLIP@SECONDS".to_string();
+        return Err(error(Located::new("pose", message)));
+    }
     let bytes = limits::read_regular_file(path, gzipped, options.limits.max_input_bytes).map_err(error)?;
     // Parsing allocates many small blocks that cannot report failure: stop here, with an error, when the file's
     // bytes left too little room for them (an address-space limit just above the file's size).
@@ -333,12 +393,39 @@ pub fn import_for_peak(
         }
         SceneFormat::Obj => obj::read(&bytes, &options.limits, &mut builder),
         SceneFormat::Ply => ply::read(&bytes, &options.limits, &mut builder),
+        SceneFormat::Usd => Err(Located::new("file", "a USD stage is read by its own importer".to_string())),
     };
     result.map_err(error)?;
+    Ok(finish(builder, files_read, format, instanced, None))
+}
+
+/// [`import_for_peak`] for an OpenUSD stage, whose layers the USD reader opens itself (each held to the byte
+/// limit as it is opened).
+fn import_stage(path: &Path, options: &ImportOptions, peak_bytes_per_triangle: u64) -> Result<Import, ImportError> {
+    let error =
+        |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
+    if options.pose.is_some() {
+        let message = "an OpenUSD stage is posed at a time code (--pose TIME), not CLIP@SECONDS".to_string();
+        return Err(error(Located::new("pose", message)));
+    }
+    let mut builder = SoupBuilder::new(options.keep_degenerate, &options.limits, peak_bytes_per_triangle);
+    let (more, instanced, stage) = usd::read(path, options, &mut builder).map_err(error)?;
+    let files_read = std::iter::once(path.to_path_buf()).chain(more).collect();
+    Ok(finish(builder, files_read, SceneFormat::Usd, instanced, Some(stage)))
+}
+
+/// The import of what `builder` holds.
+fn finish(
+    builder: SoupBuilder,
+    files_read: Vec<PathBuf>,
+    format: SceneFormat,
+    instanced: Vec<InstancedMesh>,
+    stage: Option<StageRecord>,
+) -> Import {
     let (soup, mut report) = builder.finish();
     let in_meshes: usize = instanced.iter().map(|m| m.triangles.len()).sum();
     report.placed_triangles = (soup.triangles.len() - in_meshes) as u64
         + instanced.iter().map(|m| (m.triangles.len() * m.placements.len()) as u64).sum::<u64>();
     report.instanced_meshes = instanced.len() as u64;
-    Ok(Import { soup, files_read, report, format, instanced })
+    Import { soup, files_read, report, format, instanced, stage }
 }

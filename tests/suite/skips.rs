@@ -24,6 +24,8 @@ pub enum Needs {
     Slow,
     /// The Python package installed into `target/python/venv` (`scripts/python-package.sh`).
     Python,
+    /// Pixar's USD Python bindings (`usd-core`) in `target/usd/venv` (`scripts/usd-core.sh`), the USD oracle.
+    Usd,
 }
 
 impl Needs {
@@ -38,6 +40,7 @@ impl Needs {
             Needs::Machine => "machine",
             Needs::Slow => "slow",
             Needs::Python => "python",
+            Needs::Usd => "usd",
         }
     }
 

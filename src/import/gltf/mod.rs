@@ -22,13 +22,12 @@ use glam::DMat4;
 use gltf::json::Root;
 
 use bvhc_loader::format::NO_INDEX;
-use bvhc_loader::{format::Affine3x4, format::InstanceRecord};
 
 use self::buffers::Buffers;
 pub use self::clip::{ClipSelector, ClipSpan};
 use self::pose::Pose;
 use self::skin::{Placing, posed_positions};
-use super::instancing::{InstancedMesh, MeshPlacement, choose_instanced, stored_triangles};
+use super::instancing::{InstancedMesh, MeshPlacement, affine, choose_instanced, stored_triangles};
 use super::soup::{PrimitiveInstance, Provenance, SoupBuilder};
 use super::{ErrorKind, ImportOptions, Instancing, Located, SceneSelector};
 
@@ -364,10 +363,4 @@ impl Walker<'_, '_> {
         }
         Ok(())
     }
-}
-
-/// `world` as the rows of a 3x4 map rounded to f32, when that is a valid instance transform (rule V42).
-fn affine(world: &DMat4) -> Option<Affine3x4> {
-    let m: Affine3x4 = std::array::from_fn(|i| std::array::from_fn(|j| world.col(j)[i] as f32));
-    InstanceRecord::placing(0, m).map(|_| m)
 }

@@ -1,0 +1,120 @@
+//! OpenUSD stages (`.usd`, `.usda`, `.usdc`, `.usdz`) as triangles, composed by the `openusd` crate: sublayers,
+//! references, payloads (all loaded), variant selections as authored, inherits and specializes. What USD's
+//! renderers draw is imported: `UsdGeomMesh` prims that are active, defined and visible, of the purposes asked
+//! for (`default` and `render` unless told otherwise), placed by their `Xformable` ancestors
+//! ([`xform`]), triangulated as Hydra triangulates them ([`mesh`]); native instances (instanceable prims) and
+//! `PointInstancer` placements are expanded, or kept as instances of their prototype under the import's
+//! [`Instancing`](super::Instancing) policy ([`walk`]). A layer that cannot be composed is refused with the layer
+//! and the prim that referenced it, except MaterialX documents (`.mtlx`), which hold materials only: those are
+//! listed in the stage's record ([`StageRecord::unread_material_layers`]) instead.
+
+mod emit;
+mod mesh;
+mod resolver;
+mod walk;
+mod xform;
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+
+use openusd::pcp;
+use openusd::sdf::Value;
+use openusd::usd::{PrimPredicate, Stage, TimeCode};
+
+use super::instancing::InstancedMesh;
+use super::soup::SoupBuilder;
+use super::{ErrorKind, ImportOptions, Located};
+
+/// What a conversion records about a USD stage (the metadata's `usd` object): the prim paths that source ranges
+/// and instances name, the stage's units, and what was not read.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct StageRecord {
+    /// Prim paths; a source range's `node_index` and `mesh_index` and an instance's node index count in it.
+    pub prims: Vec<String>,
+    /// The stage's `metersPerUnit`, where authored (recorded, not applied).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub meters_per_unit: Option<f64>,
+    /// The stage's `upAxis`, where authored (recorded, not applied).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub up_axis: Option<String>,
+    /// MaterialX documents that references named and that were not read (they hold materials, never geometry).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub unread_material_layers: Vec<String>,
+}
+
+/// Imports the stage at `path`: its triangles into `builder`, the meshes kept instanced, every file read, and
+/// the stage's record.
+pub(super) fn read(
+    path: &Path,
+    options: &ImportOptions,
+    builder: &mut SoupBuilder,
+) -> Result<(Vec<PathBuf>, Vec<InstancedMesh>, StageRecord), Located> {
+    let (resolver, opened) = resolver::BoundedResolver::new(options.limits.max_input_bytes);
+    let root = path.to_str().ok_or_else(|| Located::new("file name", "is not UTF-8".to_string()))?;
+    let stage = guarded("stage", || {
+        Stage::builder().resolver(resolver).open(root).map_err(|e| Located::new("stage", format!("{e:#}")))
+    })?;
+    let mut paths = Vec::new();
+    guarded("stage", || {
+        stage
+            .traverse(PrimPredicate::DEFAULT_PROXIES, |p| paths.push(p.clone()))
+            .map_err(|e| Located::new("stage", format!("{e:#}")))
+    })?;
+    let mut record = StageRecord::default();
+    check_composition(&stage, &mut record)?;
+    let time = options.time_code.map(TimeCode::new);
+    if let Some(code) = options.time_code
+        && !code.is_finite()
+    {
+        return Err(Located::new("pose", format!("time code {code} is not finite")));
+    }
+    record.meters_per_unit = match stage.stage_metadata("metersPerUnit") {
+        Ok(Some(Value::Double(m))) => Some(m),
+        Ok(Some(Value::Float(m))) => Some(f64::from(m)),
+        _ => None,
+    };
+    record.up_axis = match stage.stage_metadata("upAxis") {
+        Ok(Some(Value::Token(t))) => Some(t.as_str().to_string()),
+        Ok(Some(Value::String(s))) => Some(s),
+        _ => None,
+    };
+    let scene = guarded("stage", || walk::collect(&stage, &paths, time, options))?;
+    let instanced = guarded("stage", || emit::emit(&stage, &scene, time, options, builder, &mut record))?;
+    let files = opened.borrow().files.clone();
+    let mut files_read: Vec<PathBuf> = files.into_iter().filter(|f| f.as_path() != path).collect();
+    files_read.dedup();
+    Ok((files_read, instanced, record))
+}
+
+/// Runs `f`, turning a panic inside the USD library (a malformed layer it does not check) into an error.
+fn guarded<T>(location: &str, f: impl FnOnce() -> Result<T, Located>) -> Result<T, Located> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(result) => result,
+        Err(panic) => {
+            let why = panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("no message");
+            Err(Located::new(location, format!("the USD reader failed on a malformed layer ({why})")))
+        }
+    }
+}
+
+/// Refuses a stage that could not be composed (a layer missing, unreadable or malformed, an arc cycle, ...),
+/// naming the layer and the prim; MaterialX references are recorded as unread instead.
+fn check_composition(stage: &Stage, record: &mut StageRecord) -> Result<(), Located> {
+    for error in stage.composition_errors() {
+        if let pcp::Error::UnresolvedLayer { asset_path, .. } = &error
+            && asset_path.to_ascii_lowercase().ends_with(".mtlx")
+        {
+            if !record.unread_material_layers.contains(asset_path) {
+                record.unread_material_layers.push(asset_path.clone());
+            }
+            continue;
+        }
+        return Err(Located::of_kind(ErrorKind::Invalid, "composition", error.to_string()));
+    }
+    record.unread_material_layers.sort();
+    Ok(())
+}
