@@ -1,5 +1,6 @@
 //! Import speed against its floor: for each scene, the median time of a full import and of a bare read (plus
-//! gunzip for `.gz` files) of the same bytes, which no importer can beat.
+//! gunzip for `.gz` files) of the same bytes, which no importer can beat; then the OpenUSD importer against the
+//! glTF importer on the same asset published in both formats (time per triangle, and the ratio).
 //!
 //! `cargo bench --bench import` prints a Markdown table (medians of this run). `BVHC_SCENES` overrides the
 //! scenes folder.
@@ -35,10 +36,24 @@ fn bare_read(files: &[PathBuf]) -> usize {
         .sum()
 }
 
+/// The same asset as an OpenUSD stage and as glTF.
+const SAME_ASSET: &[(&str, &str)] = &[("usd-brainstem/BrainStem.usdz", "khr-brainstem/BrainStem.gltf")];
+
+/// Median import time a triangle, in nanoseconds, and the triangle count.
+fn per_triangle(path: &Path) -> (f64, usize) {
+    let options = ImportOptions::default();
+    let triangles = import(path, &options).unwrap().soup.triangles.len();
+    let time = harness::median_time(9, || {
+        std::hint::black_box(import(path, &options).unwrap());
+    });
+    (time.as_secs_f64() * 1e9 / triangles.max(1) as f64, triangles)
+}
+
 fn main() {
     if !harness::benchmarking("import") {
         return;
     }
+    same_asset();
     println!("| scene | triangles | bytes parsed | floor: read (+gunzip) | import | import / floor |");
     println!("|---|---|---|---|---|---|");
     let list: Vec<(&str, &str)> = SCENES.iter().map(|&relative| (relative, relative)).collect();
@@ -60,4 +75,22 @@ fn main() {
             full.as_secs_f64() / floor.as_secs_f64()
         );
     }
+}
+
+/// The OpenUSD importer against the glTF importer on the same asset.
+fn same_asset() {
+    println!("| asset | USD triangles | USD ns a triangle | glTF triangles | glTF ns a triangle | USD / glTF |");
+    println!("|---|---|---|---|---|---|");
+    for &(usd, gltf) in SAME_ASSET {
+        let both: Vec<PathBuf> =
+            harness::scenes(&[(usd, usd), (gltf, gltf)], None).into_iter().map(|(_, p)| p).collect();
+        let [usd_path, gltf_path] = both.as_slice() else { continue };
+        let (usd_ns, usd_triangles) = per_triangle(usd_path);
+        let (gltf_ns, gltf_triangles) = per_triangle(gltf_path);
+        println!(
+            "| {usd} | {usd_triangles} | {usd_ns:.0} | {gltf_triangles} | {gltf_ns:.0} | {:.2}x |",
+            usd_ns / gltf_ns
+        );
+    }
+    println!();
 }

@@ -161,10 +161,14 @@ pub struct OptionArgs {
     /// The glTF scene to convert, by index or name.
     #[arg(long, value_name = "N|NAME", help_heading = "Import")]
     pub scene: Option<String>,
-    /// The glTF scene as it stands SECONDS into animation clip CLIP (index or name): node and morph weight
-    /// channels sampled, skins posed by the animated joints. Default: the default pose.
-    #[arg(long, value_name = "CLIP@SECONDS", help_heading = "Import")]
-    pub pose: Option<bvhc::import::PoseSelector>,
+    /// A glTF scene as it stands SECONDS into animation clip CLIP (index or name): node and morph weight
+    /// channels sampled, skins posed by the animated joints; an OpenUSD stage at time code TIME (time samples
+    /// interpolated). Default: the default pose (USD: the default time, authored defaults only).
+    #[arg(long, value_name = "CLIP@SECONDS|TIME", help_heading = "Import")]
+    pub pose: Option<bvhc::import::Pose>,
+    /// The USD purposes whose geometry is kept besides `default` (comma-separated: render, proxy, guide).
+    #[arg(long, value_name = "LIST", default_value = "render", help_heading = "Import")]
+    pub purposes: bvhc::import::Purposes,
     /// Choose the tree for the scene's animation: sample poses across these clips (comma-separated indices or
     /// names; every clip when none is given) and keep the tree, stored in the default pose, whose cost averaged
     /// over the poses after a refit is lowest. Flattens the scene and makes no split references.
@@ -295,6 +299,7 @@ impl OptionArgs {
                 Err(_) => SceneSelector::Name(scene.clone()),
             }),
             pose: self.pose.clone(),
+            purposes: Some(self.purposes),
             animation: match &self.animation {
                 Some(clips) => Some(bvhc::animation::Animation {
                     clips: bvhc::animation::Animation::parse_clips(clips).map_err(|e| format!("--animation: {e}"))?,

@@ -194,6 +194,7 @@ pub fn info(path: &Path, json: bool) -> Exit {
         if let Some(line) = animation_line(&metadata["animation"], &metadata["build"]["animation"]["window"]) {
             outln!(out, "{line}");
         }
+        super::stage_info::stage_lines(&mut out, &view, &metadata);
         outln!(
             out,
             "timings: not recorded in the file (they would make identical builds differ); see `bvhc ... --json`"

@@ -15,6 +15,7 @@ mod output;
 mod refit;
 mod render;
 mod signals;
+mod stage_info;
 mod trace;
 mod view;
 

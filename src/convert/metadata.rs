@@ -13,7 +13,7 @@ use super::report::{Choice, WideSummary};
 use crate::builders::Builder;
 use crate::cost::SahCost;
 pub use crate::import::inputs::InputEntry;
-use crate::import::{ImportReport, Instancing, Opacity, PoseSelector, SceneSelector};
+use crate::import::{ImportReport, Instancing, Opacity, PoseSelector, Purposes, SceneSelector};
 use crate::layout::{GpuCosts, WideCosts};
 use crate::optimize::OptimizeParams;
 use crate::options::{ConvertOptions, LeafMerge, OptimizeOver, Preset, SplitOptions};
@@ -49,6 +49,9 @@ pub struct Metadata<'a> {
     /// With `--animation`: the poses sampled and the written trees' costs in each.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub animation: Option<&'a crate::animation::AnimationRecord>,
+    /// For an OpenUSD stage: the prim paths that source ranges and instances name, and the stage's units.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub usd: Option<&'a crate::import::StageRecord>,
 }
 
 /// The schema's `wide` object.
@@ -141,6 +144,10 @@ struct ImportRecord {
     scene: Option<SceneSelector>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pose: Option<PoseSelector>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    time_code: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    purposes: Option<Purposes>,
 }
 
 impl BuildRecord {
@@ -158,6 +165,8 @@ impl BuildRecord {
                 keep_degenerate: options.import.keep_degenerate,
                 scene: options.import.scene.clone(),
                 pose: options.import.pose.clone(),
+                time_code: options.import.time_code,
+                purposes: (options.import.purposes != Purposes::default()).then_some(options.import.purposes),
             },
             instancing: (options.import.instancing != Instancing::Auto).then_some(options.import.instancing),
             opacity: (options.import.opacity != Opacity::Materials).then_some(options.import.opacity),

@@ -141,6 +141,7 @@ pub fn convert_with(
         sampling: sampling.as_ref(),
         two_level: None,
         animation: animation.as_ref(),
+        usd: imported.stage.as_ref(),
     }
     .to_json();
     let mut writer = BvhWriter::new(&packed.nodes, &packed.triangles)

@@ -182,6 +182,18 @@ impl Conversion {
         self
     }
 
+    /// An OpenUSD stage read at this time code (time samples interpolated) instead of the default time.
+    pub fn time_code(mut self, code: f64) -> Self {
+        self.overrides.pose = Some(crate::import::Pose::TimeCode(code));
+        self
+    }
+
+    /// The USD purposes whose geometry is kept besides `default` (`render` unless set).
+    pub fn purposes(mut self, purposes: crate::import::Purposes) -> Self {
+        self.overrides.purposes = Some(purposes);
+        self
+    }
+
     /// The import's resource budget (see [`ImportLimits`]; the defaults bound an import to a few GiB).
     pub fn import_limits(mut self, limits: ImportLimits) -> Self {
         self.overrides.limits = Some(limits);

@@ -48,7 +48,7 @@ pub(super) fn convert_two_level(
         )
         .into());
     }
-    let Import { soup, files_read, report, instanced, .. } = imported;
+    let Import { soup, files_read, report, instanced, stage, .. } = imported;
     let peak_bytes_per_triangle =
         if options.candidate_count() > 1 { BYTES_PER_TRIANGLE_WITH_CANDIDATES } else { BYTES_PER_TRIANGLE };
     // The parts' triangles, as indices into the soup: the flattened rest first (when there is any), then each
@@ -168,6 +168,7 @@ pub(super) fn convert_two_level(
             flattened_triangle_count,
         }),
         animation: animation_record.as_ref(),
+        usd: stage.as_ref(),
     }
     .to_json();
     let mut writer = BvhWriter::new(&scene.nodes, &scene.triangles)

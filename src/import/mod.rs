@@ -28,6 +28,7 @@ mod usd;
 use std::path::{Path, PathBuf};
 
 pub use gltf::{ClipSelector, ClipSpan};
+
 pub use instancing::{AUTO_MIN_SAVED_TRIANGLES, InstancedMesh, Instancing, MeshPlacement};
 pub use limits::ImportLimits;
 pub use opacity::Opacity;
@@ -74,6 +75,30 @@ impl std::str::FromStr for PoseSelector {
             Err(_) => return Err(format!("'{text}': no clip before '@'")),
         };
         Ok(PoseSelector { clip, seconds })
+    }
+}
+
+/// A pose as the command line and Python spell it: `CLIP@SECONDS` for a glTF scene ([`PoseSelector`]), or a bare
+/// number, a time code of an OpenUSD stage ([`ImportOptions::time_code`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Pose {
+    /// A time of a glTF animation clip.
+    Clip(PoseSelector),
+    /// A time code of an OpenUSD stage.
+    TimeCode(f64),
+}
+
+impl std::str::FromStr for Pose {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Pose, String> {
+        if text.contains('@') {
+            return text.parse().map(Pose::Clip);
+        }
+        match text.trim().parse::<f64>() {
+            Ok(code) if code.is_finite() => Ok(Pose::TimeCode(code)),
+            _ => Err(format!("'{text}' is neither CLIP@SECONDS (glTF) nor a time code (USD)")),
+        }
     }
 }
 

@@ -14,8 +14,10 @@ use crate::optimize::Selection;
 pub struct Overrides {
     /// Import: the glTF scene to convert.
     pub scene: Option<SceneSelector>,
-    /// Import: the glTF scene as it stands at a time of an animation clip.
-    pub pose: Option<crate::import::PoseSelector>,
+    /// Import: the glTF scene as it stands at a time of an animation clip, or an OpenUSD stage at a time code.
+    pub pose: Option<crate::import::Pose>,
+    /// Import: the USD purposes kept besides `default`.
+    pub purposes: Option<crate::import::Purposes>,
     /// The tree chosen for the average cost over poses of these clips (`--animation`, `--animation-poses`):
     /// turns off the preset's split references and instancing.
     pub animation: Option<crate::animation::Animation>,
@@ -111,8 +113,13 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     if let Some(scene) = &o.scene {
         options.import.scene = Some(scene.clone());
     }
-    if let Some(pose) = &o.pose {
-        options.import.pose = Some(pose.clone());
+    match &o.pose {
+        Some(crate::import::Pose::Clip(pose)) => options.import.pose = Some(pose.clone()),
+        Some(crate::import::Pose::TimeCode(code)) => options.import.time_code = Some(*code),
+        None => {}
+    }
+    if let Some(purposes) = o.purposes {
+        options.import.purposes = purposes;
     }
     options.import.keep_degenerate = o.keep_degenerate.unwrap_or(options.import.keep_degenerate);
     if let Some(limits) = &o.limits {

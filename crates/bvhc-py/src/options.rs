@@ -90,8 +90,17 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
                 })
             }
             "pose" => {
-                let text = v.text().map_err(|_| v.error("a pose 'CLIP@SECONDS'"))?;
-                o.pose = Some(text.parse().map_err(|why: String| v.error(&format!("a pose 'CLIP@SECONDS' ({why})")))?)
+                let text = match v.value.extract::<f64>() {
+                    Ok(code) if !v.value.is_instance_of::<pyo3::types::PyBool>() => code.to_string(),
+                    _ => v.text().map_err(|_| v.error("a pose 'CLIP@SECONDS' or a USD time code"))?,
+                };
+                let why = |why: String| v.error(&format!("a pose 'CLIP@SECONDS' or a USD time code ({why})"));
+                o.pose = Some(text.parse().map_err(why)?)
+            }
+            "purposes" => {
+                let text = v.text().map_err(|_| v.error("USD purposes 'render,proxy,guide'"))?;
+                o.purposes =
+                    Some(text.parse().map_err(|why: String| v.error(&format!("USD purposes ({why})")))?)
             }
             "animation" => {
                 let clips = if v.value.is_instance_of::<pyo3::types::PyBool>() {

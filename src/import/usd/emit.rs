@@ -1,7 +1,9 @@
 //! The meshes a stage draws, read and handed to the soup: flattened into world space, or, for a [`Unit`] kept
 //! instanced, stored once in the unit's space and placed by instances. Which units stay instanced follows the
-//! import's [`Instancing`](crate::import::Instancing) policy exactly as for glTF meshes
-//! ([`choose_instanced`]): a unit is a prototype's subtree, its placements the instances that draw it.
+//! import's [`Instancing`] policy as for glTF meshes ([`choose_instanced`]), a unit standing for a mesh and
+//! its placements for the mesh's, but for `auto`: a stage's author asked for each unit to be instanced (an
+//! instanceable prim, a point instancer), so under `auto` every unit placed more than once stays instanced, as
+//! under `always`.
 //!
 //! Provenance: a source range's `mesh_index` is the mesh prim's index in [`StageRecord::prims`], its
 //! `node_index` the placing prim's (the instance prim or the point instancer; `NO_INDEX` for a mesh drawn where
@@ -19,7 +21,7 @@ use super::mesh;
 use super::walk::{PlacedMesh, Scene, Unit};
 use crate::import::instancing::{InstancedMesh, MeshPlacement, affine, choose_instanced, stored_triangles};
 use crate::import::soup::{PrimitiveInstance, Provenance, SoupBuilder};
-use crate::import::{ErrorKind, ImportOptions, Located};
+use crate::import::{ErrorKind, ImportOptions, Instancing, Located};
 
 /// Adds the scene's meshes to `builder`; returns the units kept instanced.
 pub(super) fn emit(
@@ -61,7 +63,13 @@ pub(super) fn emit(
         .take(total_placements)
         .map_err(|e| Located::of_kind(ErrorKind::Limit, "stage", e))?;
     let fits = |stored| emitter.builder.check_memory(stored).is_ok();
-    let chosen = choose_instanced(options.instancing, &placements, &triangles, fits);
+    // A stage's author asked for its units to be instanced (an instanceable prim, a point instancer): under
+    // `auto` they stay instanced whatever their size; `never` flattens them.
+    let mode = match options.instancing {
+        Instancing::Auto => Instancing::Always,
+        other => other,
+    };
+    let chosen = choose_instanced(mode, &placements, &triangles, fits);
     emitter
         .builder
         .check_memory(stored_triangles(&placements, &triangles, &chosen))

@@ -37,7 +37,8 @@ pub struct StageRecord {
     /// The stage's `upAxis`, where authored (recorded, not applied).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub up_axis: Option<String>,
-    /// MaterialX documents that references named and that were not read (they hold materials, never geometry).
+    /// MaterialX documents that references named and that were not read (they hold materials, never geometry),
+    /// relative to the stage's folder.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub unread_material_layers: Vec<String>,
 }
@@ -61,7 +62,7 @@ pub(super) fn read(
             .map_err(|e| Located::new("stage", format!("{e:#}")))
     })?;
     let mut record = StageRecord::default();
-    check_composition(&stage, &mut record)?;
+    check_composition(&stage, path, &mut record)?;
     let time = options.time_code.map(TimeCode::new);
     if let Some(code) = options.time_code
         && !code.is_finite()
@@ -103,13 +104,15 @@ fn guarded<T>(location: &str, f: impl FnOnce() -> Result<T, Located>) -> Result<
 
 /// Refuses a stage that could not be composed (a layer missing, unreadable or malformed, an arc cycle, ...),
 /// naming the layer and the prim; MaterialX references are recorded as unread instead.
-fn check_composition(stage: &Stage, record: &mut StageRecord) -> Result<(), Located> {
+fn check_composition(stage: &Stage, input: &Path, record: &mut StageRecord) -> Result<(), Located> {
+    let base = input.parent().unwrap_or(Path::new(""));
     for error in stage.composition_errors() {
         if let pcp::Error::UnresolvedLayer { asset_path, .. } = &error
             && asset_path.to_ascii_lowercase().ends_with(".mtlx")
         {
-            if !record.unread_material_layers.contains(asset_path) {
-                record.unread_material_layers.push(asset_path.clone());
+            let name = crate::import::inputs::relative_name(base, Path::new(asset_path));
+            if !record.unread_material_layers.contains(&name) {
+                record.unread_material_layers.push(name);
             }
             continue;
         }
