@@ -45,6 +45,7 @@ mod import_gltf;
 mod import_mutation;
 mod import_scenes;
 mod import_skins;
+mod import_usd;
 mod usd_oracle;
 mod instances;
 mod instances_exact;

@@ -108,7 +108,7 @@ fn check_composition(stage: &Stage, input: &Path, record: &mut StageRecord) -> R
     let base = input.parent().unwrap_or(Path::new(""));
     for error in stage.composition_errors() {
         if let pcp::Error::UnresolvedLayer { asset_path, .. } = &error
-            && asset_path.to_ascii_lowercase().ends_with(".mtlx")
+            && is_material_x(asset_path)
         {
             let name = crate::import::inputs::relative_name(base, Path::new(asset_path));
             if !record.unread_material_layers.contains(&name) {
@@ -116,8 +116,17 @@ fn check_composition(stage: &Stage, input: &Path, record: &mut StageRecord) -> R
             }
             continue;
         }
-        return Err(Located::of_kind(ErrorKind::Invalid, "composition", error.to_string()));
+        let kind = match error {
+            pcp::Error::UnresolvedLayer { .. } => ErrorKind::Unreadable,
+            _ => ErrorKind::Invalid,
+        };
+        return Err(Located::of_kind(kind, "composition", error.to_string()));
     }
     record.unread_material_layers.sort();
     Ok(())
+}
+
+/// Whether an asset path names a MaterialX document (materials only, never geometry).
+fn is_material_x(asset_path: &str) -> bool {
+    asset_path.to_ascii_lowercase().ends_with(".mtlx")
 }

@@ -19,6 +19,7 @@ pub(super) struct Opened {
     pub files: Vec<PathBuf>,
     /// Bytes of the files opened so far.
     pub bytes: u64,
+
     seen: BTreeSet<PathBuf>,
 }
 

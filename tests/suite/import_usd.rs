@@ -1,0 +1,249 @@
+//! OpenUSD import through the doors a user takes, without Pixar's library (tests/suite/usd_oracle.rs holds the
+//! triangles to usd-core's): instancing under each policy, purposes, the time code, what the metadata and
+//! `bvhc info` record, the files an up-to-date check covers, and hostile stages (a zip bomb, cycles, missing
+//! layers, malformed layers, byte-level mutations), each refused with a clear error and never a panic.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use bvhc::import::{ErrorKind, ImportOptions, Instancing, Pose, PoseSelector, Purposes, import};
+
+use super::common::scene;
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/usd").join(name)
+}
+
+fn bvhc(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_bvhc")).args(args).output().expect("bvhc runs")
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn the_fixture_stage_keeps_its_instances_and_point_instancer_as_instances_unless_told_not_to() {
+    for stage in ["features.usda", "features.usdc"] {
+        let path = fixture(stage);
+        let flat = import(&path, &ImportOptions { instancing: Instancing::Never, ..Default::default() }).unwrap();
+        assert!(flat.instanced.is_empty());
+        for mode in [Instancing::Auto, Instancing::Always] {
+            let kept = import(&path, &ImportOptions { instancing: mode, ..Default::default() }).unwrap();
+            // The native instances' prototype (3 visible instances) and the point instancer's two prototypes
+            // (3 visible instances each: one of 7 is an invisible id).
+            let placements: Vec<usize> = kept.instanced.iter().map(|m| m.placements.len()).collect();
+            assert_eq!(placements, [3, 3, 3], "{stage} under {mode:?}");
+            assert_eq!(kept.report.placed_triangles, flat.report.placed_triangles, "{stage}");
+            let record = kept.stage.as_ref().unwrap();
+            let roots: Vec<&str> =
+                kept.instanced.iter().map(|m| record.prims[m.mesh_index as usize].as_str()).collect();
+            assert_eq!(roots, ["/World/Inst0", "/World/Forest/Protos/Tree", "/World/Forest/Protos/Rock"]);
+            let placers: Vec<&str> =
+                kept.instanced[1].placements.iter().map(|p| record.prims[p.node_index as usize].as_str()).collect();
+            assert_eq!(placers, ["/World/Forest"; 3]);
+            let instances: Vec<u32> = kept.instanced[1].placements.iter().map(|p| p.gpu_instance_index).collect();
+            assert_eq!(instances, [0, 4, 6], "the point instancer's instances 0, 4 and 6 draw the tree (2 is hidden)");
+            assert_eq!(record.meters_per_unit, Some(0.01));
+            assert_eq!(record.up_axis.as_deref(), Some("Z"));
+        }
+    }
+}
+
+#[test]
+fn purposes_choose_the_geometry_and_the_time_code_moves_it() {
+    let path = fixture("features.usda");
+    let count = |options: ImportOptions| {
+        let options = ImportOptions { instancing: Instancing::Never, keep_degenerate: true, ..options };
+        import(&path, &options).unwrap().soup.triangles.len()
+    };
+    let default = count(ImportOptions::default());
+    let with_proxy = count(ImportOptions { purposes: "render,proxy".parse().unwrap(), ..Default::default() });
+    let everything = count(ImportOptions { purposes: "render,proxy,guide".parse().unwrap(), ..Default::default() });
+    let bare = Purposes { render: false, proxy: false, guide: false };
+    let without_render = count(ImportOptions { purposes: bare, ..Default::default() });
+    // /World/Proxy and /World/Guide are 8 triangles each, /World/RenderScope/Mesh 8.
+    assert_eq!((with_proxy - default, everything - with_proxy, default - without_render), (8, 8, 8));
+    assert!("render,shadow".parse::<Purposes>().unwrap_err().contains("'shadow' is not a USD purpose"));
+    // /World/Moving is at z = 10 by default, and moves from x = 0 to 4 between time codes 0 and 10.
+    let at = |time_code| {
+        let import = import(&path, &ImportOptions { time_code, ..Default::default() }).unwrap();
+        let source = import.stage.unwrap().prims.iter().position(|p| p == "/World/Moving/Mesh").unwrap() as u32;
+        let range = import.soup.sources.iter().find(|r| r.mesh_index == source).copied().unwrap();
+        let t = import.soup.source_ids.iter().position(|&id| id == range.first_source_triangle).unwrap();
+        import.soup.vertices(t)
+    };
+    assert_ne!(at(None), at(Some(0.0)));
+    let (start, middle, end) = (at(Some(0.0)), at(Some(5.0)), at(Some(10.0)));
+    for corner in 0..3 {
+        for axis in 0..3 {
+            let halfway = 0.5 * (start[corner][axis] + end[corner][axis]);
+            assert!((middle[corner][axis] - halfway).abs() < 1e-4, "linear interpolation at time code 5");
+        }
+    }
+}
+
+#[test]
+fn a_pose_of_the_wrong_kind_is_refused_by_name() {
+    let clip = PoseSelector { clip: bvhc::import::ClipSelector::Index(0), seconds: 1.0 };
+    let error =
+        import(&fixture("features.usda"), &ImportOptions { pose: Some(clip), ..Default::default() }).unwrap_err();
+    assert!(error.to_string().contains("time code (--pose TIME)"), "{error}");
+    let Some(box_gltf) = scene("khr-box/Box.gltf") else { return };
+    let error = import(&box_gltf, &ImportOptions { time_code: Some(3.0), ..Default::default() }).unwrap_err();
+    assert!(error.to_string().contains("a glTF pose is CLIP@SECONDS"), "{error}");
+    assert_eq!("12.5".parse::<Pose>().unwrap(), Pose::TimeCode(12.5));
+    assert!(matches!("Walk@0.5".parse::<Pose>().unwrap(), Pose::Clip(_)));
+    assert!("soon".parse::<Pose>().is_err());
+}
+
+#[test]
+fn the_command_line_converts_a_stage_records_it_and_lists_every_layer_it_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let geometry = write(
+        dir.path(),
+        "geometry.usda",
+        "#usda 1.0\n(\n    defaultPrim = \"Tri\"\n)\ndef Mesh \"Tri\"\n{\n    int[] faceVertexCounts = [3]\n    \
+         int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}\n",
+    );
+    let stage = write(
+        dir.path(),
+        "stage.usda",
+        "#usda 1.0\n(\n    metersPerUnit = 0.5\n)\ndef \"A\" (\n    references = @./geometry.usda@\n)\n{\n}\n\
+         def \"B\" (\n    prepend payload = @./geometry.usda@\n)\n{\n    double3 xformOp:translate = (2, 0, 0)\n    \
+         uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}\n",
+    );
+    let output = dir.path().join("stage.bvh");
+    let outcome = bvhc::convert::Conversion::new(&stage, &output).run().unwrap();
+    assert_eq!(outcome.files_read, [stage.clone(), geometry.clone()]);
+    let run = bvhc(&["info", output.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(text.contains("usd stage: 2 prims named, 0.5 m a unit"), "{text}");
+    assert!(text.contains("input: geometry.usda"), "{text}");
+    assert!(text.contains("source 0: ids 0..1: /A\n") && text.contains("source 1: ids 1..2: /B\n"), "{text}");
+    // A changed referenced layer makes the file out of date.
+    std::fs::write(&geometry, std::fs::read_to_string(&geometry).unwrap().replace("(0, 1, 0)]", "(0, 2, 0)]")).unwrap();
+    assert!(!bvhc::convert::Conversion::new(&stage, &output).run().unwrap().up_to_date);
+    let run = bvhc(&[stage.to_str().unwrap(), "-o", output.to_str().unwrap(), "--pose", "0@1"]);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("not CLIP@SECONDS"));
+}
+
+#[test]
+fn the_chess_set_converts_to_a_two_level_file_whose_info_names_its_prims() {
+    let Some(chess) = scene("usd-open-chess-set/chess_set.usda") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("chess.bvh");
+    let run = bvhc(&[chess.to_str().unwrap(), "-o", output.to_str().unwrap(), "--preset", "fast"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let file = bvhc::loader::BvhFile::read(&output).unwrap();
+    let two_level = file.view().two_level().expect("two-level");
+    assert_eq!((two_level.meshes.len(), two_level.instances.len()), (3, 17));
+    let metadata = super::common::assert_metadata_matches_schema(&file);
+    assert_eq!(metadata["two_level"]["placed_triangle_count"], 1_429_623);
+    assert_eq!(metadata["inputs"].as_array().unwrap().len(), 29, "the stage's 29 layers");
+    let unread = metadata["usd"]["unread_material_layers"].as_array().unwrap();
+    assert!(unread.iter().any(|l| l == "assets/Pawn/Pawn_mat.mtlx"), "{unread:?}");
+    let info = bvhc(&["info", output.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        text.contains("instance 1: mesh 1 (/ChessSet/Black/Pawns/Pawn), placed by /ChessSet/Black/Pawns instance 0")
+    );
+    assert!(text.contains(": /ChessSet/White/Pawns/Pawn/Geom_Body/Render"), "{text}");
+}
+
+/// The error of importing `path`.
+fn refused(path: &Path) -> bvhc::import::ImportError {
+    import(path, &ImportOptions::default()).map(|i| i.soup.triangles.len()).unwrap_err()
+}
+
+#[test]
+fn hostile_stages_are_refused_with_the_layer_and_prim_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A zip bomb: a package entry that inflates to 200 MB from a few hundred KB.
+    let bomb = d.join("bomb.usdz");
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(&bomb).unwrap());
+    let deflated = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
+    zip.start_file("root.usda", deflated).unwrap();
+    zip.write_all(b"#usda 1.0\n").unwrap();
+    for _ in 0..200 {
+        zip.write_all(&[b' '; 1 << 20]).unwrap();
+    }
+    zip.finish().unwrap();
+    let error = refused(&bomb);
+    assert!(
+        error.message.contains("is compressed (Deflated); a USDZ package stores its files uncompressed"),
+        "{error}"
+    );
+
+    let sublayer = write(d, "self.usda", "#usda 1.0\n(\n    subLayers = [@./self.usda@]\n)\n");
+    assert!(refused(&sublayer).message.contains("sublayer cycle"), "{}", refused(&sublayer));
+    write(d, "b.usda", "#usda 1.0\ndef Xform \"B\" (\n    references = @./a.usda@</A>\n)\n{\n}\n");
+    let cycle = write(d, "a.usda", "#usda 1.0\ndef Xform \"A\" (\n    references = @./b.usda@</B>\n)\n{\n}\n");
+    assert!(refused(&cycle).message.contains("cycle at /A"), "{}", refused(&cycle));
+    let missing = write(d, "missing.usda", "#usda 1.0\ndef Xform \"A\" (\n    references = @./absent.usda@\n)\n{\n}\n");
+    let error = refused(&missing);
+    assert_eq!(error.kind, ErrorKind::Unreadable);
+    assert!(error.message.contains("absent.usda") && error.message.contains("at /A"), "{error}");
+    let payload =
+        write(d, "payload.usda", "#usda 1.0\ndef Xform \"P\" (\n    prepend payload = @./gone.usdc@\n)\n{\n}\n");
+    assert!(refused(&payload).message.contains("gone.usdc"), "{}", refused(&payload));
+    let garbage = write(d, "garbage.usda", "not a layer");
+    assert!(refused(&garbage).message.contains("USDA"), "{}", refused(&garbage));
+    let bad_mesh = write(
+        d,
+        "bad.usda",
+        "#usda 1.0\ndef Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 9]\n    \
+         point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}\n",
+    );
+    let error = refused(&bad_mesh);
+    assert_eq!(error.location, "prim /M");
+    assert!(error.message.contains("faceVertexIndices holds 9, not a point index (the mesh has 3 points)"), "{error}");
+    let bad_op = write(
+        d,
+        "op.usda",
+        "#usda 1.0\ndef Xform \"X\"\n{\n    double3 xformOp:shear = (1, 2, 3)\n    \
+         uniform token[] xformOpOrder = [\"xformOp:shear\"]\n}\n",
+    );
+    assert!(refused(&bad_op).message.contains("'shear' is not an op kind USD defines"), "{}", refused(&bad_op));
+    // A crate file cut anywhere is an error, never a panic.
+    let crate_bytes = std::fs::read(fixture("features.usdc")).unwrap();
+    for cut in [0, 8, 88, 200, crate_bytes.len() / 2, crate_bytes.len() - 1] {
+        let cut_file = d.join(format!("cut{cut}.usdc"));
+        std::fs::write(&cut_file, &crate_bytes[..cut]).unwrap();
+        let error = refused(&cut_file);
+        assert!(!error.message.is_empty(), "cut at {cut}");
+    }
+}
+
+#[test]
+fn mutated_text_layers_give_an_answer_or_an_error_never_a_panic() {
+    let bytes = std::fs::read(fixture("features.usda")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = super::common::rng(61);
+    let (mut imported, mut refused) = (0, 0);
+    for round in 0..300 {
+        use rand::RngExt;
+        let mut mutated = bytes.clone();
+        let at = rng.random_range(0..mutated.len());
+        match round % 3 {
+            0 => mutated[at] ^= 1 << rng.random_range(0..8),
+            1 => mutated[at] = *b"0123456789-.e[](),\"@".get(rng.random_range(0..20)).unwrap(),
+            _ => mutated.truncate(at),
+        }
+        let path = dir.path().join(format!("m{round}.usda"));
+        std::fs::write(&path, &mutated).unwrap();
+        match import(&path, &ImportOptions::default()) {
+            Ok(_) => imported += 1,
+            Err(e) => {
+                assert!(!e.message.is_empty());
+                refused += 1
+            }
+        }
+    }
+    assert!(imported > 0 && refused > 0, "{imported} imported, {refused} refused");
+}
