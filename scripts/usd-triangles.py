@@ -10,13 +10,15 @@ point instancer's instance count. What is drawn, as Hydra draws it: UsdGeomMesh 
 reaches (active, loaded, defined, not abstract), through instance proxies, visible at the time, of a kept purpose;
 each face a fan from its first vertex, the faces of holeIndices left out, faces of fewer than 3 vertices skipped,
 a leftHanded mesh's triangles reversed; a point instancer's subtree drawn only through its prototypes, each
-instance placed by ComputeInstanceTransformsAtTime (which includes the prototype root's own transform).
+instance placed by ComputeInstanceTransformsAtTime (which includes the prototype root's own transform); a mesh
+that UsdSkel binds to a skeleton skinned by UsdSkel's own skinning query at the time (its points in skeleton space,
+placed by the skeleton's transform, as UsdSkel's imaging places them).
 """
 import json
 import sys
 
 import numpy as np
-from pxr import Gf, Usd, UsdGeom
+from pxr import Gf, Usd, UsdGeom, UsdSkel
 
 
 def fan_triangles(counts, indices, holes):
@@ -41,13 +43,43 @@ def fan_triangles(counts, indices, holes):
     return np.stack([indices[s], indices[s + k], indices[s + k + 1]], axis=1)
 
 
-def mesh_triangles(prim, time, matrix):
-    """The mesh's triangles placed by `matrix` (a Gf.Matrix4d, row vectors), shape (n, 3, 3)."""
+def skinned_meshes(stage, time):
+    """Mesh prim path -> (points in skeleton space, the skeleton's local-to-world), for every skinned mesh."""
+    skinned = {}
+    cache = UsdSkel.Cache()
+    predicate = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+    for prim in Usd.PrimRange.Stage(stage, predicate):
+        if not prim.IsA(UsdSkel.Root):
+            continue
+        root = UsdSkel.Root(prim)
+        cache.Populate(root, predicate)
+        for binding in cache.ComputeSkelBindings(root, predicate):
+            query = cache.GetSkelQuery(binding.GetSkeleton())
+            xforms = query.ComputeSkinningTransforms(time)
+            skeleton_world = UsdGeom.Xformable(binding.GetSkeleton().GetPrim()).ComputeLocalToWorldTransform(time)
+            for target in binding.GetSkinningTargets():
+                mesh = UsdGeom.Mesh(target.GetPrim())
+                points = mesh.GetPointsAttr().Get(time)
+                if points is None or xforms is None:
+                    continue
+                if target.IsRigidlyDeformed():
+                    rigid = target.ComputeSkinnedTransform(xforms, time)
+                    skinned[str(target.GetPrim().GetPath())] = (points, rigid * skeleton_world)
+                    continue
+                if target.ComputeSkinnedPoints(xforms, points, time):
+                    skinned[str(target.GetPrim().GetPath())] = (points, skeleton_world)
+    return skinned
+
+
+def mesh_triangles(prim, time, matrix, points=None):
+    """The mesh's triangles placed by `matrix` (a Gf.Matrix4d, row vectors), shape (n, 3, 3); `points` replaces
+    the mesh's own (skinned points)."""
     mesh = UsdGeom.Mesh(prim)
     counts = mesh.GetFaceVertexCountsAttr().Get() or []
     indices = mesh.GetFaceVertexIndicesAttr().Get() or []
     holes = mesh.GetHoleIndicesAttr().Get() or []
-    points = mesh.GetPointsAttr().Get(time)
+    if points is None:
+        points = mesh.GetPointsAttr().Get(time)
     points = np.asarray(points if points is not None else [], dtype=np.float64).reshape(-1, 3)
     triangles = fan_triangles(counts, indices, holes)
     if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
@@ -78,8 +110,13 @@ def main():
     cache = UsdGeom.XformCache(time)
     pieces, per_prim, instancers = [], {}, {}
 
+    skinned = skinned_meshes(stage, time)
+
     def add(prim, matrix):
-        tris = mesh_triangles(prim, time, matrix)
+        points = None
+        if str(prim.GetPath()) in skinned:
+            points, matrix = skinned[str(prim.GetPath())]
+        tris = mesh_triangles(prim, time, matrix, points)
         pieces.append(tris)
         key = str(prim.GetPath())
         per_prim[key] = per_prim.get(key, 0) + len(tris)

@@ -17,8 +17,8 @@ use glam::DMat4;
 use openusd::usd::{Stage, TimeCode};
 
 use super::StageRecord;
-use super::mesh;
 use super::walk::{PlacedMesh, Scene, Unit};
+use super::{mesh, skel};
 use crate::import::instancing::{InstancedMesh, MeshPlacement, affine, choose_instanced, stored_triangles};
 use crate::import::soup::{PrimitiveInstance, Provenance, SoupBuilder};
 use crate::import::{ErrorKind, ImportOptions, Instancing, Located};
@@ -160,12 +160,20 @@ impl Emitter<'_> {
     ) -> Result<(), Located> {
         let first_use = !self.read.contains_key(&mesh.path);
         if first_use {
-            let geometry =
+            let mut geometry =
                 mesh::read(&self.stage.prim(mesh.path.as_str()), self.time).map_err(|e| at(&mesh.path, e))?;
+            if let Some(skinned) =
+                skel::skin(self.stage, &mesh.path, &geometry.points, self.time).map_err(|e| at(&mesh.path, e))?
+            {
+                geometry.points = skinned.points;
+                geometry.skeleton_to_world = Some(skinned.skeleton_to_world);
+            }
             self.read.insert(mesh.path.clone(), geometry);
         }
         let mesh_index = self.prim(&mesh.path);
         let geometry = &self.read[&mesh.path];
+        // A skinned mesh is placed by its skeleton, wherever the mesh stands.
+        let transform = geometry.skeleton_to_world.unwrap_or(transform);
         if !transform.is_finite() {
             return Err(at(&mesh.path, "its world transform is not finite".to_string()));
         }
@@ -192,7 +200,7 @@ impl Emitter<'_> {
                 flip_winding: transform.determinant() < 0.0,
                 first_use,
                 cut_out: false,
-                deforming: false,
+                deforming: geometry.skeleton_to_world.is_some(),
             })
             .map_err(|(kind, e)| Located::of_kind(kind, &format!("prim {}", mesh.path), e))?;
         Ok(())

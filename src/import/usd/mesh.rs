@@ -9,10 +9,13 @@ use openusd::usd::{Prim, TimeCode};
 
 use super::xform::value_kind;
 
-/// A mesh's positions (in its own space, f64 as authored) and triangles as vertex indices.
+/// A mesh's positions (in its own space, f64 as authored; or skinned, in its skeleton's space) and triangles as
+/// vertex indices.
 pub(super) struct MeshGeometry {
     pub points: Vec<[f64; 3]>,
     pub triangles: Vec<[u32; 3]>,
+    /// For a skinned mesh, the skeleton's transform, which places its points instead of the mesh's own.
+    pub skeleton_to_world: Option<glam::DMat4>,
 }
 
 /// The triangles a mesh's topology declares, counted from `faceVertexCounts` alone (holes included), for the
@@ -108,5 +111,5 @@ pub(super) fn read(prim: &Prim, time: Option<TimeCode>) -> Result<MeshGeometry, 
             triangles.push(if left_handed { [first, c, b] } else { [first, b, c] });
         }
     }
-    Ok(MeshGeometry { points, triangles })
+    Ok(MeshGeometry { points, triangles, skeleton_to_world: None })
 }

@@ -11,6 +11,7 @@
 mod emit;
 mod mesh;
 mod resolver;
+mod skel;
 mod walk;
 mod xform;
 

@@ -42,6 +42,31 @@ pub(super) fn local_transform(prim: &Prim, time: Option<TimeCode>) -> Result<Loc
     Ok(LocalTransform { matrix, resets_stack })
 }
 
+/// The world transform of the prim at `path` at `time`: its ancestors' local transforms composed from the root,
+/// restarted where one resets the transform stack.
+pub(super) fn world_transform(
+    stage: &openusd::usd::Stage,
+    path: &openusd::sdf::Path,
+    time: Option<TimeCode>,
+) -> Result<DMat4, String> {
+    let mut chain = Vec::new();
+    let mut at = Some(path.clone());
+    while let Some(prim_path) = at {
+        if prim_path.as_str() == "/" {
+            break;
+        }
+        at = prim_path.parent();
+        chain.push(prim_path);
+    }
+    let mut world = DMat4::IDENTITY;
+    for prim_path in chain.iter().rev() {
+        let local = local_transform(&stage.prim(prim_path.clone()), time)
+            .map_err(|e| format!("{}: {e}", prim_path.as_str()))?;
+        world = if local.resets_stack { local.matrix } else { world * local.matrix };
+    }
+    Ok(world)
+}
+
 /// The matrix of one op, inverted for `!invert!`; the identity when the op's attribute holds no value at `time`
 /// (as USD reads it).
 fn op_matrix(prim: &Prim, name: &str, time: Option<TimeCode>) -> Result<DMat4, String> {
