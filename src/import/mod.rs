@@ -34,7 +34,7 @@ pub use limits::ImportLimits;
 pub use opacity::Opacity;
 pub use report::ImportReport;
 pub use soup::{Provenance, TriangleSoup, is_zero_area};
-pub use usd::StageRecord;
+pub use usd::{StageRecord, TIME_CODES_CLIP};
 
 use soup::SoupBuilder;
 
@@ -343,14 +343,21 @@ pub fn import(path: &Path, options: &ImportOptions) -> Result<Import, ImportErro
 }
 
 /// Every animation clip of the glTF file at `path`, with the span of its keyframes (none for a file without
-/// animations); an OBJ or PLY file, which has no animation, is refused.
+/// animations); an OpenUSD stage has one, its authored time codes ([`usd::TIME_CODES_CLIP`]: start to end, in
+/// seconds at its time codes a second; none without an authored range); an OBJ or PLY file, which has no
+/// animation, is refused.
 pub fn animation_clips(path: &Path, options: &ImportOptions) -> Result<Vec<ClipSpan>, ImportError> {
     let error =
         |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
-    let Some((SceneFormat::Gltf | SceneFormat::Glb, gzipped)) = input_format(path).map_err(error)? else {
+    let format = input_format(path).map_err(error)?;
+    if let Some((SceneFormat::Usd, _)) = format {
+        return usd::clips(path, options).map_err(error);
+    }
+    let Some((SceneFormat::Gltf | SceneFormat::Glb, gzipped)) = format else {
         return Err(error(Located::new(
             "animations",
-            "only a glTF file has animation clips (.gltf or .glb)".to_string(),
+            "only a glTF file or an OpenUSD stage has animation clips (.gltf, .glb, .usd, .usda, .usdc, .usdz)"
+                .to_string(),
         )));
     };
     let bytes = limits::read_regular_file(path, gzipped, options.limits.max_input_bytes).map_err(error)?;
@@ -429,8 +436,8 @@ pub fn import_for_peak(
 fn import_stage(path: &Path, options: &ImportOptions, peak_bytes_per_triangle: u64) -> Result<Import, ImportError> {
     let error =
         |e: Located| ImportError { path: path.to_path_buf(), location: e.location, message: e.message, kind: e.kind };
-    if options.pose.is_some() {
-        let message = "an OpenUSD stage is posed at a time code (--pose TIME), not CLIP@SECONDS".to_string();
+    if options.pose.is_some() && options.time_code.is_some() {
+        let message = "both a clip time and a time code: pose a stage by one of them".to_string();
         return Err(error(Located::new("pose", message)));
     }
     let mut builder = SoupBuilder::new(options.keep_degenerate, &options.limits, peak_bytes_per_triangle);

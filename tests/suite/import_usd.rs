@@ -88,10 +88,14 @@ fn purposes_choose_the_geometry_and_the_time_code_moves_it() {
 
 #[test]
 fn a_pose_of_the_wrong_kind_is_refused_by_name() {
-    let clip = PoseSelector { clip: bvhc::import::ClipSelector::Index(0), seconds: 1.0 };
-    let error =
-        import(&fixture("features.usda"), &ImportOptions { pose: Some(clip), ..Default::default() }).unwrap_err();
-    assert!(error.to_string().contains("time code (--pose TIME)"), "{error}");
+    // A stage's one clip is its time codes: clip 0 at 2.5 s is time code 2.5 * timeCodesPerSecond (24 here).
+    let stage = fixture("features.usda");
+    let clip = |clip, seconds| ImportOptions { pose: Some(PoseSelector { clip, seconds }), ..Default::default() };
+    let by_clip = import(&stage, &clip(bvhc::import::ClipSelector::Index(0), 2.5 / 24.0)).unwrap();
+    let by_code = import(&stage, &ImportOptions { time_code: Some(2.5), ..Default::default() }).unwrap();
+    assert_eq!(by_clip.soup, by_code.soup);
+    let error = import(&stage, &clip(bvhc::import::ClipSelector::Index(1), 1.0)).unwrap_err();
+    assert!(error.to_string().contains("has one clip, its time codes"), "{error}");
     let Some(box_gltf) = scene("khr-box/Box.gltf") else { return };
     let error = import(&box_gltf, &ImportOptions { time_code: Some(3.0), ..Default::default() }).unwrap_err();
     assert!(error.to_string().contains("a glTF pose is CLIP@SECONDS"), "{error}");
@@ -127,9 +131,9 @@ fn the_command_line_converts_a_stage_records_it_and_lists_every_layer_it_read() 
     // A changed referenced layer makes the file out of date.
     std::fs::write(&geometry, std::fs::read_to_string(&geometry).unwrap().replace("(0, 1, 0)]", "(0, 2, 0)]")).unwrap();
     assert!(!bvhc::convert::Conversion::new(&stage, &output).run().unwrap().up_to_date);
-    let run = bvhc(&[stage.to_str().unwrap(), "-o", output.to_str().unwrap(), "--pose", "0@1"]);
+    let run = bvhc(&[stage.to_str().unwrap(), "-o", output.to_str().unwrap(), "--pose", "walk@1"]);
     assert!(!run.status.success());
-    assert!(String::from_utf8_lossy(&run.stderr).contains("not CLIP@SECONDS"));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("has one clip, its time codes"));
 }
 
 #[test]
@@ -246,4 +250,36 @@ fn mutated_text_layers_give_an_answer_or_an_error_never_a_panic() {
         }
     }
     assert!(imported > 0 && refused > 0, "{imported} imported, {refused} refused");
+}
+
+#[test]
+fn a_stage_is_converted_for_its_animation_over_its_time_codes() {
+    // BrainStem as USD (time codes at 37 a second) and as glTF: the same poses, so trees of nearly equal cost.
+    let (Some(usd), Some(gltf)) = (scene("usd-brainstem/BrainStem.usdz"), scene("khr-brainstem/BrainStem.gltf")) else {
+        return;
+    };
+    let clips = bvhc::import::animation_clips(&usd, &ImportOptions::default()).unwrap();
+    assert_eq!(clips.len(), 1);
+    assert_eq!(clips[0].name.as_deref(), Some(bvhc::import::TIME_CODES_CLIP));
+    assert!((clips[0].end - 1290.5600395202637 / 37.0).abs() < 1e-9);
+    let dir = tempfile::tempdir().unwrap();
+    let mut costs = Vec::new();
+    for input in [&usd, &gltf] {
+        let output = dir.path().join("animated.bvh");
+        let run = bvhc(&[
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+            "--animation",
+            "--animation-poses",
+            "4",
+            "--force",
+        ]);
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        let file = bvhc::loader::BvhFile::read(&output).unwrap();
+        let metadata = super::common::assert_metadata_matches_schema(&file);
+        assert_eq!(metadata["animation"]["poses"].as_array().unwrap().len(), 4);
+        costs.push(metadata["animation"]["expected_wide_cost"].as_f64().unwrap());
+    }
+    assert!((costs[0] / costs[1] - 1.0).abs() < 0.01, "USD {} against glTF {}", costs[0], costs[1]);
 }

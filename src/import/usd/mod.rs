@@ -64,12 +64,16 @@ pub(super) fn read(
     })?;
     let mut record = StageRecord::default();
     check_composition(&stage, path, &mut record)?;
-    let time = options.time_code.map(TimeCode::new);
-    if let Some(code) = options.time_code
+    let time_code = match &options.pose {
+        Some(pose) => Some(clip_time_code(&stage, pose)?),
+        None => options.time_code,
+    };
+    if let Some(code) = time_code
         && !code.is_finite()
     {
         return Err(Located::new("pose", format!("time code {code} is not finite")));
     }
+    let time = time_code.map(TimeCode::new);
     record.meters_per_unit = match stage.stage_metadata("metersPerUnit") {
         Ok(Some(Value::Double(m))) => Some(m),
         Ok(Some(Value::Float(m))) => Some(f64::from(m)),
@@ -86,6 +90,47 @@ pub(super) fn read(
     let mut files_read: Vec<PathBuf> = files.into_iter().filter(|f| f.as_path() != path).collect();
     files_read.dedup();
     Ok((files_read, instanced, record))
+}
+
+/// The name of a stage's one animation clip: its authored time codes, from `startTimeCode` to `endTimeCode`, a
+/// time in it in seconds being the time code over `timeCodesPerSecond`.
+pub const TIME_CODES_CLIP: &str = "time codes";
+
+/// The stage's animation clips: [`TIME_CODES_CLIP`] where it authors a time range, else none.
+pub(super) fn clips(path: &Path, options: &ImportOptions) -> Result<Vec<super::ClipSpan>, Located> {
+    let (resolver, _) = resolver::BoundedResolver::new(options.limits.max_input_bytes);
+    let root = path.to_str().ok_or_else(|| Located::new("file name", "is not UTF-8".to_string()))?;
+    let stage = guarded("stage", || {
+        Stage::builder().resolver(resolver).open(root).map_err(|e| Located::new("stage", format!("{e:#}")))
+    })?;
+    let rate = stage.time_codes_per_second();
+    let (start, end) = (stage.start_time_code(), stage.end_time_code());
+    if !stage.has_authored_time_code_range() || !(rate > 0.0 && start.is_finite() && end.is_finite() && start <= end) {
+        return Ok(Vec::new());
+    }
+    Ok(vec![super::ClipSpan {
+        index: 0,
+        name: Some(TIME_CODES_CLIP.to_string()),
+        start: start / rate,
+        end: end / rate,
+    }])
+}
+
+/// The time code of a clip time on a stage: its one clip ([`TIME_CODES_CLIP`], index 0) at `seconds` is time code
+/// `seconds * timeCodesPerSecond`.
+fn clip_time_code(stage: &Stage, pose: &super::PoseSelector) -> Result<f64, Located> {
+    match &pose.clip {
+        super::ClipSelector::Index(0) => {}
+        super::ClipSelector::Name(name) if name == TIME_CODES_CLIP => {}
+        other => {
+            let message = format!(
+                "an OpenUSD stage has one clip, its time codes (0 or \"{TIME_CODES_CLIP}\"), not {other:?}; or pose it \
+                 at a time code (--pose TIME)"
+            );
+            return Err(Located::new("pose", message));
+        }
+    }
+    Ok(pose.seconds * stage.time_codes_per_second())
 }
 
 /// Runs `f`, turning a panic inside the USD library (a malformed layer it does not check) into an error.
