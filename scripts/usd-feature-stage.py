@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes, with Pixar's usd-core, a stage that uses every mesh feature bvhc's USD import handles, for
 tests/suite/usd_oracle.rs: transform ops of every kind (translate, scale, rotateX/rotateXYZ/rotateZYX, orient,
-transform, !invert!, !resetXformStack!), a negative scale, faces of 3 to 5 vertices, a face of 2, hole indices,
+transform, !invert!, !resetXformStack!), inherits, specializes and a variant set, a negative scale, faces of 3 to 5 vertices, a face of 2, hole indices,
 a leftHanded mesh, visibility (an invisible subtree), purposes (proxy, guide, render), time-sampled points and
 transforms, native instances of one prototype (a mirrored one too) and a point instancer with two prototypes,
 orientations, scales, ids and invisible ids.
@@ -79,6 +79,25 @@ def build(stage):
     points = animated.GetPointsAttr()
     points.Set(Vt.Vec3fArray([Gf.Vec3f(x, y, 0) for x, y, _ in GRID]), 0.0)
     points.Set(Vt.Vec3fArray([Gf.Vec3f(x, y, 2.0 * x) for x, y, _ in GRID]), 10.0)
+
+    # Composition arcs: a class the prim inherits, a prim it specializes, and a variant set.
+    base = UsdGeom.Xform.Define(stage, "/Classes/Raised")
+    stage.GetPrimAtPath("/Classes").SetSpecifier(Sdf.SpecifierClass)
+    base.AddTranslateOp().Set(Gf.Vec3d(0, 0, 7))
+    inheriting = mesh(stage, "/World/Inheriting", GRID, *QUADS)
+    inheriting.GetPrim().GetInherits().AddInherit("/Classes/Raised")
+    special = UsdGeom.Xform.Define(stage, "/Classes/Turned")
+    special.AddRotateYOp().Set(60.0)
+    specializing = mesh(stage, "/World/Specializing", GRID, *QUADS)
+    specializing.GetPrim().GetSpecializes().AddSpecialize("/Classes/Turned")
+    holder = UsdGeom.Xform.Define(stage, "/World/Variant")
+    shapes = holder.GetPrim().GetVariantSets().AddVariantSet("shape")
+    for name, (points, counts, indices) in [("grid", (GRID, *QUADS)), ("pair", (pts[:6], [3, 3], [0, 1, 5, 1, 2, 3]))]:
+        shapes.AddVariant(name)
+        shapes.SetVariantSelection(name)
+        with shapes.GetVariantEditContext():
+            mesh(stage, "/World/Variant/Shape", points, counts, indices)
+    shapes.SetVariantSelection("pair")
 
     # Native instances of one prototype (two meshes), one mirrored, one hidden.
     thing = UsdGeom.Xform.Define(stage, "/Prototypes/Thing")
