@@ -99,8 +99,7 @@ fn overrides(options: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
             }
             "purposes" => {
                 let text = v.text().map_err(|_| v.error("USD purposes 'render,proxy,guide'"))?;
-                o.purposes =
-                    Some(text.parse().map_err(|why: String| v.error(&format!("USD purposes ({why})")))?)
+                o.purposes = Some(text.parse().map_err(|why: String| v.error(&format!("USD purposes ({why})")))?)
             }
             "animation" => {
                 let clips = if v.value.is_instance_of::<pyo3::types::PyBool>() {

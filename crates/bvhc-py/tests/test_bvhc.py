@@ -279,6 +279,18 @@ def test_refused_options_raise_options_error(options, message, tmp_path):
         bvhc.convert(TEAPOT, tmp_path / "x.bvh", preset="slow")
 
 
+def test_an_openusd_stage_converts_as_the_command_line_converts_it(tmp_path):
+    stage = ROOT / "fixtures" / "usd" / "features.usdc"
+    bvhc.convert(stage, tmp_path / "py.bvh", "fast", pose=2.5, purposes="render,proxy")
+    cli(stage, "-o", tmp_path / "cli.bvh", "--preset", "fast", "--pose", "2.5", "--purposes", "render,proxy", "-q")
+    assert (tmp_path / "py.bvh").read_bytes() == (tmp_path / "cli.bvh").read_bytes()
+    metadata = bvhc.open(tmp_path / "py.bvh").info()["metadata"]
+    assert metadata["build"]["import"]["time_code"] == 2.5
+    assert metadata["usd"]["up_axis"] == "Z" and "/World/Forest" in metadata["usd"]["prims"]
+    with pytest.raises(bvhc.OptionsError, match="shadow"):
+        bvhc.convert(stage, tmp_path / "x.bvh", purposes="render,shadow")
+
+
 def test_conversion_errors_raise_their_exception(tmp_path):
     with pytest.raises(bvhc.IoError, match="missing.obj"):
         bvhc.convert(tmp_path / "missing.obj", tmp_path / "x.bvh")
