@@ -47,7 +47,7 @@ fn convert(input: &Path, output: &Path, pose: Option<PoseSelector>, animation: O
     let overrides = Overrides {
         splits: animation.is_none().then_some(false),
         instancing: animation.is_none().then_some(Instancing::Never),
-        pose,
+        pose: pose.map(bvhc::import::Pose::Clip),
         animation,
         ..Overrides::default()
     };

@@ -39,7 +39,7 @@ fn convert(input: &Path, output: &Path, clip: usize, instancing: Option<Instanci
         None => Overrides {
             splits: Some(false),
             instancing: Some(Instancing::Never),
-            pose: Some(pose.clone()),
+            pose: Some(bvhc::import::Pose::Clip(pose.clone())),
             ..Overrides::default()
         },
     };

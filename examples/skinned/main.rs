@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use bvhc::animation::{Animation, TimeWindow};
-use bvhc::import::{ClipSelector, PoseSelector};
+use bvhc::import::{ClipSelector, Pose, PoseSelector};
 use bvhc::loader::{BvhFile, Hit, Ray, RebuildPolicy, RefitPositions, Trace};
 use bvhc::options::Overrides;
 
@@ -160,7 +160,8 @@ fn convert(options: &Options) -> Result<Vec<(f64, BvhFile)>, Box<dyn std::error:
         };
         let middle = PoseSelector { clip: clip.clone(), seconds: (window.start + window.end) / 2.0 };
         let animation = Animation { window: Some(window), ..whole.clone() };
-        let overrides = Overrides { animation: Some(animation), pose: Some(middle), ..Overrides::default() };
+        let overrides =
+            Overrides { animation: Some(animation), pose: Some(Pose::Clip(middle)), ..Overrides::default() };
         let bvh = options.output.join(format!("scene-part{k}.bvh"));
         bvhc::Conversion::new(&options.input, &bvh).overrides(overrides).run()?;
         parts.push((if k == 0 { f64::NEG_INFINITY } else { window.start }, BvhFile::read(&bvh)?));

@@ -105,7 +105,8 @@ pub(super) fn clips(path: &Path, options: &ImportOptions) -> Result<Vec<super::C
     })?;
     let rate = stage.time_codes_per_second();
     let (start, end) = (stage.start_time_code(), stage.end_time_code());
-    if !stage.has_authored_time_code_range() || !(rate > 0.0 && start.is_finite() && end.is_finite() && start <= end) {
+    let authored = stage.has_authored_time_code_range();
+    if !(authored && rate > 0.0 && start.is_finite() && end.is_finite() && start <= end) {
         return Ok(Vec::new());
     }
     Ok(vec![super::ClipSpan {
