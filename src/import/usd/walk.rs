@@ -96,13 +96,13 @@ pub(super) fn collect(
         };
         let prim = stage.prim(path.clone());
         let kind = type_name(stage, path);
-        let end = walker.subtree_end(index);
         if kind == "PointInstancer" {
             walker.point_instancer(path, here, &mut scene).map_err(at)?;
-            index = end;
+            index = walker.subtree_end(index);
             continue;
         }
         if prim.is_instance().unwrap_or(false) {
+            let end = walker.subtree_end(index);
             let prototype = prim.prototype().ok().flatten().map(|p| p.as_str().to_string()).unwrap_or_default();
             let key = (prototype, here.purpose);
             let slot = match unit_of_prototype.get(&key) {
