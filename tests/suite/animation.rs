@@ -187,7 +187,7 @@ fn animation_settings_that_cannot_be_honoured_are_refused() {
         refused(&asset, &["--animation", flag, value], &format!("{flag} does nothing with --animation"));
     }
     let teapot = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/scenes/teapot.obj");
-    refused(&teapot, &["--animation"], "only a glTF file has animation clips");
+    refused(&teapot, &["--animation"], "only a glTF file or an OpenUSD stage has animation clips");
     // The memory budget counts every pose's triangles and boxes: a budget the still scene fits in refuses 64
     // poses of it.
     let budget = ["--max-memory", "110M"];
