@@ -283,3 +283,41 @@ fn a_stage_is_converted_for_its_animation_over_its_time_codes() {
     }
     assert!((costs[0] / costs[1] - 1.0).abs() < 0.01, "USD {} against glTF {}", costs[0], costs[1]);
 }
+
+#[test]
+fn instances_of_different_prototypes_are_different_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = |name: &str, counts: &str, indices: &str, points: &str| {
+        format!(
+            "class \"{name}\"\n{{\n    def Mesh \"M\"\n    {{\n        int[] faceVertexCounts = [{counts}]\n        \
+             int[] faceVertexIndices = [{indices}]\n        point3f[] points = [{points}]\n    }}\n}}\n"
+        )
+    };
+    let instance = |name: &str, prototype: &str, x: f64| {
+        format!(
+            "def Xform \"{name}\" (\n    instanceable = true\n    references = </{prototype}>\n)\n{{\n    \
+             double3 xformOp:translate = ({x}, 0, 0)\n    uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
+        )
+    };
+    let text = [
+        "#usda 1.0\n".to_string(),
+        mesh("P1", "3", "0, 1, 2", "(0, 0, 0), (1, 0, 0), (0, 1, 0)"),
+        mesh("P2", "4", "0, 1, 2, 3", "(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)"),
+        instance("A", "P1", 0.0),
+        instance("B", "P2", 2.0),
+        instance("C", "P1", 4.0),
+        instance("D", "P2", 6.0),
+    ]
+    .concat();
+    let stage = write(dir.path(), "two.usda", &text);
+    let kept = import(&stage, &ImportOptions::default()).unwrap();
+    let record = kept.stage.as_ref().unwrap();
+    let units: Vec<(&str, usize, usize)> = kept
+        .instanced
+        .iter()
+        .map(|m| (record.prims[m.mesh_index as usize].as_str(), m.triangles.len(), m.placements.len()))
+        .collect();
+    assert_eq!(units, [("/A", 1, 2), ("/B", 2, 2)]);
+    let flat = import(&stage, &ImportOptions { instancing: Instancing::Never, ..Default::default() }).unwrap();
+    assert_eq!(flat.soup.triangles.len(), 6);
+}

@@ -38,13 +38,12 @@ pub(super) fn emit(
         mesh::declared_triangles(&stage.prim(mesh.path.as_str())).map_err(|e| at(&mesh.path, e))
     };
     let mut file_triangles = 0u64;
-    for mesh in &scene.meshes {
-        file_triangles = file_triangles.saturating_add(declared(mesh)?);
-    }
     let mut placements = vec![1u64; scene.meshes.len()];
     let mut triangles = Vec::with_capacity(scene.meshes.len() + scene.units.len());
     for mesh in &scene.meshes {
-        triangles.push(declared(mesh)?);
+        let count = declared(mesh)?;
+        file_triangles = file_triangles.saturating_add(count);
+        triangles.push(count);
     }
     for unit in &scene.units {
         let mut sum = 0u64;

@@ -103,7 +103,11 @@ pub(super) fn collect(
         }
         if prim.is_instance().unwrap_or(false) {
             let end = walker.subtree_end(index);
-            let prototype = prim.prototype().ok().flatten().map(|p| p.as_str().to_string()).unwrap_or_default();
+            // Instances share a unit by prototype; one whose prototype the reader cannot name has its own.
+            let prototype = match prim.prototype() {
+                Ok(Some(prototype)) => prototype.as_str().to_string(),
+                _ => text.to_string(),
+            };
             let key = (prototype, here.purpose);
             let slot = match unit_of_prototype.get(&key) {
                 Some(&slot) => slot,
