@@ -136,6 +136,46 @@ fn the_command_line_converts_a_stage_records_it_and_lists_every_layer_it_read() 
     assert!(String::from_utf8_lossy(&run.stderr).contains("has one clip, its time codes"));
 }
 
+#[cfg(unix)]
+#[test]
+fn a_stage_gives_the_same_bytes_however_its_path_is_spelled_and_its_material_x_is_never_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let set = dir.path().join("set");
+    std::fs::create_dir_all(set.join("parts")).unwrap();
+    write(
+        &set.join("parts"),
+        "geometry.usda",
+        "#usda 1.0\n(\n    defaultPrim = \"Tri\"\n)\ndef Mesh \"Tri\"\n{\n    int[] faceVertexCounts = [3]\n    \
+         int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}\n",
+    );
+    // A MaterialX document that exists: no layer format reads it, and a BVH needs no materials.
+    write(&set, "look.mtlx", "<?xml version=\"1.0\"?>\n<materialx version=\"1.38\"/>\n");
+    write(
+        &set,
+        "stage.usda",
+        "#usda 1.0\ndef \"A\" (\n    references = @./parts/geometry.usda@\n)\n{\n}\n\
+         def \"Looks\" (\n    references = @./look.mtlx@</Materials>\n)\n{\n}\n",
+    );
+    let link = dir.path().join("link");
+    std::os::unix::fs::symlink(&set, &link).unwrap();
+    let spellings = [set.join("stage.usda"), link.join("stage.usda"), set.join("parts/../stage.usda")];
+    let mut written = Vec::new();
+    for (n, stage) in spellings.iter().enumerate() {
+        let output = dir.path().join(format!("{n}.bvh"));
+        let outcome = bvhc::convert::Conversion::new(stage, &output).run().unwrap();
+        assert_eq!(outcome.files_read.len(), 2, "{stage:?}: {:?}", outcome.files_read);
+        assert!(outcome.files_read[1].ends_with("parts/geometry.usda"), "{:?}", outcome.files_read);
+        written.push(std::fs::read(&output).unwrap());
+        let file = bvhc::loader::BvhFile::read(&output).unwrap();
+        let metadata = super::common::assert_metadata_matches_schema(&file);
+        let inputs: Vec<&str> =
+            metadata["inputs"].as_array().unwrap().iter().map(|i| i["file_name"].as_str().unwrap()).collect();
+        assert_eq!(inputs, ["stage.usda", "parts/geometry.usda"], "{stage:?}");
+        assert_eq!(metadata["usd"]["unread_material_layers"], serde_json::json!(["look.mtlx"]), "{stage:?}");
+    }
+    assert!(written.windows(2).all(|w| w[0] == w[1]), "the same bytes from every spelling of the stage's path");
+}
+
 #[test]
 fn the_chess_set_converts_to_a_two_level_file_whose_info_names_its_prims() {
     let Some(chess) = scene("usd-open-chess-set/chess_set.usda") else { return };
@@ -148,7 +188,8 @@ fn the_chess_set_converts_to_a_two_level_file_whose_info_names_its_prims() {
     assert_eq!((two_level.meshes.len(), two_level.instances.len()), (3, 17));
     let metadata = super::common::assert_metadata_matches_schema(&file);
     assert_eq!(metadata["two_level"]["placed_triangle_count"], 1_429_623);
-    assert_eq!(metadata["inputs"].as_array().unwrap().len(), 29, "the stage's 29 layers");
+    let inputs = metadata["inputs"].as_array().unwrap();
+    assert_eq!(inputs.len(), 29, "the stage and its 28 asset layers: {inputs:?}");
     let unread = metadata["usd"]["unread_material_layers"].as_array().unwrap();
     assert!(unread.iter().any(|l| l == "assets/Pawn/Pawn_mat.mtlx"), "{unread:?}");
     let info = bvhc(&["info", output.to_str().unwrap()]);

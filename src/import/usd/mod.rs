@@ -15,8 +15,10 @@ mod skel;
 mod walk;
 mod xform;
 
+use std::cell::RefCell;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use openusd::pcp;
 use openusd::sdf::Value;
@@ -51,11 +53,7 @@ pub(super) fn read(
     options: &ImportOptions,
     builder: &mut SoupBuilder,
 ) -> Result<(Vec<PathBuf>, Vec<InstancedMesh>, StageRecord), Located> {
-    let (resolver, opened) = resolver::BoundedResolver::new(options.limits.max_input_bytes);
-    let root = path.to_str().ok_or_else(|| Located::new("file name", "is not UTF-8".to_string()))?;
-    let stage = guarded("stage", || {
-        Stage::builder().resolver(resolver).open(root).map_err(|e| Located::new("stage", format!("{e:#}")))
-    })?;
+    let (stage, opened, canonical) = open_stage(path, options)?;
     let mut paths = Vec::new();
     guarded("stage", || {
         stage
@@ -63,7 +61,7 @@ pub(super) fn read(
             .map_err(|e| Located::new("stage", format!("{e:#}")))
     })?;
     let mut record = StageRecord::default();
-    check_composition(&stage, path, &mut record)?;
+    check_composition(&stage, &canonical, &mut record)?;
     let time_code = match &options.pose {
         Some(pose) => Some(clip_time_code(&stage, pose)?),
         None => options.time_code,
@@ -87,9 +85,39 @@ pub(super) fn read(
     let scene = guarded("stage", || walk::collect(&stage, &paths, time, options))?;
     let instanced = guarded("stage", || emit::emit(&stage, &scene, time, options, builder, &mut record))?;
     let files = opened.borrow().files.clone();
-    let mut files_read: Vec<PathBuf> = files.into_iter().filter(|f| f.as_path() != path).collect();
-    files_read.dedup();
+    let files_read = files.iter().filter(|f| **f != canonical).map(|f| respelled(f, &canonical, path)).collect();
     Ok((files_read, instanced, record))
+}
+
+/// Opens the stage at `path` through a [`resolver::BoundedResolver`]; returns it, what the resolver opened, and
+/// the stage's canonical path, which the resolver's paths are spelled from (it resolves each layer to its
+/// canonical path, so a stage reached through a symbolic link or `..` is opened by its canonical path too).
+fn open_stage(
+    path: &Path,
+    options: &ImportOptions,
+) -> Result<(Stage, Rc<RefCell<resolver::Opened>>, PathBuf), Located> {
+    let canonical =
+        std::fs::canonicalize(path).map_err(|e| Located::of_kind(ErrorKind::Unreadable, "file", e.to_string()))?;
+    let root = canonical.to_str().ok_or_else(|| Located::new("file name", "is not UTF-8".to_string()))?;
+    let (resolver, opened) = resolver::BoundedResolver::new(options.limits.max_input_bytes);
+    let stage = guarded("stage", || {
+        Stage::builder().resolver(resolver).open(root).map_err(|e| Located::new("stage", format!("{e:#}")))
+    })?;
+    Ok((stage, opened, canonical))
+}
+
+/// `file`, a layer's canonical path, spelled from the folder of `given` (the stage's path as the caller spelled
+/// it) as it lies from the folder of `canonical` (the stage's canonical path): the names the metadata records are
+/// then the same however the stage's path was spelled.
+fn respelled(file: &Path, canonical: &Path, given: &Path) -> PathBuf {
+    let canonical_folder = canonical.parent().unwrap_or(Path::new("/"));
+    let given_folder = given.parent().unwrap_or(Path::new(""));
+    let shared = canonical_folder.components().zip(file.components()).take_while(|(a, b)| a == b).count();
+    let ups = canonical_folder.components().count() - shared;
+    let mut spelled = given_folder.to_path_buf();
+    spelled.extend(std::iter::repeat_n(Path::new(".."), ups));
+    spelled.extend(file.components().skip(shared));
+    spelled
 }
 
 /// The name of a stage's one animation clip: its authored time codes, from `startTimeCode` to `endTimeCode`, a
@@ -98,11 +126,7 @@ pub const TIME_CODES_CLIP: &str = "time codes";
 
 /// The stage's animation clips: [`TIME_CODES_CLIP`] where it authors a time range, else none.
 pub(super) fn clips(path: &Path, options: &ImportOptions) -> Result<Vec<super::ClipSpan>, Located> {
-    let (resolver, _) = resolver::BoundedResolver::new(options.limits.max_input_bytes);
-    let root = path.to_str().ok_or_else(|| Located::new("file name", "is not UTF-8".to_string()))?;
-    let stage = guarded("stage", || {
-        Stage::builder().resolver(resolver).open(root).map_err(|e| Located::new("stage", format!("{e:#}")))
-    })?;
+    let (stage, _, _) = open_stage(path, options)?;
     let rate = stage.time_codes_per_second();
     let (start, end) = (stage.start_time_code(), stage.end_time_code());
     let authored = stage.has_authored_time_code_range();

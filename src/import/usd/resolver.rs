@@ -107,7 +107,12 @@ impl Resolver for BoundedResolver {
         self.inner.create_identifier(asset_path, anchor)
     }
 
+    /// MaterialX documents are never resolved: they hold materials, which a BVH does not need, and no layer
+    /// format reads them; composition records each as unresolved and the import lists it as unread.
     fn resolve(&self, asset_path: &str) -> Option<ResolvedPath> {
+        if super::is_material_x(asset_path) {
+            return None;
+        }
         self.inner.resolve(asset_path)
     }
 
