@@ -10,6 +10,8 @@ venv="${1:-target/python/venv}"
 wheels="target/python/wheels"
 python3 -m venv "$venv"
 "$venv/bin/python" -m pip install -q "maturin>=1.5,<2" numpy pytest trimesh
+# Dask's distributed scheduler, for convert_many's cluster tests; they say SKIPPED where it cannot be installed.
+"$venv/bin/python" -m pip install -q "dask[distributed]" || echo "dask[distributed] not installed: its tests are SKIPPED"
 rm -rf "$wheels"
 CARGO_TARGET_DIR="$PWD/target/python/cargo" "$venv/bin/maturin" build --release -q \
   --manifest-path crates/bvhc-py/Cargo.toml --interpreter "$venv/bin/python" -o "$wheels"

@@ -33,6 +33,7 @@ pub mod animation;
 // Options and the pipeline over the stages.
 pub mod options;
 pub mod convert;
+pub mod batch;
 // Tree quality for the evaluation; what `bvhc info` reports of a file; a moved asset's positions for a refit.
 pub mod epo;
 pub mod inspect;

@@ -18,11 +18,12 @@ pub fn convert(args: &ConvertArgs) -> Exit {
     let (Some(input), Some(output)) = (&args.input, &args.output) else {
         return fail(Exit::Usage, "INPUT and -o OUTPUT are required");
     };
-    let overrides = match args.options.overrides() {
-        Ok(overrides) => overrides,
+    let settings = match args.options.settings() {
+        Ok(settings) => settings,
         Err(message) => return fail(Exit::InvalidInput, message),
     };
-    let conversion = Conversion::new(input, output).preset(args.options.preset).overrides(overrides).force(args.force);
+    let keep_degenerate = settings.overrides.keep_degenerate == Some(true);
+    let conversion = Conversion::new(input, output).settings(settings).force(args.force);
     let bar = (std::io::stderr().is_terminal() && !args.quiet).then(|| {
         let bar = ProgressBar::new_spinner();
         bar.set_style(
@@ -88,7 +89,7 @@ pub fn convert(args: &ConvertArgs) -> Exit {
             }
             Some(r) => {
                 let degenerate = r.import.degenerate();
-                let verdict = if args.options.keep_degenerate { "kept" } else { "dropped" };
+                let verdict = if keep_degenerate { "kept" } else { "dropped" };
                 let optimized = r.optimization.as_ref().map_or(String::new(), |o| {
                     format!(", optimized {:.2} -> {:.2} in {} batches", o.initial.cost, o.best.cost, o.batches)
                 });

@@ -6,10 +6,12 @@
 //! written); 4 internal error.
 
 mod args;
+mod batch;
 mod camera;
 mod convert;
 mod info;
 mod legend;
+mod option_flags;
 mod options;
 mod output;
 mod refit;
@@ -85,6 +87,7 @@ pub fn run() -> ExitCode {
         Some(Command::Trace(args)) => trace::trace(&args),
         Some(Command::Options(args)) => options::options(&args),
         Some(Command::Refit(args)) => refit::refit(&args, cli.threads),
+        Some(Command::Batch(args)) => batch::batch(&args, cli.threads),
         None => convert::convert(&cli.convert),
     };
     exit.into()

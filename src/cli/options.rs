@@ -1,9 +1,8 @@
 //! `bvhc options [--preset NAME] [flags]`: the options a conversion with these flags would use, resolved and
 //! checked, as the JSON of the metadata's `build` object (the file records exactly this); exit 2, naming the
-//! settings, where a flag would do nothing.
+//! settings, where a flag would do nothing. `bvhc options --list [--json | --markdown]`: the options table.
 
 use bvhc::convert::metadata::BuildRecord;
-use bvhc::options::resolve;
 
 use super::args::OptionsArgs;
 use super::output::{outln, print};
@@ -11,11 +10,21 @@ use super::{Exit, fail};
 
 /// Prints the resolved options.
 pub fn options(args: &OptionsArgs) -> Exit {
-    let overrides = match args.options.overrides() {
-        Ok(overrides) => overrides,
+    if args.list {
+        let listing = if args.json {
+            format!("{:#}\n", bvhc::options::listing::to_json())
+        } else if args.markdown {
+            bvhc::options::listing::markdown()
+        } else {
+            bvhc::options::listing::text()
+        };
+        return print(&listing, Exit::Success);
+    }
+    let settings = match args.options.settings() {
+        Ok(settings) => settings,
         Err(message) => return fail(Exit::InvalidInput, message),
     };
-    match resolve(args.options.preset, &overrides) {
+    match settings.resolve() {
         Ok(options) => {
             let mut out = String::new();
             outln!(out, "{:#}", BuildRecord::of(&options).to_value());

@@ -8,14 +8,24 @@ use std::path::Path;
 
 /// Starts the watcher for a command that writes into `output`'s directory. Failing to install it (no
 /// threads, say) only loses the clean-up, so it is not an error.
-#[cfg(unix)]
 pub fn clean_up_on_signal(output: &Path) {
+    clean_up_on_signal_in(&[output.to_path_buf()]);
+}
+
+/// [`clean_up_on_signal`] for a command that writes all of `outputs` (`bvhc batch`): each of their directories
+/// is swept once.
+#[cfg(unix)]
+pub fn clean_up_on_signal_in(outputs: &[std::path::PathBuf]) {
     use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
-    let directory = bvhc::loader::write::directory_of(output).to_path_buf();
+    let mut directories: Vec<_> = outputs.iter().map(|o| bvhc::loader::write::directory_of(o).to_path_buf()).collect();
+    directories.sort();
+    directories.dedup();
     let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else { return };
     let _ = std::thread::Builder::new().name("signals".to_string()).spawn(move || {
         if let Some(signal) = signals.forever().next() {
-            bvhc::loader::write::remove_own_temporary_files(&directory);
+            for directory in &directories {
+                bvhc::loader::write::remove_own_temporary_files(directory);
+            }
             std::process::exit(128 + signal);
         }
     });
@@ -23,4 +33,4 @@ pub fn clean_up_on_signal(output: &Path) {
 
 /// Without Unix signals there is nothing to install; stale files are swept by the next write.
 #[cfg(not(unix))]
-pub fn clean_up_on_signal(_output: &Path) {}
+pub fn clean_up_on_signal_in(_outputs: &[std::path::PathBuf]) {}

@@ -84,6 +84,17 @@ impl Default for Purposes {
     }
 }
 
+impl std::fmt::Display for Purposes {
+    /// The list [`Purposes`]'s `FromStr` reads (`render,proxy`); `default` when none besides it is kept.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kept: Vec<&str> = [(self.render, "render"), (self.proxy, "proxy"), (self.guide, "guide")]
+            .into_iter()
+            .filter_map(|(kept, name)| kept.then_some(name))
+            .collect();
+        if kept.is_empty() { f.write_str("default") } else { f.write_str(&kept.join(",")) }
+    }
+}
+
 impl std::str::FromStr for Purposes {
     type Err = String;
 

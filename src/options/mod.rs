@@ -6,11 +6,21 @@
 
 pub mod preset;
 mod resolve;
+pub mod listing;
+mod parse;
+mod settings;
+mod spec;
+pub mod table;
+mod value;
 
 pub use crate::import::Instancing;
 pub use crate::sampling::{RayTuning, TrainingRays};
 pub use preset::Preset;
 pub use resolve::{OptionsError, Overrides, resolve};
+pub use settings::Settings;
+pub use spec::{Kind, OptionSpec, Stage};
+pub use table::OPTIONS;
+pub use value::OptionValue;
 
 use crate::builders::Builder;
 use crate::builders::{MAX_BUDGET, WASTEFUL_RATIO_PRE_SPLIT, WASTEFUL_RATIO_SBVH};

@@ -21,6 +21,10 @@ pub struct Overrides {
     /// The tree chosen for the average cost over poses of these clips (`--animation`, `--animation-poses`):
     /// turns off the preset's split references and instancing.
     pub animation: Option<crate::animation::Animation>,
+    /// Poses sampled in each clip of `animation` (`--animation-poses`), instead of its `poses_per_clip`.
+    pub animation_poses: Option<u32>,
+    /// The part of each clip of `animation` sampled (`--animation-window`), instead of its `window`.
+    pub animation_window: Option<crate::animation::TimeWindow>,
     /// Import: keep degenerate triangles.
     pub keep_degenerate: Option<bool>,
     /// Import: the resource budget.
@@ -84,6 +88,12 @@ pub enum OptionsError {
         /// What to do instead.
         advice: String,
     },
+    /// No option has this name.
+    #[error("{name}: not a conversion option (`bvhc options --list` lists them)")]
+    Unknown {
+        /// The name given.
+        name: String,
+    },
     /// `setting` has a value outside its range.
     #[error("{setting}: {why}")]
     Invalid {
@@ -133,6 +143,9 @@ pub fn resolve(preset: Preset, overrides: &Overrides) -> Result<ConvertOptions, 
     options.splits = resolve_splits(preset, o)?;
     if o.animation.is_some() {
         resolve_animation(o, &mut options)?;
+    } else if o.animation_poses.is_some() || o.animation_window.is_some() {
+        let setting = if o.animation_poses.is_some() { "--animation-poses" } else { "--animation-window" };
+        return Err(OptionsError::invalid(setting, "needs --animation (it says how the animation is sampled)"));
     }
     options.reinsertion = resolve_reinsertion(preset, o)?;
     if let Some(selection) = o.selection {
@@ -251,7 +264,11 @@ fn resolve_animation(o: &Overrides, options: &mut ConvertOptions) -> Result<(), 
                   the poses; drop the setting";
     refuse_any(&given, "--animation", advice)?;
     options.splits = None;
-    options.animation = o.animation.clone();
+    options.animation = o.animation.clone().map(|mut animation| {
+        animation.poses_per_clip = o.animation_poses.unwrap_or(animation.poses_per_clip);
+        animation.window = o.animation_window.or(animation.window);
+        animation
+    });
     Ok(())
 }
 

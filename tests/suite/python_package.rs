@@ -20,7 +20,7 @@ fn the_installed_python_package_passes_its_tests() {
     }
     let mut command = Command::new(&python);
     command
-        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider", "crates/bvhc-py/tests"])
+        .args(["-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", "crates/bvhc-py/tests"])
         .current_dir(root)
         .env("BVHC_BIN", env!("CARGO_BIN_EXE_bvhc"));
     if let Some(scenes) = crate::common::scenes_dir() {
@@ -29,8 +29,15 @@ fn the_installed_python_package_passes_its_tests() {
     let run = command.output().expect("the virtual environment's Python runs");
     let out = format!("{}{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
     assert!(run.status.success(), "pytest failed:\n{out}");
-    // A scene the package's tests skip is reported as this suite's skips are.
-    if out.contains("skipped") {
-        skipped(Needs::Scenes, format!("part of the Python package's tests: {}", out.lines().last().unwrap_or("")));
+    // Each test pytest skipped is reported as this suite's skips are, by what it lacked (`-rs` lists the reasons).
+    for reason in out.lines().filter(|l| l.starts_with("SKIPPED")) {
+        let needs = if reason.contains("dask") {
+            Needs::Dask
+        } else if reason.contains("scene") {
+            Needs::Scenes
+        } else {
+            Needs::Machine
+        };
+        skipped(needs, format!("part of the Python package's tests: {reason}"));
     }
 }

@@ -26,6 +26,9 @@ pub enum Needs {
     Python,
     /// Pixar's USD Python bindings (`usd-core`) in `target/usd/venv` (`scripts/usd-core.sh`), the USD oracle.
     Usd,
+    /// Dask's distributed scheduler in `target/python/venv` (`scripts/python-package.sh` installs it), for
+    /// `convert_many` on a cluster.
+    Dask,
 }
 
 impl Needs {
@@ -41,6 +44,7 @@ impl Needs {
             Needs::Slow => "slow",
             Needs::Python => "python",
             Needs::Usd => "usd",
+            Needs::Dask => "dask",
         }
     }
 

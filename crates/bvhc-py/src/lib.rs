@@ -2,6 +2,7 @@
 //! scenes traced from numpy arrays with the loader's kernels on all cores, the GIL released. The pure-Python
 //! package in `python/bvhc` wraps it (numpy views of a file's sections, keyword options, progress).
 
+mod batch;
 mod core_hits;
 mod errors;
 mod filters;
@@ -23,6 +24,8 @@ fn native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     m.add_function(wrap_pyfunction!(options::convert, m)?)?;
     m.add_function(wrap_pyfunction!(options::resolve, m)?)?;
+    m.add_function(wrap_pyfunction!(options::options_table, m)?)?;
+    m.add_function(wrap_pyfunction!(batch::run_job, m)?)?;
     m.add_function(wrap_pyfunction!(verify::verify, m)?)?;
     m.add_class::<scene::Scene>()?;
     m.add(

@@ -261,13 +261,14 @@ def test_options_are_the_command_lines(tmp_path):
 @pytest.mark.parametrize(
     "options,message",
     [
-        ({"bogus": 1}, "bogus: not an option"),
+        ({"bogus": 1}, "bogus: not a conversion option"),
         ({"max_leaf_size": 4, "merge_leaves": False}, "does nothing with"),
         ({"split_method": "octree"}, "split_method='octree': expected one of sbvh, pre-split"),
         ({"split_budget": 9.0}, "split_budget=9.0"),
         ({"time_budget": -1}, "time_budget=-1"),
         ({"max_leaf_size": "four"}, "max_leaf_size='four'"),
-        ({"splits": "no"}, "splits='no': expected True or False"),
+        ({"splits": "no"}, "splits='no': expected true or false"),
+        ({"no_splits": 1}, "no_splits=1: expected true or false"),
         ({"max_memory": "lots"}, "max_memory"),
     ],
 )
@@ -924,7 +925,7 @@ def test_animation_is_the_command_lines_flag():
     assert rigid == json.loads(cli("options", "--animation", "--instancing", "always"))
     assert rigid["instancing"] == "always"
     assert "animation" not in bvhc.options(animation=False)
-    with pytest.raises(bvhc.OptionsError, match="needs animation"):
+    with pytest.raises(bvhc.OptionsError, match="needs --animation"):
         bvhc.options(animation_poses=4)
     # A part of each clip, as --animation-window says it.
     part = bvhc.options(animation=True, animation_window="2.5..5")
@@ -932,7 +933,7 @@ def test_animation_is_the_command_lines_flag():
     assert part["animation"]["window"] == {"start": 2.5, "end": 5.0}
     with pytest.raises(bvhc.OptionsError, match="ends before it starts"):
         bvhc.options(animation=True, animation_window="5..2.5")
-    with pytest.raises(bvhc.OptionsError, match="animation_window: needs animation"):
+    with pytest.raises(bvhc.OptionsError, match="--animation-window: needs --animation"):
         bvhc.options(animation_window="0..1")
     with pytest.raises(bvhc.OptionsError, match="--split-budget does nothing with --animation"):
         bvhc.options(animation=True, split_budget=0.2)

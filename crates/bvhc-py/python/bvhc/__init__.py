@@ -6,9 +6,11 @@
 >>> hits = scene.closest_hits(origins, directions)                  # doctest: +SKIP
 >>> depth = np.where(hits["triangle"] != bvhc.MISS, hits["t"], np.inf)  # doctest: +SKIP
 
-Conversions take the command line's options as keywords (``split_method="pre-split"``; the ``--no-*`` switches
-are booleans: ``splits=False``), resolved and refused exactly as ``bvhc`` resolves and refuses its flags, and
-skip an output that is up to date. Tracing runs the loader's kernels on all cores with the GIL released.
+Conversions take the options of one table as keywords (:func:`options_table`: the command line's flags with
+``_`` for ``-``, ``split_method="pre-split"``, ``no_splits=True``; a ``no_*`` switch also by its positive name,
+``splits=False``), resolved and refused exactly as ``bvhc`` resolves and refuses its flags, and skip an output
+that is up to date; :func:`convert_many` converts a library on any executor (a process pool, a Dask cluster).
+Tracing runs the loader's kernels on all cores with the GIL released.
 Errors are :class:`Error` subclasses carrying the command line's messages.
 """
 
@@ -23,6 +25,7 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple, Union
 import numpy as np
 
 from . import _native
+from .many import convert_many, options_table, run_job
 from ._native import (
     Error,
     InternalError,
@@ -48,6 +51,9 @@ __all__ = [
     "build",
     "convert",
     "convert_iter",
+    "convert_many",
+    "options_table",
+    "run_job",
     "open",
     "options",
     "verify",
@@ -77,12 +83,10 @@ def convert(
 ) -> Dict[str, Any]:
     """Convert the scene ``src`` (``.gltf``, ``.glb``, ``.obj``, ``.ply``, ``.obj.gz``, ``.ply.gz``) into ``dst``.
 
-    ``preset`` is ``fast``, ``balanced`` or ``max-quality``; ``options`` override it, named as the command
-    line's flags with underscores (``max_leaf_size=4``, ``instancing="always"``, ``opacity="opaque"``,
-    ``pose="Run@0.5"``,
-    ``max_memory="8G"``; ``splits=False`` for ``--no-splits``, ``splits_deforming=False`` for
-    ``--no-splits-deforming``, likewise ``optimize``, ``merge_leaves``, ``wide``,
-    ``ids``, ``source_vertices``). The output is written atomically; when it is up to date (same inputs, options
+    ``preset`` is ``fast``, ``balanced`` or ``max-quality``; ``options`` override it, named as in
+    :func:`options_table` (the command line's flags with underscores: ``max_leaf_size=4``,
+    ``instancing="always"``, ``opacity="opaque"``, ``pose="Run@0.5"``, ``max_memory="8G"``, ``no_splits=True``;
+    a ``no_*`` switch also by its positive name: ``splits=False``, ``merge_leaves=False``). The output is written atomically; when it is up to date (same inputs, options
     and format) nothing is done unless ``force``. ``threads`` defaults to all cores; the bytes do not depend on
     it. ``progress(stage, batch, cost, best_cost)`` is called at each stage (``import``, ``build``,
     ``optimize``, ``write``; the numbers ``None``) and optimizer batch (``"batch"``); an exception it raises
