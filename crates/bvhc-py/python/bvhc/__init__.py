@@ -25,7 +25,7 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple, Union
 import numpy as np
 
 from . import _native
-from .many import convert_many, options_table, run_job
+from .many import convert_many, options_table, run_job, run_jobs
 from ._native import (
     Error,
     InternalError,
@@ -54,6 +54,7 @@ __all__ = [
     "convert_many",
     "options_table",
     "run_job",
+    "run_jobs",
     "open",
     "options",
     "verify",

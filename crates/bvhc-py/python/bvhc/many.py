@@ -33,6 +33,12 @@ def run_job(job: Job, force: bool = False, threads: Optional[int] = 1) -> Report
     return json.loads(_native.run_job(json.dumps(job), force, threads))
 
 
+def run_jobs(jobs: List[Job], force: bool = False, threads: Optional[int] = 1) -> List[Report]:
+    """:func:`run_job` for each of ``jobs`` in turn: one task of :func:`convert_many` (a chunk of jobs, so that an
+    executor's per-task cost is paid once a chunk)."""
+    return [run_job(job, force, threads) for job in jobs]
+
+
 def _absolute(job: Job) -> Job:
     """The job with absolute paths: workers of a cluster may run elsewhere in the file system."""
     if not isinstance(job, dict):
@@ -79,6 +85,7 @@ def convert_many(
     force: bool = False,
     threads_per_job: Optional[int] = 1,
     retries: int = 1,
+    jobs_per_task: Optional[int] = None,
 ) -> List[Report]:
     """Converts every job (dicts shaped as ``bvhc batch`` manifest lines: ``{"input": PATH, "output": PATH,
     "options": {NAME: VALUE}}``, the names of :func:`options_table`) and returns one report a job, in the jobs'
@@ -92,40 +99,45 @@ def convert_many(
     paths are made absolute here, before the jobs leave this process. A job whose worker dies (a killed
     process, a broken pool) is submitted again up to ``retries`` times (on a fresh pool when the default pool
     broke), then reported as failed; its output is never left half-written (outputs are written to a temporary
-    file and renamed). ``progress``: ``True`` prints a line on a terminal's stderr as jobs finish, a callable
+    file and renamed). The jobs go to the executor in tasks of ``jobs_per_task`` jobs (default: about 64 tasks,
+    at most 16 jobs each), largest inputs first, so that a cluster's cost per task is paid once a chunk; a
+    retried task skips the jobs its first run finished (their outputs are up to date). ``progress``: ``True`` prints a line on a terminal's stderr as jobs finish, a callable
     is called with each report as it arrives, ``False`` is silent.
     """
     jobs = [_absolute(job) for job in jobs]
     reports: List[Optional[Report]] = [None] * len(jobs)
-    # Largest inputs first, so that long jobs do not start last.
-    pending = sorted(range(len(jobs)), key=lambda i: -_size(jobs[i]))
+    per_task = jobs_per_task or max(1, min(16, len(jobs) // 64))
+    # Largest inputs first, so that long jobs do not start last; consecutive jobs of that order make a task.
+    order = sorted(range(len(jobs)), key=lambda i: -_size(jobs[i]))
+    pending = [order[k : k + per_task] for k in range(0, len(order), per_task)]
     own = executor is None
-    attempts = [0] * len(jobs)
+    attempts: Dict[int, int] = {}
     done = 0
     show = progress if callable(progress) else None
     tty = progress is True and sys.stderr.isatty()
     while pending:
         pool = concurrent.futures.ProcessPoolExecutor(max_workers=os.cpu_count() or 1) if own else executor
         try:
-            futures = {pool.submit(run_job, jobs[i], force, threads_per_job): i for i in pending}
-            retry: List[int] = []
+            futures = {pool.submit(run_jobs, [jobs[i] for i in task], force, threads_per_job): task for task in pending}
+            retry: List[List[int]] = []
             for future in concurrent.futures.as_completed(futures):
-                index = futures[future]
+                task = futures[future]
                 try:
-                    report = future.result()
+                    finished = future.result()
                 except Exception as error:  # the worker died or the executor broke
-                    attempts[index] += 1
-                    if attempts[index] <= retries:
-                        retry.append(index)
+                    attempts[task[0]] = attempts.get(task[0], 0) + 1
+                    if attempts[task[0]] <= retries:
+                        retry.append(task)
                         continue
-                    report = _lost(jobs[index], error)
-                reports[index] = report
-                done += 1
-                if show is not None:
-                    show(report)
+                    finished = [_lost(jobs[i], error) for i in task]
+                for index, report in zip(task, finished):
+                    reports[index] = report
+                    done += 1
+                    if show is not None:
+                        show(report)
                 if tty:
                     print(f"\r{done}/{len(jobs)} jobs", end="", file=sys.stderr, flush=True)
-            pending = sorted(retry, key=lambda i: -_size(jobs[i]))
+            pending = retry
         finally:
             if own:
                 pool.shutdown(wait=True, cancel_futures=True)
