@@ -78,11 +78,19 @@ pub fn job_of_line(line: &str, folder: &Path, base: &Settings, source: String) -
     Ok(Job { source, input, output, settings })
 }
 
+/// The largest manifest read (1 GiB: millions of jobs), so that its text's memory is bounded.
+pub const MAX_MANIFEST_BYTES: u64 = 1 << 30;
+
 /// The jobs of a manifest, in its order: one a non-empty line (`#` starts a comment line); a bad line is a
 /// [`BadJob`].
 pub fn read_manifest(path: &Path, base: &Settings) -> std::io::Result<Vec<Result<Job, BadJob>>> {
-    if !std::fs::metadata(path)?.is_file() {
+    let metadata = std::fs::metadata(path)?;
+    if !metadata.is_file() {
         return Err(std::io::Error::other("not a regular file"));
+    }
+    if metadata.len() > MAX_MANIFEST_BYTES {
+        let why = format!("{} bytes: a manifest holds at most {MAX_MANIFEST_BYTES} (split it)", metadata.len());
+        return Err(std::io::Error::other(why));
     }
     let text = std::fs::read_to_string(path)?;
     let folder = path.parent().unwrap_or(Path::new(""));

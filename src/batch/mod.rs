@@ -131,6 +131,16 @@ pub fn run(
     order.sort_by_key(|&i| std::cmp::Reverse(sizes[i]));
     let next = AtomicUsize::new(0);
     let reports: Vec<Mutex<Option<JobReport>>> = jobs.iter().map(|_| Mutex::new(None)).collect();
+    // Two jobs writing one file would race: the later one is refused before anything runs.
+    let mut first_writer = std::collections::HashMap::new();
+    for (index, job) in jobs.iter().enumerate() {
+        if let Some(earlier) = first_writer.insert(job.output.as_path(), index) {
+            first_writer.insert(job.output.as_path(), earlier);
+            let error = format!("{}: also the output of {}", job.output.display(), jobs[earlier].source);
+            *reports[index].lock().unwrap_or_else(|e| e.into_inner()) = Some(failed(job, error, "options"));
+        }
+    }
+    order.retain(|&i| reports[i].lock().map_or(true, |r| r.is_none()));
     std::thread::scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|| {

@@ -49,9 +49,14 @@ pub(super) fn on(value: &OptionValue) -> Result<bool, String> {
     value.boolean()
 }
 
-/// Sets one of the import limits, the others staying at their defaults (or as set).
-pub(super) fn limit(settings: &mut Settings, set: impl FnOnce(&mut crate::import::ImportLimits)) -> Result<(), String> {
-    set(settings.overrides.limits.get_or_insert_with(Default::default));
+/// Sets one of the import limits that count (the others staying at their defaults, or as set).
+pub(super) fn count_limit(
+    settings: &mut Settings,
+    value: &OptionValue,
+    set: fn(&mut crate::import::ImportLimits, u64),
+) -> Result<(), String> {
+    let count = value.count()?;
+    set(settings.overrides.limits.get_or_insert_with(Default::default), count);
     Ok(())
 }
 

@@ -6,8 +6,8 @@
 
 use super::LeafMerge;
 use super::parse::{
-    BUILDERS, INSTANCING, OPACITY, OPTIMIZE_OVER, PRESETS, SELECTIONS, SPLIT_METHODS, SPLIT_TRIANGLES, limit, name_of,
-    names, on, put, seconds,
+    BUILDERS, INSTANCING, OPACITY, OPTIMIZE_OVER, PRESETS, SELECTIONS, SPLIT_METHODS, SPLIT_TRIANGLES, count_limit,
+    name_of, names, on, put, seconds,
 };
 use super::spec::{Kind, OptionSpec, Stage};
 use super::value::OptionValue;
@@ -164,10 +164,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         help: "Import limit: bytes of any one file read, after gunzip (a USD stage's layers together).",
         inverse: None,
         example: || OptionValue::Int(1 << 29),
-        set: |s, v| {
-            let n = v.count()?;
-            limit(s, |l| l.max_input_bytes = n)
-        },
+        set: |s, v| count_limit(s, v, |l, n| l.max_input_bytes = n),
         shown: |o| o.import.limits.max_input_bytes.to_string(),
     },
     OptionSpec {
@@ -178,10 +175,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         help: "Import limit: triangles placed (instancing multiplies), degenerate ones included.",
         inverse: None,
         example: || OptionValue::Int(1 << 20),
-        set: |s, v| {
-            let n = v.count()?;
-            limit(s, |l| l.max_triangles = n)
-        },
+        set: |s, v| count_limit(s, v, |l, n| l.max_triangles = n),
         shown: |o| o.import.limits.max_triangles.to_string(),
     },
     OptionSpec {
@@ -192,10 +186,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         help: "Import limit: scalar values decoded (glTF accessors, OBJ and PLY vertex coordinates).",
         inverse: None,
         example: || OptionValue::Int(1 << 24),
-        set: |s, v| {
-            let n = v.count()?;
-            limit(s, |l| l.max_decoded_values = n)
-        },
+        set: |s, v| count_limit(s, v, |l, n| l.max_decoded_values = n),
         shown: |o| o.import.limits.max_decoded_values.to_string(),
     },
     OptionSpec {
@@ -206,10 +197,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         help: "Import limit: mesh placements (glTF nodes with a mesh times their GPU instances; USD instances).",
         inverse: None,
         example: || OptionValue::Int(1000),
-        set: |s, v| {
-            let n = v.count()?;
-            limit(s, |l| l.max_placements = n)
-        },
+        set: |s, v| count_limit(s, v, |l, n| l.max_placements = n),
         shown: |o| o.import.limits.max_placements.to_string(),
     },
     OptionSpec {
@@ -227,7 +215,7 @@ pub static OPTIONS: &[OptionSpec] = &[
                 OptionValue::Int(_) => MemoryLimit::Bytes(v.count()?),
                 _ => crate::import::memory::parse_size(v.text()?)?,
             };
-            limit(s, |l| l.max_memory = memory)
+            put(&mut s.overrides.limits.get_or_insert_with(Default::default).max_memory, memory)
         },
         shown: |o| match o.import.limits.max_memory {
             MemoryLimit::Detect | MemoryLimit::Detected(_) => "what this process may use".into(),
@@ -243,10 +231,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         help: "Import limit: vertices of one OBJ or PLY polygon.",
         inverse: None,
         example: || OptionValue::Int(64),
-        set: |s, v| {
-            let n = v.count()?;
-            limit(s, |l| l.max_polygon_vertices = n)
-        },
+        set: |s, v| count_limit(s, v, |l, n| l.max_polygon_vertices = n),
         shown: |o| o.import.limits.max_polygon_vertices.to_string(),
     },
     OptionSpec {

@@ -77,6 +77,13 @@ fn a_manifest_converts_each_job_as_its_own_process_would_and_reports_each_in_ord
     assert_eq!(forced[0]["status"], "converted");
     assert_ne!(forced[0]["output_hash"], reports[0]["output_hash"], "job 1 under the fast preset");
     assert_eq!(forced[1]["output_hash"], reports[1]["output_hash"], "job 2 names fast itself");
+    // Two jobs naming one output: the later one is refused, the earlier converts.
+    let twice = "{\"input\": \"assets/teapot.obj\", \"output\": \"out/x.bvh\"}\n".repeat(2);
+    std::fs::write(d.join("lib/twice.jsonl"), twice).unwrap();
+    let run = bvhc(&["batch", "lib/twice.jsonl", "--json"], d);
+    let statuses: Vec<String> = lines(&run).iter().map(|r| r["status"].as_str().unwrap().to_string()).collect();
+    assert_eq!(statuses, ["converted", "failed"]);
+    assert!(String::from_utf8_lossy(&run.stderr).contains("also the output of lib/twice.jsonl:1"));
     // Usage and unreadable manifests.
     assert_eq!(bvhc(&["batch", "lib/library.jsonl", "-o", "x/{stem}.bvh"], d).status.code(), Some(2));
     assert_eq!(bvhc(&["batch", "nowhere.jsonl"], d).status.code(), Some(3));

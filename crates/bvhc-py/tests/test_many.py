@@ -65,6 +65,8 @@ def test_convert_many_on_the_default_pool_matches_single_conversions_and_the_bat
     assert [l["output_hash"] for l in lines[:4]] == [r["output_hash"] for r in reports[:4]]
     with pytest.raises(TypeError):
         bvhc.convert_many(["teapot.obj"])
+    twice = bvhc.convert_many([jobs[0], jobs[0]], progress=False)
+    assert [r["status"] for r in twice] == ["up_to_date", "failed"] and "also the output of job 0" in twice[1]["error"]
 
 
 def test_convert_many_on_a_dask_local_cluster_gives_the_same_bytes(tmp_path):

@@ -107,8 +107,14 @@ def convert_many(
     jobs = [_absolute(job) for job in jobs]
     reports: List[Optional[Report]] = [None] * len(jobs)
     per_task = jobs_per_task or max(1, min(16, len(jobs) // 64))
+    # Two jobs writing one file would race: the later one is refused before anything runs.
+    writers: Dict[Any, int] = {}
+    for index, job in enumerate(jobs):
+        earlier = writers.setdefault(job.get("output"), index)
+        if earlier != index:
+            reports[index] = dict(_lost(job, ValueError()), error=f"{job.get('output')}: also the output of job {earlier}", error_kind="options")
     # Largest inputs first, so that long jobs do not start last; consecutive jobs of that order make a task.
-    order = sorted(range(len(jobs)), key=lambda i: -_size(jobs[i]))
+    order = sorted((i for i in range(len(jobs)) if reports[i] is None), key=lambda i: -_size(jobs[i]))
     pending = [order[k : k + per_task] for k in range(0, len(order), per_task)]
     own = executor is None
     attempts: Dict[int, int] = {}
