@@ -70,7 +70,8 @@ def main():
 
     count = len(pool_jobs)
     for name, seconds in results.items():
-        print(f"{name}: {seconds:.2f} s ({count / seconds:.1f} jobs/s, {seconds / results['bvhc batch']:.2f}x bvhc batch's time)")
+        ratio = seconds / results["bvhc batch"]
+        print(f"{name}: {seconds:.2f} s ({count / seconds:.1f} jobs/s, {ratio:.2f}x bvhc batch's time)")
     differ = 0
     for jobs in (pool_jobs, dask_jobs):
         for job in jobs:

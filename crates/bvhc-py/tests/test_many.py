@@ -25,7 +25,9 @@ OPTION_SETS = [{}, {"preset": "fast"}, {"preset": "fast", "no_splits": True, "ma
 
 def library(tmp_path):
     """Jobs over the teapot with each option set, a job with a bad option and one with a missing input."""
-    jobs = [{"input": str(TEAPOT), "output": str(tmp_path / f"out{i}.bvh"), "options": o} for i, o in enumerate(OPTION_SETS)]
+    jobs = [
+        {"input": str(TEAPOT), "output": str(tmp_path / f"out{i}.bvh"), "options": o} for i, o in enumerate(OPTION_SETS)
+    ]
     jobs.append({"input": str(TEAPOT), "output": str(tmp_path / "bad.bvh"), "options": {"split_budget": 9}})
     jobs.append({"input": str(tmp_path / "missing.obj"), "output": str(tmp_path / "missing.bvh")})
     return jobs

@@ -112,7 +112,8 @@ def convert_many(
     for index, job in enumerate(jobs):
         earlier = writers.setdefault(job.get("output"), index)
         if earlier != index:
-            reports[index] = dict(_lost(job, ValueError()), error=f"{job.get('output')}: also the output of job {earlier}", error_kind="options")
+            error = f"{job.get('output')}: also the output of job {earlier}"
+            reports[index] = dict(_lost(job, ValueError()), error=error, error_kind="options")
     # Largest inputs first, so that long jobs do not start last; consecutive jobs of that order make a task.
     order = sorted((i for i in range(len(jobs)) if reports[i] is None), key=lambda i: -_size(jobs[i]))
     pending = [order[k : k + per_task] for k in range(0, len(order), per_task)]
@@ -124,7 +125,9 @@ def convert_many(
     while pending:
         pool = concurrent.futures.ProcessPoolExecutor(max_workers=os.cpu_count() or 1) if own else executor
         try:
-            futures = {pool.submit(run_jobs, [jobs[i] for i in task], force, threads_per_job): task for task in pending}
+            futures = {
+                pool.submit(run_jobs, [jobs[i] for i in task], force, threads_per_job): task for task in pending
+            }
             retry: List[List[int]] = []
             for future in concurrent.futures.as_completed(futures):
                 task = futures[future]
