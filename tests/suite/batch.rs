@@ -117,8 +117,9 @@ fn a_directory_and_a_glob_convert_every_scene_with_outputs_by_pattern() {
 fn an_interrupted_batch_leaves_no_partial_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // Two grids of 320,000 triangles at max-quality: seconds each, so the signal arrives mid-job.
-    let n = 400;
+    // Two grids of 720,000 triangles at max-quality: about 10 s each here, so the signal arrives mid-job even on
+    // a machine several times faster.
+    let n = 600;
     let mut obj = String::new();
     for y in 0..=n {
         for x in 0..=n {
